@@ -1,0 +1,8 @@
+/* common/iso_clock.h -- monotonic time in seconds, for phase timings and ticks. */
+#ifndef ISO_CLOCK_H
+#define ISO_CLOCK_H
+
+/* Seconds on CLOCK_MONOTONIC; only differences are meaningful. */
+double iso_clock_now(void);
+
+#endif

@@ -1,0 +1,47 @@
+/* solver/iso_element.h -- the per-element quadratic forms of the method
+ * (docs/method.md): best rigid fit R_T, the distortion block Q1_T (9x9), and
+ * the smoothness block Q2 of an ordered pair of adjacent triangles (12x12).
+ *
+ * These are pure functions of the corner positions, shared by the CPU
+ * assembly, the tests, and as the reference the OpenCL kernels are checked
+ * against. All matrices are dense row-major doubles.
+ *
+ * The rigid field is parametrised about the triangle's centroid c with the
+ * rotation scaled by the triangle's size s (RMS corner distance from c):
+ *     ρ(x) = a + b × (x − c) / s,   p = (a, b) ∈ R⁶,
+ * which spans the same fields as the paper's c = 0 form but stays well
+ * conditioned far from the origin and at any mesh scale. */
+#ifndef ISO_ELEMENT_H
+#define ISO_ELEMENT_H
+
+typedef enum iso_weighting {
+    ISO_WEIGHT_PARAM = 0, /* N_T = (1/24) J⊗I: integral over the parameter triangle */
+    ISO_WEIGHT_AREA = 1   /* N_T = (A_T/12) J⊗I: integral over the surface */
+} iso_weighting;
+
+/* Centroid c and size s of a triangle (x: 3 corners, 9 doubles). */
+void iso_elem_frame(const double x[9], double c[3], double *s);
+
+/* N_T's scale: 1/24 (param) or area/12 (area); N_T = scale * (J ⊗ I3). */
+double iso_elem_n_scale(const double x[9], iso_weighting w);
+
+/* E (9x6): evaluates the rigid field p, parametrised about (c, s), at the
+ * three points x (9 doubles). */
+void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double E[54]);
+
+/* Best rigid fit R (6x9) of triangle x: p̂ = R v_T, in the (c, s) frame of
+ * iso_elem_frame. Independent of the weighting. Returns 0, or -1 if the 6x6
+ * normal matrix is not positive definite (degenerate triangle). */
+int iso_elem_rigid_fit(const double x[9], double R[54]);
+
+/* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
+int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);
+
+/* Q2 (12x12) of the ordered pair (Ti, Tj): f_{i,j}(v) = v4ᵀ Q2 v4, where the
+ * four local vertices are Ti's corners in Ti's order followed by Tj's corner
+ * that is not in Ti. xi: Ti's 3 corners; xo: that fourth vertex; jmap: for
+ * each corner of Tj (in any order) its local index 0..3. N is Tj's. */
+int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_weighting w,
+                double Q[144]);
+
+#endif

@@ -1,0 +1,45 @@
+/* solver/iso_integrate.h -- integrating the free vertices along the field.
+ *
+ * dx/dt = v̂(x, t) for free vertices; handle vertices are placed from their
+ * exact pose at every stage (never integrated, so they cannot drift); fixed
+ * vertices never move. Third-order Adams–Bashforth–Moulton in PECE form
+ * (two field evaluations per step), started with RK4, with variable-step
+ * coefficients. Adaptive mode controls the step with Milne's estimate
+ * |x_c − x_p| / 10 (max over free vertices) against tol × bbox diagonal. */
+#ifndef ISO_INTEGRATE_H
+#define ISO_INTEGRATE_H
+
+#include "iso_motion.h"
+#include "iso_solver.h"
+
+typedef struct iso_integrate_opts {
+    double t0, t1; /* default 0, 1 */
+    int steps;     /* > 0: fixed step (t1 − t0)/steps; 0: adaptive */
+    double tol;    /* adaptive: local error per step relative to the bbox
+                      diagonal; default ISO_INTEGRATE_DEFAULT_TOL */
+    /* Called after every accepted step, t in [t0, t1]; may be NULL. */
+    void (*progress)(void *ctx, double t, int steps, long evaluations);
+    void *progress_ctx;
+} iso_integrate_opts;
+
+#define ISO_INTEGRATE_DEFAULT_TOL 1e-4
+
+void iso_integrate_opts_default(iso_integrate_opts *o);
+
+typedef struct iso_integrate_stats {
+    int steps;        /* accepted steps, RK4 start included */
+    int rk4_steps;
+    int rejected;     /* adaptive steps redone with a smaller step */
+    long evaluations; /* field evaluations */
+    double max_err_estimate; /* largest accepted Milne estimate, relative */
+} iso_integrate_stats;
+
+/* Integrates from t0 to t1. x (3*nv) holds the rest positions on entry (the
+ * mesh's, or any pose consistent with the path at t0) and the result on exit.
+ * Handle h's vertices are placed at pose(t) applied to the mesh's rest
+ * positions. */
+ISO_NODISCARD int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r,
+                                const iso_path *path, const iso_integrate_opts *opts,
+                                double *x, iso_integrate_stats *st, iso_err *err);
+
+#endif

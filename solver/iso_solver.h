@@ -1,0 +1,67 @@
+/* solver/iso_solver.h -- one field evaluation of the method: given the
+ * current positions and the velocities of the constrained vertices, the
+ * free vertices' velocities that minimise d(v) = vᵀ A(x) v.
+ *
+ * One iso_solver owns a CHOLMOD Common, the free-free pattern (built once
+ * from connectivity and regions, analysed once), the numeric factor and the
+ * solve workspace. Per evaluation it refills values, factorizes and solves.
+ * Not thread-safe: one solver per thread.
+ *
+ * Creation refuses ill-posed problems before any solve: ω outside (0, 1], a
+ * connected part of the mesh with free vertices but no fixed or handle
+ * vertex, or one whose constrained vertices are too few (all on one line)
+ * to pin its rigid motions. */
+#ifndef ISO_SOLVER_H
+#define ISO_SOLVER_H
+
+#include "iso_element.h"
+#include "iso_err.h"
+#include "iso_mesh.h"
+#include "iso_regions.h"
+
+typedef struct iso_solver iso_solver; /* opaque */
+
+typedef struct iso_solver_opts {
+    double omega;          /* in (0, 1]; default 1/3 */
+    iso_weighting weighting; /* default ISO_WEIGHT_PARAM */
+} iso_solver_opts;
+
+void iso_solver_opts_default(iso_solver_opts *o);
+
+/* The solver keeps pointers to mesh and regions: both must outlive it. */
+ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
+                                    const iso_solver_opts *opts, /* NULL = defaults */
+                                    iso_solver **out, iso_err *err);
+void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
+
+/* One field evaluation.
+ * input:  x  (3*nv) current positions of all vertices;
+ *         vc (3*nv) velocities; only the entries of handle vertices are read
+ *            (fixed vertices are zero, free ones are unknown).
+ * output: v  (3*nv) the minimising field: free entries solved, handle
+ *            entries copied from vc, fixed and unreferenced set to zero.
+ * A system that is not positive definite is ISO_ENUMERIC naming the row and
+ * its vertex, never a silent wrong answer. */
+ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v,
+                                   iso_err *err);
+
+typedef struct iso_solver_stats {
+    long evaluations;
+    double t_assembly, t_factor, t_solve; /* seconds, summed */
+    int n_free;                           /* free vertices */
+    long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
+} iso_solver_stats;
+void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
+
+/* Assembles the whole 3nv x 3nv matrix A(x) (all vertices, no constraints)
+ * as dense row-major into `A` (caller-owned, (3nv)^2 doubles). For tests and
+ * small meshes only. */
+ISO_NODISCARD int iso_assemble_dense(const iso_mesh *m, const double *x,
+                                     const iso_solver_opts *opts, double *A, iso_err *err);
+
+/* d(v) = (1−ω) d1 + ω d2 at positions x, evaluated element by element
+ * (no global matrix); d1 and d2 separately if the pointers are non-NULL. */
+double iso_distortion(const iso_mesh *m, const double *x, const double *v,
+                      const iso_solver_opts *opts, double *d1, double *d2);
+
+#endif

@@ -1,0 +1,29 @@
+/* tests/testutil.h -- small helpers shared by the cmocka test programs. */
+#ifndef ISO_TESTUTIL_H
+#define ISO_TESTUTIL_H
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+/* Exit code CTest reads as "skipped" (SKIP_RETURN_CODE). */
+#define ISO_TEST_SKIP 77
+
+/* Writes a path under the test build's tmp folder into buf. */
+const char *iso_test_tmp(char *buf, size_t cap, const char *name);
+/* Writes `len` bytes (or strlen(text) if len < 0) to path; asserts success. */
+void iso_test_write(const char *path, const char *text, long len);
+/* Path of a benchmark file (e.g. "03-cactus-bend/cactus.off") into buf;
+ * returns 1 if the file exists, else 0. */
+int iso_test_benchmark(char *buf, size_t cap, const char *rel);
+/* Path of a file under tests/data. */
+const char *iso_test_data(char *buf, size_t cap, const char *rel);
+
+/* max |a_i - b_i| over n entries. */
+double iso_test_max_abs_diff(const double *a, const double *b, size_t n);
+/* max |a_i| */
+double iso_test_max_abs(const double *a, size_t n);
+
+#endif
