@@ -32,7 +32,15 @@ typedef struct iso_mesh iso_mesh; /* opaque */
 /* Builds a mesh from arrays (copied). `origin` names the source in messages
  * (a file name, or NULL for "mesh"); `tri_src` optionally gives, per
  * triangle, the line (text) or byte offset (binary) it came from, and
- * `src_is_offset` says which. */
+ * `src_is_offset` says which.
+ * Checks run in this order, the first failure wins: counts (nv >= 3,
+ * nt >= 1), index range, repeated index in a triangle, finite coordinates,
+ * duplicated triangle, quality, non-manifold edge. Codes: ISO_EINVAL for
+ * caller bugs (NULL arrays, negative counts); ISO_EPARSE for malformed data
+ * (index out of range, repeated index, non-finite coordinate); ISO_EMESH for
+ * a well-formed but unusable mesh (too few vertices, no triangle, duplicated,
+ * degenerate or non-manifold triangles). err->offset is the offending
+ * triangle's tri_src entry, or -1. On failure *out is NULL. */
 ISO_NODISCARD int iso_mesh_create(int nv, const double *x, int nt, const int *tri,
                                   const char *origin, iso_mesh **out, iso_err *err);
 ISO_NODISCARD int iso_mesh_create_src(int nv, const double *x, int nt, const int *tri,
