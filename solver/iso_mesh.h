@@ -78,12 +78,18 @@ typedef enum iso_mesh_format {
 } iso_mesh_format;
 
 /* Loads OFF/OBJ/PLY by extension (case-insensitive); content decides ASCII
- * vs binary PLY. */
+ * vs binary PLY. An unknown extension is ISO_ENOTSUP, an unreadable file
+ * ISO_EIO, malformed content ISO_EPARSE (also for a header count larger than
+ * the file can hold, and for content after the announced elements), a
+ * non-convex polygon or an unusable mesh ISO_EMESH. */
 ISO_NODISCARD int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err);
 
 /* Writes m's triangles with positions `x` (3*nv; NULL = rest positions).
  * Coordinates are written with 17 significant digits in text formats, so a
- * save/load round trip is exact. */
+ * save/load round trip is exact. All nv vertices are written, referenced or
+ * not, so indices survive. ISO_MESH_FMT_AUTO with ".ply" writes binary
+ * little endian. Non-finite positions are refused (ISO_EINVAL) rather than
+ * written into a file that could not be read back. */
 ISO_NODISCARD int iso_mesh_save(const iso_mesh *m, const double *x, const char *path,
                                 iso_mesh_format fmt, iso_err *err);
 

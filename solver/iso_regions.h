@@ -24,7 +24,10 @@ void iso_regions_deinit(iso_regions *r); /* zeroed or deinited struct is fine */
 
 /* Reads a .sel file: '#' comments, then exactly nv integers in {0,1,2}
  * (whitespace separated). Errors name the file, line, and what is wrong: a
- * count different from nv, a value outside {0,1,2}, a non-integer token. */
+ * count different from nv, a value outside {0,1,2}, a non-integer token.
+ * Initialises r itself (do not pass an initialised struct: it would leak);
+ * on success the caller deinits it, on failure it is left zeroed. Bad
+ * content is ISO_EPARSE, an unreadable file ISO_EIO. */
 ISO_NODISCARD int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err *err);
 
 /* Largest deviation |RᵀR − I| (max abs entry) and |det R − 1| accepted for a
@@ -36,7 +39,8 @@ ISO_NODISCARD int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err
 /* Reads a .def file: '#' comments, then 16 numbers, a row-major 4x4 matrix M
  * with x' = M [x;1]. Refuses: a wrong count, non-finite values, a last row
  * other than (0 0 0 1), and a matrix whose 3x3 part is not a rotation within
- * ISO_DEF_RIGID_TOL (it names the deviation). */
+ * ISO_DEF_RIGID_TOL (it names the deviation). All content errors are
+ * ISO_EPARSE; M is written only on success. */
 ISO_NODISCARD int iso_def_load(const char *path, double M[16], iso_err *err);
 
 #endif
