@@ -83,7 +83,7 @@ int iso_sel__parse(const char *name, const unsigned char *data, size_t len, int 
     if (i != nv) {
         rc = iso_err_set(err, ISO_EPARSE, t.line,
                          "%s, line %ld: file ends after %ld values, but the mesh has %d vertices",
-                         name, t.line, i, nv);
+                         name, t.line > 0 ? t.line : 1, i, nv);
         goto err;
     }
     return ISO_OK;
@@ -178,7 +178,7 @@ int iso_def__parse(const char *name, const unsigned char *data, size_t len, doub
         return iso_err_set(err, ISO_EPARSE, t.line,
                            "%s, line %ld: file ends after %d of 16 numbers (expected a 4x4 "
                            "matrix)",
-                           name, t.line, k);
+                           name, t.line > 0 ? t.line : 1, k);
     int rc = check_rigid(name, v, row_line, err);
     if (rc == ISO_OK)
         memcpy(M, v, sizeof v);
