@@ -159,17 +159,16 @@ static int check_duplicates(int nt, const int *tri, const where_ctx *w, iso_err 
         k[t].t = t;
     }
     qsort(k, (size_t)nt, sizeof *k, cmp_tri_key);
+    /* g: start of the current run of equal vertex sets; its first member is
+     * what every later member duplicates. One pass, O(nt). */
     int first = -1, second = INT_MAX;
-    for (int i = 0; i + 1 < nt; i++) {
-        if (memcmp(k[i].v, k[i + 1].v, sizeof k[i].v) != 0)
+    for (int i = 1, g = 0; i < nt; i++) {
+        if (memcmp(k[i].v, k[g].v, sizeof k[g].v) != 0) {
+            g = i;
             continue;
-        /* k[i] may be a later member of the group; its group's first member
-         * is what the later copy duplicates. */
-        int j = i;
-        while (j > 0 && memcmp(k[j - 1].v, k[i].v, sizeof k[i].v) == 0)
-            j--;
-        if (k[i + 1].t < second)
-            first = k[j].t, second = k[i + 1].t;
+        }
+        if (i == g + 1 && k[i].t < second)
+            first = k[g].t, second = k[i].t;
     }
     free(k);
     if (first < 0)

@@ -128,6 +128,10 @@ static void duplicated_triangle(void **state)
     static const long src[] = {3, 4, 5};
     expect_fail(4, square_x, 3, t, src, 0, ISO_EMESH,
                 "line 5: triangle 2 duplicates triangle 0 (line 3)", "{0, 1, 2}");
+    /* two duplicated pairs: the one whose copy comes first is reported */
+    static const int t2[] = {0, 1, 2, 0, 2, 3, 3, 2, 0, 1, 2, 0, 0, 1, 2};
+    expect_fail(4, square_x, 5, t2, NULL, 0, ISO_EMESH, "triangle 2 duplicates triangle 1",
+                "{0, 2, 3}");
 }
 
 static void degenerate_triangle(void **state)
