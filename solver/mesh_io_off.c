@@ -165,7 +165,7 @@ static int read_faces(iso_mesh__builder *b, iso_mesh__text *t, long nf, iso_err 
 int iso_mesh__read_off(iso_mesh__builder *b, const char *data, size_t len, iso_err *err)
 {
     iso_mesh__text t;
-    long nv, nf;
+    long nv = 0, nf = 0;
     int rc;
     iso_mesh__text_init(&t, data, len);
     if ((rc = read_header(b, &t, &nv, &nf, err)) != ISO_OK ||

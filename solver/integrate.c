@@ -1,0 +1,303 @@
+/* solver/integrate.c -- ABM3 PECE with an RK4 start (iso_integrate.h).
+ *
+ * State: the positions of all vertices. Only free vertices are integrated;
+ * before every field evaluation the handle vertices are placed at their
+ * exact pose for that stage's time, so they cannot drift.
+ *
+ * The Adams coefficients are recomputed for the actual node spacing, so the
+ * step may change without restarting: the predictor integrates the
+ * quadratic through f at t_n, t_{n-1}, t_{n-2} over [t_n, t_n + h], the
+ * corrector the one through t_{n+1}, t_n, t_{n-1}. With equal steps they are
+ * the textbook 23/12, −16/12, 5/12 and 5/12, 8/12, −1/12. */
+#include "iso_integrate.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void iso_integrate_opts_default(iso_integrate_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->t0 = 0.0;
+    o->t1 = 1.0;
+    o->steps = 0;
+    o->tol = ISO_INTEGRATE_DEFAULT_TOL;
+}
+
+typedef struct integ {
+    iso_solver *s;
+    const iso_mesh *m;
+    const iso_regions *r;
+    const iso_path *path;
+    int nv;
+    const double *rest;
+    iso_pose *poses;   /* per handle, at the current stage */
+    iso_twist *twists;
+    double *vc;        /* 3nv handle velocities */
+    double *f[3];      /* history: f_n, f_{n-1}, f_{n-2} (3nv each) */
+    double tf[3];      /* their times */
+    double *xs, *k[4]; /* stage positions and RK4 slopes */
+    double *xp;        /* predictor */
+    long evaluations;
+} integ;
+
+/* Places the handle vertices of x at their poses for time t and fills the
+ * handle velocities. */
+static int place_handles(integ *g, double t, double *x, iso_err *err)
+{
+    for (int h = 0; h < g->r->n_handles; h++) {
+        int rc = g->path->eval(g->path->ctx, h, t, &g->poses[h], &g->twists[h]);
+        if (rc != ISO_OK)
+            return iso_err_set(err, rc < 0 ? rc : ISO_EINVAL, -1,
+                               "the path of handle %d could not be evaluated at t = %g", h, t);
+    }
+    for (int i = 0; i < g->nv; i++) {
+        if (g->r->kind[i] != ISO_HANDLE)
+            continue;
+        int h = g->r->handle[i];
+        iso_pose_apply(&g->poses[h], g->rest + 3 * i, x + 3 * i);
+        iso_twist_velocity(&g->twists[h], x + 3 * i, g->vc + 3 * i);
+    }
+    return ISO_OK;
+}
+
+/* f = v̂(x, t); x's handle vertices are updated to time t. */
+static int eval_field(integ *g, double t, double *x, double *f, iso_err *err)
+{
+    int rc = place_handles(g, t, x, err);
+    if (rc == ISO_OK)
+        rc = iso_solver_field(g->s, x, g->vc, f, err);
+    if (rc == ISO_OK)
+        g->evaluations++;
+    return rc;
+}
+
+/* y = x + Σ c_j d_j on free vertices; other vertices copied from x. */
+static void combine(const integ *g, double *y, const double *x, int n, const double *c,
+                    double *const *d)
+{
+    for (int i = 0; i < g->nv; i++) {
+        int fr = g->r->kind[i] == ISO_FREE;
+        for (int a = 0; a < 3; a++) {
+            int q = 3 * i + a;
+            double val = x[q];
+            if (fr)
+                for (int j = 0; j < n; j++)
+                    val += c[j] * d[j][q];
+            y[q] = val;
+        }
+    }
+}
+
+/* One RK4 step from (t, x) with f(x, t) already in g->f[0]; x advanced. */
+static int rk4_step(integ *g, double t, double h, double *x, iso_err *err)
+{
+    double half = 0.5 * h;
+    int rc;
+    memcpy(g->k[0], g->f[0], (size_t)(3 * g->nv) * sizeof(double));
+    combine(g, g->xs, x, 1, &half, &g->k[0]);
+    if ((rc = eval_field(g, t + half, g->xs, g->k[1], err)) != ISO_OK)
+        return rc;
+    combine(g, g->xs, x, 1, &half, &g->k[1]);
+    if ((rc = eval_field(g, t + half, g->xs, g->k[2], err)) != ISO_OK)
+        return rc;
+    combine(g, g->xs, x, 1, &h, &g->k[2]);
+    if ((rc = eval_field(g, t + h, g->xs, g->k[3], err)) != ISO_OK)
+        return rc;
+    double c[4] = {h / 6, h / 3, h / 3, h / 6};
+    combine(g, x, x, 4, c, g->k);
+    return ISO_OK;
+}
+
+/* ∫_a^b of the Lagrange basis polynomials through nodes t[0..2], exact by
+ * two-point Gauss–Legendre (the basis is quadratic). */
+static void lagrange_weights(const double t[3], double a, double b, double w[3])
+{
+    double mid = 0.5 * (a + b), rad = 0.5 * (b - a), g = rad / sqrt(3.0);
+    double pts[2] = {mid - g, mid + g};
+    for (int i = 0; i < 3; i++) {
+        w[i] = 0;
+        for (int q = 0; q < 2; q++) {
+            double l = 1;
+            for (int j = 0; j < 3; j++)
+                if (j != i)
+                    l *= (pts[q] - t[j]) / (t[i] - t[j]);
+            w[i] += rad * l;
+        }
+    }
+}
+
+static void push_history(integ *g, double t)
+{
+    double *oldest = g->f[2];
+    g->f[2] = g->f[1];
+    g->f[1] = g->f[0];
+    g->f[0] = oldest;
+    g->tf[2] = g->tf[1];
+    g->tf[1] = g->tf[0];
+    g->tf[0] = t;
+}
+
+/* Max over free vertices of |a − b| (Euclidean per vertex). */
+static double max_free_diff(const integ *g, const double *a, const double *b)
+{
+    double m = 0;
+    for (int i = 0; i < g->nv; i++) {
+        if (g->r->kind[i] != ISO_FREE)
+            continue;
+        double dx = a[3 * i] - b[3 * i], dy = a[3 * i + 1] - b[3 * i + 1],
+               dz = a[3 * i + 2] - b[3 * i + 2];
+        m = fmax(m, sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    return m;
+}
+
+/* PEC of one ABM3 step of length h from t = tf[0]; leaves the corrected
+ * positions in xc and returns Milne's estimate in *est (absolute). The
+ * history is not touched. */
+static int abm_predict_correct(integ *g, double h, const double *x, double *xc, double *est,
+                               iso_err *err)
+{
+    double t = g->tf[0], wp[3], wc[3];
+    double tp[3] = {0, g->tf[1] - t, g->tf[2] - t};
+    lagrange_weights(tp, 0, h, wp);
+    combine(g, g->xp, x, 3, wp, g->f);
+    int rc = eval_field(g, t + h, g->xp, g->k[0], err);
+    if (rc != ISO_OK)
+        return rc;
+    double tc[3] = {h, 0, g->tf[1] - t};
+    lagrange_weights(tc, 0, h, wc);
+    double *dc[3] = {g->k[0], g->f[0], g->f[1]};
+    combine(g, xc, x, 3, wc, dc);
+    *est = max_free_diff(g, xc, g->xp) / 10.0;
+    return ISO_OK;
+}
+
+static int integ_init(integ *g, iso_solver *s, const iso_mesh *m, const iso_regions *r,
+                      const iso_path *path, iso_err *err)
+{
+    memset(g, 0, sizeof *g);
+    g->s = s;
+    g->m = m;
+    g->r = r;
+    g->path = path;
+    g->nv = iso_mesh_vertex_count(m);
+    g->rest = iso_mesh_positions(m);
+    size_t n = (size_t)(3 * g->nv) * sizeof(double);
+    int nh = r->n_handles > 0 ? r->n_handles : 1;
+    g->poses = calloc((size_t)nh, sizeof *g->poses);
+    g->twists = calloc((size_t)nh, sizeof *g->twists);
+    g->vc = calloc(1, n);
+    g->xs = calloc(1, n);
+    g->xp = calloc(1, n);
+    int ok = g->poses && g->twists && g->vc && g->xs && g->xp;
+    for (int i = 0; i < 3; i++)
+        ok = ok && (g->f[i] = calloc(1, n));
+    for (int i = 0; i < 4; i++)
+        ok = ok && (g->k[i] = calloc(1, n));
+    return ok ? ISO_OK : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the integrator");
+}
+
+static void integ_deinit(integ *g)
+{
+    free(g->poses);
+    free(g->twists);
+    free(g->vc);
+    free(g->xs);
+    free(g->xp);
+    for (int i = 0; i < 3; i++)
+        free(g->f[i]);
+    for (int i = 0; i < 4; i++)
+        free(g->k[i]);
+}
+
+/* Step length that lands exactly on t1 without leaving a sliver. The
+ * stretch allowance (5%) must stay below what a rejection shrinks a step by
+ * (at least 10%), or a rejected last step would be stretched back to the
+ * same length forever. */
+static double fit_to_end(double t, double t1, double h)
+{
+    double rem = t1 - t;
+    if (rem <= 1.05 * h)
+        return rem;
+    if (rem < 2 * h)
+        return 0.5 * rem;
+    return h;
+}
+
+static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_stats *st,
+               iso_err *err)
+{
+    double span = o->t1 - o->t0, t = o->t0;
+    int adaptive = o->steps <= 0;
+    double scale = iso_mesh_bbox_diagonal(g->m);
+    double tol = (o->tol > 0 ? o->tol : ISO_INTEGRATE_DEFAULT_TOL) * scale;
+    double h = adaptive ? span * fmin(0.1, cbrt(o->tol > 0 ? o->tol : ISO_INTEGRATE_DEFAULT_TOL))
+                        : span / o->steps;
+    int total = adaptive ? 0 : o->steps, rc;
+    double *xc = g->xs;
+
+    if ((rc = eval_field(g, t, x, g->f[0], err)) != ISO_OK)
+        return rc;
+    g->tf[0] = t;
+    while (t < o->t1 && (adaptive || st->steps < total)) {
+        if (adaptive)
+            h = fit_to_end(t, o->t1, h);
+        else if (st->steps == total - 1)
+            h = o->t1 - t; /* no drift from summing h */
+        double tn = t + h, h_next = h;
+        if (st->steps < 2) {
+            if ((rc = rk4_step(g, t, h, x, err)) != ISO_OK)
+                return rc;
+            st->rk4_steps++;
+        } else {
+            double est;
+            if ((rc = abm_predict_correct(g, h, x, xc, &est, err)) != ISO_OK)
+                return rc;
+            double ratio = est / tol;
+            if (adaptive && ratio > 1.0 && h > 1e-6 * span) {
+                st->rejected++;
+                h *= fmax(0.2, 0.9 * cbrt(1.0 / ratio));
+                continue;
+            }
+            st->max_err_estimate = fmax(st->max_err_estimate, est / scale);
+            memcpy(x, xc, (size_t)(3 * g->nv) * sizeof(double));
+            if (adaptive)
+                h_next = fmin(h * fmin(2.0, 0.9 * cbrt(1.0 / fmax(ratio, 1e-12))), span);
+        }
+        if (tn > o->t1 || (!adaptive && st->steps == total - 1))
+            tn = o->t1;
+        h = h_next;
+        push_history(g, tn);
+        if ((rc = eval_field(g, tn, x, g->f[0], err)) != ISO_OK)
+            return rc;
+        t = tn;
+        st->steps++;
+        if (o->progress)
+            o->progress(o->progress_ctx, t, st->steps, g->evaluations);
+    }
+    return ISO_OK;
+}
+
+int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const iso_path *path,
+                  const iso_integrate_opts *opts, double *x, iso_integrate_stats *st,
+                  iso_err *err)
+{
+    iso_integrate_opts o;
+    if (opts)
+        o = *opts;
+    else
+        iso_integrate_opts_default(&o);
+    memset(st, 0, sizeof *st);
+    if (!(o.t1 > o.t0))
+        return iso_err_set(err, ISO_EINVAL, -1, "the time span [%g, %g] is empty", o.t0, o.t1);
+    if (o.steps <= 0 && !(o.tol > 0))
+        return iso_err_set(err, ISO_EINVAL, -1, "tolerance %g must be positive", o.tol);
+    integ g;
+    int rc = integ_init(&g, s, m, r, path, err);
+    if (rc == ISO_OK)
+        rc = run(&g, &o, x, st, err);
+    st->evaluations = g.evaluations;
+    integ_deinit(&g);
+    return rc;
+}

@@ -1,0 +1,736 @@
+/* solver/solver.c -- the free–free system and its CHOLMOD factorization
+ * (iso_solver.h).
+ *
+ * Layout. Free vertices are numbered 0..nf−1; unknown 3f+α is component α
+ * of free vertex f. A_ff is stored as CHOLMOD's upper triangle (stype = 1),
+ * column-compressed. Because every coupling is a dense 3x3 vertex block, the
+ * rows of block (fa, fb) in scalar column 3fb+k are contiguous: an element
+ * needs only, per local vertex pair, the three column offsets where its
+ * block starts. Those offsets (the "slot map") are computed once.
+ *
+ * Elements are the triangles (Q1, 3 vertices) and the ordered pairs of
+ * edge-adjacent triangles (Q2, 4 vertices). Elements without a free vertex
+ * contribute nothing to A_ff or the right-hand side and are dropped. */
+#include "iso_solver.h"
+
+#include <cholmod.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_clock.h"
+
+typedef struct element {
+    int kind;    /* 1: triangle (Q1), 2: ordered pair (Q2) */
+    int tri;     /* the triangle (Q1) or Ti (Q2) */
+    int v[4];    /* global vertices in local order */
+    int jmap[3]; /* Q2: local index of each of Tj's corners */
+    int slot;    /* index of this element's first slot in the slot map */
+} element;
+
+struct iso_solver {
+    const iso_mesh *m;
+    const iso_regions *r;
+    iso_solver_opts o;
+    int nv, nf;
+    int *free_of;   /* nv: free index or −1 */
+    int *vert_of;   /* nf: vertex of each free index */
+    element *el;
+    int nel;
+    int *slots;     /* per element, per local (a, b): 3 column offsets or −1 */
+    cholmod_common c;
+    cholmod_sparse *A;
+    cholmod_factor *L;
+    cholmod_dense *B, *X, *Y, *E;
+    iso_solver_stats st;
+};
+
+void iso_solver_opts_default(iso_solver_opts *o)
+{
+    o->omega = 1.0 / 3.0;
+    o->weighting = ISO_WEIGHT_PARAM;
+}
+
+static int check_opts(const iso_solver_opts *o, iso_err *err)
+{
+    if (!(o->omega > 0.0 && o->omega <= 1.0))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "omega = %g is outside (0, 1]: with omega = 0 a flat region makes "
+                           "the system singular, and above 1 the distortion term turns negative",
+                           o->omega);
+    if (o->weighting != ISO_WEIGHT_PARAM && o->weighting != ISO_WEIGHT_AREA)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown weighting %d", (int)o->weighting);
+    return ISO_OK;
+}
+
+/* ===== constraint check: every part of the mesh must be pinned ========== */
+
+static int uf_find(int *parent, int i)
+{
+    while (parent[i] != i) {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    return i;
+}
+
+typedef struct part_info {
+    int n_free, n_constrained, first_free;
+    int have_p0, have_p1, pinned;
+    double p0[3], p1[3];
+} part_info;
+
+/* Streams the constrained points of a part: pinned once three of them span
+ * a plane (a rigid field vanishing at three non-collinear points is zero). */
+static void part_add_constrained(part_info *pi, const double *p, double eps)
+{
+    pi->n_constrained++;
+    if (pi->pinned)
+        return;
+    if (!pi->have_p0) {
+        memcpy(pi->p0, p, sizeof pi->p0);
+        pi->have_p0 = 1;
+        return;
+    }
+    double d[3] = {p[0] - pi->p0[0], p[1] - pi->p0[1], p[2] - pi->p0[2]};
+    if (!pi->have_p1) {
+        if (sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) > eps) {
+            memcpy(pi->p1, p, sizeof pi->p1);
+            pi->have_p1 = 1;
+        }
+        return;
+    }
+    double u[3] = {pi->p1[0] - pi->p0[0], pi->p1[1] - pi->p0[1], pi->p1[2] - pi->p0[2]};
+    double cx = u[1] * d[2] - u[2] * d[1], cy = u[2] * d[0] - u[0] * d[2],
+           cz = u[0] * d[1] - u[1] * d[0];
+    double lu = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    if (sqrt(cx * cx + cy * cy + cz * cz) / lu > eps)
+        pi->pinned = 1;
+}
+
+/* Parts are the classes of triangles joined through shared edges: the d2
+ * coupling acts across edges only, so parts that touch at a single vertex
+ * can rotate about it independently and must be pinned separately. */
+static int check_constraints(const iso_mesh *m, const iso_regions *r, iso_err *err)
+{
+    int nt = iso_mesh_triangle_count(m), ne = iso_mesh_edge_count(m);
+    const int *tri = iso_mesh_triangles(m), *et = iso_mesh_edge_triangles(m);
+    const double *x = iso_mesh_positions(m);
+    double eps = 1e-9 * iso_mesh_bbox_diagonal(m);
+    int *parent = malloc((size_t)(nt > 0 ? nt : 1) * sizeof *parent);
+    part_info *pi = calloc((size_t)(nt > 0 ? nt : 1), sizeof *pi);
+    int *seen = calloc((size_t)(r->nv > 0 ? r->nv : 1), sizeof *seen);
+    int rc = ISO_OK;
+    if (!parent || !pi || !seen) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory checking constraints");
+        goto out;
+    }
+    for (int t = 0; t < nt; t++)
+        parent[t] = t;
+    for (int e = 0; e < ne; e++)
+        if (et[2 * e + 1] >= 0) {
+            int a = uf_find(parent, et[2 * e]), b = uf_find(parent, et[2 * e + 1]);
+            if (a != b)
+                parent[a] = b;
+        }
+    /* seen[v] = 1 + the last part that counted v, so shared vertices count
+     * once per part (parts meeting at a vertex each see it). */
+    for (int t = 0; t < nt; t++) {
+        int p = uf_find(parent, t);
+        for (int k = 0; k < 3; k++) {
+            int v = tri[3 * t + k];
+            if (seen[v] == p + 1)
+                continue;
+            seen[v] = p + 1;
+            if (r->kind[v] == ISO_FREE) {
+                if (pi[p].n_free++ == 0)
+                    pi[p].first_free = v;
+            } else {
+                part_add_constrained(&pi[p], x + 3 * v, eps);
+            }
+        }
+    }
+    for (int t = 0; t < nt && rc == ISO_OK; t++) {
+        if (uf_find(parent, t) != t || pi[t].n_free == 0)
+            continue;
+        if (pi[t].n_constrained == 0)
+            rc = iso_err_set(err, ISO_ECONSTRAINT, -1,
+                             "%s: ill-posed: the part of the mesh containing free vertex %d "
+                             "(%d free vertices) touches no fixed or handle vertex, so its "
+                             "motion is undetermined",
+                             iso_mesh_origin(m), pi[t].first_free, pi[t].n_free);
+        else if (!pi[t].pinned)
+            rc = iso_err_set(err, ISO_ECONSTRAINT, -1,
+                             "%s: constraints too few: the %d fixed/handle vertices of the part "
+                             "containing free vertex %d lie on one line, so the part could "
+                             "rotate about it; fix or move at least three non-collinear vertices",
+                             iso_mesh_origin(m), pi[t].n_constrained, pi[t].first_free);
+    }
+out:
+    free(parent);
+    free(pi);
+    free(seen);
+    return rc;
+}
+
+/* ===== elements ========================================================= */
+
+static int third_vertex(const int *t, int a, int b)
+{
+    for (int k = 0; k < 3; k++)
+        if (t[k] != a && t[k] != b)
+            return t[k];
+    return -1;
+}
+
+static void make_pair(const int *tri, int ti, int tj, int a, int b, element *e)
+{
+    const int *Ti = tri + 3 * ti, *Tj = tri + 3 * tj;
+    e->kind = 2;
+    e->tri = ti;
+    memcpy(e->v, Ti, 3 * sizeof(int));
+    e->v[3] = third_vertex(Tj, a, b);
+    for (int k = 0; k < 3; k++) {
+        e->jmap[k] = 3;
+        for (int l = 0; l < 3; l++)
+            if (Tj[k] == Ti[l])
+                e->jmap[k] = l;
+    }
+}
+
+static int has_free(const iso_solver *s, const element *e)
+{
+    int n = e->kind == 1 ? 3 : 4;
+    for (int k = 0; k < n; k++)
+        if (s->free_of[e->v[k]] >= 0)
+            return 1;
+    return 0;
+}
+
+/* All triangles, then both ordered pairs of each interior edge. */
+static int build_elements(iso_solver *s, iso_err *err)
+{
+    const iso_mesh *m = s->m;
+    int nt = iso_mesh_triangle_count(m), ne = iso_mesh_edge_count(m);
+    const int *tri = iso_mesh_triangles(m), *edges = iso_mesh_edges(m),
+              *et = iso_mesh_edge_triangles(m);
+    s->el = malloc((size_t)(nt + 2 * ne + 1) * sizeof *s->el);
+    if (!s->el)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d elements", nt + 2 * ne);
+    int n = 0;
+    for (int t = 0; t < nt; t++) {
+        element *e = &s->el[n];
+        memset(e, 0, sizeof *e);
+        e->kind = 1;
+        e->tri = t;
+        memcpy(e->v, tri + 3 * t, 3 * sizeof(int));
+        e->v[3] = -1;
+        n += has_free(s, e);
+    }
+    for (int k = 0; k < ne; k++) {
+        int t0 = et[2 * k], t1 = et[2 * k + 1];
+        if (t1 < 0)
+            continue;
+        make_pair(tri, t0, t1, edges[2 * k], edges[2 * k + 1], &s->el[n]);
+        n += has_free(s, &s->el[n]);
+        make_pair(tri, t1, t0, edges[2 * k], edges[2 * k + 1], &s->el[n]);
+        n += has_free(s, &s->el[n]);
+    }
+    s->nel = n;
+    return ISO_OK;
+}
+
+/* ===== pattern ========================================================== */
+
+typedef struct coupling {
+    int col, row; /* free vertices, row <= col */
+} coupling;
+
+static int cmp_coupling(const void *pa, const void *pb)
+{
+    const coupling *a = pa, *b = pb;
+    if (a->col != b->col)
+        return a->col < b->col ? -1 : 1;
+    return (a->row > b->row) - (a->row < b->row);
+}
+
+static int find_row(const int *rows, int n, int row)
+{
+    int lo = 0, hi = n - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        if (rows[mid] == row)
+            return mid;
+        if (rows[mid] < row)
+            lo = mid + 1;
+        else
+            hi = mid - 1;
+    }
+    return -1;
+}
+
+/* Builds the block pattern, the scalar CSC matrix and the slot map. */
+static int build_pattern(iso_solver *s, iso_err *err)
+{
+    size_t cap = 0, n = 0;
+    for (int i = 0; i < s->nel; i++)
+        cap += s->el[i].kind == 1 ? 6 : 10;
+    coupling *cp = malloc((cap + 1) * sizeof *cp);
+    int *bstart = calloc((size_t)s->nf + 1, sizeof *bstart);
+    int *brows = NULL;
+    int rc = ISO_OK;
+    if (!cp || !bstart) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory building the pattern");
+        goto out;
+    }
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        int nl = e->kind == 1 ? 3 : 4;
+        for (int a = 0; a < nl; a++)
+            for (int b = a; b < nl; b++) {
+                int fa = s->free_of[e->v[a]], fb = s->free_of[e->v[b]];
+                if (fa < 0 || fb < 0)
+                    continue;
+                cp[n].col = fa > fb ? fa : fb;
+                cp[n].row = fa > fb ? fb : fa;
+                n++;
+            }
+    }
+    qsort(cp, n, sizeof *cp, cmp_coupling);
+    size_t u = 0;
+    for (size_t i = 0; i < n; i++)
+        if (u == 0 || cp[i].col != cp[u - 1].col || cp[i].row != cp[u - 1].row)
+            cp[u++] = cp[i];
+    brows = malloc((u + 1) * sizeof *brows);
+    if (!brows) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory building the pattern");
+        goto out;
+    }
+    for (size_t i = 0; i < u; i++) {
+        brows[i] = cp[i].row;
+        bstart[cp[i].col + 1]++;
+    }
+    for (int f = 0; f < s->nf; f++)
+        bstart[f + 1] += bstart[f];
+
+    /* Scalar column 3fb+k: 3 rows per off-diagonal block, k+1 of the diagonal. */
+    size_t nnz = 0;
+    for (int f = 0; f < s->nf; f++) {
+        int nb = bstart[f + 1] - bstart[f]; /* includes the diagonal block */
+        nnz += 3 * (size_t)(3 * (nb - 1)) + 6;
+    }
+    int n3 = 3 * s->nf;
+    s->A = cholmod_allocate_sparse((size_t)n3, (size_t)n3, nnz, 1, 1, 1, CHOLMOD_REAL, &s->c);
+    if (!s->A) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate A (%zu entries)", nnz);
+        goto out;
+    }
+    int *Ap = s->A->p, *Ai = s->A->i;
+    Ap[0] = 0;
+    for (int f = 0; f < s->nf; f++) {
+        const int *rows = brows + bstart[f];
+        int nb = bstart[f + 1] - bstart[f];
+        for (int k = 0; k < 3; k++) {
+            int col = 3 * f + k, q = Ap[col];
+            for (int j = 0; j < nb; j++) {
+                int len = rows[j] == f ? k + 1 : 3;
+                for (int a = 0; a < len; a++)
+                    Ai[q++] = 3 * rows[j] + a;
+            }
+            Ap[col + 1] = q;
+        }
+    }
+
+    /* Slot map: per element, per local (a, b) with fa <= fb, the position of
+     * entry (3fa, 3fb+k) for k = 0..2; −1 where the block is not in A_ff. */
+    size_t nslots = 0;
+    for (int i = 0; i < s->nel; i++) {
+        int nl = s->el[i].kind == 1 ? 3 : 4;
+        s->el[i].slot = (int)nslots;
+        nslots += (size_t)(nl * nl * 3);
+    }
+    s->slots = malloc((nslots + 1) * sizeof *s->slots);
+    if (!s->slots) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the slot map");
+        goto out;
+    }
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        int nl = e->kind == 1 ? 3 : 4;
+        int *sl = s->slots + e->slot;
+        for (int a = 0; a < nl; a++)
+            for (int b = 0; b < nl; b++) {
+                int fa = s->free_of[e->v[a]], fb = s->free_of[e->v[b]];
+                int *dst = sl + 3 * (a * nl + b);
+                if (fa < 0 || fb < 0 || fa > fb) {
+                    dst[0] = dst[1] = dst[2] = -1;
+                    continue;
+                }
+                int j = find_row(brows + bstart[fb], bstart[fb + 1] - bstart[fb], fa);
+                for (int k = 0; k < 3; k++)
+                    dst[k] = Ap[3 * fb + k] + 3 * j;
+            }
+    }
+out:
+    free(cp);
+    free(bstart);
+    free(brows);
+    return rc;
+}
+
+/* ===== creation ========================================================= */
+
+static int number_free_vertices(iso_solver *s, iso_err *err)
+{
+    s->free_of = malloc((size_t)s->nv * sizeof *s->free_of);
+    s->vert_of = malloc((size_t)s->nv * sizeof *s->vert_of);
+    if (!s->free_of || !s->vert_of)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+    s->nf = 0;
+    for (int i = 0; i < s->nv; i++) {
+        int f = s->r->kind[i] == ISO_FREE && iso_mesh_vertex_used(s->m, i);
+        s->free_of[i] = f ? s->nf : -1;
+        if (f)
+            s->vert_of[s->nf++] = i;
+    }
+    return ISO_OK;
+}
+
+static int check_regions(const iso_mesh *m, const iso_regions *r, iso_err *err)
+{
+    if (r->nv != iso_mesh_vertex_count(m))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "the regions cover %d vertices but %s has %d", r->nv,
+                           iso_mesh_origin(m), iso_mesh_vertex_count(m));
+    for (int i = 0; i < r->nv; i++) {
+        if (r->kind[i] > ISO_HANDLE)
+            return iso_err_set(err, ISO_EINVAL, -1, "vertex %d has region kind %d", i,
+                               (int)r->kind[i]);
+        if (r->kind[i] == ISO_HANDLE && (r->handle[i] < 0 || r->handle[i] >= r->n_handles))
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "handle vertex %d is on handle %d, but there are %d handles", i,
+                               r->handle[i], r->n_handles);
+    }
+    return ISO_OK;
+}
+
+static int analyse(iso_solver *s, iso_err *err)
+{
+    int n3 = 3 * s->nf;
+    if (n3 == 0)
+        return ISO_OK;
+    /* Unit values so the analysis sees the true pattern. */
+    double *Ax = s->A->x;
+    int *Ap = s->A->p;
+    for (int i = 0; i < Ap[n3]; i++)
+        Ax[i] = 1.0;
+    s->L = cholmod_analyze(s->A, &s->c);
+    if (!s->L || s->c.status < CHOLMOD_OK)
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD analysis failed (status %d)",
+                           s->c.status);
+    s->B = cholmod_zeros((size_t)n3, 1, CHOLMOD_REAL, &s->c);
+    if (!s->B)
+        return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the right-hand side");
+    s->st.nnz_a = Ap[n3];
+    s->st.nnz_l = (long)s->c.lnz;
+    return ISO_OK;
+}
+
+int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_opts *opts,
+                      iso_solver **out, iso_err *err)
+{
+    *out = NULL;
+    iso_solver *s = calloc(1, sizeof *s);
+    if (!s)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+    s->m = m;
+    s->r = r;
+    s->nv = iso_mesh_vertex_count(m);
+    if (opts)
+        s->o = *opts;
+    else
+        iso_solver_opts_default(&s->o);
+    cholmod_start(&s->c);
+    int rc = check_opts(&s->o, err);
+    if (rc == ISO_OK)
+        rc = check_regions(m, r, err);
+    if (rc == ISO_OK)
+        rc = check_constraints(m, r, err);
+    if (rc == ISO_OK)
+        rc = number_free_vertices(s, err);
+    if (rc == ISO_OK)
+        rc = build_elements(s, err);
+    if (rc == ISO_OK)
+        rc = build_pattern(s, err);
+    if (rc == ISO_OK)
+        rc = analyse(s, err);
+    if (rc != ISO_OK) {
+        iso_solver_destroy(s);
+        return rc;
+    }
+    s->st.n_free = s->nf;
+    *out = s;
+    return ISO_OK;
+}
+
+void iso_solver_destroy(iso_solver *s)
+{
+    if (!s)
+        return;
+    cholmod_free_sparse(&s->A, &s->c);
+    cholmod_free_factor(&s->L, &s->c);
+    cholmod_free_dense(&s->B, &s->c);
+    cholmod_free_dense(&s->X, &s->c);
+    cholmod_free_dense(&s->Y, &s->c);
+    cholmod_free_dense(&s->E, &s->c);
+    cholmod_finish(&s->c);
+    free(s->free_of);
+    free(s->vert_of);
+    free(s->el);
+    free(s->slots);
+    free(s);
+}
+
+void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
+{
+    *st = s->st;
+}
+
+/* ===== evaluation ======================================================= */
+
+/* Element matrix Q (dimension 3·nl) of element e at positions x. */
+static int element_matrix(const iso_solver_opts *o, const element *e, const double *x,
+                          double *Q)
+{
+    double xi[9];
+    for (int k = 0; k < 3; k++)
+        memcpy(xi + 3 * k, x + 3 * e->v[k], 3 * sizeof(double));
+    if (e->kind == 1)
+        return iso_elem_q1(xi, o->weighting, Q);
+    return iso_elem_q2(xi, x + 3 * e->v[3], e->jmap, o->weighting, Q);
+}
+
+/* Adds w·Q into A_ff's upper triangle through the slot map, and −w·Q·vc of
+ * the constrained columns into the free rows of the right-hand side. */
+static void scatter(iso_solver *s, const element *e, const double *Q, double w,
+                    const double *vc, double *Ax, double *rhs)
+{
+    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    const int *sl = s->slots + e->slot;
+    for (int a = 0; a < nl; a++) {
+        int fa = s->free_of[e->v[a]];
+        if (fa < 0)
+            continue;
+        for (int b = 0; b < nl; b++) {
+            int gb = e->v[b];
+            const int *pos = sl + 3 * (a * nl + b);
+            if (pos[0] >= 0) {
+                int diag = s->free_of[gb] == fa;
+                for (int k = 0; k < 3; k++)
+                    for (int al = 0; al <= (diag ? k : 2); al++)
+                        Ax[pos[k] + al] += w * Q[(3 * a + al) * dim + 3 * b + k];
+            } else if (s->free_of[gb] < 0 && s->r->kind[gb] == ISO_HANDLE) {
+                for (int al = 0; al < 3; al++) {
+                    const double *q = Q + (3 * a + al) * dim + 3 * b;
+                    rhs[3 * fa + al] -=
+                        w * (q[0] * vc[3 * gb] + q[1] * vc[3 * gb + 1] + q[2] * vc[3 * gb + 2]);
+                }
+            }
+        }
+    }
+}
+
+static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *err)
+{
+    double *Ax = s->A->x, *rhs = s->B->x;
+    int n3 = 3 * s->nf;
+    memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
+    memset(rhs, 0, (size_t)n3 * sizeof(double));
+    double Q[144];
+    double w1 = 1.0 - s->o.omega, w2 = s->o.omega;
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        if (element_matrix(&s->o, e, x, Q) != 0)
+            return iso_err_set(err, ISO_ENUMERIC, -1,
+                               "%s: triangle %d has degenerated during the deformation (its "
+                               "rigid fit is singular)",
+                               iso_mesh_origin(s->m), e->tri);
+        scatter(s, e, Q, e->kind == 1 ? w1 : w2, vc, Ax, rhs);
+    }
+    return ISO_OK;
+}
+
+static int factorize(iso_solver *s, iso_err *err)
+{
+    if (!cholmod_factorize(s->A, s->L, &s->c) || s->c.status < CHOLMOD_OK)
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD factorization failed (status %d)",
+                           s->c.status);
+    if (s->c.status == CHOLMOD_NOT_POSDEF || s->L->minor < s->L->n) {
+        int row = (int)s->L->minor;
+        int f = row / 3, v = s->vert_of[f < s->nf ? f : s->nf - 1];
+        return iso_err_set(err, ISO_ENUMERIC, row,
+                           "%s: the free-free system is not positive definite at row %d "
+                           "(vertex %d, %c component): the constraints do not pin the motion "
+                           "there, or the mesh has degenerated",
+                           iso_mesh_origin(s->m), row, v, "xyz"[row % 3]);
+    }
+    return ISO_OK;
+}
+
+static int solve(iso_solver *s, iso_err *err)
+{
+    if (!cholmod_solve2(CHOLMOD_A, s->L, s->B, NULL, &s->X, NULL, &s->Y, &s->E, &s->c) ||
+        s->c.status < CHOLMOD_OK)
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)",
+                           s->c.status);
+    const double *X = s->X->x;
+    for (int i = 0; i < 3 * s->nf; i++)
+        if (!isfinite(X[i]))
+            return iso_err_set(err, ISO_ENUMERIC, i, "the solve produced a non-finite value at "
+                               "row %d (vertex %d)", i, s->vert_of[i / 3]);
+    return ISO_OK;
+}
+
+int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v, iso_err *err)
+{
+    double t0 = iso_clock_now();
+    int rc = ISO_OK;
+    if (s->nf > 0)
+        rc = assemble(s, x, vc, err);
+    double t1 = iso_clock_now();
+    if (rc == ISO_OK && s->nf > 0)
+        rc = factorize(s, err);
+    double t2 = iso_clock_now();
+    if (rc == ISO_OK && s->nf > 0)
+        rc = solve(s, err);
+    double t3 = iso_clock_now();
+    s->st.t_assembly += t1 - t0;
+    s->st.t_factor += t2 - t1;
+    s->st.t_solve += t3 - t2;
+    if (rc != ISO_OK)
+        return rc;
+    s->st.evaluations++;
+    const double *X = s->nf > 0 ? s->X->x : NULL;
+    for (int i = 0; i < s->nv; i++) {
+        int f = s->free_of[i];
+        for (int a = 0; a < 3; a++) {
+            double val = 0;
+            if (f >= 0)
+                val = X[3 * f + a];
+            else if (s->r->kind[i] == ISO_HANDLE && iso_mesh_vertex_used(s->m, i))
+                val = vc[3 * i + a];
+            v[3 * i + a] = val;
+        }
+    }
+    return ISO_OK;
+}
+
+/* ===== whole-mesh forms (tests, small meshes) =========================== */
+
+/* Calls fn for every element of the whole mesh (no region filtering). */
+typedef void (*element_fn)(void *ctx, const element *e, const double *Q, double w);
+
+static int for_each_element(const iso_mesh *m, const double *x, const iso_solver_opts *o,
+                            element_fn fn, void *ctx, iso_err *err)
+{
+    int nt = iso_mesh_triangle_count(m), ne = iso_mesh_edge_count(m);
+    const int *tri = iso_mesh_triangles(m), *edges = iso_mesh_edges(m),
+              *et = iso_mesh_edge_triangles(m);
+    double Q[144];
+    element e;
+    for (int t = 0; t < nt; t++) {
+        memset(&e, 0, sizeof e);
+        e.kind = 1;
+        e.tri = t;
+        memcpy(e.v, tri + 3 * t, 3 * sizeof(int));
+        if (element_matrix(o, &e, x, Q) != 0)
+            return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", t);
+        fn(ctx, &e, Q, 1.0 - o->omega);
+    }
+    for (int k = 0; k < ne; k++) {
+        if (et[2 * k + 1] < 0)
+            continue;
+        for (int side = 0; side < 2; side++) {
+            make_pair(tri, et[2 * k + side], et[2 * k + 1 - side], edges[2 * k],
+                      edges[2 * k + 1], &e);
+            if (element_matrix(o, &e, x, Q) != 0)
+                return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", e.tri);
+            fn(ctx, &e, Q, o->omega);
+        }
+    }
+    return ISO_OK;
+}
+
+typedef struct dense_ctx {
+    double *A;
+    int n3;
+} dense_ctx;
+
+static void add_dense(void *ctx, const element *e, const double *Q, double w)
+{
+    dense_ctx *d = ctx;
+    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    for (int a = 0; a < dim; a++)
+        for (int b = 0; b < dim; b++)
+            d->A[(size_t)(3 * e->v[a / 3] + a % 3) * (size_t)d->n3 + 3 * e->v[b / 3] + b % 3] +=
+                w * Q[a * dim + b];
+}
+
+int iso_assemble_dense(const iso_mesh *m, const double *x, const iso_solver_opts *opts,
+                       double *A, iso_err *err)
+{
+    iso_solver_opts o;
+    if (opts)
+        o = *opts;
+    else
+        iso_solver_opts_default(&o);
+    int rc = check_opts(&o, err);
+    if (rc != ISO_OK)
+        return rc;
+    dense_ctx d = {A, 3 * iso_mesh_vertex_count(m)};
+    memset(A, 0, (size_t)d.n3 * (size_t)d.n3 * sizeof(double));
+    return for_each_element(m, x, &o, add_dense, &d, err);
+}
+
+typedef struct energy_ctx {
+    const double *v;
+    double d1, d2;
+} energy_ctx;
+
+static void add_energy(void *ctx, const element *e, const double *Q, double w)
+{
+    (void)w;
+    energy_ctx *c = ctx;
+    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    double acc = 0;
+    for (int a = 0; a < dim; a++) {
+        double va = c->v[3 * e->v[a / 3] + a % 3], row = 0;
+        for (int b = 0; b < dim; b++)
+            row += Q[a * dim + b] * c->v[3 * e->v[b / 3] + b % 3];
+        acc += va * row;
+    }
+    if (e->kind == 1)
+        c->d1 += acc;
+    else
+        c->d2 += acc;
+}
+
+double iso_distortion(const iso_mesh *m, const double *x, const double *v,
+                      const iso_solver_opts *opts, double *d1, double *d2)
+{
+    iso_solver_opts o;
+    if (opts)
+        o = *opts;
+    else
+        iso_solver_opts_default(&o);
+    energy_ctx c = {v, 0, 0};
+    iso_err e;
+    iso_err_clear(&e);
+    if (for_each_element(m, x, &o, add_energy, &c, &e) != ISO_OK)
+        return NAN;
+    if (d1)
+        *d1 = c.d1;
+    if (d2)
+        *d2 = c.d2;
+    return (1.0 - o.omega) * c.d1 + o.omega * c.d2;
+}
