@@ -22,8 +22,20 @@
 typedef struct iso_solver iso_solver; /* opaque */
 
 typedef struct iso_solver_opts {
-    double omega;          /* in (0, 1]; default 1/3 */
+    double omega;            /* in (0, 1]; default 1/3 */
     iso_weighting weighting; /* default ISO_WEIGHT_PARAM */
+    /* Isometry restoration (beyond the paper; 0 = off, the paper's method
+     * exactly). Adds, per edge e = (i, j) with rest length L_e, current
+     * length |e| and unit direction u_e, the term
+     *     μ w_e (u_e · (v_j − v_i) + (|e| − L_e) / τ)²
+     * which asks each edge's length rate to pull its length back to L_e with
+     * time constant τ. w_e = 1 under param weighting; under area weighting
+     * w_e = twice the mean rest area of e's triangles, the same factor that
+     * turns param into area weighting for triangles, so μ means the same
+     * under both. Since d_T and the edge term both scale with (strain rate ×
+     * edge length)², μ is independent of the mesh's size and resolution. */
+    double restore_mu;  /* ≥ 0 */
+    double restore_tau; /* > 0 when restore_mu > 0; in the path's time units */
 } iso_solver_opts;
 
 void iso_solver_opts_default(iso_solver_opts *o);

@@ -21,12 +21,18 @@
 #include "iso_clock.h"
 
 typedef struct element {
-    int kind;    /* 1: triangle (Q1), 2: ordered pair (Q2) */
+    int kind;    /* 1: triangle (Q1), 2: ordered pair (Q2), 3: edge (restoration) */
     int tri;     /* the triangle (Q1) or Ti (Q2) */
     int v[4];    /* global vertices in local order */
     int jmap[3]; /* Q2: local index of each of Tj's corners */
     int slot;    /* index of this element's first slot in the slot map */
 } element;
+
+/* Vertices of an element: 3 (triangle), 4 (pair), 2 (edge). */
+static int local_count(const element *e)
+{
+    return e->kind == 1 ? 3 : e->kind == 2 ? 4 : 2;
+}
 
 struct iso_solver {
     const iso_mesh *m;
@@ -38,6 +44,8 @@ struct iso_solver {
     element *el;
     int nel;
     int *slots;     /* per element, per local (a, b): 3 column offsets or −1 */
+    double *rest_len;  /* per edge, when restoration is on */
+    double *edge_w;    /* per edge weight w_e, when restoration is on */
     cholmod_common c;
     cholmod_sparse *A;
     cholmod_factor *L;
@@ -49,6 +57,8 @@ void iso_solver_opts_default(iso_solver_opts *o)
 {
     o->omega = 1.0 / 3.0;
     o->weighting = ISO_WEIGHT_PARAM;
+    o->restore_mu = 0.0;
+    o->restore_tau = 0.0;
 }
 
 static int check_opts(const iso_solver_opts *o, iso_err *err)
@@ -60,6 +70,12 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
                            o->omega);
     if (o->weighting != ISO_WEIGHT_PARAM && o->weighting != ISO_WEIGHT_AREA)
         return iso_err_set(err, ISO_EINVAL, -1, "unknown weighting %d", (int)o->weighting);
+    if (!(o->restore_mu >= 0.0 && isfinite(o->restore_mu)))
+        return iso_err_set(err, ISO_EINVAL, -1, "restoration weight mu = %g must be >= 0",
+                           o->restore_mu);
+    if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "restoration time constant tau = %g must be > 0", o->restore_tau);
     return ISO_OK;
 }
 
@@ -200,21 +216,59 @@ static void make_pair(const int *tri, int ti, int tj, int a, int b, element *e)
 
 static int has_free(const iso_solver *s, const element *e)
 {
-    int n = e->kind == 1 ? 3 : 4;
+    int n = local_count(e);
     for (int k = 0; k < n; k++)
         if (s->free_of[e->v[k]] >= 0)
             return 1;
     return 0;
 }
 
-/* All triangles, then both ordered pairs of each interior edge. */
+/* Rest lengths and weights w_e of the restoration term (iso_solver.h). */
+static int init_restoration(iso_solver *s, iso_err *err)
+{
+    const iso_mesh *m = s->m;
+    int ne = iso_mesh_edge_count(m);
+    const int *edges = iso_mesh_edges(m), *et = iso_mesh_edge_triangles(m),
+              *tri = iso_mesh_triangles(m);
+    const double *x = iso_mesh_positions(m);
+    s->rest_len = malloc((size_t)(ne + 1) * sizeof(double));
+    s->edge_w = malloc((size_t)(ne + 1) * sizeof(double));
+    if (!s->rest_len || !s->edge_w)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the restoration term");
+    for (int k = 0; k < ne; k++) {
+        const double *a = x + 3 * edges[2 * k], *b = x + 3 * edges[2 * k + 1];
+        double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+        s->rest_len[k] = sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+        double w = 1.0;
+        if (s->o.weighting == ISO_WEIGHT_AREA) {
+            double area = 0;
+            int cnt = 0;
+            for (int side = 0; side < 2; side++) {
+                int t = et[2 * k + side];
+                if (t < 0)
+                    continue;
+                double xt[9];
+                for (int c = 0; c < 3; c++)
+                    memcpy(xt + 3 * c, x + 3 * tri[3 * t + c], 3 * sizeof(double));
+                area += 12.0 * iso_elem_n_scale(xt, ISO_WEIGHT_AREA);
+                cnt++;
+            }
+            w = 2.0 * area / cnt;
+        }
+        s->edge_w[k] = w;
+    }
+    return ISO_OK;
+}
+
+/* All triangles, then both ordered pairs of each interior edge, then (with
+ * restoration) the edges. */
 static int build_elements(iso_solver *s, iso_err *err)
 {
     const iso_mesh *m = s->m;
     int nt = iso_mesh_triangle_count(m), ne = iso_mesh_edge_count(m);
     const int *tri = iso_mesh_triangles(m), *edges = iso_mesh_edges(m),
               *et = iso_mesh_edge_triangles(m);
-    s->el = malloc((size_t)(nt + 2 * ne + 1) * sizeof *s->el);
+    s->el = malloc((size_t)(nt + 3 * ne + 1) * sizeof *s->el);
     if (!s->el)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d elements", nt + 2 * ne);
     int n = 0;
@@ -236,8 +290,20 @@ static int build_elements(iso_solver *s, iso_err *err)
         make_pair(tri, t1, t0, edges[2 * k], edges[2 * k + 1], &s->el[n]);
         n += has_free(s, &s->el[n]);
     }
+    /* Edge elements only when restoration is on, so that with it off the
+     * element list, pattern and summation order are exactly the paper's. */
+    for (int k = 0; k < ne && s->o.restore_mu > 0; k++) {
+        element *e = &s->el[n];
+        memset(e, 0, sizeof *e);
+        e->kind = 3;
+        e->tri = k; /* for edges: the edge index */
+        e->v[0] = edges[2 * k];
+        e->v[1] = edges[2 * k + 1];
+        e->v[2] = e->v[3] = -1;
+        n += has_free(s, e);
+    }
     s->nel = n;
-    return ISO_OK;
+    return s->o.restore_mu > 0 ? init_restoration(s, err) : ISO_OK;
 }
 
 /* ===== pattern ========================================================== */
@@ -274,7 +340,7 @@ static int build_pattern(iso_solver *s, iso_err *err)
 {
     size_t cap = 0, n = 0;
     for (int i = 0; i < s->nel; i++)
-        cap += s->el[i].kind == 1 ? 6 : 10;
+        cap += (size_t)(local_count(&s->el[i]) * (local_count(&s->el[i]) + 1) / 2);
     coupling *cp = malloc((cap + 1) * sizeof *cp);
     int *bstart = calloc((size_t)s->nf + 1, sizeof *bstart);
     int *brows = NULL;
@@ -285,7 +351,7 @@ static int build_pattern(iso_solver *s, iso_err *err)
     }
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
-        int nl = e->kind == 1 ? 3 : 4;
+        int nl = local_count(e);
         for (int a = 0; a < nl; a++)
             for (int b = a; b < nl; b++) {
                 int fa = s->free_of[e->v[a]], fb = s->free_of[e->v[b]];
@@ -345,7 +411,7 @@ static int build_pattern(iso_solver *s, iso_err *err)
      * entry (3fa, 3fb+k) for k = 0..2; −1 where the block is not in A_ff. */
     size_t nslots = 0;
     for (int i = 0; i < s->nel; i++) {
-        int nl = s->el[i].kind == 1 ? 3 : 4;
+        int nl = local_count(&s->el[i]);
         s->el[i].slot = (int)nslots;
         nslots += (size_t)(nl * nl * 3);
     }
@@ -356,7 +422,7 @@ static int build_pattern(iso_solver *s, iso_err *err)
     }
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
-        int nl = e->kind == 1 ? 3 : 4;
+        int nl = local_count(e);
         int *sl = s->slots + e->slot;
         for (int a = 0; a < nl; a++)
             for (int b = 0; b < nl; b++) {
@@ -488,6 +554,8 @@ void iso_solver_destroy(iso_solver *s)
     free(s->vert_of);
     free(s->el);
     free(s->slots);
+    free(s->rest_len);
+    free(s->edge_w);
     free(s);
 }
 
@@ -515,7 +583,7 @@ static int element_matrix(const iso_solver_opts *o, const element *e, const doub
 static void scatter(iso_solver *s, const element *e, const double *Q, double w,
                     const double *vc, double *Ax, double *rhs)
 {
-    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    int nl = local_count(e), dim = 3 * nl;
     const int *sl = s->slots + e->slot;
     for (int a = 0; a < nl; a++) {
         int fa = s->free_of[e->v[a]];
@@ -540,6 +608,33 @@ static void scatter(iso_solver *s, const element *e, const double *Q, double w,
     }
 }
 
+/* Restoration term of edge element e: Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ] and its
+ * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
+ * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
+static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q,
+                        double *rhs)
+{
+    const double *a = x + 3 * e->v[0], *b = x + 3 * e->v[1];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (int k = 0; k < 3; k++)
+        u[k] /= len;
+    double we = s->edge_w[e->tri], c = (len - s->rest_len[e->tri]) / s->o.restore_tau;
+    for (int i = 0; i < 6; i++)
+        for (int j = 0; j < 6; j++) {
+            double sign = (i < 3) == (j < 3) ? 1.0 : -1.0;
+            Q[6 * i + j] = sign * we * u[i % 3] * u[j % 3];
+        }
+    for (int end = 0; end < 2; end++) {
+        int f = s->free_of[e->v[end]];
+        if (f < 0)
+            continue;
+        double sign = end == 0 ? -1.0 : 1.0;
+        for (int k = 0; k < 3; k++)
+            rhs[3 * f + k] -= s->o.restore_mu * we * c * sign * u[k];
+    }
+}
+
 static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
     double *Ax = s->A->x, *rhs = s->B->x;
@@ -550,6 +645,11 @@ static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *e
     double w1 = 1.0 - s->o.omega, w2 = s->o.omega;
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
+        if (e->kind == 3) {
+            edge_matrix(s, e, x, Q, rhs);
+            scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
+            continue;
+        }
         if (element_matrix(&s->o, e, x, Q) != 0)
             return iso_err_set(err, ISO_ENUMERIC, -1,
                                "%s: triangle %d has degenerated during the deformation (its "
@@ -669,7 +769,7 @@ typedef struct dense_ctx {
 static void add_dense(void *ctx, const element *e, const double *Q, double w)
 {
     dense_ctx *d = ctx;
-    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    int nl = local_count(e), dim = 3 * nl;
     for (int a = 0; a < dim; a++)
         for (int b = 0; b < dim; b++)
             d->A[(size_t)(3 * e->v[a / 3] + a % 3) * (size_t)d->n3 + 3 * e->v[b / 3] + b % 3] +=
@@ -701,7 +801,7 @@ static void add_energy(void *ctx, const element *e, const double *Q, double w)
 {
     (void)w;
     energy_ctx *c = ctx;
-    int nl = e->kind == 1 ? 3 : 4, dim = 3 * nl;
+    int nl = local_count(e), dim = 3 * nl;
     double acc = 0;
     for (int a = 0; a < dim; a++) {
         double va = c->v[3 * e->v[a / 3] + a % 3], row = 0;
