@@ -1,0 +1,108 @@
+/* controller/cli_version.c -- `isoshape --version`: which CHOLMOD and which
+ * BLAS this process actually runs with.
+ *
+ * Debian picks libblas.so.3 through update-alternatives, so the build cannot
+ * know it: the netlib reference BLAS makes CHOLMOD's supernodal factorization
+ * several times slower than OpenBLAS. We look at the loaded objects instead
+ * (dl_iterate_phdr) and resolve the alternatives symlinks to the real file. */
+#include "internal.h"
+
+#include <cholmod.h>
+#include <dlfcn.h>
+#include <limits.h>
+#include <link.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_BLAS_OBJECTS 8
+
+typedef struct blas_scan {
+    int n;
+    char path[MAX_BLAS_OBJECTS][ISO_CLI_PATH_MAX];
+} blas_scan;
+
+static int is_blas_name(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    return strncmp(base, "libblas", 7) == 0 || strncmp(base, "libopenblas", 11) == 0 ||
+           strncmp(base, "libblis", 7) == 0 || strncmp(base, "libmkl_rt", 9) == 0 ||
+           strncmp(base, "libflexiblas", 12) == 0;
+}
+
+static int collect_blas(struct dl_phdr_info *info, size_t size, void *ctx)
+{
+    blas_scan *s = ctx;
+    (void)size;
+    if (!info->dlpi_name || !*info->dlpi_name || !is_blas_name(info->dlpi_name))
+        return 0;
+    if (s->n < MAX_BLAS_OBJECTS) {
+        char real[PATH_MAX];
+        const char *p = realpath(info->dlpi_name, real) ? real : info->dlpi_name;
+        snprintf(s->path[s->n++], ISO_CLI_PATH_MAX, "%s", p);
+    }
+    return 0;
+}
+
+/* dlsym returns an object pointer; memcpy turns it into a function pointer
+ * without the cast ISO C forbids. */
+static void *lookup(const char *symbol, size_t fn_size, void *fn)
+{
+    void *sym = dlsym(RTLD_DEFAULT, symbol);
+    if (sym)
+        memcpy(fn, &sym, fn_size);
+    return sym;
+}
+
+static void print_cholmod(void)
+{
+    int (*version)(int *) = NULL;
+    int v[3] = {0, 0, 0};
+    printf("CHOLMOD ");
+    if (lookup("cholmod_version", sizeof version, &version) && version) {
+        version(v);
+        printf("%d.%d.%d (run time), ", v[0], v[1], v[2]);
+    } else {
+        printf("not loaded yet, ");
+    }
+    printf("built against %d.%d.%d (%s)\n", CHOLMOD_MAIN_VERSION, CHOLMOD_SUB_VERSION,
+           CHOLMOD_SUBSUB_VERSION, CHOLMOD_DATE);
+}
+
+static void print_blas(void)
+{
+    blas_scan s = {0};
+    dl_iterate_phdr(collect_blas, &s);
+    char *(*config)(void) = NULL;
+    lookup("openblas_get_config", sizeof config, &config);
+    int reference = 0, openblas = config != NULL;
+    for (int i = 0; i < s.n; i++) {
+        if (strstr(s.path[i], "openblas"))
+            openblas = 1;
+        else if (strstr(s.path[i], "/blas/libblas")) /* netlib, Debian's libblas3 */
+            reference = 1;
+    }
+    if (openblas && !reference) {
+        const char *c = config ? config() : NULL;
+        if (c && strncmp(c, "OpenBLAS", 8) == 0)
+            printf("BLAS: %s\n", c);
+        else
+            printf("BLAS: OpenBLAS%s%s\n", c ? " " : "", c ? c : "");
+    }
+    else if (reference)
+        printf("BLAS: reference BLAS (slow; install libopenblas0-pthread)\n");
+    else if (s.n > 0)
+        printf("BLAS: unrecognised\n");
+    else
+        printf("BLAS: none loaded\n");
+    for (int i = 0; i < s.n; i++)
+        printf("BLAS loaded from %s\n", s.path[i]);
+}
+
+void iso_cli__print_version(void)
+{
+    printf("isoshape %s\n", ISO_VERSION);
+    print_cholmod();
+    print_blas();
+}

@@ -1,0 +1,92 @@
+/* controller/cmd_metrics.c -- `isoshape metrics ORIGINAL DEFORMED [--json]`:
+ * the paper's Table 1 measures between two meshes of the same connectivity. */
+#include "internal.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#include "iso_mesh.h"
+#include "iso_metrics.h"
+
+static const char *const help =
+    "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
+    "\n"
+    "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
+    "triangles in the same order):\n"
+    "  metricErr      sum over edges of (|e'| - |e|)^2\n"
+    "  areaErr        sum over triangles of (A' - A)^2\n"
+    "  angleErr       sum over triangle corners of (theta' - theta)^2, radians\n"
+    "  maxEdgeStrain  largest relative edge length change\n"
+    "  --json         print one JSON object instead of text\n";
+
+int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, size_t why_cap)
+{
+    int nv = iso_mesh_vertex_count(a), nt = iso_mesh_triangle_count(a);
+    if (iso_mesh_vertex_count(b) != nv || iso_mesh_triangle_count(b) != nt) {
+        snprintf(why, why_cap, "%s has %d vertices and %d triangles but %s has %d and %d",
+                 iso_mesh_origin(b), iso_mesh_vertex_count(b), iso_mesh_triangle_count(b),
+                 iso_mesh_origin(a), nv, nt);
+        return 0;
+    }
+    const int *ta = iso_mesh_triangles(a), *tb = iso_mesh_triangles(b);
+    for (int t = 0; t < nt; t++)
+        if (memcmp(ta + 3 * t, tb + 3 * t, 3 * sizeof *ta) != 0) {
+            snprintf(why, why_cap, "triangle %d of %s is (%d %d %d) but in %s it is (%d %d %d)", t,
+                     iso_mesh_origin(b), tb[3 * t], tb[3 * t + 1], tb[3 * t + 2],
+                     iso_mesh_origin(a), ta[3 * t], ta[3 * t + 1], ta[3 * t + 2]);
+            return 0;
+        }
+    return 1;
+}
+
+int iso_cli__metrics(int argc, char **argv)
+{
+    const char *cmd = "metrics", *path[2] = {NULL, NULL};
+    int json = 0, npath = 0;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            fputs(help, stdout);
+            return 0;
+        } else if (strcmp(argv[i], "--json") == 0) {
+            json = 1;
+        } else if (argv[i][0] != '-' && npath < 2) {
+            path[npath++] = argv[i];
+        } else {
+            return iso_cli__unknown(cmd, argv[i]);
+        }
+    }
+    if (npath != 2) {
+        iso_cli__fail(cmd, "needs two meshes, ORIGINAL and DEFORMED (see isoshape metrics --help).");
+        return 2;
+    }
+    iso_mesh *m[2] = {NULL, NULL};
+    iso_err err;
+    iso_err_clear(&err);
+    int status = 1;
+    char why[1024];
+    for (int k = 0; k < 2; k++)
+        if (iso_mesh_load(path[k], &m[k], &err) != ISO_OK) {
+            iso_cli__fail(cmd, "%s", err.msg);
+            goto out;
+        }
+    if (!iso_cli__same_connectivity(m[0], m[1], why, sizeof why)) {
+        iso_cli__fail(cmd, "%s, so they are not an original and its deformation.", why);
+        goto out;
+    }
+    iso_metrics mt;
+    iso_metrics_compute(m[0], iso_mesh_positions(m[0]), iso_mesh_positions(m[1]), &mt);
+    if (json)
+        printf("{\"metricErr\": %.17g, \"areaErr\": %.17g, \"angleErr\": %.17g, "
+               "\"maxEdgeStrain\": %.17g, \"rmsEdgeStrain\": %.17g}\n",
+               mt.metric_err, mt.area_err, mt.angle_err, mt.max_edge_strain, mt.rms_edge_strain);
+    else
+        printf("metricErr      %.6e\nareaErr        %.6e\nangleErr       %.6e\n"
+               "maxEdgeStrain  %.6e (%.3f%%)\nrmsEdgeStrain  %.6e\n",
+               mt.metric_err, mt.area_err, mt.angle_err, mt.max_edge_strain,
+               100.0 * mt.max_edge_strain, mt.rms_edge_strain);
+    status = 0;
+out:
+    iso_mesh_destroy(m[0]);
+    iso_mesh_destroy(m[1]);
+    return status;
+}

@@ -1,0 +1,54 @@
+/* controller/isoshape.c -- the isoshape command: picks the subcommand.
+ *
+ *   isoshape deform   integrate a deformation from rest to the handle's pose
+ *   isoshape field    one field solve at the rest pose
+ *   isoshape metrics  distortion between two meshes
+ *   isoshape --version */
+#include "internal.h"
+
+#include <stdio.h>
+#include <string.h>
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: isoshape <command> [options]\n"
+            "\n"
+            "Isometry-preserving continuous deformation (Martinez Esturo, Roessl, Theisel 2010).\n"
+            "\n"
+            "commands:\n"
+            "  deform   integrate the deformation of a mesh as its handle moves to its final pose\n"
+            "  field    solve the deformation field once, at the rest pose\n"
+            "  metrics  distortion between an original mesh and a deformed copy\n"
+            "\n"
+            "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
+            "  isoshape <command> --help\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    const char *cmd = argv[1];
+    if (strcmp(cmd, "--help") == 0 || strcmp(cmd, "-h") == 0 || strcmp(cmd, "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    if (strcmp(cmd, "--version") == 0 || strcmp(cmd, "version") == 0) {
+        iso_cli__print_version();
+        return 0;
+    }
+    if (strcmp(cmd, "deform") == 0)
+        return iso_cli__deform(argc - 1, argv + 1);
+    if (strcmp(cmd, "field") == 0)
+        return iso_cli__field(argc - 1, argv + 1);
+    if (strcmp(cmd, "metrics") == 0)
+        return iso_cli__metrics(argc - 1, argv + 1);
+    if (cmd[0] == '-')
+        iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
+    else
+        iso_cli__fail(NULL, "unknown command '%s': use deform, field or metrics.", cmd);
+    return 2;
+}
