@@ -118,11 +118,19 @@ FX_FN fx_mesh fx_grid(int nx, int ny, double lx, double ly)
             int a = j * nx + i, b = a + 1, c = a + nx, d = c + 1;
             int *q = m.tri + 3 * t;
             if ((i + j) % 2 == 0) { /* diagonal a-d */
-                q[0] = a; q[1] = b; q[2] = d;
-                q[3] = a; q[4] = d; q[5] = c;
+                q[0] = a;
+                q[1] = b;
+                q[2] = d;
+                q[3] = a;
+                q[4] = d;
+                q[5] = c;
             } else { /* diagonal b-c */
-                q[0] = a; q[1] = b; q[2] = c;
-                q[3] = b; q[4] = d; q[5] = c;
+                q[0] = a;
+                q[1] = b;
+                q[2] = c;
+                q[3] = b;
+                q[4] = d;
+                q[5] = c;
             }
             t += 2;
         }
@@ -194,8 +202,8 @@ FX_FN fx_mesh fx_subdivide(const fx_mesh *m, const double *v, double **vout)
             mid[k] = id; /* midpoint of edge (q[k], q[k+1]) */
         }
         int *r = o.tri + 12 * t;
-        int sub[12] = {q[0], mid[0], mid[2], mid[0], q[1], mid[1],
-                       mid[2], mid[1], q[2], mid[0], mid[1], mid[2]};
+        int sub[12] = {q[0],   mid[0], mid[2], mid[0], q[1],   mid[1],
+                       mid[2], mid[1], q[2],   mid[0], mid[1], mid[2]};
         memcpy(r, sub, sizeof sub);
     }
     free(em.key);
@@ -210,13 +218,11 @@ FX_FN fx_mesh fx_subdivide(const fx_mesh *m, const double *v, double **vout)
 FX_FN fx_mesh fx_icosphere(int level, double r, double jitter, fx_rng *rng)
 {
     const double g = (1 + sqrt(5.0)) / 2;
-    static const int T[60] = {0, 11, 5, 0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11,
-                              1, 5,  9, 5, 11, 4, 11, 10, 2, 10, 7, 6, 7, 1,  8,
-                              3, 9,  4, 3, 4,  2, 3, 2, 6, 3, 6,  8, 3, 8,  9,
-                              4, 9,  5, 2, 4,  11, 6, 2, 10, 8, 6, 7, 9, 8,  1};
-    const double X[36] = {-1, g, 0, 1, g, 0, -1, -g, 0, 1, -g, 0,
-                          0, -1, g, 0, 1, g, 0, -1, -g, 0, 1, -g,
-                          g, 0, -1, g, 0, 1, -g, 0, -1, -g, 0, 1};
+    static const int T[60] = {0, 11, 5,  0, 5,  1, 0, 1, 7, 0, 7,  10, 0, 10, 11, 1, 5, 9, 5, 11,
+                              4, 11, 10, 2, 10, 7, 6, 7, 1, 8, 3,  9,  4, 3,  4,  2, 3, 2, 6, 3,
+                              6, 8,  3,  8, 9,  4, 9, 5, 2, 4, 11, 6,  2, 10, 8,  6, 7, 9, 8, 1};
+    const double X[36] = {-1, g,  0,  1, g, 0,  -1, -g, 0,  1, -g, 0, 0,  -1, g,  0,  1, g,
+                          0,  -1, -g, 0, 1, -g, g,  0,  -1, g, 0,  1, -g, 0,  -1, -g, 0, 1};
     fx_mesh m = {12, 20, malloc(sizeof X), malloc(sizeof T)};
     assert_non_null(m.x);
     assert_non_null(m.tri);

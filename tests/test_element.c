@@ -131,9 +131,12 @@ static void fit_by_quadrature(const double x[9], const double v[9], double a[3],
         /* a + β × y = a − [y]x β */
         for (int c = 0; c < 3; c++)
             Phi[c][c] = 1;
-        Phi[0][4] = y[2];  Phi[0][5] = -y[1];
-        Phi[1][3] = -y[2]; Phi[1][5] = y[0];
-        Phi[2][3] = y[1];  Phi[2][4] = -y[0];
+        Phi[0][4] = y[2];
+        Phi[0][5] = -y[1];
+        Phi[1][3] = -y[2];
+        Phi[1][5] = y[0];
+        Phi[2][3] = y[1];
+        Phi[2][4] = -y[0];
         for (int i = 0; i < 6; i++) {
             for (int j = 0; j < 6; j++)
                 for (int c = 0; c < 3; c++)

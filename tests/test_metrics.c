@@ -24,7 +24,7 @@ static void stretched_triangle_by_hand(void **state)
     double e_metric = 1.0 + 0.0 + d12 * d12;
     double e_area = 0.25; /* 1/2 -> 1 */
     double e_angle = pow(atan(0.5) - pi / 4, 2) + pow(atan(2.0) - pi / 4, 2);
-    double e_max = 1.0;   /* edge 0-1 doubles */
+    double e_max = 1.0; /* edge 0-1 doubles */
     double e_rms = sqrt((1.0 + pow(d12 / sqrt(2.0), 2)) / 3.0);
     /* Tolerance 1e-14 relative: a handful of roundings on O(1) numbers. */
     assert_true(fabs(q.metric_err - e_metric) <= 1e-14 * e_metric);

@@ -165,8 +165,8 @@ static void mirrored_paths_end_in_different_shapes(void **state)
     double ierr = free_distance(&p, up, up2, 0);
     double diff = free_distance(&p, up, down, 0);
     double mirror = free_distance(&p, up, down, 1);
-    print_message("integration error ~%.3g; +n vs −n differ by %.3g; mirror mismatch %.3g\n",
-                  ierr, diff, mirror);
+    print_message("integration error ~%.3g; +n vs −n differ by %.3g; mirror mismatch %.3g\n", ierr,
+                  diff, mirror);
     for (int i = 0; i < p.fm.nv; i++)
         if (p.kind[i] == ISO_HANDLE)
             for (int c = 0; c < 3; c++)

@@ -96,7 +96,7 @@ static void strip_init(strip *s, int nx, int ny, double w, double xa)
     s->rp.xb = 1 - xa;
     for (int i = 0; i < s->fm.nv; i++) {
         double x = s->fm.x[3 * i];
-        s->kind[i] = x <= s->rp.xa + 0.25 * dx ? ISO_FIXED
+        s->kind[i] = x <= s->rp.xa + 0.25 * dx   ? ISO_FIXED
                      : x >= s->rp.xb - 0.25 * dx ? ISO_HANDLE
                                                  : ISO_FREE;
     }
@@ -279,8 +279,8 @@ static void refinement_is_more_isometric(void **state)
     strip_init(&fine, 41, 5, 0.1, 1.0 / 20);
     iso_metrics qc = roll(&coarse, 1.0 / 3.0, 40, NULL);
     iso_metrics qf = roll(&fine, 1.0 / 3.0, 40, NULL);
-    print_message("rms strain 21x3: %.3g, 41x5: %.3g; metricErr %.3g, %.3g\n",
-                  qc.rms_edge_strain, qf.rms_edge_strain, qc.metric_err, qf.metric_err);
+    print_message("rms strain 21x3: %.3g, 41x5: %.3g; metricErr %.3g, %.3g\n", qc.rms_edge_strain,
+                  qf.rms_edge_strain, qc.metric_err, qf.metric_err);
     assert_true(qf.rms_edge_strain < qc.rms_edge_strain);
     assert_true(qf.metric_err < qc.metric_err);
     strip_deinit(&coarse);

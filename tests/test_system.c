@@ -140,7 +140,8 @@ static void assembly_matches_distortion(void **state)
     fx_rng rng = {21};
     fx_mesh meshes[2] = {fx_icosphere(1, 1.0, 0.03, &rng), fx_grid(7, 5, 1.2, 0.8)};
     for (int i = 0; i < meshes[1].nv; i++) /* a bump so the grid is not flat */
-        meshes[1].x[3 * i + 2] = 0.3 * sin(2 * meshes[1].x[3 * i]) * cos(3 * meshes[1].x[3 * i + 1]);
+        meshes[1].x[3 * i + 2] =
+            0.3 * sin(2 * meshes[1].x[3 * i]) * cos(3 * meshes[1].x[3 * i + 1]);
     for (int mi = 0; mi < 2; mi++) {
         fx_mesh *fm = &meshes[mi];
         iso_mesh *m = fx_make(fm);
@@ -375,7 +376,8 @@ static void solver_matches_dense_solve(void **state)
             }
         assert_true(nf > 0 && nc > 0);
         double *Aff = malloc(sizeof(double) * (size_t)nf * (size_t)nf);
-        double *rhs = malloc(sizeof(double) * (size_t)nf), *vf = malloc(sizeof(double) * (size_t)nf);
+        double *rhs = malloc(sizeof(double) * (size_t)nf),
+               *vf = malloc(sizeof(double) * (size_t)nf);
         double *ev = malloc(sizeof(double) * (size_t)nf);
         assert_non_null(Aff);
         assert_non_null(rhs);
@@ -512,7 +514,9 @@ static void ill_posed_constraints_are_refused(void **state)
 
     /* ω outside (0, 1] with otherwise valid constraints. */
     for (int i = 0; i < nv1; i++)
-        kind[i] = fm.x[3 * i + 2] < -0.5 ? ISO_FIXED : fm.x[3 * i + 2] > 0.5 ? ISO_HANDLE : ISO_FREE;
+        kind[i] = fm.x[3 * i + 2] < -0.5  ? ISO_FIXED
+                  : fm.x[3 * i + 2] > 0.5 ? ISO_HANDLE
+                                          : ISO_FREE;
     const double bad[4] = {0.0, 1.0 + 1e-12, 1.5, -0.1};
     for (int k = 0; k < 4; k++)
         expect_refused(sphere, kind, nv1, bad[k], ISO_EINVAL, "outside (0, 1]");
