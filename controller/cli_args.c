@@ -87,8 +87,10 @@ int iso_cli__omega(const char *cmd, const char *val, double *omega)
     if (iso_cli__double(cmd, "--omega", val, &w) != 0)
         return -1;
     if (!(w > 0.0 && w <= 1.0)) {
-        iso_cli__fail(cmd, "--omega %s is outside (0, 1]: at 0 a flat region makes the system "
-                           "singular, and above 1 the distortion term turns negative.", val);
+        iso_cli__fail(cmd,
+                      "--omega %s is outside (0, 1]: at 0 a flat region makes the system "
+                      "singular, and above 1 the distortion term turns negative.",
+                      val);
         return -1;
     }
     *omega = w;

@@ -89,8 +89,7 @@ static void print_blas(void)
             printf("BLAS: %s\n", c);
         else
             printf("BLAS: OpenBLAS%s%s\n", c ? " " : "", c ? c : "");
-    }
-    else if (reference)
+    } else if (reference)
         printf("BLAS: reference BLAS (slow; install libopenblas0-pthread)\n");
     else if (s.n > 0)
         printf("BLAS: unrecognised\n");

@@ -156,7 +156,9 @@ static int parse_args(int argc, char **argv, deform_args *a)
     }
     if (!a->shape && !a->benchmark && (!a->mesh || !a->sel || !a->def)) {
         iso_cli__fail(cmd, "--%s is missing: a file problem needs --mesh, --sel and --def.",
-                      !a->mesh ? "mesh" : !a->sel ? "sel" : "def");
+                      !a->mesh  ? "mesh"
+                      : !a->sel ? "sel"
+                                : "def");
         return 2;
     }
     if (a->benchmark && !iso_cli__bench_known(a->benchmark)) {
@@ -191,8 +193,7 @@ static int load_shape(problem *p, const char *name, int resolution, iso_err *err
     return rc;
 }
 
-static int load_files(problem *p, const char *mesh, const char *sel, const char *def,
-                      iso_err *err)
+static int load_files(problem *p, const char *mesh, const char *sel, const char *def, iso_err *err)
 {
     int rc = iso_mesh_load(mesh, &p->mesh, err);
     if (rc == ISO_OK)
@@ -215,8 +216,10 @@ static int load_problem(const deform_args *a, problem *p, iso_err *err)
     iso_cli__bench b;
     char why[2048];
     if (!iso_cli__bench_find(a->benchmark, a->bench_dir, &b, why, sizeof why)) {
-        fprintf(stderr, "isoshape deform: benchmark '%s' not found (looked in %s); using the "
-                        "built-in %s instead.\n", a->benchmark, why, a->benchmark);
+        fprintf(stderr,
+                "isoshape deform: benchmark '%s' not found (looked in %s); using the "
+                "built-in %s instead.\n",
+                a->benchmark, why, a->benchmark);
         return load_shape(p, a->benchmark, a->resolution, err);
     }
     int rc = load_files(p, b.mesh, b.sel, b.def, err);
@@ -237,8 +240,8 @@ static int load_reference(problem *p, iso_err *err)
         return rc;
     char why[1024];
     if (!iso_cli__same_connectivity(p->mesh, p->ref, why, sizeof why))
-        return iso_err_set(err, ISO_EINVAL, -1,
-                           "reference %s does not fit the problem: %s.", p->ref_path, why);
+        return iso_err_set(err, ISO_EINVAL, -1, "reference %s does not fit the problem: %s.",
+                           p->ref_path, why);
     return ISO_OK;
 }
 
@@ -385,8 +388,8 @@ static int run(const deform_args *a, problem *p, double *x, report *rep, iso_err
         fputc('\n', stderr);
     if (s)
         iso_solver_get_stats(s, &rep->sst);
-    rep->other = fmax(0.0, rep->seconds - rep->sst.t_assembly - rep->sst.t_factor -
-                                rep->sst.t_solve);
+    rep->other =
+        fmax(0.0, rep->seconds - rep->sst.t_assembly - rep->sst.t_factor - rep->sst.t_solve);
     iso_solver_destroy(s);
     free(tw);
     return rc;

@@ -14,7 +14,8 @@
 #include "iso_solver.h"
 
 static const char *const help =
-    "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] --out F\n"
+    "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
+    "--out F\n"
     "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
     "\n"
     "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
@@ -69,8 +70,10 @@ static int read_velocities(const char *path, const iso_regions *r, double *vc)
             errno = 0;
             v[k] = strtod(p, &end);
             if (end == p || errno == ERANGE || !isfinite(v[k])) {
-                iso_cli__fail("field", "%s:%ld: component %d of the velocity is not a finite number "
-                                       "(expected 'vx vy vz').", path, lineno, k + 1);
+                iso_cli__fail("field",
+                              "%s:%ld: component %d of the velocity is not a finite number "
+                              "(expected 'vx vy vz').",
+                              path, lineno, k + 1);
                 goto out;
             }
             p = end;
@@ -93,8 +96,10 @@ static int read_velocities(const char *path, const iso_regions *r, double *vc)
     for (int i = 0; i < next; i++)
         got += r->kind[i] == ISO_HANDLE;
     if (got != n_handle) {
-        iso_cli__fail("field", "%s:%ld: the file ends after %d velocities but the mesh has %d "
-                               "handle vertices.", path, lineno, got, n_handle);
+        iso_cli__fail("field",
+                      "%s:%ld: the file ends after %d velocities but the mesh has %d "
+                      "handle vertices.",
+                      path, lineno, got, n_handle);
         goto out;
     }
     status = 0;

@@ -56,7 +56,8 @@ int iso_cli__metrics(int argc, char **argv)
         }
     }
     if (npath != 2) {
-        iso_cli__fail(cmd, "needs two meshes, ORIGINAL and DEFORMED (see isoshape metrics --help).");
+        iso_cli__fail(cmd,
+                      "needs two meshes, ORIGINAL and DEFORMED (see isoshape metrics --help).");
         return 2;
     }
     iso_mesh *m[2] = {NULL, NULL};

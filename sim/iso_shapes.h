@@ -29,7 +29,7 @@
 
 typedef struct iso_shape {
     char name[ISO_SHAPE_NAME_MAX];
-    int resolution;      /* the resolution actually used */
+    int resolution; /* the resolution actually used */
     int nv, nt;
     double *x;           /* 3*nv positions, owned */
     int *tri;            /* 3*nt vertex indices, outward orientation, owned */

@@ -189,7 +189,8 @@ static int vox_surface(const voxels *v, int open_bottom, builder *b)
                             L[a] = c[a] + (s > 0);
                             L[ax] = c[ax] + u;
                             L[ay] = c[ay] + w;
-                            size_t key = ((size_t)L[2] * (v->n[1] + 1) + L[1]) * (v->n[0] + 1) + L[0];
+                            size_t key =
+                                ((size_t)L[2] * (v->n[1] + 1) + L[1]) * (v->n[0] + 1) + L[0];
                             if (id[key] < 0)
                                 id[key] = add_vertex(b, L[0], L[1], L[2]);
                             p[q] = id[key];
@@ -255,9 +256,9 @@ typedef struct capsule {
 } capsule;
 
 static const capsule cactus_bones[5] = {
-    {{2, 2, 2}, {2, 2, 22}, 2.0},  /* trunk */
-    {{2, 2, 9}, {2, 7, 9}, 1.0},   /* arm A, out along +y */
-    {{2, 7, 9}, {2, 7, 15}, 1.0},  /* arm A, up */
+    {{2, 2, 2}, {2, 2, 22}, 2.0},   /* trunk */
+    {{2, 2, 9}, {2, 7, 9}, 1.0},    /* arm A, out along +y */
+    {{2, 7, 9}, {2, 7, 15}, 1.0},   /* arm A, up */
     {{2, 2, 13}, {2, -3, 13}, 1.0}, /* arm B, out along -y */
     {{2, -3, 13}, {2, -3, 18}, 1.0} /* arm B, up */
 };
@@ -535,7 +536,8 @@ static int build_bumpplane(int res, builder *b, iso_shape *out)
             add_vertex(b, i * h, j * h, bump_height(i * h, j * h));
     for (int j = 0; j + 1 < n; j++)
         for (int i = 0; i + 1 < n; i++)
-            add_quad(b, j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i, (i + j) & 1);
+            add_quad(b, j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i,
+                     (i + j) & 1);
     if (b->oom)
         return ISO_ENOMEM;
     out->kind = malloc((size_t)b->nv);
@@ -637,9 +639,10 @@ int iso_shape_init(iso_shape *out, const char *name, int resolution, iso_err *er
         if (strcmp(name, shapes[i].name) == 0)
             d = &shapes[i];
     if (!d)
-        return iso_err_set(err, ISO_EINVAL, -1,
-                           "Unknown shape '%s': the built-in shapes are bar, cylinder, bumpplane and cactus.",
-                           name ? name : "(null)");
+        return iso_err_set(
+            err, ISO_EINVAL, -1,
+            "Unknown shape '%s': the built-in shapes are bar, cylinder, bumpplane and cactus.",
+            name ? name : "(null)");
     int res = resolution ? resolution : d->def_res;
     if (res < d->min_res || res > d->max_res)
         return iso_err_set(err, ISO_EINVAL, -1,

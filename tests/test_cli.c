@@ -17,20 +17,23 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-typedef struct globals {
-    char build[PATH_MAX]; /* the CMake build folder */
-    char bin[PATH_MAX + 16]; /* the isoshape binary */
-} globals;
-
-static globals g;
-
-/* ---- running commands --------------------------------------------------- */
-
 typedef struct result {
     int status; /* exit status, or -1 if it did not exit normally */
     char out[65536];
     char err[16384];
 } result;
+
+/* The test program's state, gathered in one place (the SQLite manner);
+ * `res` is large, so it lives here rather than on the stack. */
+typedef struct globals {
+    char build[PATH_MAX];    /* the CMake build folder */
+    char bin[PATH_MAX + 16]; /* the isoshape binary */
+    result res;              /* the last command's output */
+} globals;
+
+static globals g;
+
+/* ---- running commands --------------------------------------------------- */
 
 static void slurp(const char *path, char *buf, size_t cap)
 {
@@ -235,25 +238,22 @@ static int count_lines(const char *text)
 static void version_names_cholmod_and_blas(void **state)
 {
     (void)state;
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     run_iso("--version", r);
     assert_int_equal(r->status, 0);
     assert_non_null(strstr(r->out, "isoshape "));
     assert_non_null(strstr(r->out, "CHOLMOD "));
     assert_non_null(strstr(r->out, "BLAS"));
-    free(r);
 }
 
 static void deform_prints_json_with_every_key(void **state)
 {
     (void)state;
-    static const char *const keys[] = {"metricErr",     "areaErr",      "angleErr",
-                                       "maxEdgeStrain", "steps",        "evaluations",
+    static const char *const keys[] = {"metricErr",     "areaErr",         "angleErr",
+                                       "maxEdgeStrain", "steps",           "evaluations",
                                        "seconds",       "assemblySeconds", "factorSeconds",
                                        "solveSeconds",  "otherSeconds"};
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     run_iso("deform --shape cylinder --steps 4 --json", r);
     if (r->status != 0)
         fail_msg("deform failed (%d): %s", r->status, r->err);
@@ -270,15 +270,13 @@ static void deform_prints_json_with_every_key(void **state)
     assert_true(json_get(r->out, "metricErr") > 0);
     assert_true(json_get(r->out, "seconds") >= json_get(r->out, "factorSeconds"));
     assert_null(strstr(r->out, "reference"));
-    free(r);
 }
 
 static void deform_writes_the_deformed_mesh(void **state)
 {
     (void)state;
     char out[PATH_MAX], args[PATH_MAX * 2];
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     iso_test_tmp(out, sizeof out, "bar-twisted.off");
     remove(out);
     snprintf(args, sizeof args, "deform --shape bar --resolution 4 --steps 3 --out '%s'", out);
@@ -288,14 +286,13 @@ static void deform_writes_the_deformed_mesh(void **state)
     assert_non_null(strstr(r->out, "metricErr"));
     assert_non_null(strstr(r->out, "factorization"));
     /* the result against itself through `metrics`, and a reference of it */
-    snprintf(args, sizeof args, "deform --shape bar --resolution 4 --steps 3 --json --reference '%s'",
-             out);
+    snprintf(args, sizeof args,
+             "deform --shape bar --resolution 4 --steps 3 --json --reference '%s'", out);
     run_iso(args, r);
     if (r->status != 0)
         fail_msg("deform --reference failed (%d): %s", r->status, r->err);
     assert_true(json_valid(r->out));
     assert_true(fabs(json_get(r->out, "referenceRatioMetricErr") - 1.0) < 1e-6);
-    free(r);
 }
 
 static void bad_values_are_refused_by_name(void **state)
@@ -321,8 +318,7 @@ static void bad_values_are_refused_by_name(void **state)
         {"metrics onlyone.off", "two meshes"},
         {"transmogrify", "transmogrify"},
     };
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         run_iso(cases[i].args, r);
         if (r->status == 0 || r->status == -1)
@@ -331,29 +327,25 @@ static void bad_values_are_refused_by_name(void **state)
             fail_msg("'%s': stderr does not name %s: %s", cases[i].args, cases[i].needle, r->err);
         assert_int_equal(count_lines(r->err), 1);
     }
-    free(r);
 }
 
 static void help_works_for_every_subcommand(void **state)
 {
     (void)state;
     static const char *const args[] = {"--help", "deform --help", "field --help", "metrics --help"};
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     for (size_t i = 0; i < sizeof args / sizeof args[0]; i++) {
         run_iso(args[i], r);
         assert_int_equal(r->status, 0);
         assert_non_null(strstr(r->out, "usage: isoshape"));
     }
-    free(r);
 }
 
 static void field_writes_one_line_per_vertex(void **state)
 {
     (void)state;
     char mesh[PATH_MAX], sel[PATH_MAX], vel[PATH_MAX], out[PATH_MAX], args[PATH_MAX * 5];
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     write_grid(mesh, sel, sizeof mesh);
     iso_test_write(iso_test_tmp(vel, sizeof vel, "grid.vel"),
                    "# handle moves up\n0 0 1\n0 0 1\n0 0 1\n\n0 0 1\n0 0 1\n", -1);
@@ -391,15 +383,13 @@ static void field_writes_one_line_per_vertex(void **state)
     assert_int_not_equal(r->status, 0);
     assert_non_null(strstr(r->err, "grid.vel:2:"));
     assert_non_null(strstr(r->err, "5 handle vertices"));
-    free(r);
 }
 
 static void metrics_of_a_mesh_against_itself_are_zero(void **state)
 {
     (void)state;
     char mesh[PATH_MAX], sel[PATH_MAX], args[PATH_MAX * 3];
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     write_grid(mesh, sel, sizeof mesh);
     snprintf(args, sizeof args, "metrics '%s' '%s' --json", mesh, mesh);
     run_iso(args, r);
@@ -410,7 +400,6 @@ static void metrics_of_a_mesh_against_itself_are_zero(void **state)
     assert_true(json_get(r->out, "areaErr") == 0);
     assert_true(json_get(r->out, "angleErr") == 0);
     assert_true(json_get(r->out, "maxEdgeStrain") == 0);
-    free(r);
 }
 
 static void installed_library_builds_with_pkg_config(void **state)
@@ -421,8 +410,7 @@ static void installed_library_builds_with_pkg_config(void **state)
         skip();
     }
     char prefix[PATH_MAX], src[PATH_MAX], exe[PATH_MAX], cmd[PATH_MAX * 6];
-    result *r = malloc(sizeof *r);
-    assert_non_null(r);
+    result *r = &g.res;
     iso_test_tmp(prefix, sizeof prefix, "prefix");
     snprintf(cmd, sizeof cmd, "rm -rf '%s' && cmake --install '%s' --prefix '%s'", prefix, g.build,
              prefix);
@@ -468,7 +456,6 @@ static void installed_library_builds_with_pkg_config(void **state)
     if (r->status != 0)
         fail_msg("building against the installed library failed (%d): %s", r->status, r->err);
     assert_non_null(strstr(r->out, " vertices"));
-    free(r);
 }
 
 /* ---- setup ------------------------------------------------------------------ */

@@ -15,7 +15,7 @@
 /* ---- topology ---------------------------------------------------------- */
 
 typedef struct half {
-    int a, b; /* a < b */
+    int a, b;    /* a < b */
     int forward; /* 1 if the triangle runs a -> b */
 } half;
 
