@@ -397,7 +397,7 @@ static int build_bar(int res, builder *b, iso_shape *out)
         b->x[3 * i + 1] = (b->x[3 * i + 1] - 0.5 * res) * h;
         b->x[3 * i + 2] *= dz;
     }
-    out->kind = malloc((size_t)b->nv);
+    out->kind = malloc(b->nv > 0 ? (size_t)b->nv : 1u);
     if (!out->kind)
         return ISO_ENOMEM;
     label_by_z(b, 0.06 * length + 1e-9, 0.945 * length - 1e-9, out->kind);
@@ -501,7 +501,7 @@ static int build_cylinder(int res, builder *b, iso_shape *out)
     free(ring);
     if (rc != ISO_OK)
         return rc;
-    out->kind = malloc((size_t)b->nv);
+    out->kind = malloc(b->nv > 0 ? (size_t)b->nv : 1u);
     if (!out->kind)
         return ISO_ENOMEM;
     label_by_z(b, 0.042 * height, (1.0 - 0.042) * height, out->kind);
@@ -540,7 +540,7 @@ static int build_bumpplane(int res, builder *b, iso_shape *out)
                      (i + j) & 1);
     if (b->oom)
         return ISO_ENOMEM;
-    out->kind = malloc((size_t)b->nv);
+    out->kind = malloc(b->nv > 0 ? (size_t)b->nv : 1u);
     if (!out->kind)
         return ISO_ENOMEM;
     for (int i = 0; i < b->nv; i++) {
@@ -595,7 +595,7 @@ static int build_cactus(int res, builder *b, iso_shape *out)
         p[1] = 0.5 + (p[1] - 2.0) * s;
         p[2] = z0 + p[2] * s;
     }
-    out->kind = malloc((size_t)b->nv);
+    out->kind = malloc(b->nv > 0 ? (size_t)b->nv : 1u);
     if (!out->kind)
         return ISO_ENOMEM;
     label_by_z(b, z0 + 0.10 * 0.82, z0 + 0.88 * 0.82, out->kind);
