@@ -21,9 +21,33 @@
 
 typedef struct iso_solver iso_solver; /* opaque */
 
+/* Which code fills the system each evaluation. Both give the same values to
+ * rounding (1e-12 relative), and each is bit-identical from run to run. */
+typedef enum iso_assembly {
+    ISO_ASSEMBLY_CPU = 0, /* the C path (library default) */
+    ISO_ASSEMBLY_OPENCL,  /* OpenCL kernels; falls back to CPU with a notice
+                             when no platform or device is usable */
+} iso_assembly;
+
+/* When to compute a fresh numeric factor. */
+typedef enum iso_refactor {
+    ISO_REFACTOR_ADAPTIVE = 0, /* reuse the cached factor as a preconditioner for
+                                  conjugate gradients from the last solution;
+                                  refactor when CG needs more than cg_max_iter
+                                  iterations or stalls */
+    ISO_REFACTOR_ALWAYS,       /* factor every evaluation: the paper's scheme */
+} iso_refactor;
+
 typedef struct iso_solver_opts {
     double omega;            /* in (0, 1]; default 1/3 */
     iso_weighting weighting; /* default ISO_WEIGHT_PARAM */
+    iso_assembly assembly;   /* default ISO_ASSEMBLY_CPU */
+    const char *cl_device;   /* OpenCL device: NULL = the first CPU device
+                                (PoCL), else "P:D" platform/device indices or
+                                a substring of the device or platform name */
+    iso_refactor refactor;   /* default ISO_REFACTOR_ALWAYS in the library */
+    double cg_tol;           /* adaptive: relative residual, default 1e-10 */
+    int cg_max_iter;         /* adaptive: refactor beyond this, default 12 */
     /* Isometry restoration (beyond the paper; 0 = off, the paper's method
      * exactly). Adds, per edge e = (i, j) with rest length L_e, current
      * length |e| and unit direction u_e, the term
@@ -59,11 +83,18 @@ ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double 
 
 typedef struct iso_solver_stats {
     long evaluations;
+    long factorizations;  /* numeric factorizations */
+    long cg_iterations;   /* adaptive refactor: PCG iterations, summed */
+    long refactors;       /* adaptive: factorizations forced by slow/stalled CG */
     double t_assembly, t_factor, t_solve; /* seconds, summed */
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
 } iso_solver_stats;
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
+
+/* One line about a choice the solver made that the user should hear of
+ * (e.g. "OpenCL: no platform found; using the C assembly"), or "". */
+const char *iso_solver_notice(const iso_solver *s);
 
 /* Assembles the whole 3nv x 3nv matrix A(x) (all vertices, no constraints)
  * as dense row-major into `A` (caller-owned, (3nv)^2 doubles). For tests and

@@ -13,45 +13,17 @@
  * contribute nothing to A_ff or the right-hand side and are dropped. */
 #include "iso_solver.h"
 
-#include <cholmod.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "iso_clock.h"
+#include "solver_internal.h"
 
-typedef struct element {
-    int kind;    /* 1: triangle (Q1), 2: ordered pair (Q2), 3: edge (restoration) */
-    int tri;     /* the triangle (Q1) or Ti (Q2) */
-    int v[4];    /* global vertices in local order */
-    int jmap[3]; /* Q2: local index of each of Tj's corners */
-    int slot;    /* index of this element's first slot in the slot map */
-} element;
+typedef iso_solver__element element;
+#define local_count iso_solver__local_count
 
-/* Vertices of an element: 3 (triangle), 4 (pair), 2 (edge). */
-static int local_count(const element *e)
-{
-    return e->kind == 1 ? 3 : e->kind == 2 ? 4 : 2;
-}
-
-struct iso_solver {
-    const iso_mesh *m;
-    const iso_regions *r;
-    iso_solver_opts o;
-    int nv, nf;
-    int *free_of;   /* nv: free index or −1 */
-    int *vert_of;   /* nf: vertex of each free index */
-    element *el;
-    int nel;
-    int *slots;     /* per element, per local (a, b): 3 column offsets or −1 */
-    double *rest_len;  /* per edge, when restoration is on */
-    double *edge_w;    /* per edge weight w_e, when restoration is on */
-    cholmod_common c;
-    cholmod_sparse *A;
-    cholmod_factor *L;
-    cholmod_dense *B, *X, *Y, *E;
-    iso_solver_stats st;
-};
 
 void iso_solver_opts_default(iso_solver_opts *o)
 {
@@ -59,6 +31,11 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->weighting = ISO_WEIGHT_PARAM;
     o->restore_mu = 0.0;
     o->restore_tau = 0.0;
+    o->assembly = ISO_ASSEMBLY_CPU;
+    o->cl_device = NULL;
+    o->refactor = ISO_REFACTOR_ALWAYS;
+    o->cg_tol = 1e-10;
+    o->cg_max_iter = 12;
 }
 
 static int check_opts(const iso_solver_opts *o, iso_err *err)
@@ -502,6 +479,35 @@ static int analyse(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
+/* Sets up the OpenCL path, or falls back to C with a notice when OpenCL
+ * is not built in or finds no usable device. */
+static int start_opencl(iso_solver *s, iso_err *err)
+{
+#ifdef ISO_WITH_OPENCL
+    if (s->nf == 0)
+        return ISO_OK;
+    iso_err why;
+    iso_err_clear(&why);
+    int rc = iso_solver__cl_create(s, &s->cl, &why);
+    if (rc == ISO_OK)
+        return ISO_OK;
+    if (rc != ISO_ENOTSUP)
+        return iso_err_set(err, rc, why.offset, "%s", why.msg);
+    snprintf(s->notice, sizeof s->notice, "OpenCL: %s; using the C assembly", why.msg);
+#else
+    snprintf(s->notice, sizeof s->notice,
+             "OpenCL: this build has no OpenCL support; using the C assembly");
+#endif
+    (void)err;
+    s->o.assembly = ISO_ASSEMBLY_CPU;
+    return ISO_OK;
+}
+
+const char *iso_solver_notice(const iso_solver *s)
+{
+    return s->notice;
+}
+
 int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_opts *opts,
                       iso_solver **out, iso_err *err)
 {
@@ -530,6 +536,8 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         rc = build_pattern(s, err);
     if (rc == ISO_OK)
         rc = analyse(s, err);
+    if (rc == ISO_OK && s->o.assembly == ISO_ASSEMBLY_OPENCL)
+        rc = start_opencl(s, err);
     if (rc != ISO_OK) {
         iso_solver_destroy(s);
         return rc;
@@ -543,6 +551,9 @@ void iso_solver_destroy(iso_solver *s)
 {
     if (!s)
         return;
+#ifdef ISO_WITH_OPENCL
+    iso_solver__cl_destroy(s->cl);
+#endif
     cholmod_free_sparse(&s->A, &s->c);
     cholmod_free_factor(&s->L, &s->c);
     cholmod_free_dense(&s->B, &s->c);
@@ -566,98 +577,13 @@ void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 
 /* ===== evaluation ======================================================= */
 
-/* Element matrix Q (dimension 3·nl) of element e at positions x. */
-static int element_matrix(const iso_solver_opts *o, const element *e, const double *x,
-                          double *Q)
-{
-    double xi[9];
-    for (int k = 0; k < 3; k++)
-        memcpy(xi + 3 * k, x + 3 * e->v[k], 3 * sizeof(double));
-    if (e->kind == 1)
-        return iso_elem_q1(xi, o->weighting, Q);
-    return iso_elem_q2(xi, x + 3 * e->v[3], e->jmap, o->weighting, Q);
-}
-
-/* Adds w·Q into A_ff's upper triangle through the slot map, and −w·Q·vc of
- * the constrained columns into the free rows of the right-hand side. */
-static void scatter(iso_solver *s, const element *e, const double *Q, double w,
-                    const double *vc, double *Ax, double *rhs)
-{
-    int nl = local_count(e), dim = 3 * nl;
-    const int *sl = s->slots + e->slot;
-    for (int a = 0; a < nl; a++) {
-        int fa = s->free_of[e->v[a]];
-        if (fa < 0)
-            continue;
-        for (int b = 0; b < nl; b++) {
-            int gb = e->v[b];
-            const int *pos = sl + 3 * (a * nl + b);
-            if (pos[0] >= 0) {
-                int diag = s->free_of[gb] == fa;
-                for (int k = 0; k < 3; k++)
-                    for (int al = 0; al <= (diag ? k : 2); al++)
-                        Ax[pos[k] + al] += w * Q[(3 * a + al) * dim + 3 * b + k];
-            } else if (s->free_of[gb] < 0 && s->r->kind[gb] == ISO_HANDLE) {
-                for (int al = 0; al < 3; al++) {
-                    const double *q = Q + (3 * a + al) * dim + 3 * b;
-                    rhs[3 * fa + al] -=
-                        w * (q[0] * vc[3 * gb] + q[1] * vc[3 * gb + 1] + q[2] * vc[3 * gb + 2]);
-                }
-            }
-        }
-    }
-}
-
-/* Restoration term of edge element e: Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ] and its
- * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
- * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
-static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q,
-                        double *rhs)
-{
-    const double *a = x + 3 * e->v[0], *b = x + 3 * e->v[1];
-    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    double len = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    for (int k = 0; k < 3; k++)
-        u[k] /= len;
-    double we = s->edge_w[e->tri], c = (len - s->rest_len[e->tri]) / s->o.restore_tau;
-    for (int i = 0; i < 6; i++)
-        for (int j = 0; j < 6; j++) {
-            double sign = (i < 3) == (j < 3) ? 1.0 : -1.0;
-            Q[6 * i + j] = sign * we * u[i % 3] * u[j % 3];
-        }
-    for (int end = 0; end < 2; end++) {
-        int f = s->free_of[e->v[end]];
-        if (f < 0)
-            continue;
-        double sign = end == 0 ? -1.0 : 1.0;
-        for (int k = 0; k < 3; k++)
-            rhs[3 * f + k] -= s->o.restore_mu * we * c * sign * u[k];
-    }
-}
-
 static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
-    double *Ax = s->A->x, *rhs = s->B->x;
-    int n3 = 3 * s->nf;
-    memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
-    memset(rhs, 0, (size_t)n3 * sizeof(double));
-    double Q[144];
-    double w1 = 1.0 - s->o.omega, w2 = s->o.omega;
-    for (int i = 0; i < s->nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind == 3) {
-            edge_matrix(s, e, x, Q, rhs);
-            scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
-            continue;
-        }
-        if (element_matrix(&s->o, e, x, Q) != 0)
-            return iso_err_set(err, ISO_ENUMERIC, -1,
-                               "%s: triangle %d has degenerated during the deformation (its "
-                               "rigid fit is singular)",
-                               iso_mesh_origin(s->m), e->tri);
-        scatter(s, e, Q, e->kind == 1 ? w1 : w2, vc, Ax, rhs);
-    }
-    return ISO_OK;
+#ifdef ISO_WITH_OPENCL
+    if (s->cl)
+        return iso_solver__cl_assemble(s->cl, s, x, vc, err);
+#endif
+    return iso_solver__assemble_cpu(s, x, vc, err);
 }
 
 static int factorize(iso_solver *s, iso_err *err)
@@ -743,7 +669,7 @@ static int for_each_element(const iso_mesh *m, const double *x, const iso_solver
         e.kind = 1;
         e.tri = t;
         memcpy(e.v, tri + 3 * t, 3 * sizeof(int));
-        if (element_matrix(o, &e, x, Q) != 0)
+        if (iso_solver__element_matrix(o, &e, x, Q) != 0)
             return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", t);
         fn(ctx, &e, Q, 1.0 - o->omega);
     }
@@ -753,7 +679,7 @@ static int for_each_element(const iso_mesh *m, const double *x, const iso_solver
         for (int side = 0; side < 2; side++) {
             make_pair(tri, et[2 * k + side], et[2 * k + 1 - side], edges[2 * k],
                       edges[2 * k + 1], &e);
-            if (element_matrix(o, &e, x, Q) != 0)
+            if (iso_solver__element_matrix(o, &e, x, Q) != 0)
                 return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", e.tri);
             fn(ctx, &e, Q, o->omega);
         }

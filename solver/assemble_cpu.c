@@ -1,0 +1,104 @@
+/* solver/assemble_cpu.c -- the C assembly path: element forms at the
+ * current positions, scattered through the slot map (solver_internal.h). */
+#include <math.h>
+#include <string.h>
+
+#include "solver_internal.h"
+
+typedef iso_solver__element element;
+#define local_count iso_solver__local_count
+
+/* Element matrix Q (dimension 3·nl) of element e at positions x. */
+int iso_solver__element_matrix(const iso_solver_opts *o, const element *e, const double *x,
+                               double *Q)
+{
+    double xi[9];
+    for (int k = 0; k < 3; k++)
+        memcpy(xi + 3 * k, x + 3 * e->v[k], 3 * sizeof(double));
+    if (e->kind == 1)
+        return iso_elem_q1(xi, o->weighting, Q);
+    return iso_elem_q2(xi, x + 3 * e->v[3], e->jmap, o->weighting, Q);
+}
+
+/* Adds w·Q into A_ff's upper triangle through the slot map, and −w·Q·vc of
+ * the constrained columns into the free rows of the right-hand side. */
+static void scatter(iso_solver *s, const element *e, const double *Q, double w,
+                    const double *vc, double *Ax, double *rhs)
+{
+    int nl = local_count(e), dim = 3 * nl;
+    const int *sl = s->slots + e->slot;
+    for (int a = 0; a < nl; a++) {
+        int fa = s->free_of[e->v[a]];
+        if (fa < 0)
+            continue;
+        for (int b = 0; b < nl; b++) {
+            int gb = e->v[b];
+            const int *pos = sl + 3 * (a * nl + b);
+            if (pos[0] >= 0) {
+                int diag = s->free_of[gb] == fa;
+                for (int k = 0; k < 3; k++)
+                    for (int al = 0; al <= (diag ? k : 2); al++)
+                        Ax[pos[k] + al] += w * Q[(3 * a + al) * dim + 3 * b + k];
+            } else if (s->free_of[gb] < 0 && s->r->kind[gb] == ISO_HANDLE) {
+                for (int al = 0; al < 3; al++) {
+                    const double *q = Q + (3 * a + al) * dim + 3 * b;
+                    rhs[3 * fa + al] -=
+                        w * (q[0] * vc[3 * gb] + q[1] * vc[3 * gb + 1] + q[2] * vc[3 * gb + 2]);
+                }
+            }
+        }
+    }
+}
+
+/* Restoration term of edge element e: Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ] and its
+ * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
+ * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
+static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q,
+                        double *rhs)
+{
+    const double *a = x + 3 * e->v[0], *b = x + 3 * e->v[1];
+    double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double len = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    for (int k = 0; k < 3; k++)
+        u[k] /= len;
+    double we = s->edge_w[e->tri], c = (len - s->rest_len[e->tri]) / s->o.restore_tau;
+    for (int i = 0; i < 6; i++)
+        for (int j = 0; j < 6; j++) {
+            double sign = (i < 3) == (j < 3) ? 1.0 : -1.0;
+            Q[6 * i + j] = sign * we * u[i % 3] * u[j % 3];
+        }
+    for (int end = 0; end < 2; end++) {
+        int f = s->free_of[e->v[end]];
+        if (f < 0)
+            continue;
+        double sign = end == 0 ? -1.0 : 1.0;
+        for (int k = 0; k < 3; k++)
+            rhs[3 * f + k] -= s->o.restore_mu * we * c * sign * u[k];
+    }
+}
+
+int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err)
+{
+    double *Ax = s->A->x, *rhs = s->B->x;
+    int n3 = 3 * s->nf;
+    memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
+    memset(rhs, 0, (size_t)n3 * sizeof(double));
+    double Q[144];
+    double w1 = 1.0 - s->o.omega, w2 = s->o.omega;
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind == 3) {
+            edge_matrix(s, e, x, Q, rhs);
+            scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
+            continue;
+        }
+        if (iso_solver__element_matrix(&s->o, e, x, Q) != 0)
+            return iso_err_set(err, ISO_ENUMERIC, -1,
+                               "%s: triangle %d has degenerated during the deformation (its "
+                               "rigid fit is singular)",
+                               iso_mesh_origin(s->m), e->tri);
+        scatter(s, e, Q, e->kind == 1 ? w1 : w2, vc, Ax, rhs);
+    }
+    return ISO_OK;
+}
+

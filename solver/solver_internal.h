@@ -1,0 +1,72 @@
+/* solver/solver_internal.h -- what the solver's parts share: the element
+ * list, the slot map and the solver struct. Not installed; only the
+ * solver's own sources and white-box tests include it.
+ *
+ * Assembly backends (the C path in assemble_cpu.c, the OpenCL path in
+ * assemble_cl.c) fill s->A's values (upper triangle of A_ff) and s->B (the
+ * right-hand side −A_fc v_c, plus the restoration term's linear part) from
+ * the current positions. They must agree to rounding, and each must be
+ * bit-identical from run to run (replays depend on it). */
+#ifndef ISO_SOLVER_INTERNAL_H
+#define ISO_SOLVER_INTERNAL_H
+
+#include <cholmod.h>
+
+#include "iso_solver.h"
+
+typedef struct iso_solver__element {
+    int kind;    /* 1: triangle (Q1), 2: ordered pair (Q2), 3: edge (restoration) */
+    int tri;     /* the triangle (Q1) or Ti (Q2) */
+    int v[4];    /* global vertices in local order */
+    int jmap[3]; /* Q2: local index of each of Tj's corners */
+    int slot;    /* index of this element's first slot in the slot map */
+} iso_solver__element;
+
+/* Vertices of an element: 3 (triangle), 4 (pair), 2 (edge). */
+static inline int iso_solver__local_count(const iso_solver__element *e)
+{
+    return e->kind == 1 ? 3 : e->kind == 2 ? 4 : 2;
+}
+
+struct iso_solver {
+    const iso_mesh *m;
+    const iso_regions *r;
+    iso_solver_opts o;
+    int nv, nf;
+    int *free_of;   /* nv: free index or −1 */
+    int *vert_of;   /* nf: vertex of each free index */
+    iso_solver__element *el;
+    int nel;
+    int *slots;     /* per element, per local (a, b): 3 column offsets or −1 */
+    double *rest_len;  /* per edge, when restoration is on */
+    double *edge_w;    /* per edge weight w_e, when restoration is on */
+    char notice[256];
+    struct iso_cl_assembler *cl; /* OpenCL path when in use, else NULL */
+    cholmod_common c;
+    cholmod_sparse *A;
+    cholmod_factor *L;
+    cholmod_dense *B, *X, *Y, *E;
+    iso_solver_stats st;
+};
+
+
+/* Element matrix Q (dimension 3·nl) of a triangle or pair element at
+ * positions x; −1 if its triangle is degenerate. */
+int iso_solver__element_matrix(const iso_solver_opts *o, const iso_solver__element *e,
+                               const double *x, double *Q);
+
+/* The C assembly path. */
+int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
+
+/* The OpenCL path (assemble_cl.c, compiled when ISO_WITH_OPENCL is defined).
+ * create: after the pattern and slot map exist; builds the kernels and the
+ * gather maps once. Returns ISO_ENOTSUP when no usable platform/device
+ * exists (the caller then falls back to the C path with a notice), other
+ * negative codes for real failures (a kernel build failure carries the
+ * compiler log in err). assemble: same contract as the C path. */
+int iso_solver__cl_create(iso_solver *s, struct iso_cl_assembler **out, iso_err *err);
+int iso_solver__cl_assemble(struct iso_cl_assembler *cl, iso_solver *s, const double *x,
+                            const double *vc, iso_err *err);
+void iso_solver__cl_destroy(struct iso_cl_assembler *cl);
+
+#endif
