@@ -560,6 +560,8 @@ void iso_solver_destroy(iso_solver *s)
     cholmod_free_dense(&s->X, &s->c);
     cholmod_free_dense(&s->Y, &s->c);
     cholmod_free_dense(&s->E, &s->c);
+    for (int i = 0; i < 4; i++)
+        cholmod_free_dense(&s->work[i], &s->c);
     cholmod_finish(&s->c);
     free(s->free_of);
     free(s->vert_of);
@@ -586,53 +588,15 @@ static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *e
     return iso_solver__assemble_cpu(s, x, vc, err);
 }
 
-static int factorize(iso_solver *s, iso_err *err)
-{
-    if (!cholmod_factorize(s->A, s->L, &s->c) || s->c.status < CHOLMOD_OK)
-        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD factorization failed (status %d)",
-                           s->c.status);
-    if (s->c.status == CHOLMOD_NOT_POSDEF || s->L->minor < s->L->n) {
-        int row = (int)s->L->minor;
-        int f = row / 3, v = s->vert_of[f < s->nf ? f : s->nf - 1];
-        return iso_err_set(err, ISO_ENUMERIC, row,
-                           "%s: the free-free system is not positive definite at row %d "
-                           "(vertex %d, %c component): the constraints do not pin the motion "
-                           "there, or the mesh has degenerated",
-                           iso_mesh_origin(s->m), row, v, "xyz"[row % 3]);
-    }
-    return ISO_OK;
-}
-
-static int solve(iso_solver *s, iso_err *err)
-{
-    if (!cholmod_solve2(CHOLMOD_A, s->L, s->B, NULL, &s->X, NULL, &s->Y, &s->E, &s->c) ||
-        s->c.status < CHOLMOD_OK)
-        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)",
-                           s->c.status);
-    const double *X = s->X->x;
-    for (int i = 0; i < 3 * s->nf; i++)
-        if (!isfinite(X[i]))
-            return iso_err_set(err, ISO_ENUMERIC, i, "the solve produced a non-finite value at "
-                               "row %d (vertex %d)", i, s->vert_of[i / 3]);
-    return ISO_OK;
-}
-
 int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v, iso_err *err)
 {
     double t0 = iso_clock_now();
     int rc = ISO_OK;
     if (s->nf > 0)
         rc = assemble(s, x, vc, err);
-    double t1 = iso_clock_now();
+    s->st.t_assembly += iso_clock_now() - t0;
     if (rc == ISO_OK && s->nf > 0)
-        rc = factorize(s, err);
-    double t2 = iso_clock_now();
-    if (rc == ISO_OK && s->nf > 0)
-        rc = solve(s, err);
-    double t3 = iso_clock_now();
-    s->st.t_assembly += t1 - t0;
-    s->st.t_factor += t2 - t1;
-    s->st.t_solve += t3 - t2;
+        rc = iso_solver__linsolve(s, err); /* times its own phases */
     if (rc != ISO_OK)
         return rc;
     s->st.evaluations++;

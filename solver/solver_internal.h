@@ -46,6 +46,9 @@ struct iso_solver {
     cholmod_sparse *A;
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
+    cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
+    int have_factor;        /* L holds a numeric factor of some earlier A */
+    int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
     iso_solver_stats st;
 };
 
@@ -54,6 +57,11 @@ struct iso_solver {
  * positions x; −1 if its triangle is degenerate. */
 int iso_solver__element_matrix(const iso_solver_opts *o, const iso_solver__element *e,
                                const double *x, double *Q);
+
+/* Solves A_ff X = B with the current values: a fresh factorization, or
+ * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates
+ * t_factor / t_solve and the factor statistics. */
+int iso_solver__linsolve(iso_solver *s, iso_err *err);
 
 /* The C assembly path. */
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
