@@ -99,6 +99,13 @@ static void print_blas(void)
         printf("BLAS loaded from %s\n", s.path[i]);
 }
 
+const char *iso_cli__blas_config(void)
+{
+    char *(*config)(void) = NULL;
+    const char *c = lookup("openblas_get_config", sizeof config, &config) ? config() : NULL;
+    return c ? c : "";
+}
+
 void iso_cli__print_version(void)
 {
     printf("isoshape %s\n", ISO_VERSION);

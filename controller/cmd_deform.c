@@ -41,7 +41,7 @@ static const char *const help =
     "  --out OUT          write the deformed mesh (format from the extension)\n"
     "  --reference REF    also measure REF, another result of the same problem\n"
     "                     (with --benchmark: the Laplacian-editing result)\n"
-    "  --json             print one JSON object instead of text\n";
+    "  --json             print one JSON object instead of text\n" ISO_CLI_SOLVER_HELP;
 
 typedef struct deform_args {
     const char *mesh, *sel, *def, *shape, *benchmark, *bench_dir, *out, *reference;
@@ -49,24 +49,6 @@ typedef struct deform_args {
     double tol;
     iso_solver_opts so;
 } deform_args;
-
-/* Everything one run owns, released by problem_deinit. */
-typedef struct problem {
-    char label[ISO_CLI_PATH_MAX + 64];
-    char ref_path[ISO_CLI_PATH_MAX];
-    iso_shape shape;
-    iso_mesh *mesh, *ref;
-    iso_regions reg;
-    double M[16];
-} problem;
-
-static void problem_deinit(problem *p)
-{
-    iso_mesh_destroy(p->mesh);
-    iso_mesh_destroy(p->ref);
-    iso_regions_deinit(&p->reg);
-    iso_shape_deinit(&p->shape);
-}
 
 /* ------------------------------------------------------------------------ */
 /* Options                                                                    */
@@ -80,7 +62,7 @@ static int parse_args(int argc, char **argv, deform_args *a)
     iso_integrate_opts io;
     iso_integrate_opts_default(&io);
     memset(a, 0, sizeof *a);
-    iso_solver_opts_default(&a->so);
+    iso_cli__solver_opts_default(&a->so);
     a->steps = io.steps;
     a->tol = io.tol;
     weighting = (int)a->so.weighting;
@@ -93,6 +75,11 @@ static int parse_args(int argc, char **argv, deform_args *a)
             a->json = 1;
             continue;
         }
+        r = iso_cli__solver_option(cmd, argc, argv, &i, &a->so);
+        if (r < 0)
+            return 2;
+        if (r > 0)
+            continue;
 #define VALUE(name) ((r = iso_cli__value(cmd, argc, argv, &i, name, &val)) != 0)
         if (VALUE("--mesh"))
             a->mesh = val;
@@ -174,78 +161,6 @@ static int parse_args(int argc, char **argv, deform_args *a)
 }
 
 /* ------------------------------------------------------------------------ */
-/* Loading the problem                                                        */
-/* ------------------------------------------------------------------------ */
-
-static int load_shape(problem *p, const char *name, int resolution, iso_err *err)
-{
-    int rc = iso_shape_init(&p->shape, name, resolution, err);
-    if (rc == ISO_OK)
-        rc = iso_mesh_create(p->shape.nv, p->shape.x, p->shape.nt, p->shape.tri, p->shape.name,
-                             &p->mesh, err);
-    if (rc == ISO_OK)
-        rc = iso_shape_regions(&p->shape, &p->reg, err);
-    if (rc == ISO_OK) {
-        memcpy(p->M, p->shape.M, sizeof p->M);
-        snprintf(p->label, sizeof p->label, "built-in %s (resolution %d)", p->shape.name,
-                 p->shape.resolution);
-    }
-    return rc;
-}
-
-static int load_files(problem *p, const char *mesh, const char *sel, const char *def, iso_err *err)
-{
-    int rc = iso_mesh_load(mesh, &p->mesh, err);
-    if (rc == ISO_OK)
-        rc = iso_sel_load(sel, iso_mesh_vertex_count(p->mesh), &p->reg, err);
-    if (rc == ISO_OK)
-        rc = iso_def_load(def, p->M, err);
-    if (rc == ISO_OK)
-        snprintf(p->label, sizeof p->label, "%s", mesh);
-    return rc;
-}
-
-static int load_problem(const deform_args *a, problem *p, iso_err *err)
-{
-    if (a->reference)
-        snprintf(p->ref_path, sizeof p->ref_path, "%s", a->reference);
-    if (a->shape)
-        return load_shape(p, a->shape, a->resolution, err);
-    if (!a->benchmark)
-        return load_files(p, a->mesh, a->sel, a->def, err);
-    iso_cli__bench b;
-    char why[2048];
-    if (!iso_cli__bench_find(a->benchmark, a->bench_dir, &b, why, sizeof why)) {
-        fprintf(stderr,
-                "isoshape deform: benchmark '%s' not found (looked in %s); using the "
-                "built-in %s instead.\n",
-                a->benchmark, why, a->benchmark);
-        return load_shape(p, a->benchmark, a->resolution, err);
-    }
-    int rc = load_files(p, b.mesh, b.sel, b.def, err);
-    if (rc == ISO_OK) {
-        snprintf(p->label, sizeof p->label, "benchmark %s (%s)", a->benchmark, b.mesh);
-        if (!a->reference && access(b.ref, R_OK) == 0)
-            snprintf(p->ref_path, sizeof p->ref_path, "%s", b.ref);
-    }
-    return rc;
-}
-
-static int load_reference(problem *p, iso_err *err)
-{
-    if (!p->ref_path[0])
-        return ISO_OK;
-    int rc = iso_mesh_load(p->ref_path, &p->ref, err);
-    if (rc != ISO_OK)
-        return rc;
-    char why[1024];
-    if (!iso_cli__same_connectivity(p->mesh, p->ref, why, sizeof why))
-        return iso_err_set(err, ISO_EINVAL, -1, "reference %s does not fit the problem: %s.",
-                           p->ref_path, why);
-    return ISO_OK;
-}
-
-/* ------------------------------------------------------------------------ */
 /* Running and reporting                                                      */
 /* ------------------------------------------------------------------------ */
 
@@ -275,9 +190,7 @@ static void show_progress(void *ctx, double t, int steps, long evaluations)
 typedef struct report {
     iso_metrics ours, ref;
     int has_ref;
-    iso_integrate_stats ist;
-    iso_solver_stats sst;
-    double seconds, other;
+    iso_cli__run run;
 } report;
 
 static void json_number(const char *key, double v, int last)
@@ -293,20 +206,32 @@ static double ratio(double ref, double ours)
     return ours > 0 ? ref / ours : (ref > 0 ? INFINITY : NAN);
 }
 
-static void print_json(const report *r)
+static void print_json(const deform_args *a, const report *r)
 {
     printf("{");
     json_number("metricErr", r->ours.metric_err, 0);
     json_number("areaErr", r->ours.area_err, 0);
     json_number("angleErr", r->ours.angle_err, 0);
     json_number("maxEdgeStrain", r->ours.max_edge_strain, 0);
-    printf("\"steps\": %d, \"rk4Steps\": %d, \"rejected\": %d, \"evaluations\": %ld, ",
-           r->ist.steps, r->ist.rk4_steps, r->ist.rejected, r->ist.evaluations);
-    json_number("seconds", r->seconds, 0);
-    json_number("assemblySeconds", r->sst.t_assembly, 0);
-    json_number("factorSeconds", r->sst.t_factor, 0);
-    json_number("solveSeconds", r->sst.t_solve, 0);
-    json_number("otherSeconds", r->other, !r->has_ref);
+    const iso_integrate_stats *ist = &r->run.ist;
+    const iso_solver_stats *sst = &r->run.sst;
+    printf("\"steps\": %d, \"rk4Steps\": %d, \"rejected\": %d, \"evaluations\": %ld, ", ist->steps,
+           ist->rk4_steps, ist->rejected, ist->evaluations);
+    printf("\"assembly\": \"%s\", \"refactor\": \"%s\", ", iso_cli__assembly_name(a->so.assembly),
+           iso_cli__refactor_name(a->so.refactor));
+    printf("\"factorizations\": %ld, \"cgIterations\": %ld, \"refactors\": %ld, ",
+           sst->factorizations, sst->cg_iterations, sst->refactors);
+    json_number("seconds", r->run.seconds, 0);
+    json_number("assemblySeconds", sst->t_assembly, 0);
+    json_number("factorSeconds", sst->t_factor, 0);
+    json_number("solveSeconds", sst->t_solve, 0);
+    json_number("assemblyMsPerEvaluation",
+                iso_cli__per_evaluation_ms(sst->t_assembly, sst->evaluations), 0);
+    json_number("factorMsPerEvaluation",
+                iso_cli__per_evaluation_ms(sst->t_factor, sst->evaluations), 0);
+    json_number("solveMsPerEvaluation", iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations),
+                0);
+    json_number("otherSeconds", r->run.other, !r->has_ref);
     if (r->has_ref) {
         json_number("referenceMetricErr", r->ref.metric_err, 0);
         json_number("referenceAreaErr", r->ref.area_err, 0);
@@ -319,26 +244,40 @@ static void print_json(const report *r)
     printf("}\n");
 }
 
-static void print_text(const problem *p, const deform_args *a, const report *r)
+static void print_text(const iso_cli__problem *p, const deform_args *a, const report *r)
 {
+    const iso_integrate_stats *ist = &r->run.ist;
+    const iso_solver_stats *sst = &r->run.sst;
     printf("problem        %s: %d vertices, %d triangles, %d free\n", p->label,
-           iso_mesh_vertex_count(p->mesh), iso_mesh_triangle_count(p->mesh), r->sst.n_free);
+           iso_mesh_vertex_count(p->mesh), iso_mesh_triangle_count(p->mesh), sst->n_free);
     printf("settings       omega %.6g, weighting %s, ", a->so.omega,
            a->so.weighting == ISO_WEIGHT_AREA ? "area" : "param");
     if (a->steps > 0)
         printf("%d fixed steps\n", a->steps);
     else
         printf("adaptive, tol %.3g\n", a->tol);
-    printf("steps          %d (RK4 start %d, rejected %d)\n", r->ist.steps, r->ist.rk4_steps,
-           r->ist.rejected);
-    printf("evaluations    %ld\n", r->ist.evaluations);
+    printf("solver         assembly %s, refactor %s", iso_cli__assembly_name(a->so.assembly),
+           iso_cli__refactor_name(a->so.refactor));
+    if (a->so.refactor == ISO_REFACTOR_ADAPTIVE)
+        printf(", CG tolerance %.3g", a->so.cg_tol);
+    printf("\n");
+    printf("steps          %d (RK4 start %d, rejected %d)\n", ist->steps, ist->rk4_steps,
+           ist->rejected);
+    printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations\n",
+           ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations);
     printf("metricErr      %.6e\n", r->ours.metric_err);
     printf("areaErr        %.6e\n", r->ours.area_err);
     printf("angleErr       %.6e\n", r->ours.angle_err);
     printf("maxEdgeStrain  %.6e (%.3f%%)\n", r->ours.max_edge_strain,
            100.0 * r->ours.max_edge_strain);
     printf("time           %.3f s: assembly %.3f, factorization %.3f, solve %.3f, other %.3f\n",
-           r->seconds, r->sst.t_assembly, r->sst.t_factor, r->sst.t_solve, r->other);
+           r->run.seconds, sst->t_assembly, sst->t_factor, sst->t_solve, r->run.other);
+    printf("per evaluation %.3f ms: assembly %.3f, factorization %.3f, solve %.3f\n",
+           iso_cli__per_evaluation_ms(sst->t_assembly + sst->t_factor + sst->t_solve,
+                                      sst->evaluations),
+           iso_cli__per_evaluation_ms(sst->t_assembly, sst->evaluations),
+           iso_cli__per_evaluation_ms(sst->t_factor, sst->evaluations),
+           iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations));
     if (r->has_ref) {
         printf("reference      %s\n", p->ref_path);
         printf("  metricErr    %.6e  (reference/ours %.4g)\n", r->ref.metric_err,
@@ -352,24 +291,10 @@ static void print_text(const problem *p, const deform_args *a, const report *r)
     }
 }
 
-/* Integrates p from t = 0 to 1 into x and fills the run's figures. */
-static int run(const deform_args *a, problem *p, double *x, report *rep, iso_err *err)
+/* Integrates p from t = 0 to 1 into x, with the progress bar on a terminal. */
+static int run(const deform_args *a, const iso_cli__problem *p, double *x, report *rep,
+               iso_err *err)
 {
-    iso_twist xi;
-    int rc = iso_twist_from_matrix(p->M, &xi, err);
-    if (rc != ISO_OK)
-        return rc;
-    if (p->reg.n_handles < 1)
-        return iso_err_set(err, ISO_ECONSTRAINT, -1,
-                           "%s has no handle vertices (label 2), so nothing moves.", p->label);
-    iso_twist *tw = malloc((size_t)p->reg.n_handles * sizeof *tw);
-    if (!tw)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d handle twists.",
-                           p->reg.n_handles);
-    for (int h = 0; h < p->reg.n_handles; h++)
-        tw[h] = xi;
-    iso_screw_path sp = {tw, p->reg.n_handles};
-    iso_path path = iso_screw_path_make(&sp);
     iso_integrate_opts io;
     iso_integrate_opts_default(&io);
     io.steps = a->steps;
@@ -377,21 +302,10 @@ static int run(const deform_args *a, problem *p, double *x, report *rep, iso_err
     progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1};
     io.progress = show_progress;
     io.progress_ctx = &pg;
-
-    iso_solver *s = NULL;
-    double start = iso_clock_now();
-    rc = iso_solver_create(p->mesh, &p->reg, &a->so, &s, err);
-    if (rc == ISO_OK)
-        rc = iso_integrate(s, p->mesh, &p->reg, &path, &io, x, &rep->ist, err);
-    rep->seconds = iso_clock_now() - start;
+    int rc = iso_cli__problem_run(p, &a->so, &io, x, &rep->run, err);
     if (pg.tty)
         fputc('\n', stderr);
-    if (s)
-        iso_solver_get_stats(s, &rep->sst);
-    rep->other =
-        fmax(0.0, rep->seconds - rep->sst.t_assembly - rep->sst.t_factor - rep->sst.t_solve);
-    iso_solver_destroy(s);
-    free(tw);
+    iso_cli__print_notice("deform", rep->run.notice);
     return rc;
 }
 
@@ -402,14 +316,22 @@ int iso_cli__deform(int argc, char **argv)
     if (status >= 0)
         return status;
     status = 1;
-    problem p;
+    iso_cli__problem p;
     memset(&p, 0, sizeof p);
     report rep;
     memset(&rep, 0, sizeof rep);
     iso_err err;
     iso_err_clear(&err);
     double *x = NULL;
-    if (load_problem(&a, &p, &err) != ISO_OK || load_reference(&p, &err) != ISO_OK)
+    iso_cli__source src = {.mesh = a.mesh,
+                           .sel = a.sel,
+                           .def = a.def,
+                           .shape = a.shape,
+                           .benchmark = a.benchmark,
+                           .bench_dir = a.bench_dir,
+                           .reference = a.reference,
+                           .resolution = a.resolution};
+    if (iso_cli__problem_load("deform", &src, &p, &err) != ISO_OK)
         goto fail;
     int nv = iso_mesh_vertex_count(p.mesh);
     x = malloc((size_t)nv * 3 * sizeof *x);
@@ -417,7 +339,6 @@ int iso_cli__deform(int argc, char **argv)
         iso_err_set(&err, ISO_ENOMEM, -1, "out of memory for %d vertex positions.", nv);
         goto fail;
     }
-    memcpy(x, iso_mesh_positions(p.mesh), (size_t)nv * 3 * sizeof *x);
     if (run(&a, &p, x, &rep, &err) != ISO_OK)
         goto fail;
     if (a.out && iso_mesh_save(p.mesh, x, a.out, ISO_MESH_FMT_AUTO, &err) != ISO_OK)
@@ -429,7 +350,7 @@ int iso_cli__deform(int argc, char **argv)
                             &rep.ref);
     }
     if (a.json)
-        print_json(&rep);
+        print_json(&a, &rep);
     else
         print_text(&p, &a, &rep);
     status = 0;
@@ -438,6 +359,6 @@ fail:
     iso_cli__fail("deform", "%s", err.msg);
 out:
     free(x);
-    problem_deinit(&p);
+    iso_cli__problem_deinit(&p);
     return status;
 }

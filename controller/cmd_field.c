@@ -29,7 +29,7 @@ static const char *const help =
     "                  ('#' comments and blank lines are skipped)\n"
     "  --omega W       smoothness weight in (0, 1], default 1/3\n"
     "  --weighting     param (default) or area: how triangles are weighted\n"
-    "  --out F         one line 'vx vy vz' per vertex, 17 significant digits\n";
+    "  --out F         one line 'vx vy vz' per vertex, 17 significant digits\n" ISO_CLI_SOLVER_HELP;
 
 /* Reads one velocity per handle vertex into vc (3*nv). Returns 0, or -1
  * after naming V's line. */
@@ -130,13 +130,18 @@ int iso_cli__field(int argc, char **argv)
                *out_path = NULL, *shape = NULL, *val = NULL;
     int resolution = 0, weighting, r;
     iso_solver_opts so;
-    iso_solver_opts_default(&so);
+    iso_cli__solver_opts_default(&so);
     weighting = (int)so.weighting;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
             fputs(help, stdout);
             return 0;
         }
+        r = iso_cli__solver_option(cmd, argc, argv, &i, &so);
+        if (r < 0)
+            return 2;
+        if (r > 0)
+            continue;
 #define VALUE(name) ((r = iso_cli__value(cmd, argc, argv, &i, name, &val)) != 0)
         if (VALUE("--mesh"))
             mesh_path = val;
@@ -200,8 +205,10 @@ int iso_cli__field(int argc, char **argv)
     }
     if (read_velocities(vel_path, &reg, vc) != 0)
         goto out;
-    if (iso_solver_create(m, &reg, &so, &s, &err) != ISO_OK ||
-        iso_solver_field(s, iso_mesh_positions(m), vc, v, &err) != ISO_OK)
+    if (iso_solver_create(m, &reg, &so, &s, &err) != ISO_OK)
+        goto fail;
+    iso_cli__print_notice(cmd, iso_solver_notice(s));
+    if (iso_solver_field(s, iso_mesh_positions(m), vc, v, &err) != ISO_OK)
         goto fail;
     if (write_field(out_path, v, nv) != 0)
         goto out;

@@ -7,6 +7,11 @@
 #include <stddef.h>
 
 #include "iso_err.h"
+#include "iso_integrate.h"
+#include "iso_mesh.h"
+#include "iso_regions.h"
+#include "iso_shapes.h"
+#include "iso_solver.h"
 
 #define ISO_CLI_PATH_MAX 4096
 
@@ -14,6 +19,7 @@
 int iso_cli__deform(int argc, char **argv);
 int iso_cli__field(int argc, char **argv);
 int iso_cli__metrics(int argc, char **argv);
+int iso_cli__bench_run(int argc, char **argv); /* `isoshape bench` */
 
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
@@ -65,5 +71,102 @@ int iso_cli__same_connectivity(const struct iso_mesh *a, const struct iso_mesh *
 /* Prints the version lines of --version: isoshape, CHOLMOD (run time and
  * build time) and the BLAS that is loaded, with its resolved path. */
 void iso_cli__print_version(void);
+
+/* OpenBLAS's build and kernel line (openblas_get_config), or "" when the
+ * BLAS loaded is not OpenBLAS. Never NULL. */
+const char *iso_cli__blas_config(void);
+
+/* ------------------------------------------------------------------------ */
+/* Solver options shared by deform, field and bench (cli_solver.c)           */
+/* ------------------------------------------------------------------------ */
+
+#define ISO_CLI_DEFAULT_CG_TOL 1e-10
+
+#define ISO_CLI_SOLVER_HELP                                                                        \
+    "  --assembly A       cpu or opencl (default): who fills the system each evaluation;\n"        \
+    "                     without a usable OpenCL device the C path runs, with a notice\n"         \
+    "  --cl-device SPEC   OpenCL device: P:D platform/device indices or part of a name\n"          \
+    "                     (default: the first CPU device)\n"                                       \
+    "  --refactor R       always (factor every evaluation, the paper's scheme) or\n"               \
+    "                     adaptive (default): reuse the last factor as a CG preconditioner\n"      \
+    "  --cg-tol T         adaptive: CG's relative residual, in (0, 1), default 1e-10\n"
+
+/* The library's defaults with the command's: OpenCL assembly, adaptive
+ * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL. */
+void iso_cli__solver_opts_default(iso_solver_opts *so);
+
+/* If argv[*i] is --assembly, --cl-device, --refactor or --cg-tol (either
+ * form of iso_cli__value), stores its value in so and returns 1; returns -1
+ * after reporting a missing or bad value, naming the option; returns 0 if
+ * argv[*i] is none of them. so->cl_device then points into argv. */
+int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_solver_opts *so);
+
+/* Parses a --refactor value; returns 0 or -1 after reporting. */
+int iso_cli__refactor(const char *cmd, const char *val, iso_refactor *out);
+
+/* The option values' names: "cpu"/"opencl", "always"/"adaptive". */
+const char *iso_cli__assembly_name(iso_assembly a);
+const char *iso_cli__refactor_name(iso_refactor r);
+
+/* Prints iso_solver_notice() as "isoshape <cmd>: <notice>" on stderr, one
+ * line; nothing when the notice is empty. */
+void iso_cli__print_notice(const char *cmd, const char *notice);
+
+/* ------------------------------------------------------------------------ */
+/* One deformation problem (cli_problem.c)                                    */
+/* ------------------------------------------------------------------------ */
+
+/* Where a problem comes from: files, a built-in shape, or a benchmark
+ * problem (looked up with iso_cli__bench_find, the built-in of the same
+ * name when absent). */
+typedef struct iso_cli__source {
+    const char *mesh, *sel, *def; /* files */
+    const char *shape;            /* or a built-in shape */
+    const char *benchmark;        /* or a benchmark problem... */
+    const char *bench_dir;        /* ...under this folder (NULL: the usual places) */
+    const char *reference;        /* another result to measure, or NULL */
+    int resolution;               /* built-in shapes: 0 = default */
+    int quiet;                    /* 1: no stderr line when the built-in stands in */
+} iso_cli__source;
+
+typedef struct iso_cli__problem {
+    char label[ISO_CLI_PATH_MAX + 64];
+    char ref_path[ISO_CLI_PATH_MAX]; /* "" if none */
+    int builtin;                     /* 1 if it is a built-in shape */
+    iso_shape shape;
+    iso_mesh *mesh, *ref;
+    iso_regions reg;
+    double M[16]; /* the handle's final pose */
+} iso_cli__problem;
+
+/* Loads the problem (and its reference) into *p. On failure returns a
+ * negative ISO_E* code with err filled; *p can be deinitialised either way.
+ * cmd names the command in the fall-back line. */
+int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__problem *p,
+                          iso_err *err);
+void iso_cli__problem_deinit(iso_cli__problem *p);
+
+/* The figures of one run. */
+typedef struct iso_cli__run {
+    iso_integrate_stats ist;
+    iso_solver_stats sst;
+    double seconds;      /* solver creation and integration, wall clock */
+    double other;        /* seconds outside assembly, factorization and solve */
+    double factor_flops; /* of one numeric factorization; NAN if unknown */
+    char notice[256];    /* iso_solver_notice(), "" if none */
+} iso_cli__run;
+
+/* Integrates p from its rest pose (copied into x, 3*nv) to its final pose
+ * with a fresh solver; x holds the result. Fills *out even on failure. */
+int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
+                         const iso_integrate_opts *io, double *x, iso_cli__run *out, iso_err *err);
+
+/* Floating-point operations of one numeric factorization of s's system
+ * (CHOLMOD's count after analysis), through iso_solver_factor_flops() when
+ * the library has it; NAN when it does not. */
+double iso_cli__factor_flops(const iso_solver *s);
+
+/* 1e3 * seconds / evaluations, NAN when there were none. */
+double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 
 #endif

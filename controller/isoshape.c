@@ -3,6 +3,7 @@
  *   isoshape deform   integrate a deformation from rest to the handle's pose
  *   isoshape field    one field solve at the rest pose
  *   isoshape metrics  distortion between two meshes
+ *   isoshape bench    the four benchmark problems, timed against this machine's limits
  *   isoshape --version */
 #include "internal.h"
 
@@ -20,6 +21,7 @@ static void usage(FILE *f)
             "  deform   integrate the deformation of a mesh as its handle moves to its final pose\n"
             "  field    solve the deformation field once, at the rest pose\n"
             "  metrics  distortion between an original mesh and a deformed copy\n"
+            "  bench    time the four benchmark problems against the paper and this machine\n"
             "\n"
             "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
             "  isoshape <command> --help\n");
@@ -46,9 +48,11 @@ int main(int argc, char **argv)
         return iso_cli__field(argc - 1, argv + 1);
     if (strcmp(cmd, "metrics") == 0)
         return iso_cli__metrics(argc - 1, argv + 1);
+    if (strcmp(cmd, "bench") == 0)
+        return iso_cli__bench_run(argc - 1, argv + 1);
     if (cmd[0] == '-')
         iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
     else
-        iso_cli__fail(NULL, "unknown command '%s': use deform, field or metrics.", cmd);
+        iso_cli__fail(NULL, "unknown command '%s': use deform, field, metrics or bench.", cmd);
     return 2;
 }

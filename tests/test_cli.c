@@ -249,10 +249,23 @@ static void version_names_cholmod_and_blas(void **state)
 static void deform_prints_json_with_every_key(void **state)
 {
     (void)state;
-    static const char *const keys[] = {"metricErr",     "areaErr",         "angleErr",
-                                       "maxEdgeStrain", "steps",           "evaluations",
-                                       "seconds",       "assemblySeconds", "factorSeconds",
-                                       "solveSeconds",  "otherSeconds"};
+    static const char *const keys[] = {"metricErr",
+                                       "areaErr",
+                                       "angleErr",
+                                       "maxEdgeStrain",
+                                       "steps",
+                                       "evaluations",
+                                       "seconds",
+                                       "assemblySeconds",
+                                       "factorSeconds",
+                                       "solveSeconds",
+                                       "otherSeconds",
+                                       "factorizations",
+                                       "cgIterations",
+                                       "refactors",
+                                       "assemblyMsPerEvaluation",
+                                       "factorMsPerEvaluation",
+                                       "solveMsPerEvaluation"};
     result *r = &g.res;
     run_iso("deform --shape cylinder --steps 4 --json", r);
     if (r->status != 0)
@@ -316,6 +329,21 @@ static void bad_values_are_refused_by_name(void **state)
         {"deform --mesh /nonexistent/x.off --sel a --def b", "/nonexistent/x.off"},
         {"field --shape cylinder --velocity v --out f --omega 0", "--omega"},
         {"metrics onlyone.off", "two meshes"},
+        {"deform --shape cylinder --assembly gpu", "--assembly"},
+        {"deform --shape cylinder --assembly", "--assembly"},
+        {"deform --shape cylinder --refactor sometimes", "--refactor"},
+        {"deform --shape cylinder --cg-tol 0", "--cg-tol"},
+        {"deform --shape cylinder --cg-tol 2", "--cg-tol"},
+        {"deform --shape cylinder --cg-tol tight", "--cg-tol"},
+        {"deform --shape cylinder --cl-device=", "--cl-device"},
+        {"field --shape cylinder --velocity v --out f --assembly gpu", "--assembly"},
+        {"field --shape cylinder --velocity v --out f --refactor never", "--refactor"},
+        {"bench --refactor never", "--refactor"},
+        {"bench --assembly fpga", "--assembly"},
+        {"bench --cg-tol -1", "--cg-tol"},
+        {"bench --reps 0", "--reps"},
+        {"bench --benchmark-dir", "--benchmark-dir"},
+        {"bench --frobnicate", "--frobnicate"},
         {"transmogrify", "transmogrify"},
     };
     result *r = &g.res;
@@ -332,7 +360,8 @@ static void bad_values_are_refused_by_name(void **state)
 static void help_works_for_every_subcommand(void **state)
 {
     (void)state;
-    static const char *const args[] = {"--help", "deform --help", "field --help", "metrics --help"};
+    static const char *const args[] = {"--help", "deform --help", "field --help", "metrics --help",
+                                       "bench --help"};
     result *r = &g.res;
     for (size_t i = 0; i < sizeof args / sizeof args[0]; i++) {
         run_iso(args[i], r);
@@ -400,6 +429,113 @@ static void metrics_of_a_mesh_against_itself_are_zero(void **state)
     assert_true(json_get(r->out, "areaErr") == 0);
     assert_true(json_get(r->out, "angleErr") == 0);
     assert_true(json_get(r->out, "maxEdgeStrain") == 0);
+}
+
+/* The number after the n-th (0-based) "key": in text, or NAN. */
+static double json_get_nth(const char *text, const char *key, int n)
+{
+    char pat[128];
+    snprintf(pat, sizeof pat, "\"%s\":", key);
+    const char *p = text;
+    for (int i = 0; p && i <= n; i++) {
+        p = strstr(p, pat);
+        if (p && i < n)
+            p += strlen(pat);
+    }
+    return p ? strtod(p + strlen(pat), NULL) : NAN;
+}
+
+static int count_of(const char *text, const char *needle)
+{
+    int n = 0;
+    for (const char *p = strstr(text, needle); p; p = strstr(p + 1, needle))
+        n++;
+    return n;
+}
+
+/* An empty --benchmark-dir makes every problem its small built-in stand-in,
+ * so the whole bench runs in seconds; no figure is compared with a time. */
+static void bench_quick_prints_json_with_finite_figures(void **state)
+{
+    (void)state;
+    static const char *const row_keys[] = {"seconds",
+                                           "evaluations",
+                                           "factorizations",
+                                           "steps",
+                                           "vertices",
+                                           "assemblyMsPerEvaluation",
+                                           "factorMsPerEvaluation",
+                                           "solveMsPerEvaluation",
+                                           "metricErr",
+                                           "peakRssMB"};
+    static const char *const positive[] = {"dgemmGflops",    "bareFactorMs", "bareSolveMs",
+                                           "cactusUnknowns", "cactusNnzL",   "tolVsTolOver10"};
+    static const char *const present[] = {"\"rows\":",
+                                          "\"accuracy\":",
+                                          "\"machine\":",
+                                          "\"cgIterations\":",
+                                          "\"refactors\":",
+                                          "\"speedupOverPaper\":",
+                                          "\"referenceRatioMetricErr\":",
+                                          "\"adaptiveVsAlways\":",
+                                          "\"factorGflops\":"};
+    char dir[PATH_MAX], args[PATH_MAX * 2];
+    result *r = &g.res;
+    iso_test_tmp(dir, sizeof dir, "empty-benchmark");
+    mkdir(dir, 0755);
+    snprintf(args, sizeof args, "bench --quick --json --assembly cpu --benchmark-dir '%s'", dir);
+    run_iso(args, r);
+    if (r->status != 0)
+        fail_msg("bench failed (%d): %s", r->status, r->err);
+    if (!json_valid(r->out))
+        fail_msg("not valid JSON: %s", r->out);
+    for (size_t i = 0; i < sizeof present / sizeof present[0]; i++)
+        if (!strstr(r->out, present[i]))
+            fail_msg("%s missing from %s", present[i], r->out);
+    /* four built-in problems, each under both schemes */
+    int rows = count_of(r->out, "\"refactor\":");
+    assert_int_equal(rows, 8);
+    assert_int_equal(count_of(r->out, "\"refactor\": \"always\""), 4);
+    assert_int_equal(count_of(r->out, "\"builtin\": true"), 8);
+    for (int k = 0; k < rows; k++)
+        for (size_t i = 0; i < sizeof row_keys / sizeof row_keys[0]; i++) {
+            double v = json_get_nth(r->out, row_keys[i], k);
+            if (!(isfinite(v) && v > 0))
+                fail_msg("row %d: %s = %g, not a finite positive number", k, row_keys[i], v);
+        }
+    for (size_t i = 0; i < sizeof positive / sizeof positive[0]; i++) {
+        double v = json_get(r->out, positive[i]);
+        if (!(isfinite(v) && v > 0))
+            fail_msg("%s = %g, not a finite positive number", positive[i], v);
+    }
+    /* adaptive reuse moves metricErr far less than the integrator's own error */
+    double reuse = json_get(r->out, "adaptiveVsAlways"), integ = json_get(r->out, "tolVsTolOver10");
+    assert_true(isfinite(reuse) && reuse >= 0 && reuse < integ);
+    /* the stand-ins are announced, one line each */
+    assert_non_null(strstr(r->err, "using the built-in cactus"));
+}
+
+/* Without a usable OpenCL platform (no ICDs registered for the loader, or
+ * a build without OpenCL) the command says so in one line and runs the C
+ * path. */
+static void opencl_without_a_platform_falls_back_with_a_notice(void **state)
+{
+    (void)state;
+    char vendors[PATH_MAX], cmd[PATH_MAX * 3];
+    result *r = &g.res;
+    iso_test_tmp(vendors, sizeof vendors, "no-opencl-vendors");
+    mkdir(vendors, 0755);
+    snprintf(cmd, sizeof cmd,
+             "OCL_ICD_VENDORS='%s' OCL_ICD_FILENAMES= '%s' deform --shape cylinder --resolution 8 "
+             "--steps 2 --assembly opencl --json",
+             vendors, g.bin);
+    run_sh(cmd, r);
+    if (r->status != 0)
+        fail_msg("deform --assembly opencl failed (%d): %s", r->status, r->err);
+    assert_true(json_valid(r->out));
+    assert_non_null(strstr(r->err, "OpenCL"));
+    assert_non_null(strstr(r->err, "C assembly"));
+    assert_int_equal(count_lines(r->err), 1);
 }
 
 static void installed_library_builds_with_pkg_config(void **state)
@@ -496,6 +632,8 @@ int main(void)
         cmocka_unit_test(help_works_for_every_subcommand),
         cmocka_unit_test(field_writes_one_line_per_vertex),
         cmocka_unit_test(metrics_of_a_mesh_against_itself_are_zero),
+        cmocka_unit_test(bench_quick_prints_json_with_finite_figures),
+        cmocka_unit_test(opencl_without_a_platform_falls_back_with_a_notice),
         cmocka_unit_test(installed_library_builds_with_pkg_config),
     };
     return cmocka_run_group_tests_name("cli", t, NULL, NULL);

@@ -1,0 +1,177 @@
+/* controller/cli_problem.c -- one deformation problem for the commands that
+ * integrate (deform, bench): finding and loading it, with the benchmark's
+ * fall-back to the built-in shape of the same name, and one run from the
+ * rest pose to the handle's final pose along the screw motion. */
+#include "internal.h"
+
+#include <dlfcn.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "iso_clock.h"
+
+void iso_cli__problem_deinit(iso_cli__problem *p)
+{
+    iso_mesh_destroy(p->mesh);
+    iso_mesh_destroy(p->ref);
+    iso_regions_deinit(&p->reg);
+    iso_shape_deinit(&p->shape);
+    memset(p, 0, sizeof *p);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Loading                                                                    */
+/* ------------------------------------------------------------------------ */
+
+static int load_shape(iso_cli__problem *p, const char *name, int resolution, iso_err *err)
+{
+    int rc = iso_shape_init(&p->shape, name, resolution, err);
+    if (rc == ISO_OK)
+        rc = iso_mesh_create(p->shape.nv, p->shape.x, p->shape.nt, p->shape.tri, p->shape.name,
+                             &p->mesh, err);
+    if (rc == ISO_OK)
+        rc = iso_shape_regions(&p->shape, &p->reg, err);
+    if (rc == ISO_OK) {
+        memcpy(p->M, p->shape.M, sizeof p->M);
+        p->builtin = 1;
+        snprintf(p->label, sizeof p->label, "built-in %s (resolution %d)", p->shape.name,
+                 p->shape.resolution);
+    }
+    return rc;
+}
+
+static int load_files(iso_cli__problem *p, const char *mesh, const char *sel, const char *def,
+                      iso_err *err)
+{
+    int rc = iso_mesh_load(mesh, &p->mesh, err);
+    if (rc == ISO_OK)
+        rc = iso_sel_load(sel, iso_mesh_vertex_count(p->mesh), &p->reg, err);
+    if (rc == ISO_OK)
+        rc = iso_def_load(def, p->M, err);
+    if (rc == ISO_OK)
+        snprintf(p->label, sizeof p->label, "%s", mesh);
+    return rc;
+}
+
+static int load_reference(iso_cli__problem *p, iso_err *err)
+{
+    if (!p->ref_path[0])
+        return ISO_OK;
+    int rc = iso_mesh_load(p->ref_path, &p->ref, err);
+    if (rc != ISO_OK)
+        return rc;
+    char why[1024];
+    if (!iso_cli__same_connectivity(p->mesh, p->ref, why, sizeof why))
+        return iso_err_set(err, ISO_EINVAL, -1, "reference %s does not fit the problem: %s.",
+                           p->ref_path, why);
+    return ISO_OK;
+}
+
+static int load_benchmark(const char *cmd, const iso_cli__source *src, iso_cli__problem *p,
+                          iso_err *err)
+{
+    iso_cli__bench b;
+    char why[2048];
+    if (!iso_cli__bench_find(src->benchmark, src->bench_dir, &b, why, sizeof why)) {
+        if (!src->quiet)
+            fprintf(stderr,
+                    "isoshape %s: benchmark '%s' not found (looked in %s); using the "
+                    "built-in %s instead.\n",
+                    cmd, src->benchmark, why, src->benchmark);
+        return load_shape(p, src->benchmark, src->resolution, err);
+    }
+    int rc = load_files(p, b.mesh, b.sel, b.def, err);
+    if (rc == ISO_OK) {
+        snprintf(p->label, sizeof p->label, "benchmark %s (%s)", src->benchmark, b.mesh);
+        if (!src->reference && access(b.ref, R_OK) == 0)
+            snprintf(p->ref_path, sizeof p->ref_path, "%s", b.ref);
+    }
+    return rc;
+}
+
+int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__problem *p,
+                          iso_err *err)
+{
+    memset(p, 0, sizeof *p);
+    if (src->reference)
+        snprintf(p->ref_path, sizeof p->ref_path, "%s", src->reference);
+    int rc;
+    if (src->shape)
+        rc = load_shape(p, src->shape, src->resolution, err);
+    else if (src->benchmark)
+        rc = load_benchmark(cmd, src, p, err);
+    else
+        rc = load_files(p, src->mesh, src->sel, src->def, err);
+    if (rc == ISO_OK)
+        rc = load_reference(p, err);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Running                                                                    */
+/* ------------------------------------------------------------------------ */
+
+int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
+                         const iso_integrate_opts *io, double *x, iso_cli__run *out, iso_err *err)
+{
+    memset(out, 0, sizeof *out);
+    out->factor_flops = NAN;
+    iso_twist xi;
+    int rc = iso_twist_from_matrix(p->M, &xi, err);
+    if (rc != ISO_OK)
+        return rc;
+    if (p->reg.n_handles < 1)
+        return iso_err_set(err, ISO_ECONSTRAINT, -1,
+                           "%s has no handle vertices (label 2), so nothing moves.", p->label);
+    iso_twist *tw = malloc((size_t)p->reg.n_handles * sizeof *tw);
+    if (!tw)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d handle twists.",
+                           p->reg.n_handles);
+    for (int h = 0; h < p->reg.n_handles; h++)
+        tw[h] = xi;
+    iso_screw_path sp = {tw, p->reg.n_handles};
+    iso_path path = iso_screw_path_make(&sp);
+
+    int nv = iso_mesh_vertex_count(p->mesh);
+    memcpy(x, iso_mesh_positions(p->mesh), (size_t)nv * 3 * sizeof *x);
+    iso_solver *s = NULL;
+    double start = iso_clock_now();
+    rc = iso_solver_create(p->mesh, &p->reg, so, &s, err);
+    if (rc == ISO_OK) {
+        snprintf(out->notice, sizeof out->notice, "%s", iso_solver_notice(s));
+        out->factor_flops = iso_cli__factor_flops(s);
+        rc = iso_integrate(s, p->mesh, &p->reg, &path, io, x, &out->ist, err);
+    }
+    out->seconds = iso_clock_now() - start;
+    if (s)
+        iso_solver_get_stats(s, &out->sst);
+    out->other =
+        fmax(0.0, out->seconds - out->sst.t_assembly - out->sst.t_factor - out->sst.t_solve);
+    iso_solver_destroy(s);
+    free(tw);
+    return rc;
+}
+
+double iso_cli__per_evaluation_ms(double seconds, long evaluations)
+{
+    return evaluations > 0 ? 1e3 * seconds / (double)evaluations : NAN;
+}
+
+/* The flop count is CHOLMOD's Common->fl, which only the solver sees. The
+ * accessor is looked up at run time so that this command builds against a
+ * library that predates it (and then reports the rate as unknown). dlsym
+ * returns an object pointer; memcpy makes it a function pointer without the
+ * cast ISO C forbids. */
+double iso_cli__factor_flops(const iso_solver *s)
+{
+    double (*flops)(const iso_solver *) = NULL;
+    void *sym = dlsym(RTLD_DEFAULT, "iso_solver_factor_flops");
+    if (!sym)
+        return NAN;
+    memcpy(&flops, &sym, sizeof flops);
+    double f = flops(s);
+    return f > 0 ? f : NAN;
+}

@@ -1,0 +1,630 @@
+/* controller/cmd_bench.c -- `isoshape bench`: the four benchmark problems of
+ * the paper, timed, and beside them the limits of this machine, so that no
+ * figure stands alone:
+ *   - per problem and refactoring scheme: steps, evaluations, seconds, where
+ *     each evaluation's time goes, CG work, the Laplacian-editing result's
+ *     metricErr over ours, and the speed-up over the paper's time;
+ *   - whether adaptive factor reuse changes the result by less than the
+ *     integrator's own error (the same run at tol and tol/10);
+ *   - the machine: dense dgemm's rate (the ceiling for a supernodal
+ *     factorization), and one bare CHOLMOD factorization and solve of the
+ *     cactus system, with the factorization's achieved rate.
+ * Timings are medians of --reps runs; nothing here asserts a time. The
+ * benchmark uses the paper's method exactly (no isometry restoration). */
+#include "internal.h"
+
+#include <dlfcn.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include "iso_clock.h"
+#include "iso_metrics.h"
+
+static const char *const help =
+    "usage: isoshape bench [--quick] [--json] [--benchmark-dir DIR] [--reps N] [options]\n"
+    "\n"
+    "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
+    "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
+    "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
+    "  --benchmark-dir DIR  where the problems are (default: as isoshape deform looks);\n"
+    "                       a problem that is absent runs as the built-in shape of its name\n"
+    "  --quick              under a minute: one rep, dgemm at n = 1000, no bumpplane\n"
+    "                       (the small built-in one when the benchmark is absent)\n"
+    "  --reps N             timed runs per figure, median reported (default 3)\n"
+    "  --json               print one JSON object instead of tables\n"
+    "  --refactor R         run only this scheme (default: always and "
+    "adaptive)\n" ISO_CLI_SOLVER_HELP;
+
+/* The paper's times (Martinez Esturo, Roessl, Theisel 2010, Table 1). */
+static const struct {
+    const char *name;
+    double paper_seconds;
+    int small_resolution; /* built-in stand-in under --quick */
+} problems[] = {
+    {"cactus", 4.0, 1},
+    {"bar", 11.0, 4},
+    {"cylinder", 8.0, 12},
+    {"bumpplane", 212.0, 11},
+};
+enum { N_PROBLEMS = sizeof problems / sizeof problems[0], N_SCHEMES = 2 };
+
+typedef struct bench_args {
+    const char *bench_dir;
+    int quick, json, reps, tty;
+    int scheme_on[N_SCHEMES]; /* indexed by iso_refactor */
+    iso_solver_opts so;
+} bench_args;
+
+/* One problem under one scheme: the run with the median time. */
+typedef struct bench_row {
+    const char *problem;
+    iso_refactor scheme;
+    int builtin, vertices;
+    iso_cli__run run;
+    double metric_err, ref_metric_err; /* NAN without a reference */
+    double paper_seconds, peak_rss_mb;
+} bench_row;
+
+/* Per problem: adaptive's effect on metricErr against the integrator's. */
+typedef struct bench_accuracy {
+    const char *problem;
+    double always, adaptive, fine; /* metricErr; fine: always at tol/10; NAN if not run */
+} bench_accuracy;
+
+typedef struct bench_machine {
+    int dgemm_n, dgemm_reps;
+    double dgemm_gflops;
+    int bare_reps, unknowns;
+    long nnz_l;
+    double flops, bare_factor_s, bare_solve_s;
+} bench_machine;
+
+typedef struct bench_result {
+    bench_row rows[N_PROBLEMS * N_SCHEMES];
+    int n_rows;
+    bench_accuracy acc[N_PROBLEMS];
+    int n_acc;
+    bench_machine mach;
+    double tol;
+    char notice[256]; /* the solver's first notice, printed once */
+} bench_result;
+
+/* ------------------------------------------------------------------------ */
+/* Small helpers                                                              */
+/* ------------------------------------------------------------------------ */
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median of n values (sorts them). */
+static double median(double *v, int n)
+{
+    if (n <= 0)
+        return NAN;
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static double peak_rss_mb(void)
+{
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0)
+        return NAN;
+    return (double)ru.ru_maxrss / 1024.0; /* Linux: kilobytes */
+}
+
+static double rel_diff(double a, double b)
+{
+    return b > 0 ? fabs(a - b) / b : NAN;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Options                                                                    */
+/* ------------------------------------------------------------------------ */
+
+/* Returns -1 to go on, else the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, bench_args *a)
+{
+    const char *cmd = "bench", *val = NULL;
+    int r, have_reps = 0;
+    memset(a, 0, sizeof *a);
+    iso_cli__solver_opts_default(&a->so);
+    a->so.restore_mu = 0.0; /* the paper's method exactly */
+    a->reps = 3;
+    a->scheme_on[ISO_REFACTOR_ALWAYS] = a->scheme_on[ISO_REFACTOR_ADAPTIVE] = 1;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            fputs(help, stdout);
+            return 0;
+        }
+        if (strcmp(argv[i], "--json") == 0) {
+            a->json = 1;
+            continue;
+        }
+        if (strcmp(argv[i], "--quick") == 0) {
+            a->quick = 1;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--refactor", &val)) != 0) {
+            iso_refactor only;
+            if (r < 0 || iso_cli__refactor(cmd, val, &only) != 0)
+                return 2;
+            a->scheme_on[ISO_REFACTOR_ALWAYS] = only == ISO_REFACTOR_ALWAYS;
+            a->scheme_on[ISO_REFACTOR_ADAPTIVE] = only == ISO_REFACTOR_ADAPTIVE;
+            continue;
+        }
+        if ((r = iso_cli__solver_option(cmd, argc, argv, &i, &a->so)) != 0) {
+            if (r < 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--benchmark-dir", &val)) != 0) {
+            if (r < 0)
+                return 2;
+            a->bench_dir = val;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--reps", &val)) != 0) {
+            if (r < 0 || iso_cli__int(cmd, "--reps", val, &a->reps) != 0)
+                return 2;
+            if (a->reps < 1 || a->reps > 99) {
+                iso_cli__fail(cmd, "--reps %s must be between 1 and 99.", val);
+                return 2;
+            }
+            have_reps = 1;
+            continue;
+        }
+        return iso_cli__unknown(cmd, argv[i]);
+    }
+    if (a->quick && !have_reps)
+        a->reps = 1;
+    a->tty = isatty(STDERR_FILENO);
+    return -1;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The machine: dgemm, and bare CHOLMOD on the cactus system                  */
+/* ------------------------------------------------------------------------ */
+
+/* The Fortran BLAS entry point, as every BLAS exports it. It is looked up in
+ * the process rather than linked, so the rate measured is that of the BLAS
+ * CHOLMOD actually runs with (Debian picks it through alternatives). */
+typedef void dgemm_fn(const char *transa, const char *transb, const int *m, const int *n,
+                      const int *k, const double *alpha, const double *a, const int *lda,
+                      const double *b, const int *ldb, const double *beta, double *c,
+                      const int *ldc);
+
+/* GFLOP/s of C = A B at size n, median of reps; NAN if no BLAS is loaded. */
+static double dgemm_rate(int n, int reps)
+{
+    dgemm_fn *dgemm = NULL;
+    void *sym = dlsym(RTLD_DEFAULT, "dgemm_");
+    if (!sym)
+        return NAN;
+    memcpy(&dgemm, &sym, sizeof dgemm);
+    size_t nn = (size_t)n * (size_t)n;
+    double *A = malloc(nn * sizeof *A), *B = malloc(nn * sizeof *B), *C = malloc(nn * sizeof *C);
+    double t[99], rate = NAN;
+    if (!A || !B || !C)
+        goto out;
+    for (size_t i = 0; i < nn; i++) {
+        A[i] = (double)(i % 7) - 3.0;
+        B[i] = (double)(i % 5) * 0.5;
+    }
+    const double one = 1.0, zero = 0.0;
+    int w = n < 200 ? n : 200; /* wakes the thread pool outside the timing */
+    dgemm("N", "N", &w, &w, &w, &one, A, &w, B, &w, &zero, C, &w);
+    for (int r = 0; r < reps; r++) {
+        double t0 = iso_clock_now();
+        dgemm("N", "N", &n, &n, &n, &one, A, &n, B, &n, &zero, C, &n);
+        t[r] = iso_clock_now() - t0;
+    }
+    rate = 2.0 * (double)n * (double)n * (double)n / median(t, reps) / 1e9;
+out:
+    free(A);
+    free(B);
+    free(C);
+    return rate;
+}
+
+/* Times single evaluations of the cactus system at its rest pose under the
+ * paper's scheme and the C assembly: each one is exactly one
+ * cholmod_factorize and one cholmod_solve2, whose times the solver's own
+ * stats isolate, so the differences are the bare library calls. */
+static int bare_cholmod(const iso_cli__problem *p, int reps, bench_machine *m, iso_err *err)
+{
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.assembly = ISO_ASSEMBLY_CPU;
+    so.refactor = ISO_REFACTOR_ALWAYS;
+    iso_twist xi;
+    int rc = iso_twist_from_matrix(p->M, &xi, err);
+    if (rc != ISO_OK)
+        return rc;
+    int nv = iso_mesh_vertex_count(p->mesh);
+    const double *x = iso_mesh_positions(p->mesh);
+    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    double tf[99], ts[99];
+    iso_solver *s = NULL;
+    if (!vc || !v) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the cactus field.");
+        goto out;
+    }
+    for (int i = 0; i < nv; i++)
+        if (p->reg.kind[i] == ISO_HANDLE)
+            iso_twist_velocity(&xi, x + 3 * i, vc + 3 * i);
+    rc = iso_solver_create(p->mesh, &p->reg, &so, &s, err);
+    if (rc == ISO_OK)
+        rc = iso_solver_field(s, x, vc, v, err); /* warm caches and workspace */
+    for (int r = 0; rc == ISO_OK && r < reps; r++) {
+        iso_solver_stats before, after;
+        iso_solver_get_stats(s, &before);
+        rc = iso_solver_field(s, x, vc, v, err);
+        iso_solver_get_stats(s, &after);
+        tf[r] = after.t_factor - before.t_factor;
+        ts[r] = after.t_solve - before.t_solve;
+    }
+    if (rc == ISO_OK) {
+        iso_solver_stats st;
+        iso_solver_get_stats(s, &st);
+        m->bare_reps = reps;
+        m->unknowns = 3 * st.n_free;
+        m->nnz_l = st.nnz_l;
+        m->flops = iso_cli__factor_flops(s);
+        m->bare_factor_s = median(tf, reps);
+        m->bare_solve_s = median(ts, reps);
+    }
+out:
+    iso_solver_destroy(s);
+    free(vc);
+    free(v);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The problems                                                               */
+/* ------------------------------------------------------------------------ */
+
+/* Runs p reps times under so; keeps the median-time run in *run and the
+ * result of the last run in x (the runs are bit-identical). */
+static int timed_runs(const iso_cli__problem *p, const iso_solver_opts *so, double tol, int reps,
+                      double *x, iso_cli__run *run, iso_err *err)
+{
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    io.tol = tol;
+    iso_cli__run runs[99];
+    double t[99];
+    for (int r = 0; r < reps; r++) {
+        int rc = iso_cli__problem_run(p, so, &io, x, &runs[r], err);
+        if (rc != ISO_OK)
+            return rc;
+        t[r] = runs[r].seconds;
+    }
+    double med = median(t, reps);
+    *run = runs[0];
+    for (int r = 0; r < reps; r++)
+        if (runs[r].seconds == med)
+            *run = runs[r];
+    if (reps % 2 == 0) /* no run has the mean of the middle two: report it */
+        run->seconds = med;
+    return ISO_OK;
+}
+
+static double metric_err(const iso_cli__problem *p, const double *x)
+{
+    iso_metrics m;
+    iso_metrics_compute(p->mesh, iso_mesh_positions(p->mesh), x, &m);
+    return m.metric_err;
+}
+
+/* 1 if the problem runs: --quick leaves out the real bumpplane, the largest
+ * by a factor of eight, but keeps its small built-in stand-in. */
+static int wanted(const bench_args *a, int k, int *builtin)
+{
+    iso_cli__bench b;
+    char why[2048];
+    *builtin = !iso_cli__bench_find(problems[k].name, a->bench_dir, &b, why, sizeof why);
+    return !(a->quick && strcmp(problems[k].name, "bumpplane") == 0 && !*builtin);
+}
+
+static int run_problem(const bench_args *a, int k, bench_result *res, iso_err *err)
+{
+    iso_cli__source src = {0};
+    src.benchmark = problems[k].name;
+    src.bench_dir = a->bench_dir;
+    src.resolution = a->quick ? problems[k].small_resolution : 0;
+    src.quiet = 0;
+    iso_cli__problem p;
+    double *x = NULL;
+    int rc = iso_cli__problem_load("bench", &src, &p, err);
+    if (rc != ISO_OK)
+        goto out;
+    int nv = iso_mesh_vertex_count(p.mesh);
+    if (a->tty)
+        fprintf(stderr, "isoshape bench: %s, %d vertices%s ...\n", problems[k].name, nv,
+                p.builtin ? " (built-in)" : "");
+    x = malloc((size_t)nv * 3 * sizeof *x);
+    if (!x) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertex positions.", nv);
+        goto out;
+    }
+    double ref_err = p.ref ? metric_err(&p, iso_mesh_positions(p.ref)) : NAN;
+    bench_accuracy *acc = &res->acc[res->n_acc++];
+    acc->problem = problems[k].name;
+    acc->always = acc->adaptive = acc->fine = NAN;
+    static const iso_refactor order[N_SCHEMES] = {ISO_REFACTOR_ALWAYS, ISO_REFACTOR_ADAPTIVE};
+    for (int j = 0; j < N_SCHEMES; j++) {
+        if (!a->scheme_on[order[j]])
+            continue;
+        iso_solver_opts so = a->so;
+        so.refactor = order[j];
+        bench_row *row = &res->rows[res->n_rows++];
+        memset(row, 0, sizeof *row);
+        row->problem = problems[k].name;
+        row->scheme = order[j];
+        row->builtin = p.builtin;
+        row->vertices = nv;
+        row->paper_seconds = problems[k].paper_seconds;
+        rc = timed_runs(&p, &so, res->tol, a->reps, x, &row->run, err);
+        if (rc != ISO_OK)
+            goto out;
+        row->metric_err = metric_err(&p, x);
+        row->ref_metric_err = ref_err;
+        row->peak_rss_mb = peak_rss_mb();
+        *(order[j] == ISO_REFACTOR_ALWAYS ? &acc->always : &acc->adaptive) = row->metric_err;
+        if (!res->notice[0])
+            snprintf(res->notice, sizeof res->notice, "%s", row->run.notice);
+    }
+    /* The integrator's own error at this tolerance: the same run at tol/10,
+     * under the first scheme asked for. */
+    iso_solver_opts so = a->so;
+    so.refactor = a->scheme_on[ISO_REFACTOR_ALWAYS] ? ISO_REFACTOR_ALWAYS : ISO_REFACTOR_ADAPTIVE;
+    iso_cli__run fine;
+    rc = timed_runs(&p, &so, res->tol / 10, 1, x, &fine, err);
+    if (rc == ISO_OK)
+        acc->fine = metric_err(&p, x);
+    if (rc == ISO_OK && k == 0)
+        rc = bare_cholmod(&p, a->quick ? 1 : 5, &res->mach, err);
+out:
+    free(x);
+    iso_cli__problem_deinit(&p);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Reporting                                                                  */
+/* ------------------------------------------------------------------------ */
+
+static double speedup(const bench_row *r)
+{
+    return r->builtin ? NAN : r->paper_seconds / r->run.seconds;
+}
+
+static double ratio_le(const bench_row *r)
+{
+    return r->metric_err > 0 ? r->ref_metric_err / r->metric_err : NAN;
+}
+
+static double row_gflops(const bench_row *r)
+{
+    const iso_solver_stats *st = &r->run.sst;
+    return st->t_factor > 0 ? r->run.factor_flops * (double)st->factorizations / st->t_factor / 1e9
+                            : NAN;
+}
+
+static double ms(const bench_row *r, double seconds)
+{
+    return iso_cli__per_evaluation_ms(seconds, r->run.sst.evaluations);
+}
+
+/* A fixed-point cell, or a dash for NAN so missing figures read as missing. */
+static void print_cell(double v, int width, int prec)
+{
+    if (isfinite(v))
+        printf(" %*.*f", width, prec, v);
+    else
+        printf(" %*s", width, "-");
+}
+
+static void print_text(const bench_args *a, const bench_result *res)
+{
+    const bench_machine *m = &res->mach;
+    printf("isoshape bench%s: the paper's method, adaptive steps at tol %.0e, assembly %s; "
+           "times are medians of %d run%s\n\n",
+           a->quick ? " --quick" : "", res->tol, iso_cli__assembly_name(a->so.assembly), a->reps,
+           a->reps > 1 ? "s" : "");
+    printf("%-10s %-8s %8s %5s %5s %8s | %-25s | %-12s | %-17s | %-16s | %s\n", "", "", "", "", "",
+           "", "ms per evaluation", "CG", "", "paper", "factor  peak");
+    printf("%-10s %-8s %8s %5s %5s %8s | %8s %8s %7s | %6s %5s | %9s %7s | %7s %8s | %7s %7s\n",
+           "problem", "refactor", "vertices", "steps", "evals", "total s", "assembly", "factor",
+           "solve", "iters", "refac", "metricErr", "LE/ours", "s", "speed-up", "GF/s", "RSS MB");
+    for (int i = 0; i < res->n_rows; i++) {
+        const bench_row *r = &res->rows[i];
+        const iso_solver_stats *st = &r->run.sst;
+        char name[32];
+        snprintf(name, sizeof name, "%s%s", r->problem, r->builtin ? "*" : "");
+        printf("%-10s %-8s %8d %5d %5ld %8.2f |", name, iso_cli__refactor_name(r->scheme),
+               r->vertices, r->run.ist.steps, r->run.ist.evaluations, r->run.seconds);
+        print_cell(ms(r, st->t_assembly), 8, 2);
+        print_cell(ms(r, st->t_factor), 8, 2);
+        print_cell(ms(r, st->t_solve), 7, 2);
+        printf(" | %6ld %5ld | %9.3e", st->cg_iterations, st->refactors, r->metric_err);
+        print_cell(ratio_le(r), 7, 2);
+        printf(" |");
+        print_cell(r->builtin ? NAN : r->paper_seconds, 7, 0);
+        print_cell(speedup(r), 7, 2);
+        printf("%s|", isfinite(speedup(r)) ? "x" : " ");
+        print_cell(row_gflops(r), 7, 2);
+        print_cell(r->peak_rss_mb, 7, 1);
+        printf("\n");
+    }
+    int any_builtin = 0;
+    for (int i = 0; i < res->n_rows; i++)
+        any_builtin |= res->rows[i].builtin;
+    if (any_builtin)
+        printf("* the built-in shape of that name (the benchmark file was not found): no "
+               "reference, and the paper's time does not apply\n");
+
+    printf("\nfactor reuse against the integrator's own error (relative change of metricErr)\n");
+    printf("%-10s %14s %14s %14s %19s %16s\n", "problem", "always", "adaptive", "always tol/10",
+           "|adaptive-always|", "|tol/10 - tol|");
+    for (int i = 0; i < res->n_acc; i++) {
+        const bench_accuracy *c = &res->acc[i];
+        double base = isfinite(c->always) ? c->always : c->adaptive;
+        printf("%-10s %14.6e %14.6e %14.6e %19.3e %16.3e\n", c->problem, c->always, c->adaptive,
+               c->fine, rel_diff(c->adaptive, c->always), rel_diff(c->fine, base));
+    }
+
+    printf("\nthis machine\n");
+    printf("  dense dgemm, n = %d: %.1f GFLOP/s (median of %d), the ceiling for the "
+           "factorization's dense kernels\n",
+           m->dgemm_n, m->dgemm_gflops, m->dgemm_reps);
+    const char *blas = iso_cli__blas_config();
+    printf("  BLAS: %s\n", *blas ? blas : "not OpenBLAS (see isoshape --version)");
+    printf("  cactus system: %d unknowns, nnz(L) %ld, ", m->unknowns, m->nnz_l);
+    if (isfinite(m->flops))
+        printf("%.3g GFLOP per factorization\n", m->flops / 1e9);
+    else
+        printf("flop count unavailable (the library lacks iso_solver_factor_flops)\n");
+    printf("  bare CHOLMOD factorization %.2f ms", 1e3 * m->bare_factor_s);
+    if (isfinite(m->flops))
+        printf(" = %.2f GFLOP/s (%.0f%% of dgemm)", m->flops / m->bare_factor_s / 1e9,
+               100.0 * m->flops / m->bare_factor_s / 1e9 / m->dgemm_gflops);
+    printf(", bare solve %.2f ms (median of %d)\n", 1e3 * m->bare_solve_s, m->bare_reps);
+}
+
+static void json_num(const char *key, double v, const char *sep)
+{
+    if (isfinite(v))
+        printf("\"%s\": %.17g%s", key, v, sep);
+    else
+        printf("\"%s\": null%s", key, sep);
+}
+
+/* A JSON string: quotes, backslashes and control characters escaped. */
+static void json_str(const char *key, const char *v, const char *sep)
+{
+    printf("\"%s\": \"", key);
+    for (const unsigned char *c = (const unsigned char *)v; *c; c++) {
+        if (*c == '"' || *c == '\\')
+            printf("\\%c", *c);
+        else if (*c < 0x20)
+            printf("\\u%04x", *c);
+        else
+            putchar(*c);
+    }
+    printf("\"%s", sep);
+}
+
+static void print_json_row(const bench_row *r, const char *sep)
+{
+    const iso_solver_stats *st = &r->run.sst;
+    printf("{");
+    json_str("problem", r->problem, ", ");
+    printf("\"builtin\": %s, ", r->builtin ? "true" : "false");
+    json_str("refactor", iso_cli__refactor_name(r->scheme), ", ");
+    printf("\"vertices\": %d, \"steps\": %d, \"evaluations\": %ld, \"factorizations\": %ld, "
+           "\"cgIterations\": %ld, \"refactors\": %ld, ",
+           r->vertices, r->run.ist.steps, r->run.ist.evaluations, st->factorizations,
+           st->cg_iterations, st->refactors);
+    json_num("seconds", r->run.seconds, ", ");
+    json_num("assemblyMsPerEvaluation", ms(r, st->t_assembly), ", ");
+    json_num("factorMsPerEvaluation", ms(r, st->t_factor), ", ");
+    json_num("solveMsPerEvaluation", ms(r, st->t_solve), ", ");
+    json_num("factorGflops", row_gflops(r), ", ");
+    json_num("metricErr", r->metric_err, ", ");
+    json_num("referenceMetricErr", r->ref_metric_err, ", ");
+    json_num("referenceRatioMetricErr", ratio_le(r), ", ");
+    json_num("paperSeconds", r->builtin ? NAN : r->paper_seconds, ", ");
+    json_num("speedupOverPaper", speedup(r), ", ");
+    json_num("peakRssMB", r->peak_rss_mb, "");
+    printf("}%s", sep);
+}
+
+static void print_json(const bench_args *a, const bench_result *res)
+{
+    const bench_machine *m = &res->mach;
+    printf("{\"quick\": %s, \"reps\": %d, ", a->quick ? "true" : "false", a->reps);
+    json_str("assembly", iso_cli__assembly_name(a->so.assembly), ", ");
+    json_num("tol", res->tol, ", ");
+    printf("\"rows\": [");
+    for (int i = 0; i < res->n_rows; i++)
+        print_json_row(&res->rows[i], i + 1 < res->n_rows ? ", " : "");
+    printf("], \"accuracy\": [");
+    for (int i = 0; i < res->n_acc; i++) {
+        const bench_accuracy *c = &res->acc[i];
+        double base = isfinite(c->always) ? c->always : c->adaptive;
+        printf("{");
+        json_str("problem", c->problem, ", ");
+        json_num("metricErrAlways", c->always, ", ");
+        json_num("metricErrAdaptive", c->adaptive, ", ");
+        json_num("metricErrTolOver10", c->fine, ", ");
+        json_num("adaptiveVsAlways", rel_diff(c->adaptive, c->always), ", ");
+        json_num("tolVsTolOver10", rel_diff(c->fine, base), "");
+        printf("}%s", i + 1 < res->n_acc ? ", " : "");
+    }
+    printf("], \"machine\": {\"dgemmN\": %d, \"dgemmReps\": %d, ", m->dgemm_n, m->dgemm_reps);
+    json_num("dgemmGflops", m->dgemm_gflops, ", ");
+    json_str("blas", iso_cli__blas_config(), ", ");
+    printf("\"cactusUnknowns\": %d, \"cactusNnzL\": %ld, \"bareReps\": %d, ", m->unknowns, m->nnz_l,
+           m->bare_reps);
+    json_num("cactusFactorFlops", m->flops, ", ");
+    json_num("bareFactorMs", 1e3 * m->bare_factor_s, ", ");
+    json_num("bareSolveMs", 1e3 * m->bare_solve_s, ", ");
+    json_num("bareFactorGflops", m->flops / m->bare_factor_s / 1e9, "");
+    printf("}}\n");
+}
+
+/* ------------------------------------------------------------------------ */
+/* The command                                                                */
+/* ------------------------------------------------------------------------ */
+
+int iso_cli__bench_run(int argc, char **argv)
+{
+    bench_args a;
+    int status = parse_args(argc, argv, &a);
+    if (status >= 0)
+        return status;
+    bench_result *res = calloc(1, sizeof *res);
+    if (!res) {
+        iso_cli__fail("bench", "out of memory for the results.");
+        return 1;
+    }
+    res->tol = ISO_INTEGRATE_DEFAULT_TOL;
+    iso_err err;
+    iso_err_clear(&err);
+    status = 1;
+    /* The problems come first, so that each peak RSS is the problem's and
+     * not dgemm's 3 n^2 doubles. */
+    for (int k = 0; k < N_PROBLEMS; k++) {
+        int builtin;
+        if (!wanted(&a, k, &builtin))
+            continue;
+        if (run_problem(&a, k, res, &err) != ISO_OK) {
+            iso_cli__fail("bench", "%s: %s", problems[k].name, err.msg);
+            goto out;
+        }
+    }
+    iso_cli__print_notice("bench", res->notice);
+    res->mach.dgemm_n = a.quick ? 1000 : 2000;
+    res->mach.dgemm_reps = a.quick ? 1 : 3;
+    if (a.tty)
+        fprintf(stderr, "isoshape bench: dgemm, n = %d ...\n", res->mach.dgemm_n);
+    res->mach.dgemm_gflops = dgemm_rate(res->mach.dgemm_n, res->mach.dgemm_reps);
+    if (a.json)
+        print_json(&a, res);
+    else
+        print_text(&a, res);
+    status = 0;
+out:
+    free(res);
+    return status;
+}
