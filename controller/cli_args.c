@@ -110,6 +110,38 @@ int iso_cli__weighting(const char *cmd, const char *val, int *weighting)
     return 0;
 }
 
+int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau)
+{
+    if (strcmp(val, "off") == 0) {
+        *mu = 0.0;
+        *tau = 0.0;
+        return 0;
+    }
+    const char *comma = strchr(val, ',');
+    char num[64];
+    if (!comma || (size_t)(comma - val) >= sizeof num) {
+        iso_cli__fail(cmd, "--restore '%s' is not MU,TAU (e.g. 1,0.05) or off.", val);
+        return -1;
+    }
+    memcpy(num, val, (size_t)(comma - val));
+    num[comma - val] = '\0';
+    double m, t;
+    if (iso_cli__double(cmd, "--restore MU", num, &m) != 0 ||
+        iso_cli__double(cmd, "--restore TAU", comma + 1, &t) != 0)
+        return -1;
+    if (!(m >= 0.0)) {
+        iso_cli__fail(cmd, "--restore %s: the weight MU must be >= 0 (0 = off).", val);
+        return -1;
+    }
+    if (m > 0.0 && !(t > 0.0)) {
+        iso_cli__fail(cmd, "--restore %s: the time constant TAU must be positive.", val);
+        return -1;
+    }
+    *mu = m;
+    *tau = m > 0.0 ? t : 0.0;
+    return 0;
+}
+
 /* ------------------------------------------------------------------------ */
 /* The benchmark                                                              */
 /* ------------------------------------------------------------------------ */

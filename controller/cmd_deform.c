@@ -19,6 +19,12 @@
 #include "iso_shapes.h"
 #include "iso_solver.h"
 
+/* Restoration defaults (see the closing note of issue 7 for the
+ * measurements behind them). */
+#define RESTORE_DEFAULT_MU 1.0
+#define RESTORE_DEFAULT_TAU 0.05
+#define RESTORE_DEFAULT_TEXT "1,0.05"
+
 static const char *const help =
     "usage: isoshape deform --mesh M --sel S --def D [options]\n"
     "       isoshape deform --shape NAME [--resolution N] [options]\n"
@@ -38,6 +44,10 @@ static const char *const help =
     "  --weighting        param (default) or area: how triangles are weighted\n"
     "  --steps N          N fixed steps, or\n"
     "  --tol T            adaptive steps with local error T x bbox diagonal (default 1e-4)\n"
+    "  --restore MU,TAU   isometry restoration (beyond the paper): each edge's length\n"
+    "                     relaxes to its rest length with time constant TAU (a fraction\n"
+    "                     of the path, t in [0, 1]), weight MU; default " RESTORE_DEFAULT_TEXT "\n"
+    "  --restore off      the paper's method exactly (use for paper reproductions)\n"
     "  --out OUT          write the deformed mesh (format from the extension)\n"
     "  --reference REF    also measure REF, another result of the same problem\n"
     "                     (with --benchmark: the Laplacian-editing result)\n"
@@ -65,6 +75,8 @@ static int parse_args(int argc, char **argv, deform_args *a)
     iso_cli__solver_opts_default(&a->so);
     a->steps = io.steps;
     a->tol = io.tol;
+    a->so.restore_mu = RESTORE_DEFAULT_MU;
+    a->so.restore_tau = RESTORE_DEFAULT_TAU;
     weighting = (int)a->so.weighting;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
@@ -105,6 +117,10 @@ static int parse_args(int argc, char **argv, deform_args *a)
                 return 2;
         } else if (VALUE("--weighting")) {
             if (r > 0 && iso_cli__weighting(cmd, val, &weighting) != 0)
+                return 2;
+        } else if (VALUE("--restore")) {
+            if (r > 0 &&
+                iso_cli__restore(cmd, val, &a->so.restore_mu, &a->so.restore_tau) != 0)
                 return 2;
         } else if (VALUE("--steps")) {
             if (r > 0 && iso_cli__int(cmd, "--steps", val, &a->steps) != 0)
@@ -252,6 +268,10 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
            iso_mesh_vertex_count(p->mesh), iso_mesh_triangle_count(p->mesh), sst->n_free);
     printf("settings       omega %.6g, weighting %s, ", a->so.omega,
            a->so.weighting == ISO_WEIGHT_AREA ? "area" : "param");
+    if (a->so.restore_mu > 0)
+        printf("restore mu %.6g tau %.6g, ", a->so.restore_mu, a->so.restore_tau);
+    else
+        printf("restore off, ");
     if (a->steps > 0)
         printf("%d fixed steps\n", a->steps);
     else

@@ -43,6 +43,10 @@ int iso_cli__unknown(const char *cmd, const char *arg);
 int iso_cli__omega(const char *cmd, const char *val, double *omega);
 int iso_cli__weighting(const char *cmd, const char *val, int *weighting);
 
+/* Parses --restore: "MU,TAU" (MU >= 0, TAU > 0 when MU > 0) or "off"
+ * (MU = 0: the paper's method exactly); returns 0 or -1 after reporting. */
+int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau);
+
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
     char dir[ISO_CLI_PATH_MAX];

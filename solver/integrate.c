@@ -22,6 +22,7 @@ void iso_integrate_opts_default(iso_integrate_opts *o)
     o->t1 = 1.0;
     o->steps = 0;
     o->tol = ISO_INTEGRATE_DEFAULT_TOL;
+    o->restore_kappa = ISO_INTEGRATE_RESTORE_KAPPA;
 }
 
 typedef struct integ {
@@ -39,6 +40,8 @@ typedef struct integ {
     double *xs, *k[4]; /* stage positions and RK4 slopes */
     double *xp;        /* predictor */
     long evaluations;
+    double restore_mu, restore_tau; /* the solver's, as the caller set them */
+    double restore_kappa;
 } integ;
 
 /* Places the handle vertices of x at their poses for time t and fills the
@@ -225,6 +228,16 @@ static double fit_to_end(double t, double t1, double h)
     return h;
 }
 
+/* Restoration's time constant for a step of length h: τ_eff = max(τ, κ h)
+ * (iso_integrate.h). Nothing is touched when the term is off, so that run
+ * stays the paper's method bit for bit. */
+static int set_step_tau(integ *g, double h, iso_err *err)
+{
+    if (!(g->restore_mu > 0) || !(g->restore_kappa > 0))
+        return ISO_OK;
+    return iso_solver_set_restore_tau(g->s, fmax(g->restore_tau, g->restore_kappa * h), err);
+}
+
 static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_stats *st,
                iso_err *err)
 {
@@ -237,6 +250,8 @@ static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_s
     int total = adaptive ? 0 : o->steps, rc;
     double *xc = g->xs;
 
+    if ((rc = set_step_tau(g, h, err)) != ISO_OK)
+        return rc;
     if ((rc = eval_field(g, t, x, g->f[0], err)) != ISO_OK)
         return rc;
     g->tf[0] = t;
@@ -246,6 +261,8 @@ static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_s
         else if (st->steps == total - 1)
             h = o->t1 - t; /* no drift from summing h */
         double tn = t + h, h_next = h;
+        if ((rc = set_step_tau(g, h, err)) != ISO_OK)
+            return rc;
         if (st->steps < 2) {
             if ((rc = rk4_step(g, t, h, x, err)) != ISO_OK)
                 return rc;
@@ -295,8 +312,15 @@ int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const 
         return iso_err_set(err, ISO_EINVAL, -1, "tolerance %g must be positive", o.tol);
     integ g;
     int rc = integ_init(&g, s, m, r, path, err);
+    iso_solver_get_restore(s, &g.restore_mu, &g.restore_tau);
+    g.restore_kappa = o.restore_kappa;
     if (rc == ISO_OK)
         rc = run(&g, &o, x, st, err);
+    if (g.restore_mu > 0 && g.restore_kappa > 0) {
+        iso_err ignored; /* τ was accepted at creation: setting it back cannot fail */
+        if (iso_solver_set_restore_tau(s, g.restore_tau, &ignored) != ISO_OK)
+            rc = rc == ISO_OK ? iso_err_set(err, ignored.code, -1, "%s", ignored.msg) : rc;
+    }
     st->evaluations = g.evaluations;
     integ_deinit(&g);
     return rc;

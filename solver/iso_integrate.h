@@ -17,12 +17,20 @@ typedef struct iso_integrate_opts {
     int steps;     /* > 0: fixed step (t1 − t0)/steps; 0: adaptive */
     double tol;    /* adaptive: local error per step relative to the bbox
                       diagonal; default ISO_INTEGRATE_DEFAULT_TOL */
+    /* Isometry restoration (iso_solver_opts.restore_mu > 0): each step uses
+     * τ_eff = max(τ, κ h). The term relaxes edge lengths at a rate up to
+     * 1/τ, an eigenvalue −1/τ that the explicit steps must resolve: ABM3
+     * PECE is stable on the negative real axis for h/τ < 1.73 (RK4 2.78),
+     * so κ ≥ 0.58 keeps every step stable however large μ is. Default
+     * ISO_INTEGRATE_RESTORE_KAPPA; 0 = τ as given (may blow up). */
+    double restore_kappa;
     /* Called after every accepted step, t in [t0, t1]; may be NULL. */
     void (*progress)(void *ctx, double t, int steps, long evaluations);
     void *progress_ctx;
 } iso_integrate_opts;
 
 #define ISO_INTEGRATE_DEFAULT_TOL 1e-4
+#define ISO_INTEGRATE_RESTORE_KAPPA 1.0
 
 void iso_integrate_opts_default(iso_integrate_opts *o);
 

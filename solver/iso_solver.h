@@ -81,6 +81,16 @@ void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
 ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v,
                                    iso_err *err);
 
+/* The restoration term's settings (iso_solver_opts): μ and the τ now in use.
+ * Defined in restore.c. */
+void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */
+
+/* Sets the τ of the next evaluations (> 0, finite), e.g. the integrator's
+ * per-step τ_eff = max(τ, κ h), which keeps the explicit step inside its
+ * stability region (iso_integrate.h). Only τ changes: the pattern, the
+ * elements and μ stay. With μ = 0 it is accepted and changes nothing. */
+ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
+
 typedef struct iso_solver_stats {
     long evaluations;
     long factorizations;  /* numeric factorizations */
