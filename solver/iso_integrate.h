@@ -24,7 +24,9 @@ typedef struct iso_integrate_opts {
      * so κ ≥ 0.58 keeps every step stable however large μ is. Default
      * ISO_INTEGRATE_RESTORE_KAPPA; 0 = τ as given (may blow up). */
     double restore_kappa;
-    /* Called after every accepted step, t in [t0, t1]; may be NULL. */
+    /* Called after every accepted step, t in [t0, t1]; may be NULL. During
+     * the call the caller's x (iso_integrate's argument) holds the
+     * positions at t, so a callback may sample them (test_long_session). */
     void (*progress)(void *ctx, double t, int steps, long evaluations);
     void *progress_ctx;
 } iso_integrate_opts;
