@@ -1,0 +1,122 @@
+/* devices/backend_tty.c -- a POSIX tty in raw mode: pseudo-terminals,
+ * emulators, and any serial adapter the kernel exposes as a tty. Debian 12's
+ * libserialport (0.1.1) cannot open a pty, so this is the path tests take. */
+#include "iso_dev.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <termios.h>
+#include <unistd.h>
+
+typedef struct tty {
+    int fd;
+} tty;
+
+static speed_t baud_code(uint32_t baud)
+{
+    switch (baud) {
+    case 9600: return B9600;
+    case 19200: return B19200;
+    case 38400: return B38400;
+    case 57600: return B57600;
+    case 115200: return B115200;
+    case 230400: return B230400;
+#ifdef B460800
+    case 460800: return B460800;
+#endif
+#ifdef B921600
+    case 921600: return B921600;
+#endif
+    default: return 0;
+    }
+}
+
+static int tty_fd(iso_dev_source *s)
+{
+    return ((tty *)s->impl)->fd;
+}
+
+static int tty_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
+{
+    (void)until;
+    tty *t = s->impl;
+    ssize_t n = read(t->fd, out->data, ISO_DEV_CHUNK_MAX);
+    if (n > 0) {
+        out->t_ns = iso_dev_now_ns();
+        out->len = (uint16_t)n;
+        return 1;
+    }
+    if (n < 0 && (errno == EAGAIN || errno == EINTR))
+        return 0;
+    /* 0 (hang-up of the other side) or EIO: the device is gone. */
+    return iso_err_set(err, ISO_EIO, -1, "%s: %s", s->info.name,
+                       n == 0 ? "the other end hung up" : strerror(errno));
+}
+
+static void tty_close(iso_dev_source *s)
+{
+    tty *t = s->impl;
+    close(t->fd);
+    free(t);
+    free(s);
+}
+
+static const iso_dev_source_ops tty_ops = {"tty", tty_fd, tty_read, NULL, tty_close};
+
+int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    speed_t sp = baud_code(baud);
+    if (!sp)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "%s: %u baud is not a standard rate (9600 ... 921600)", path, baud);
+    int fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot open: %s%s", path, strerror(errno),
+                           errno == EACCES ? " (add yourself to the dialout group)" : "");
+    struct termios tio;
+    if (tcgetattr(fd, &tio) != 0) {
+        iso_err_set(err, ISO_EIO, -1, "%s: not a terminal: %s", path, strerror(errno));
+        close(fd);
+        return ISO_EIO;
+    }
+    /* cfmakeraw by hand (it is not POSIX). */
+    tio.c_iflag &= ~(tcflag_t)(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON);
+    tio.c_oflag &= ~(tcflag_t)OPOST;
+    tio.c_lflag &= ~(tcflag_t)(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
+    tio.c_cflag &= ~(tcflag_t)(CSIZE | PARENB);
+    tio.c_cflag |= CS8;
+    tio.c_cflag |= CLOCAL | CREAD;
+    tio.c_cflag &= ~(tcflag_t)(CSTOPB | PARENB);
+    tio.c_cc[VMIN] = 0;
+    tio.c_cc[VTIME] = 0;
+    cfsetispeed(&tio, sp);
+    cfsetospeed(&tio, sp);
+    if (tcsetattr(fd, TCSANOW, &tio) != 0) {
+        iso_err_set(err, ISO_EIO, -1, "%s: cannot set raw %u 8N1: %s", path, baud, strerror(errno));
+        close(fd);
+        return ISO_EIO;
+    }
+    iso_dev_source *s = calloc(1, sizeof *s);
+    tty *t = calloc(1, sizeof *t);
+    if (!s || !t) {
+        free(s);
+        free(t);
+        close(fd);
+        return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
+    }
+    t->fd = fd;
+    s->ops = &tty_ops;
+    s->impl = t;
+    s->info.kind = ISO_DEV_KIND_SERIAL;
+    s->info.baud = baud;
+    s->info.data_bits = 8;
+    s->info.parity = 'N';
+    s->info.stop_bits = 1;
+    snprintf(s->info.name, sizeof s->info.name, "%s", path);
+    *out = s;
+    return ISO_OK;
+}

@@ -1,0 +1,319 @@
+/* devices/decode.c -- decoders: bytes and timestamps in, events out.
+ *
+ * Every decoder counts what it cannot use and skips it; none fails on input.
+ * The same code serves a live device and a replay, so a recording decodes to
+ * the same events bit for bit. */
+#include "iso_dev.h"
+
+#include <string.h>
+
+#ifdef ISO_DEV_HAVE_FB
+#include "iso_fb.h"
+_Static_assert(sizeof(iso_fb_parser) <= sizeof(((iso_dev_decoder *)0)->fb),
+               "iso_dev_decoder.fb holds an iso_fb_parser");
+#endif
+
+const char *iso_dev_kind_name(int kind)
+{
+    switch (kind) {
+    case ISO_DEV_KIND_HID: return "hid";
+    case ISO_DEV_KIND_SPNAV: return "spnav";
+    case ISO_DEV_KIND_SERIAL: return "serial";
+    case ISO_DEV_KIND_GPIO: return "gpio";
+    default: return "unknown";
+    }
+}
+
+static int16_t le16(const uint8_t *p)
+{
+    return (int16_t)(uint16_t)(p[0] | (uint16_t)p[1] << 8);
+}
+
+static iso_dev_event *emit(iso_dev_decoder *d, int64_t t, int kind, iso_dev_event *ev, size_t cap,
+                           size_t *n)
+{
+    if (*n >= cap) {
+        d->n.garbage++;
+        return NULL;
+    }
+    iso_dev_event *e = &ev[(*n)++];
+    memset(e, 0, sizeof *e);
+    e->t_ns = t;
+    e->kind = (uint8_t)kind;
+    e->source = d->source;
+    return e;
+}
+
+static void emit_axes(iso_dev_decoder *d, int64_t t, iso_dev_event *ev, size_t cap, size_t *n)
+{
+    iso_dev_event *e = emit(d, t, ISO_DEV_EV_AXES, ev, cap, n);
+    if (e)
+        memcpy(e->axes, d->axes, sizeof e->axes);
+}
+
+static void emit_buttons(iso_dev_decoder *d, int64_t t, uint32_t b, iso_dev_event *ev, size_t cap,
+                         size_t *n)
+{
+    if (b == d->buttons)
+        return;
+    d->buttons = b;
+    iso_dev_event *e = emit(d, t, ISO_DEV_EV_BUTTONS, ev, cap, n);
+    if (e)
+        e->buttons = b;
+}
+
+int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t source, iso_err *err)
+{
+    memset(d, 0, sizeof *d);
+    d->kind = info->kind;
+    d->source = source;
+    d->debounce_ns = (int64_t)info->debounce_us * 1000;
+    switch (info->kind) {
+    case ISO_DEV_KIND_HID:
+    case ISO_DEV_KIND_SPNAV:
+    case ISO_DEV_KIND_GPIO: return ISO_OK;
+    case ISO_DEV_KIND_SERIAL:
+#ifdef ISO_DEV_HAVE_FB
+        iso_fb_parser_init((iso_fb_parser *)(void *)d->fb);
+        return ISO_OK;
+#else
+        return iso_err_set(err, ISO_ENOTSUP, -1,
+                           "source %u (%s): this build has no firmware-bridge parser "
+                           "(firmware-bridge/iso_fb.c), so serial streams cannot be decoded",
+                           source, info->name);
+#endif
+    default:
+        return iso_err_set(err, ISO_EINVAL, -1, "source %u (%s): unknown device kind %d", source,
+                           info->name, info->kind);
+    }
+}
+
+/* ---- SpaceMouse HID reports --------------------------------------------- */
+
+size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t, const uint8_t *r, size_t len,
+                         iso_dev_event *ev, size_t cap)
+{
+    size_t n = 0;
+    if (len < 1) {
+        d->n.short_reports++;
+        return 0;
+    }
+    switch (r[0]) {
+    case 1:
+        /* 13 bytes: translation and rotation (newer models, the universal
+         * receiver); 7 bytes: translation only, rotation follows in ID 2. */
+        if (len >= 13) {
+            for (int i = 0; i < 6; i++)
+                d->axes[i] = le16(r + 1 + 2 * i);
+        } else if (len >= 7) {
+            for (int i = 0; i < 3; i++)
+                d->axes[i] = le16(r + 1 + 2 * i);
+        } else {
+            d->n.short_reports++;
+            return 0;
+        }
+        d->n.reports++;
+        emit_axes(d, t, ev, cap, &n);
+        return n;
+    case 2:
+        if (len < 7) {
+            d->n.short_reports++;
+            return 0;
+        }
+        for (int i = 0; i < 3; i++)
+            d->axes[3 + i] = le16(r + 1 + 2 * i);
+        d->n.reports++;
+        emit_axes(d, t, ev, cap, &n);
+        return n;
+    case 3: {
+        if (len < 2) {
+            d->n.short_reports++;
+            return 0;
+        }
+        uint32_t b = 0;
+        for (size_t i = 1; i < len && i <= 4; i++)
+            b |= (uint32_t)r[i] << (8 * (i - 1));
+        d->n.reports++;
+        emit_buttons(d, t, b, ev, cap, &n);
+        return n;
+    }
+    default: d->n.unknown_ids++; return 0;
+    }
+}
+
+/* ---- spacenavd events ---------------------------------------------------- */
+/* 'M' + six LE int16 (x y z rx ry rz) + LE uint16 period, 15 bytes;
+ * 'B' + button index + press, 3 bytes. One chunk may hold several. */
+static size_t spnav_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
+                           iso_dev_event *ev, size_t cap)
+{
+    size_t n = 0, i = 0;
+    while (i < len) {
+        if (p[i] == 'M') {
+            if (len - i < 15) {
+                d->n.short_reports++;
+                return n;
+            }
+            for (int a = 0; a < 6; a++)
+                d->axes[a] = le16(p + i + 1 + 2 * a);
+            d->n.reports++;
+            emit_axes(d, t, ev, cap, &n);
+            i += 15;
+        } else if (p[i] == 'B') {
+            if (len - i < 3) {
+                d->n.short_reports++;
+                return n;
+            }
+            uint32_t b = d->buttons;
+            if (p[i + 1] < 32) {
+                uint32_t bit = (uint32_t)1 << p[i + 1];
+                b = p[i + 2] ? (b | bit) : (b & ~bit);
+                d->n.reports++;
+                emit_buttons(d, t, b, ev, cap, &n);
+            } else {
+                d->n.unknown_ids++;
+            }
+            i += 3;
+        } else {
+            d->n.unknown_ids++;
+            d->n.garbage++;
+            i++;
+        }
+    }
+    return n;
+}
+
+/* ---- the firmware bridge's serial stream ------------------------------- */
+
+#ifdef ISO_DEV_HAVE_FB
+static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
+                            iso_dev_event *ev, size_t cap)
+{
+    iso_fb_parser *fb = (iso_fb_parser *)(void *)d->fb;
+    size_t n = 0;
+    for (size_t i = 0; i < len; i++) {
+        iso_fb_view v;
+        int rc = iso_fb_parser_feed(fb, p[i], &v);
+        if (rc < 0) {
+            d->n.bad_frames++;
+            continue;
+        }
+        if (rc != ISO_FB_FRAME || v.type != ISO_FB_HANDLE_SAMPLE)
+            continue;
+        iso_fb_sample s;
+        if (iso_fb_sample_unpack(&s, v.payload, v.len) != 0) {
+            d->n.bad_frames++;
+            continue;
+        }
+        d->n.reports++;
+        /* The bridge sends micrometres and microradians (per second for twists). */
+        iso_dev_event *e = emit(
+            d, t, s.kind == ISO_FB_SAMPLE_POSE ? ISO_DEV_EV_POSE : ISO_DEV_EV_TWIST, ev, cap, &n);
+        if (e)
+            for (int k = 0; k < 6; k++)
+                e->v[k] = (double)s.v[k] * 1e-6;
+        emit_buttons(d, t, s.buttons, ev, cap, &n);
+    }
+    return n;
+}
+#endif
+
+/* ---- GPIO edges and their debounce ------------------------------------- */
+/* libgpiod v1 has no debounce of its own. An edge that comes at least the
+ * debounce time after the last accepted change is taken at once (no added
+ * latency); one inside that window waits until the line has been stable for
+ * the debounce time. The e-stop is asymmetric on purpose: pressing it is
+ * never delayed, releasing it always waits for a stable line. */
+static void gpio_accept(iso_dev_decoder *d, int role, int64_t t, iso_dev_event *ev, size_t cap,
+                        size_t *n)
+{
+    iso_dev_gpio_line *l = &d->gpio[role];
+    l->accepted = l->raw;
+    l->t_accept = t;
+    iso_dev_event *e = emit(d, t, ISO_DEV_EV_GPIO, ev, cap, n);
+    if (e) {
+        e->line = (uint8_t)role;
+        e->level = l->accepted;
+    }
+}
+
+static size_t gpio_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
+                          iso_dev_event *ev, size_t cap)
+{
+    size_t n = 0;
+    if (len % 2)
+        d->n.garbage++;
+    for (size_t i = 0; i + 1 < len; i += 2) {
+        uint8_t role = p[i], level = p[i + 1] ? 1 : 0;
+        if (role >= ISO_DEV_GPIO_ROLES) {
+            d->n.unknown_ids++;
+            continue;
+        }
+        d->n.reports++;
+        iso_dev_gpio_line *l = &d->gpio[role];
+        if (!l->have) { /* the first reading is the initial level: take it */
+            l->have = 1;
+            l->raw = level;
+            gpio_accept(d, role, t, ev, cap, &n);
+            continue;
+        }
+        l->raw = level;
+        l->t_raw = t;
+        if (level == l->accepted)
+            continue; /* a bounce came back before it was accepted */
+        int immediate = role == ISO_DEV_GPIO_ESTOP ? level == 1 : t - l->t_accept >= d->debounce_ns;
+        if (immediate)
+            gpio_accept(d, role, t, ev, cap, &n);
+        else
+            d->n.bounces++;
+    }
+    return n;
+}
+
+size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now, iso_dev_event *ev, size_t cap)
+{
+    size_t n = 0;
+    if (d->kind != ISO_DEV_KIND_GPIO)
+        return 0;
+    for (int role = 0; role < ISO_DEV_GPIO_ROLES; role++) {
+        iso_dev_gpio_line *l = &d->gpio[role];
+        if (l->have && l->raw != l->accepted && now - l->t_raw >= d->debounce_ns)
+            gpio_accept(d, role, l->t_raw + d->debounce_ns, ev, cap, &n);
+    }
+    return n;
+}
+
+/* ---- dispatch ------------------------------------------------------------ */
+
+size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev, size_t cap)
+{
+    size_t n = 0;
+    size_t len = c->len <= ISO_DEV_CHUNK_MAX ? c->len : ISO_DEV_CHUNK_MAX;
+    d->n.chunks++;
+    switch (c->type) {
+    case ISO_DEV_CHUNK_GONE:
+        /* What the device held is forgotten: it starts from rest when back. */
+        memset(d->axes, 0, sizeof d->axes);
+        d->buttons = 0;
+        for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++)
+            d->gpio[r].have = 0;
+#ifdef ISO_DEV_HAVE_FB
+        if (d->kind == ISO_DEV_KIND_SERIAL)
+            iso_fb_parser_init((iso_fb_parser *)(void *)d->fb);
+#endif
+        emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
+        return n;
+    case ISO_DEV_CHUNK_BACK: emit(d, c->t_ns, ISO_DEV_EV_BACK, ev, cap, &n); return n;
+    case ISO_DEV_CHUNK_DATA: break;
+    default: return 0;
+    }
+    switch (d->kind) {
+    case ISO_DEV_KIND_HID: return iso_dev_sm_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_SPNAV: return spnav_decode(d, c->t_ns, c->data, len, ev, cap);
+#ifdef ISO_DEV_HAVE_FB
+    case ISO_DEV_KIND_SERIAL: return serial_decode(d, c->t_ns, c->data, len, ev, cap);
+#endif
+    case ISO_DEV_KIND_GPIO: return gpio_decode(d, c->t_ns, c->data, len, ev, cap);
+    default: d->n.garbage += (uint32_t)len; return 0;
+    }
+}

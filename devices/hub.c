@@ -1,0 +1,333 @@
+/* devices/hub.c -- sources, their decoders, the recording and reconnects.
+ *
+ * The hub is what turns "a device went away" into one message, a GONE event
+ * (its handles hold still) and a retry every retry interval, and what makes
+ * live and replayed runs the same: every chunk it decodes is first written
+ * to the recording, and a live chunk is never stamped later than the tick
+ * that drains it, so a replay drains the same chunks into the same ticks. */
+#include "iso_dev.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define HUB_EVENTS 2048u
+
+typedef struct hub_src {
+    iso_dev_source *s; /* NULL while gone */
+    iso_dev_info info;
+    iso_dev_reopen_fn reopen;
+    void *reopen_ctx;
+    int64_t next_try;
+    iso_dev_decoder dec;
+} hub_src;
+
+struct iso_dev_hub {
+    hub_src src[ISO_DEV_MAX_SOURCES];
+    size_t n;
+    iso_dev_source *mux; /* a replay: every chunk names its source */
+    iso_dev_notify_fn notify;
+    void *notify_ctx;
+    int64_t retry_ns;
+    int retry_now;
+    int recording;
+    iso_dev_rec_writer rec;
+    int64_t last_tick;
+    int ticked;
+    iso_dev_event ev[HUB_EVENTS];
+    size_t nev;
+};
+
+static void say(iso_dev_hub *h, const char *fmt, ...) ISO_PRINTF(2, 3);
+static void say(iso_dev_hub *h, const char *fmt, ...)
+{
+    if (!h->notify)
+        return;
+    char msg[600];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    h->notify(h->notify_ctx, msg);
+}
+
+int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub **out, iso_err *err)
+{
+    *out = calloc(1, sizeof **out);
+    if (!*out)
+        return iso_err_set(err, ISO_ENOMEM, -1, "device hub: out of memory");
+    (*out)->notify = notify;
+    (*out)->notify_ctx = notify_ctx;
+    (*out)->retry_ns = 500000000;
+    return ISO_OK;
+}
+
+void iso_dev_hub_destroy(iso_dev_hub *h)
+{
+    if (!h)
+        return;
+    for (size_t i = 0; i < h->n; i++)
+        iso_dev_source_close(h->src[i].s);
+    iso_dev_source_close(h->mux);
+    if (h->recording && iso_dev_rec_writer_close(&h->rec, NULL) != ISO_OK)
+        say(h, "recording %s: could not be closed cleanly", h->rec.path);
+    free(h);
+}
+
+int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen, void *reopen_ctx,
+                    iso_err *err)
+{
+    if (s->multiplexed) {
+        const iso_dev_rec_reader *r = iso_dev_replay_reader(s);
+        if (h->n || !r) {
+            iso_dev_source_close(s);
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "device hub: a replay must be the hub's only source");
+        }
+        for (size_t i = 0; i < r->n_sources; i++) {
+            h->src[i].info = r->infos[i];
+            int rc = iso_dev_decoder_init(&h->src[i].dec, &r->infos[i], (uint8_t)i, err);
+            if (rc != ISO_OK) {
+                iso_dev_source_close(s);
+                h->n = 0;
+                return rc;
+            }
+        }
+        h->n = r->n_sources;
+        h->mux = s;
+        return ISO_OK;
+    }
+    if (h->mux || h->n >= ISO_DEV_MAX_SOURCES) {
+        iso_dev_source_close(s);
+        return iso_err_set(err, ISO_EINVAL, -1, "device hub: %s",
+                           h->mux ? "a replay must be the hub's only source"
+                                  : "too many sources (at most 16)");
+    }
+    hub_src *x = &h->src[h->n];
+    memset(x, 0, sizeof *x);
+    x->info = s->info;
+    int rc = iso_dev_decoder_init(&x->dec, &s->info, (uint8_t)h->n, err);
+    if (rc != ISO_OK) {
+        iso_dev_source_close(s);
+        return rc;
+    }
+    x->s = s;
+    x->reopen = reopen;
+    x->reopen_ctx = reopen_ctx;
+    h->n++;
+    return ISO_OK;
+}
+
+size_t iso_dev_hub_sources(const iso_dev_hub *h)
+{
+    return h->n;
+}
+const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i)
+{
+    return i < h->n ? &h->src[i].info : NULL;
+}
+const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i)
+{
+    return i < h->n ? &h->src[i].dec : NULL;
+}
+void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns)
+{
+    h->retry_ns = retry_ns;
+}
+void iso_dev_hub_retry_now(iso_dev_hub *h)
+{
+    h->retry_now = 1;
+}
+
+int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err)
+{
+    if (h->recording)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: already recording to %s", path, h->rec.path);
+    iso_dev_info *infos = calloc(h->n ? h->n : 1, sizeof *infos);
+    if (!infos)
+        return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
+    for (size_t i = 0; i < h->n; i++)
+        infos[i] = h->src[i].info;
+    int rc = iso_dev_rec_writer_open(&h->rec, path, infos, h->n, iso_dev_now_ns(), err);
+    free(infos);
+    if (rc == ISO_OK)
+        h->recording = 1;
+    return rc;
+}
+
+int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
+{
+    if (!h->recording)
+        return ISO_OK;
+    h->recording = 0;
+    return iso_dev_rec_writer_close(&h->rec, err);
+}
+
+/* Records and decodes one chunk into the hub's event buffer. */
+static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
+{
+    if (c->type == ISO_DEV_CHUNK_TICK)
+        return ISO_OK;
+    if (c->source >= h->n)
+        return ISO_OK;
+    if (h->recording) {
+        int rc = iso_dev_rec_write(&h->rec, c, err);
+        if (rc != ISO_OK)
+            return rc;
+    }
+    h->nev += iso_dev_decode(&h->src[c->source].dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
+    return ISO_OK;
+}
+
+static int mark(iso_dev_hub *h, size_t i, int type, int64_t t, iso_err *err)
+{
+    iso_dev_chunk c;
+    memset(&c, 0, sizeof c);
+    c.t_ns = t;
+    c.source = (uint8_t)i;
+    c.type = (uint8_t)type;
+    return take(h, &c, err);
+}
+
+static int room(const iso_dev_hub *h)
+{
+    return HUB_EVENTS - h->nev >= ISO_DEV_EVENTS_PER_CHUNK + 2 * ISO_DEV_GPIO_ROLES;
+}
+
+static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
+{
+    hub_src *x = &h->src[i];
+    if (!x->s) {
+        if (!x->reopen || (now < x->next_try && !h->retry_now))
+            return ISO_OK;
+        iso_err e;
+        iso_err_clear(&e);
+        x->next_try = now + h->retry_ns;
+        if (x->reopen(x->reopen_ctx, &x->info, &x->s, &e) != ISO_OK || !x->s) {
+            x->s = NULL;
+            return ISO_OK;
+        }
+        say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
+        int rc = mark(h, i, ISO_DEV_CHUNK_BACK, now, err);
+        if (rc != ISO_OK)
+            return rc;
+    }
+    while (room(h)) {
+        iso_dev_chunk c;
+        iso_err e;
+        iso_err_clear(&e);
+        int got = iso_dev_source_read(x->s, now, &c, &e);
+        if (got == 0)
+            return ISO_OK;
+        if (got < 0) {
+            say(h, "%s %s went away (%s): its handles hold still until it is back",
+                iso_dev_kind_name(x->info.kind), x->info.name, e.msg);
+            iso_dev_source_close(x->s);
+            x->s = NULL;
+            x->next_try = now + h->retry_ns;
+            return mark(h, i, ISO_DEV_CHUNK_GONE, now, err);
+        }
+        c.source = (uint8_t)i;
+        c.type = ISO_DEV_CHUNK_DATA;
+        if (c.t_ns > now)
+            c.t_ns = now;
+        int rc = take(h, &c, err);
+        if (rc != ISO_OK)
+            return rc;
+    }
+    return ISO_OK;
+}
+
+/* A replay drains up to and including the first TICK record at or before
+ * now: the recorded loop's tick boundaries are kept exactly. */
+static int drain_mux(iso_dev_hub *h, int64_t now, iso_err *err)
+{
+    while (room(h)) {
+        iso_dev_chunk c;
+        int got = iso_dev_source_read(h->mux, now, &c, err);
+        if (got <= 0)
+            return got < 0 ? got : ISO_OK;
+        int rc = take(h, &c, err);
+        if (rc != ISO_OK)
+            return rc;
+        if (c.type == ISO_DEV_CHUNK_TICK)
+            return ISO_OK;
+    }
+    return ISO_OK;
+}
+
+static int drain_all(iso_dev_hub *h, int64_t now, iso_err *err)
+{
+    int rc = ISO_OK;
+    if (h->mux)
+        rc = drain_mux(h, now, err);
+    else
+        for (size_t i = 0; i < h->n && rc == ISO_OK; i++)
+            rc = drain_live(h, i, now, err);
+    h->retry_now = 0;
+    for (size_t i = 0; i < h->n; i++)
+        h->nev += iso_dev_decode_tick(&h->src[i].dec, now, h->ev + h->nev, HUB_EVENTS - h->nev);
+    return rc;
+}
+
+int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev, size_t cap, size_t *n,
+                      iso_err *err)
+{
+    int rc = ISO_OK;
+    if (h->nev < cap)
+        rc = drain_all(h, now_ns, err);
+    size_t k = h->nev < cap ? h->nev : cap;
+    memcpy(ev, h->ev, k * sizeof *ev);
+    memmove(h->ev, h->ev + k, (h->nev - k) * sizeof *ev);
+    h->nev -= k;
+    *n = k;
+    return rc;
+}
+
+int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
+                     const iso_pose *poses, iso_dev_tick *out, iso_err *err)
+{
+    int rc = drain_all(h, now_ns, err);
+    iso_dev_map_tick(m, h->ev, h->nev, now_ns, dt_s, poses, out);
+    h->nev = 0;
+    h->last_tick = now_ns;
+    h->ticked = 1;
+    if (rc != ISO_OK)
+        return rc;
+    for (size_t i = 0; i < h->n && !h->mux; i++) {
+        iso_dev_source *s = h->src[i].s;
+        if (s && s->ops->write_level) {
+            iso_err e;
+            iso_err_clear(&e);
+            /* The per-tick trigger pulse; a failed pulse must not stop the loop. */
+            if (s->ops->write_level(s, 1, &e) == ISO_OK && s->ops->write_level(s, 0, &e) != ISO_OK)
+                say(h, "%s: trigger pulse: %s", s->info.name, e.msg);
+        }
+    }
+    if (h->recording)
+        return iso_dev_rec_tick(&h->rec, now_ns, err);
+    return ISO_OK;
+}
+
+int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns)
+{
+    if (!h->mux)
+        return INT64_MAX;
+    int64_t t = iso_dev_replay_next_tick(h->mux);
+    if (t != INT64_MAX)
+        return t;
+    int64_t next = iso_dev_replay_peek(h->mux);
+    if (next == INT64_MAX)
+        return INT64_MAX;
+    if (!h->ticked)
+        return next;
+    /* Every tick is played, gaps included: a deflected 3D mouse keeps
+     * moving its handle between reports. */
+    return h->last_tick + fallback_dt_ns;
+}
+
+int iso_dev_hub_replay_done(iso_dev_hub *h)
+{
+    return !h->mux || (iso_dev_replay_peek(h->mux) == INT64_MAX && h->nev == 0);
+}

@@ -1,0 +1,438 @@
+/* devices/iso_dev.h -- the input side: sources (one backend per file),
+ * decoders that only ever see bytes and timestamps, the mapping from decoded
+ * events to one command per tick, recordings, and the hub that ties them.
+ *
+ *   backend ──chunk──▶ hub ──chunk──▶ decoder ──events──▶ map ──▶ iso_dev_tick
+ *                        └──▶ recording (the same chunks) ──▶ replay backend
+ *
+ * A chunk is what one read of a source gave: raw bytes with a monotonic
+ * timestamp in nanoseconds. Everything above the chunk is deterministic: the
+ * same chunks (a recording) give the same events and the same tick commands,
+ * bit for bit, whatever the wall clock does.
+ *
+ * Ownership: sources and hubs are heap handles (open/close, create/destroy,
+ * NULL is a no-op); decoders, maps, readers and writers are caller-owned
+ * structs (init/deinit). Nothing here is thread-safe; no global state. */
+#ifndef ISO_DEV_H
+#define ISO_DEV_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "iso_err.h"
+#include "iso_motion.h"
+
+/* ====================================================================== */
+/* Chunks and source descriptions                                          */
+/* ====================================================================== */
+
+#define ISO_DEV_CHUNK_MAX 255u /* bytes per chunk: one HID report, one serial read */
+#define ISO_DEV_DESC_MAX 4096u /* HID report descriptor (HID_MAX_DESCRIPTOR_SIZE) */
+#define ISO_DEV_NAME_MAX 128u
+#define ISO_DEV_MAX_SOURCES 16u
+#define ISO_DEV_MAX_HANDLES 8u
+
+typedef enum iso_dev_kind {
+    ISO_DEV_KIND_HID = 1,    /* raw HID input reports, report ID first (3D mice) */
+    ISO_DEV_KIND_SPNAV = 2,  /* spacenavd events in this library's encoding (RECORDING.md) */
+    ISO_DEV_KIND_SERIAL = 3, /* the firmware bridge's byte stream (COBS frames) */
+    ISO_DEV_KIND_GPIO = 4    /* GPIO edges: (role, level) byte pairs */
+} iso_dev_kind;
+
+typedef enum iso_dev_chunk_type {
+    ISO_DEV_CHUNK_DATA = 1, /* bytes from the device */
+    ISO_DEV_CHUNK_GONE = 2, /* the device went away (unplugged, read error) */
+    ISO_DEV_CHUNK_BACK = 3, /* the device was opened again */
+    ISO_DEV_CHUNK_TICK = 4  /* a tick boundary of the loop that recorded (no source) */
+} iso_dev_chunk_type;
+
+typedef struct iso_dev_chunk {
+    int64_t t_ns;   /* CLOCK_MONOTONIC of the read (or of the kernel event) */
+    uint8_t source; /* index in the hub / the recording header */
+    uint8_t type;   /* iso_dev_chunk_type */
+    uint16_t len;
+    uint8_t data[ISO_DEV_CHUNK_MAX];
+} iso_dev_chunk;
+
+/* GPIO roles: the first byte of each GPIO pair. */
+enum { ISO_DEV_GPIO_CLUTCH = 0, ISO_DEV_GPIO_ESTOP = 1, ISO_DEV_GPIO_ROLES = 2 };
+
+/* What a recording's header says about one source. */
+typedef struct iso_dev_info {
+    uint8_t kind;                         /* iso_dev_kind */
+    uint16_t vid, pid;                    /* USB IDs, 0 if none */
+    uint32_t baud;                        /* serial: bits per second, 0 if none */
+    uint8_t data_bits, parity, stop_bits; /* serial: 8, 'N'/'E'/'O', 1 */
+    uint32_t debounce_us;                 /* GPIO debounce time */
+    char name[ISO_DEV_NAME_MAX];          /* path or label, NUL-terminated */
+    uint16_t desc_len;                    /* HID report descriptor bytes, 0 if unknown */
+    uint8_t desc[ISO_DEV_DESC_MAX];
+} iso_dev_info;
+
+const char *iso_dev_kind_name(int kind); /* "hid", "spnav", "serial", "gpio"; never NULL */
+
+/* ====================================================================== */
+/* Sources: one interface, one backend per file                            */
+/* ====================================================================== */
+
+typedef struct iso_dev_source iso_dev_source;
+typedef struct iso_dev_source_ops {
+    const char *backend; /* "hidapi", "tty", "tcp", ... */
+    /* A descriptor to poll for input, or -1 (hidapi has none: read each tick). */
+    int (*fd)(iso_dev_source *s);
+    /* Reads what is there without blocking: returns 1 and fills *out (data
+     * stamped at or before until_ns), 0 when there is nothing now, or a
+     * negative ISO_E* code with err filled when the device is gone. */
+    int (*read)(iso_dev_source *s, int64_t until_ns, iso_dev_chunk *out, iso_err *err);
+    /* Optional: drives an output line (GPIO trigger); NULL if none. */
+    int (*write_level)(iso_dev_source *s, int level, iso_err *err);
+    void (*close)(iso_dev_source *s);
+} iso_dev_source_ops;
+
+struct iso_dev_source {
+    const iso_dev_source_ops *ops;
+    iso_dev_info info;
+    int multiplexed; /* 1: chunks carry their own source index (replay) */
+    void *impl;      /* the backend's private struct */
+};
+
+int iso_dev_source_fd(iso_dev_source *s);
+ISO_NODISCARD int iso_dev_source_read(iso_dev_source *s, int64_t until_ns, iso_dev_chunk *out,
+                                      iso_err *err);
+void iso_dev_source_close(iso_dev_source *s); /* NULL is a no-op */
+
+/* Monotonic nanoseconds (the time base of every live chunk). */
+int64_t iso_dev_now_ns(void);
+
+/* ---- simulated backends (always built) --------------------------------- */
+
+/* A scripted source for tests: chunks and "gone" marks queued by the test,
+ * handed out in order once until_ns reaches their time. */
+ISO_NODISCARD int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *err);
+/* Queues bytes (len <= ISO_DEV_CHUNK_MAX) at time t. */
+ISO_NODISCARD int iso_dev_fake_push(iso_dev_source *s, int64_t t_ns, const void *data, size_t len);
+/* Queues a device failure at time t: read then returns ISO_EIO. */
+ISO_NODISCARD int iso_dev_fake_push_gone(iso_dev_source *s, int64_t t_ns);
+/* How many times write_level was called, and the last level written. */
+int iso_dev_fake_writes(iso_dev_source *s, int *last_level);
+
+/* ---- OS backends without optional libraries (always built) ------------ */
+
+/* A POSIX tty (pseudo-terminal, emulator, /dev/ttyUSB0) in raw 8N1 at baud. */
+ISO_NODISCARD int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out,
+                                   iso_err *err);
+/* A TCP client to a serial-over-network bridge, "host:port". Connects before
+ * it returns (timeout_ms), then reads without blocking. */
+ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_dev_source **out,
+                                   iso_err *err);
+
+/* ---- hardware backends (compiled when their -dev package is present) -- */
+/* Each returns ISO_ENOTSUP with a sentence when its library was not built in. */
+
+/* hidapi (hidraw): path as hidapi enumerates it ("/dev/hidraw3"), or NULL
+ * for the first known 3D mouse. */
+ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
+/* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. */
+ISO_NODISCARD int iso_dev_spnav_open(iso_dev_source **out, iso_err *err);
+/* libserialport: a real serial adapter by name ("/dev/ttyUSB0"). */
+ISO_NODISCARD int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out,
+                                          iso_err *err);
+/* libgpiod v1: chip ("gpiochip0"), clutch and e-stop line offsets (-1 none),
+ * active_low, debounce, and an optional output line for a per-tick pulse. */
+typedef struct iso_dev_gpio_opts {
+    const char *chip;
+    int clutch_line, estop_line, pulse_line;
+    int active_low;
+    uint32_t debounce_us;
+} iso_dev_gpio_opts;
+ISO_NODISCARD int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out,
+                                     iso_err *err);
+
+/* ---- discovery ---------------------------------------------------------- */
+
+typedef struct iso_dev_found {
+    char backend[16]; /* "hidapi", "spnav", "serialport", "gpiod", "libusb" */
+    char path[ISO_DEV_NAME_MAX];
+    char what[ISO_DEV_NAME_MAX]; /* product or description */
+    uint16_t vid, pid;
+    int usable;    /* 1: can be opened now */
+    char why[320]; /* when not usable: why, and what fixes it */
+} iso_dev_found;
+
+/* Lists what every built-in backend sees. Returns the count written (at most
+ * cap); never fails: a backend that cannot look says so in an entry. */
+size_t iso_dev_enumerate(iso_dev_found *out, size_t cap);
+/* 1 if (vid, pid) is a known 3D mouse (3Dconnexion 0x046d / 0x256f). */
+int iso_dev_is_3dmouse(uint16_t vid, uint16_t pid);
+/* The udev rule that grants the logged-in user a device (uaccess). */
+void iso_dev_udev_rule(uint16_t vid, char *buf, size_t cap);
+/* Which backends were compiled in, e.g. "hidapi spnav serialport gpiod libusb tty tcp". */
+const char *iso_dev_backends(void);
+
+/* libusb hotplug: a watcher whose fd set wakes the loop on arrival and
+ * removal of known devices. iso_dev_usb_watch_poll returns how many events
+ * arrived since the last call (each sets the hub's retry to "now"). */
+typedef struct iso_dev_usb_watch iso_dev_usb_watch;
+ISO_NODISCARD int iso_dev_usb_watch_create(iso_dev_usb_watch **out, iso_err *err);
+int iso_dev_usb_watch_poll(iso_dev_usb_watch *w);
+void iso_dev_usb_watch_destroy(iso_dev_usb_watch *w);
+
+/* ====================================================================== */
+/* Decoded events                                                         */
+/* ====================================================================== */
+
+typedef enum iso_dev_event_kind {
+    ISO_DEV_EV_AXES = 1,    /* axes[6]: tx ty tz rx ry rz in raw counts (full state) */
+    ISO_DEV_EV_BUTTONS = 2, /* buttons: full state after the change */
+    ISO_DEV_EV_POSE = 3,    /* v[0..2] position (m), v[3..5] rotation vector (rad) */
+    ISO_DEV_EV_TWIST = 4,   /* v[0..2] velocity (m/s), v[3..5] angular velocity (rad/s) */
+    ISO_DEV_EV_GPIO = 5,    /* line (role), level: debounced, 1 = active */
+    ISO_DEV_EV_GONE = 6,
+    ISO_DEV_EV_BACK = 7
+} iso_dev_event_kind;
+
+typedef struct iso_dev_event {
+    int64_t t_ns;
+    uint8_t kind;
+    uint8_t source;
+    uint8_t line, level;
+    uint32_t buttons;
+    int16_t axes[6];
+    double v[6];
+} iso_dev_event;
+
+/* ====================================================================== */
+/* Decoders: bytes and timestamps in, events out                          */
+/* ====================================================================== */
+
+typedef struct iso_dev_counters {
+    uint32_t chunks;        /* chunks fed */
+    uint32_t reports;       /* reports or frames decoded */
+    uint32_t short_reports; /* HID: too short for their ID; spnav: truncated */
+    uint32_t unknown_ids;   /* HID report IDs or spnav types we do not know */
+    uint32_t bad_frames;    /* serial: COBS, CRC, length, version, sequence drops */
+    uint32_t garbage;       /* bytes skipped outside any frame or pair */
+    uint32_t bounces;       /* GPIO edges the debounce did not take at once */
+} iso_dev_counters;
+
+typedef struct iso_dev_gpio_line {
+    uint8_t accepted, raw, have; /* debounced level, last edge's level, seen */
+    int64_t t_accept, t_raw;
+} iso_dev_gpio_line;
+
+typedef struct iso_dev_decoder {
+    uint8_t kind, source;
+    iso_dev_counters n;
+    int16_t axes[6];
+    uint32_t buttons;
+    int64_t debounce_ns;
+    iso_dev_gpio_line gpio[ISO_DEV_GPIO_ROLES];
+    _Alignas(8) unsigned char fb[512]; /* the firmware bridge's iso_fb_parser */
+} iso_dev_decoder;
+
+/* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown
+ * kind; ISO_ENOTSUP for serial when the firmware bridge was not built. */
+ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t source,
+                                       iso_err *err);
+/* Decodes one chunk into at most cap events appended at ev. Returns the
+ * number written. Bad bytes are counted and skipped, never fatal. Events
+ * beyond cap are dropped and counted as garbage (size ev for a chunk:
+ * ISO_DEV_EVENTS_PER_CHUNK is always enough). */
+#define ISO_DEV_EVENTS_PER_CHUNK 130u
+size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev, size_t cap);
+/* Time passes without a chunk: confirms GPIO levels that have been stable
+ * for the debounce time. Returns the events written. */
+size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now_ns, iso_dev_event *ev, size_t cap);
+
+/* The SpaceMouse family (3Dconnexion 0x046d and 0x256f): one HID input
+ * report, report ID first. Told apart by length: ID 1 with 7 bytes is
+ * translation, ID 1 with 13 bytes translation and rotation, ID 2 with 7
+ * bytes rotation, ID 3 buttons (little-endian bit mask). Axes are LE int16. */
+size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t *r, size_t len,
+                         iso_dev_event *ev, size_t cap);
+
+/* ====================================================================== */
+/* Mapping: events to one command per tick                                */
+/* ====================================================================== */
+
+enum { ISO_DEV_LOCK_NONE = 0, ISO_DEV_LOCK_TRANSLATION = 1, ISO_DEV_LOCK_ROTATION = 2 };
+enum { ISO_DEV_FRAME_WORLD = 0, ISO_DEV_FRAME_DEVICE = 1 };
+enum {
+    ISO_DEV_ACT_NONE = 0,
+    ISO_DEV_ACT_CLUTCH = 1,      /* held: handles decoupled from the device */
+    ISO_DEV_ACT_NEXT_HANDLE = 2, /* press: the device drives the next handle */
+    ISO_DEV_ACT_RESET_POSE = 3,  /* press: the loop resets the active handle */
+    ISO_DEV_ACT_RECORD = 4       /* press: the loop starts or stops recording */
+};
+
+typedef struct iso_dev_map_opts {
+    double full_scale;         /* raw counts at full deflection (350) */
+    double sensitivity[6];     /* per output axis at full scale: m/s (tx..tz), rad/s (rx..rz) */
+    double dead_zone[6];       /* fraction of full scale that maps to 0 */
+    double curve[6];           /* response exponent: 1 linear, 2 quadratic ... */
+    int remap[6];              /* output axis i reads input axis remap[i] */
+    int invert[6];             /* 1: negate output axis i */
+    int dominant;              /* 1: keep only the largest axis */
+    int lock;                  /* ISO_DEV_LOCK_* */
+    int frame;                 /* ISO_DEV_FRAME_*: axes along the world's or the handle's */
+    int clutch_is_deadman;     /* 0: clutch held = hold still; 1: move only while held */
+    uint8_t button_action[32]; /* ISO_DEV_ACT_* per button bit (3D mouse and serial) */
+    int n_handles;             /* 1..ISO_DEV_MAX_HANDLES */
+    double pose_gain;          /* absolute pose streams: fraction of the error closed per tick */
+    double pose_scale;         /* pose stream units to scene units (1) */
+} iso_dev_map_opts;
+
+/* Defaults: 350 counts, 0.1 m/s and 0.5 rad/s, 5 % dead zone, linear,
+ * identity remap, no lock, world frame, button 0 clutch, button 1 next
+ * handle, one handle, pose gain 1. */
+void iso_dev_map_opts_default(iso_dev_map_opts *o);
+
+typedef struct iso_dev_tick {
+    int64_t t_ns;
+    int n_handles;
+    iso_twist twist[ISO_DEV_MAX_HANDLES]; /* world twists, rotation about the handle */
+    int active;                           /* the handle the devices drive */
+    uint8_t clutch;                       /* 1: clutch held */
+    uint8_t estop;                        /* 1: emergency stop: every twist is zero */
+    uint32_t buttons;                     /* OR of every source's buttons */
+    uint32_t actions;                     /* bit ISO_DEV_ACT_*: pressed during this tick */
+    uint32_t gone;                        /* bit per source that is unplugged */
+} iso_dev_tick;
+
+typedef struct iso_dev_map_src { /* what one source last said */
+    int16_t axes[6];
+    uint32_t buttons;
+    uint8_t has_pose, has_twist;
+    double v[6];
+} iso_dev_map_src;
+
+typedef struct iso_dev_map {
+    iso_dev_map_opts o;
+    int active;
+    uint8_t clutch, estop;
+    uint32_t gone;
+    iso_dev_map_src src[ISO_DEV_MAX_SOURCES];
+} iso_dev_map;
+
+ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
+/* The mapping of one device reading (6 raw axes) to a twist for a handle
+ * at pose g (rotation about its centre g->p). Pure: no state. */
+void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const iso_pose *g,
+                      iso_twist *out);
+/* Applies this tick's events in order and writes the tick's command.
+ * poses[h] is handle h's current pose (for the device frame, rotation about
+ * the handle, and pose streams); dt_s the tick length. Deterministic. */
+void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
+                      double dt_s, const iso_pose *poses, iso_dev_tick *out);
+
+/* ====================================================================== */
+/* Recordings (devices/RECORDING.md)                                       */
+/* ====================================================================== */
+
+#define ISO_DEV_REC_VERSION 1u
+
+typedef struct iso_dev_rec_writer {
+    void *f; /* FILE * */
+    long records;
+    char path[ISO_DEV_NAME_MAX * 2];
+} iso_dev_rec_writer;
+
+ISO_NODISCARD int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const char *path,
+                                          const iso_dev_info *infos, size_t n, int64_t t0_ns,
+                                          iso_err *err);
+ISO_NODISCARD int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c, iso_err *err);
+/* Writes a TICK record and flushes to the kernel (kill -9 then loses nothing). */
+ISO_NODISCARD int iso_dev_rec_tick(iso_dev_rec_writer *w, int64_t t_ns, iso_err *err);
+ISO_NODISCARD int iso_dev_rec_writer_close(iso_dev_rec_writer *w, iso_err *err);
+
+/* Encodes a header or a record into memory (what the writer writes).
+ * Return the length, or ISO_EINVAL if it does not fit cap. */
+int iso_dev_rec_encode_header(uint8_t *dst, size_t cap, const iso_dev_info *infos, size_t n,
+                              int64_t t0_ns);
+int iso_dev_rec_encode_record(uint8_t *dst, size_t cap, const iso_dev_chunk *c);
+
+typedef struct iso_dev_rec_reader {
+    const uint8_t *data; /* the whole recording (owned when loaded from a file) */
+    size_t len, pos;
+    int owned;
+    uint16_t version;
+    int64_t t0_ns;
+    size_t n_sources;
+    iso_dev_info *infos; /* n_sources entries, owned */
+    long records;        /* complete records read */
+    long damaged;        /* damaged stretches skipped */
+    long last_damage_at; /* byte offset of the last one, -1 if none */
+    int torn;            /* 1: the recording ends inside a record */
+    long end_at;         /* byte offset just past the last complete record */
+    char note[320];      /* the last damage or the tear, as a sentence */
+} iso_dev_rec_reader;
+
+/* Parses the header of a recording in memory (not copied: data must
+ * outlive the reader). ISO_EPARSE with the byte offset for a bad header. */
+ISO_NODISCARD int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const uint8_t *data, size_t len,
+                                          iso_err *err);
+ISO_NODISCARD int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path, iso_err *err);
+/* Next complete record: returns 1 and fills *c, or 0 at the end (r->torn
+ * and r->note then say where it stopped). Damaged records are counted,
+ * described in r->note and skipped; *damaged_now tells the caller (may be NULL). */
+int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now);
+void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r);
+
+/* The replay backend: a multiplexed source over a reader (which it does not
+ * own and which must outlive it). Hands out records stamped <= until_ns;
+ * TICK records are returned too (the player uses them as tick boundaries). */
+ISO_NODISCARD int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err);
+/* Time of the next record, or INT64_MAX at the end. */
+int64_t iso_dev_replay_peek(iso_dev_source *s);
+/* Time of the next TICK record, or INT64_MAX if none is left. */
+int64_t iso_dev_replay_next_tick(iso_dev_source *s);
+/* The reader under a replay source; NULL for any other source. */
+const iso_dev_rec_reader *iso_dev_replay_reader(iso_dev_source *s);
+
+/* CRC-32 (IEEE 802.3, reflected 0xEDB88320); check value 0xCBF43926. */
+uint32_t iso_dev_crc32(const uint8_t *p, size_t len);
+
+/* ====================================================================== */
+/* The hub: sources + decoders + recording + reconnects                    */
+/* ====================================================================== */
+
+typedef struct iso_dev_hub iso_dev_hub;
+/* Called to open a source again after it went away; returns ISO_OK and a new
+ * source, or an error (tried again every retry interval). */
+typedef int (*iso_dev_reopen_fn)(void *ctx, const iso_dev_info *info, iso_dev_source **out,
+                                 iso_err *err);
+/* One sentence per state change (gone, back, damaged record), no newline. */
+typedef void (*iso_dev_notify_fn)(void *ctx, const char *msg);
+
+ISO_NODISCARD int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub **out,
+                                     iso_err *err);
+void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is a no-op */
+/* Adds a source (the hub owns it from now, even on failure). A multiplexed
+ * source (replay) brings every source of its recording and must be alone. */
+ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
+                                  void *reopen_ctx, iso_err *err);
+size_t iso_dev_hub_sources(const iso_dev_hub *h);
+const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i);
+const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
+void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns); /* default 500 ms */
+void iso_dev_hub_retry_now(iso_dev_hub *h);                   /* hotplug arrival */
+/* Records every chunk from now on (header: the current sources). */
+ISO_NODISCARD int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err);
+ISO_NODISCARD int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err);
+
+/* Once per tick: drains every source up to now_ns, records and decodes what
+ * came, handles unplug and replug, and returns the events (at most cap; the
+ * rest wait for the next call). Only a recording write error fails. */
+ISO_NODISCARD int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev, size_t cap,
+                                    size_t *n, iso_err *err);
+/* drain + iso_dev_map_tick + a TICK record: what the real-time loop calls. */
+ISO_NODISCARD int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
+                                   const iso_pose *poses, iso_dev_tick *out, iso_err *err);
+/* Replay: when the next tick is. The recording's next TICK record if it
+ * has one; else last + fallback_dt_ns (the first record's time for the
+ * first tick); INT64_MAX when every record has been drained. */
+int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns);
+/* Replay: 1 once every record has been drained. */
+int iso_dev_hub_replay_done(iso_dev_hub *h);
+
+#endif

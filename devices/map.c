@@ -1,0 +1,292 @@
+/* devices/map.c -- decoded events to one command per tick: per-axis
+ * sensitivity, dead zone and curve, remap and inversion, dominant axis,
+ * locks, device or world frame, button actions, clutch and e-stop, and
+ * absolute pose streams turned into a twist toward the latest pose.
+ *
+ * Pure arithmetic on the events and the poses it is given: the same inputs
+ * give the same twists bit for bit. */
+#include "iso_dev.h"
+
+#include <math.h>
+#include <string.h>
+
+void iso_dev_map_opts_default(iso_dev_map_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->full_scale = 350;
+    for (int i = 0; i < 6; i++) {
+        o->sensitivity[i] = i < 3 ? 0.1 : 0.5;
+        o->dead_zone[i] = 0.05;
+        o->curve[i] = 1;
+        o->remap[i] = i;
+    }
+    o->button_action[0] = ISO_DEV_ACT_CLUTCH;
+    o->button_action[1] = ISO_DEV_ACT_NEXT_HANDLE;
+    o->n_handles = 1;
+    o->pose_gain = 1;
+    o->pose_scale = 1;
+}
+
+int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err)
+{
+    memset(m, 0, sizeof *m);
+    if (o->n_handles < 1 || o->n_handles > (int)ISO_DEV_MAX_HANDLES)
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: %d handles (must be 1 to %u)",
+                           o->n_handles, ISO_DEV_MAX_HANDLES);
+    if (!(o->full_scale > 0))
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: full scale %g must be > 0",
+                           o->full_scale);
+    if (!(o->pose_gain >= 0 && o->pose_gain <= 1))
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: pose gain %g must be in [0, 1]",
+                           o->pose_gain);
+    for (int i = 0; i < 6; i++) {
+        if (o->remap[i] < 0 || o->remap[i] > 5)
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "device mapping: axis %d remapped to %d (must be 0 to 5)", i,
+                               o->remap[i]);
+        if (!(o->dead_zone[i] >= 0 && o->dead_zone[i] < 1))
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "device mapping: axis %d dead zone %g must be in [0, 1)", i,
+                               o->dead_zone[i]);
+        if (!(o->curve[i] > 0))
+            return iso_err_set(err, ISO_EINVAL, -1, "device mapping: axis %d curve %g must be > 0",
+                               i, o->curve[i]);
+        if (!isfinite(o->sensitivity[i]))
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "device mapping: axis %d sensitivity is not finite", i);
+    }
+    for (int b = 0; b < 32; b++)
+        if (o->button_action[b] > ISO_DEV_ACT_RECORD)
+            return iso_err_set(err, ISO_EINVAL, -1, "device mapping: button %d action %d unknown",
+                               b, o->button_action[b]);
+    m->o = *o;
+    return ISO_OK;
+}
+
+static void cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static void rot_apply(const double R[9], const double x[3], double y[3])
+{
+    for (int i = 0; i < 3; i++)
+        y[i] = R[3 * i] * x[0] + R[3 * i + 1] * x[1] + R[3 * i + 2] * x[2];
+}
+
+/* (v, w) at the handle's centre c, in world axes, to the world twist whose
+ * velocity at y is v0 + w × y: v0 = v − w × c. */
+static void twist_about(const double v[3], const double w[3], const double c[3], iso_twist *out)
+{
+    double wc[3];
+    cross(w, c, wc);
+    for (int i = 0; i < 3; i++) {
+        out->w[i] = w[i];
+        out->v[i] = v[i] - wc[i];
+    }
+}
+
+void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const iso_pose *g,
+                      iso_twist *out)
+{
+    double u[6];
+    for (int i = 0; i < 6; i++) {
+        double x = axes[o->remap[i]] / o->full_scale;
+        if (o->invert[i])
+            x = -x;
+        double a = fabs(x) > 1 ? 1 : fabs(x), dz = o->dead_zone[i];
+        double s = a <= dz ? 0 : pow((a - dz) / (1 - dz), o->curve[i]);
+        u[i] = (x < 0 ? -s : s) * o->sensitivity[i];
+    }
+    if (o->dominant) {
+        /* Compare shaped deflections, not velocities: metres and radians
+         * do not compare. Ties go to the lower axis. */
+        int best = 0;
+        double bm = -1;
+        for (int i = 0; i < 6; i++) {
+            double d = o->sensitivity[i] != 0 ? fabs(u[i] / o->sensitivity[i]) : 0;
+            if (d > bm) {
+                bm = d;
+                best = i;
+            }
+        }
+        for (int i = 0; i < 6; i++)
+            if (i != best)
+                u[i] = 0;
+    }
+    if (o->lock == ISO_DEV_LOCK_TRANSLATION)
+        u[3] = u[4] = u[5] = 0;
+    else if (o->lock == ISO_DEV_LOCK_ROTATION)
+        u[0] = u[1] = u[2] = 0;
+    double v[3] = {u[0], u[1], u[2]}, w[3] = {u[3], u[4], u[5]};
+    if (o->frame == ISO_DEV_FRAME_DEVICE) {
+        rot_apply(g->R, u, v);
+        rot_apply(g->R, u + 3, w);
+    }
+    twist_about(v, w, g->p, out);
+}
+
+/* Rodrigues: rotation vector r to R (row-major). */
+static void rotvec_to_matrix(const double r[3], double R[9])
+{
+    double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+    double a = th < 1e-12 ? 1 : sin(th) / th;
+    double b = th < 1e-6 ? 0.5 : (1 - cos(th)) / (th * th);
+    double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double kk = 0;
+            for (int k = 0; k < 3; k++)
+                kk += K[3 * i + k] * K[3 * k + j];
+            R[3 * i + j] = (i == j) + a * K[3 * i + j] + b * kk;
+        }
+}
+
+/* The twist that carries g toward the target pose T in one tick of dt:
+ * M = T g⁻¹, ξ = gain · log(M) / dt. A half-turn error has no unique screw:
+ * the handle then holds still this tick (the next sample decides). */
+static void twist_toward(const iso_dev_map_opts *o, const double tgt[6], const iso_pose *g,
+                         double dt, iso_twist *out)
+{
+    memset(out, 0, sizeof *out);
+    if (!(dt > 0))
+        return;
+    double RT[9], p[3];
+    double rv[3] = {tgt[3], tgt[4], tgt[5]};
+    rotvec_to_matrix(rv, RT);
+    for (int i = 0; i < 3; i++)
+        p[i] = tgt[i] * o->pose_scale;
+    double M[16] = {0};
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++) {
+            double s = 0; /* (RT · Rgᵀ)ij */
+            for (int k = 0; k < 3; k++)
+                s += RT[3 * i + k] * g->R[3 * j + k];
+            M[4 * i + j] = s;
+        }
+    }
+    for (int i = 0; i < 3; i++) {
+        double s = 0;
+        for (int j = 0; j < 3; j++)
+            s += M[4 * i + j] * g->p[j];
+        M[4 * i + 3] = p[i] - s;
+    }
+    M[15] = 1;
+    iso_twist xi;
+    if (iso_twist_from_matrix(M, &xi, NULL) != ISO_OK)
+        return;
+    double k = o->pose_gain / dt;
+    for (int i = 0; i < 3; i++) {
+        out->w[i] = k * xi.w[i];
+        out->v[i] = k * xi.v[i];
+    }
+}
+
+static void press(iso_dev_map *m, uint32_t before, uint32_t after, iso_dev_tick *out)
+{
+    for (int b = 0; b < 32; b++) {
+        uint32_t bit = (uint32_t)1 << b;
+        if ((after & bit) && !(before & bit)) {
+            int act = m->o.button_action[b];
+            if (act != ISO_DEV_ACT_NONE)
+                out->actions |= (uint32_t)1 << act;
+            if (act == ISO_DEV_ACT_NEXT_HANDLE)
+                m->active = (m->active + 1) % m->o.n_handles;
+        }
+    }
+}
+
+static int clutch_from_buttons(const iso_dev_map *m, uint32_t b)
+{
+    for (int i = 0; i < 32; i++)
+        if ((b & ((uint32_t)1 << i)) && m->o.button_action[i] == ISO_DEV_ACT_CLUTCH)
+            return 1;
+    return 0;
+}
+
+void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
+                      double dt_s, const iso_pose *poses, iso_dev_tick *out)
+{
+    memset(out, 0, sizeof *out);
+    out->t_ns = now_ns;
+    out->n_handles = m->o.n_handles;
+    uint8_t gpio_clutch = m->clutch & 2;
+    for (size_t i = 0; i < n; i++) {
+        const iso_dev_event *e = &ev[i];
+        if (e->source >= ISO_DEV_MAX_SOURCES)
+            continue;
+        iso_dev_map_src *s = &m->src[e->source];
+        uint32_t bit = (uint32_t)1 << e->source;
+        switch (e->kind) {
+        case ISO_DEV_EV_AXES: memcpy(s->axes, e->axes, sizeof s->axes); break;
+        case ISO_DEV_EV_BUTTONS:
+            press(m, s->buttons, e->buttons, out);
+            s->buttons = e->buttons;
+            break;
+        case ISO_DEV_EV_POSE:
+            memcpy(s->v, e->v, sizeof s->v);
+            s->has_pose = 1;
+            s->has_twist = 0;
+            break;
+        case ISO_DEV_EV_TWIST:
+            memcpy(s->v, e->v, sizeof s->v);
+            s->has_twist = 1;
+            s->has_pose = 0;
+            break;
+        case ISO_DEV_EV_GPIO:
+            if (e->line == ISO_DEV_GPIO_ESTOP) {
+                m->estop = e->level;
+            } else if (e->line == ISO_DEV_GPIO_CLUTCH) {
+                gpio_clutch = e->level ? 2 : 0;
+                if (e->level)
+                    out->actions |= (uint32_t)1 << ISO_DEV_ACT_CLUTCH;
+            }
+            break;
+        case ISO_DEV_EV_GONE:
+            /* Its handles hold still until it is back. */
+            memset(s, 0, sizeof *s);
+            m->gone |= bit;
+            break;
+        case ISO_DEV_EV_BACK: m->gone &= ~bit; break;
+        default: break;
+        }
+    }
+    uint32_t buttons = 0;
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
+        buttons |= m->src[i].buttons;
+    m->clutch = (uint8_t)(gpio_clutch | clutch_from_buttons(m, buttons));
+    out->active = m->active;
+    out->clutch = m->clutch != 0;
+    out->estop = m->estop;
+    out->buttons = buttons;
+    out->gone = m->gone;
+    int hold = m->o.clutch_is_deadman ? !out->clutch : out->clutch;
+    if (m->estop || hold)
+        return;
+    const iso_pose *g = &poses[m->active];
+    iso_twist *t = &out->twist[m->active];
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
+        iso_twist x;
+        const iso_dev_map_src *s = &m->src[i];
+        if (m->gone & ((uint32_t)1 << i))
+            continue;
+        if (s->has_pose) {
+            twist_toward(&m->o, s->v, g, dt_s, &x);
+        } else if (s->has_twist) {
+            double v[3], w[3];
+            for (int k = 0; k < 3; k++) {
+                v[k] = s->v[k] * m->o.pose_scale;
+                w[k] = s->v[3 + k];
+            }
+            twist_about(v, w, g->p, &x);
+        } else {
+            iso_dev_map_axes(&m->o, s->axes, g, &x);
+        }
+        for (int k = 0; k < 3; k++) {
+            t->w[k] += x.w[k];
+            t->v[k] += x.v[k];
+        }
+    }
+}

@@ -1,0 +1,413 @@
+/* devices/recording.c -- the recording format of RECORDING.md: a header
+ * that describes every source, then length-prefixed, checksummed records.
+ *
+ * The reader works on the recording in memory and trusts nothing in it: a
+ * record cut off at the end stops the replay where the last complete one
+ * ended, and a damaged record is skipped by resynchronising on the next
+ * sync byte that starts a record whose checksum holds. */
+#include "iso_dev.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAGIC "ISOSHREC"
+#define SYNC 0xA5u
+#define REC_HEAD 13u /* sync, type, source, len (2), t (8) */
+#define REC_MAX (REC_HEAD + ISO_DEV_CHUNK_MAX + 4u)
+
+uint32_t iso_dev_crc32(const uint8_t *p, size_t len)
+{
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t i = 0; i < len; i++) {
+        c ^= p[i];
+        for (int k = 0; k < 8; k++)
+            c = (c & 1u) ? (c >> 1) ^ 0xEDB88320u : c >> 1;
+    }
+    return c ^ 0xFFFFFFFFu;
+}
+
+/* ---- little-endian cursors --------------------------------------------- */
+
+typedef struct wcur {
+    uint8_t *p;
+    size_t cap, n;
+    int over;
+} wcur;
+
+static void put(wcur *c, const void *src, size_t len)
+{
+    if (c->over || c->cap - c->n < len) {
+        c->over = 1;
+        return;
+    }
+    memcpy(c->p + c->n, src, len);
+    c->n += len;
+}
+static void put_u(wcur *c, uint64_t v, int bytes)
+{
+    uint8_t b[8];
+    for (int i = 0; i < bytes; i++)
+        b[i] = (uint8_t)(v >> (8 * i));
+    put(c, b, (size_t)bytes);
+}
+
+typedef struct rcur {
+    const uint8_t *p;
+    size_t len, n;
+    int over;
+} rcur;
+
+static uint64_t get_u(rcur *c, int bytes)
+{
+    if (c->over || c->len - c->n < (size_t)bytes) {
+        c->over = 1;
+        return 0;
+    }
+    uint64_t v = 0;
+    for (int i = 0; i < bytes; i++)
+        v |= (uint64_t)c->p[c->n + (size_t)i] << (8 * i);
+    c->n += (size_t)bytes;
+    return v;
+}
+static const uint8_t *get_bytes(rcur *c, size_t len)
+{
+    if (c->over || c->len - c->n < len) {
+        c->over = 1;
+        return NULL;
+    }
+    const uint8_t *p = c->p + c->n;
+    c->n += len;
+    return p;
+}
+
+/* ---- encoding ----------------------------------------------------------- */
+
+int iso_dev_rec_encode_header(uint8_t *dst, size_t cap, const iso_dev_info *infos, size_t n,
+                              int64_t t0_ns)
+{
+    if (n > ISO_DEV_MAX_SOURCES)
+        return ISO_EINVAL;
+    wcur c = {dst, cap, 0, 0};
+    put(&c, MAGIC, 8);
+    put_u(&c, ISO_DEV_REC_VERSION, 2);
+    put_u(&c, n, 2);
+    put_u(&c, 0, 4); /* header length, patched below */
+    put_u(&c, (uint64_t)t0_ns, 8);
+    for (size_t i = 0; i < n; i++) {
+        const iso_dev_info *f = &infos[i];
+        size_t nl = strnlen(f->name, ISO_DEV_NAME_MAX - 1);
+        size_t dl = f->desc_len <= ISO_DEV_DESC_MAX ? f->desc_len : ISO_DEV_DESC_MAX;
+        put_u(&c, f->kind, 1);
+        put_u(&c, f->vid, 2);
+        put_u(&c, f->pid, 2);
+        put_u(&c, f->baud, 4);
+        put_u(&c, f->data_bits, 1);
+        put_u(&c, f->parity, 1);
+        put_u(&c, f->stop_bits, 1);
+        put_u(&c, f->debounce_us, 4);
+        put_u(&c, nl, 1);
+        put(&c, f->name, nl);
+        put_u(&c, dl, 2);
+        put(&c, f->desc, dl);
+    }
+    if (c.over || cap - c.n < 4)
+        return ISO_EINVAL;
+    uint32_t total = (uint32_t)(c.n + 4);
+    for (int i = 0; i < 4; i++)
+        dst[12 + i] = (uint8_t)(total >> (8 * i));
+    put_u(&c, iso_dev_crc32(dst, c.n), 4);
+    return (int)c.n;
+}
+
+int iso_dev_rec_encode_record(uint8_t *dst, size_t cap, const iso_dev_chunk *ch)
+{
+    if (ch->len > ISO_DEV_CHUNK_MAX)
+        return ISO_EINVAL;
+    wcur c = {dst, cap, 0, 0};
+    put_u(&c, SYNC, 1);
+    put_u(&c, ch->type, 1);
+    put_u(&c, ch->source, 1);
+    put_u(&c, ch->len, 2);
+    put_u(&c, (uint64_t)ch->t_ns, 8);
+    put(&c, ch->data, ch->len);
+    if (c.over || cap - c.n < 4)
+        return ISO_EINVAL;
+    put_u(&c, iso_dev_crc32(dst, c.n), 4);
+    return (int)c.n;
+}
+
+/* ---- writer -------------------------------------------------------------- */
+
+int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const char *path, const iso_dev_info *infos,
+                            size_t n, int64_t t0_ns, iso_err *err)
+{
+    memset(w, 0, sizeof *w);
+    snprintf(w->path, sizeof w->path, "%s", path);
+    size_t cap = 32 + n * (32 + ISO_DEV_NAME_MAX + ISO_DEV_DESC_MAX);
+    uint8_t *buf = malloc(cap);
+    if (!buf)
+        return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory for the header", path);
+    int len = iso_dev_rec_encode_header(buf, cap, infos, n, t0_ns);
+    if (len < 0) {
+        free(buf);
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: %zu sources (at most %u can be recorded)",
+                           path, n, ISO_DEV_MAX_SOURCES);
+    }
+    FILE *f = fopen(path, "wb");
+    if (!f) {
+        free(buf);
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot create: %s", path, strerror(errno));
+    }
+    int ok = fwrite(buf, 1, (size_t)len, f) == (size_t)len && fflush(f) == 0;
+    free(buf);
+    if (!ok) {
+        iso_err_set(err, ISO_EIO, -1, "%s: cannot write the header: %s", path, strerror(errno));
+        fclose(f);
+        return ISO_EIO;
+    }
+    w->f = f;
+    return ISO_OK;
+}
+
+int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c, iso_err *err)
+{
+    uint8_t buf[REC_MAX];
+    int len = iso_dev_rec_encode_record(buf, sizeof buf, c);
+    if (len < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: a chunk of %u bytes cannot be recorded",
+                           w->path, c->len);
+    if (!w->f || fwrite(buf, 1, (size_t)len, w->f) != (size_t)len)
+        return iso_err_set(err, ISO_EIO, w->records, "%s: cannot write record %ld: %s", w->path,
+                           w->records, strerror(errno));
+    w->records++;
+    return ISO_OK;
+}
+
+int iso_dev_rec_tick(iso_dev_rec_writer *w, int64_t t_ns, iso_err *err)
+{
+    iso_dev_chunk c = {.t_ns = t_ns, .type = ISO_DEV_CHUNK_TICK};
+    int rc = iso_dev_rec_write(w, &c, err);
+    if (rc != ISO_OK)
+        return rc;
+    if (fflush(w->f) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot flush: %s", w->path, strerror(errno));
+    return ISO_OK;
+}
+
+int iso_dev_rec_writer_close(iso_dev_rec_writer *w, iso_err *err)
+{
+    if (!w->f)
+        return ISO_OK;
+    int bad = fclose(w->f) != 0;
+    w->f = NULL;
+    if (bad)
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot close: %s", w->path, strerror(errno));
+    return ISO_OK;
+}
+
+/* ---- reader -------------------------------------------------------------- */
+
+static int header_error(iso_dev_rec_reader *r, iso_err *err, long at, const char *what)
+{
+    iso_dev_rec_reader_deinit(r);
+    return iso_err_set(err, ISO_EPARSE, at, "recording header, byte %ld: %s", at, what);
+}
+
+int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const uint8_t *data, size_t len, iso_err *err)
+{
+    memset(r, 0, sizeof *r);
+    r->data = data;
+    r->len = len;
+    r->last_damage_at = -1;
+    rcur c = {data, len, 0, 0};
+    const uint8_t *magic = get_bytes(&c, 8);
+    if (!magic || memcmp(magic, MAGIC, 8) != 0)
+        return header_error(r, err, 0, "not an isoshape recording (no ISOSHREC magic)");
+    r->version = (uint16_t)get_u(&c, 2);
+    if (r->version != ISO_DEV_REC_VERSION && !c.over)
+        return header_error(r, err, 8, "format version unknown to this build (it reads 1)");
+    size_t n = (size_t)get_u(&c, 2);
+    uint32_t hlen = (uint32_t)get_u(&c, 4);
+    r->t0_ns = (int64_t)get_u(&c, 8);
+    if (c.over)
+        return header_error(r, err, (long)len, "the file ends inside the header");
+    if (n > ISO_DEV_MAX_SOURCES)
+        return header_error(r, err, 10, "more sources than this build can replay (16)");
+    if (hlen < 28 || hlen > len)
+        return header_error(
+            r, err, 12, hlen > len ? "the file ends inside the header" : "header length too small");
+    uint32_t crc = (uint32_t)(data[hlen - 4] | (uint32_t)data[hlen - 3] << 8 |
+                              (uint32_t)data[hlen - 2] << 16 | (uint32_t)data[hlen - 1] << 24);
+    if (iso_dev_crc32(data, hlen - 4) != crc)
+        return header_error(r, err, (long)hlen - 4, "header checksum mismatch");
+    c.len = hlen - 4;
+    r->infos = calloc(n ? n : 1, sizeof *r->infos);
+    if (!r->infos) {
+        iso_dev_rec_reader_deinit(r);
+        return iso_err_set(err, ISO_ENOMEM, -1, "recording header: out of memory");
+    }
+    r->n_sources = n;
+    for (size_t i = 0; i < n; i++) {
+        iso_dev_info *f = &r->infos[i];
+        f->kind = (uint8_t)get_u(&c, 1);
+        f->vid = (uint16_t)get_u(&c, 2);
+        f->pid = (uint16_t)get_u(&c, 2);
+        f->baud = (uint32_t)get_u(&c, 4);
+        f->data_bits = (uint8_t)get_u(&c, 1);
+        f->parity = (uint8_t)get_u(&c, 1);
+        f->stop_bits = (uint8_t)get_u(&c, 1);
+        f->debounce_us = (uint32_t)get_u(&c, 4);
+        size_t nl = (size_t)get_u(&c, 1);
+        const uint8_t *name = get_bytes(&c, nl);
+        if (name && nl < ISO_DEV_NAME_MAX)
+            memcpy(f->name, name, nl);
+        size_t dl = (size_t)get_u(&c, 2);
+        const uint8_t *desc = get_bytes(&c, dl);
+        if (c.over || nl >= ISO_DEV_NAME_MAX || dl > ISO_DEV_DESC_MAX)
+            return header_error(r, err, (long)c.n, "a source description runs past the header");
+        memcpy(f->desc, desc, dl);
+        f->desc_len = (uint16_t)dl;
+    }
+    if (c.n != c.len)
+        return header_error(r, err, (long)c.n, "unexpected bytes after the source descriptions");
+    r->pos = hlen;
+    r->end_at = (long)hlen;
+    return ISO_OK;
+}
+
+int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path, iso_err *err)
+{
+    memset(r, 0, sizeof *r);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot open: %s", path, strerror(errno));
+    uint8_t *buf = NULL;
+    size_t len = 0, cap = 0;
+    for (;;) {
+        if (len == cap) {
+            size_t nc = cap ? 2 * cap : 65536;
+            uint8_t *p = realloc(buf, nc);
+            if (!p) {
+                free(buf);
+                fclose(f);
+                return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
+            }
+            buf = p;
+            cap = nc;
+        }
+        size_t got = fread(buf + len, 1, cap - len, f);
+        if (got == 0)
+            break;
+        len += got;
+    }
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        return iso_err_set(err, ISO_EIO, -1, "%s: read error", path);
+    }
+    iso_err e2;
+    iso_err_clear(&e2);
+    int rc = iso_dev_rec_reader_init(r, buf, len, &e2);
+    if (rc != ISO_OK) {
+        free(buf);
+        return iso_err_set(err, rc, e2.offset, "%s: %s", path, e2.msg);
+    }
+    r->owned = 1;
+    return ISO_OK;
+}
+
+void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r)
+{
+    if (r->owned)
+        free((void *)r->data);
+    free(r->infos);
+    r->infos = NULL;
+    r->data = NULL;
+    r->owned = 0;
+    r->n_sources = 0;
+}
+
+/* 1: a complete, valid record at off (length in *rl); 0: invalid; -1: it
+ * would run past the end of the data. */
+static int record_at(const iso_dev_rec_reader *r, size_t off, size_t *rl)
+{
+    const uint8_t *p = r->data + off;
+    size_t left = r->len - off;
+    if (left < 1 || p[0] != SYNC)
+        return 0;
+    if (left < REC_HEAD)
+        return -1;
+    size_t len = (size_t)(p[3] | (unsigned)p[4] << 8);
+    if (len > ISO_DEV_CHUNK_MAX || p[1] < ISO_DEV_CHUNK_DATA || p[1] > ISO_DEV_CHUNK_TICK)
+        return 0;
+    if (p[1] != ISO_DEV_CHUNK_TICK && p[2] >= r->n_sources)
+        return 0;
+    if (left < REC_HEAD + len + 4)
+        return -1;
+    size_t body = REC_HEAD + len;
+    uint32_t crc = (uint32_t)(p[body] | (uint32_t)p[body + 1] << 8 | (uint32_t)p[body + 2] << 16 |
+                              (uint32_t)p[body + 3] << 24);
+    if (iso_dev_crc32(p, body) != crc)
+        return 0;
+    *rl = body + 4;
+    return 1;
+}
+
+int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now)
+{
+    if (damaged_now)
+        *damaged_now = 0;
+    if (!r->data || r->pos >= r->len)
+        return 0;
+    size_t rl = 0;
+    int k = record_at(r, r->pos, &rl);
+    if (k != 1) {
+        /* Damaged or cut off: find the next record that checks out. If there
+         * is none, the recording was torn at the last complete record. */
+        size_t start = r->pos, q = r->pos + 1;
+        while (q < r->len && record_at(r, q, &rl) != 1)
+            q++;
+        if (q >= r->len) {
+            r->torn = 1;
+            r->pos = r->len;
+            if (k == -1)
+                snprintf(r->note, sizeof r->note,
+                         "the recording is cut off at byte %zu, inside a record that starts at "
+                         "byte %zu; replayed up to byte %zu, the end of the last complete record "
+                         "(%ld records)",
+                         r->len, start, start, r->records);
+            else
+                snprintf(r->note, sizeof r->note,
+                         "the recording's last %zu bytes (from byte %zu) hold no complete record; "
+                         "replayed up to byte %zu (%ld records)",
+                         r->len - start, start, start, r->records);
+            return 0;
+        }
+        r->damaged++;
+        r->last_damage_at = (long)start;
+        snprintf(r->note, sizeof r->note,
+                 "damaged record at byte %zu: skipped %zu bytes up to the next good record at "
+                 "byte %zu",
+                 start, q - start, q);
+        if (damaged_now)
+            *damaged_now = 1;
+        r->pos = q;
+    }
+    const uint8_t *p = r->data + r->pos;
+    memset(c, 0, sizeof *c);
+    c->type = p[1];
+    c->source = p[2];
+    c->len = (uint16_t)(p[3] | (unsigned)p[4] << 8);
+    uint64_t t = 0;
+    for (int i = 0; i < 8; i++)
+        t |= (uint64_t)p[5 + i] << (8 * i);
+    c->t_ns = (int64_t)t;
+    memcpy(c->data, p + REC_HEAD, c->len);
+    r->pos += rl;
+    r->end_at = (long)r->pos;
+    r->records++;
+    return 1;
+}

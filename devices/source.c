@@ -1,0 +1,232 @@
+/* devices/source.c -- the source interface's dispatch, the monotonic clock
+ * of live chunks, and the two simulated backends: the scripted fake that
+ * tests drive, and the replay of a recording. */
+#include "iso_dev.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+int64_t iso_dev_now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+int iso_dev_source_fd(iso_dev_source *s)
+{
+    return s && s->ops->fd ? s->ops->fd(s) : -1;
+}
+
+int iso_dev_source_read(iso_dev_source *s, int64_t until_ns, iso_dev_chunk *out, iso_err *err)
+{
+    return s->ops->read(s, until_ns, out, err);
+}
+
+void iso_dev_source_close(iso_dev_source *s)
+{
+    if (!s)
+        return;
+    s->ops->close(s);
+}
+
+/* ---- the fake ------------------------------------------------------------ */
+
+typedef struct fake_item {
+    int64_t t;
+    int gone;
+    uint16_t len;
+    uint8_t data[ISO_DEV_CHUNK_MAX];
+} fake_item;
+
+typedef struct fake {
+    fake_item *q;
+    size_t n, cap, next;
+    int writes, last_level;
+} fake;
+
+static int fake_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
+{
+    fake *f = s->impl;
+    if (f->next >= f->n || f->q[f->next].t > until)
+        return 0;
+    fake_item *it = &f->q[f->next++];
+    if (it->gone)
+        return iso_err_set(err, ISO_EIO, -1, "%s: device unplugged (fake)", s->info.name);
+    memset(out, 0, sizeof *out);
+    out->t_ns = it->t;
+    out->type = ISO_DEV_CHUNK_DATA;
+    out->len = it->len;
+    memcpy(out->data, it->data, it->len);
+    return 1;
+}
+
+static int fake_write_level(iso_dev_source *s, int level, iso_err *err)
+{
+    (void)err;
+    fake *f = s->impl;
+    f->writes++;
+    f->last_level = level;
+    return ISO_OK;
+}
+
+static void fake_close(iso_dev_source *s)
+{
+    fake *f = s->impl;
+    free(f->q);
+    free(f);
+    free(s);
+}
+
+static const iso_dev_source_ops fake_ops = {"fake", NULL, fake_read, fake_write_level, fake_close};
+
+int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    iso_dev_source *s = calloc(1, sizeof *s);
+    fake *f = calloc(1, sizeof *f);
+    if (!s || !f) {
+        free(s);
+        free(f);
+        return iso_err_set(err, ISO_ENOMEM, -1, "fake source: out of memory");
+    }
+    s->ops = &fake_ops;
+    s->info = *info;
+    s->impl = f;
+    *out = s;
+    return ISO_OK;
+}
+
+static fake_item *fake_add(iso_dev_source *s, int64_t t)
+{
+    fake *f = s->impl;
+    if (f->n == f->cap) {
+        size_t nc = f->cap ? 2 * f->cap : 16;
+        fake_item *q = realloc(f->q, nc * sizeof *q);
+        if (!q)
+            return NULL;
+        f->q = q;
+        f->cap = nc;
+    }
+    fake_item *it = &f->q[f->n++];
+    memset(it, 0, sizeof *it);
+    it->t = t;
+    return it;
+}
+
+int iso_dev_fake_push(iso_dev_source *s, int64_t t_ns, const void *data, size_t len)
+{
+    if (len > ISO_DEV_CHUNK_MAX)
+        return ISO_EINVAL;
+    fake_item *it = fake_add(s, t_ns);
+    if (!it)
+        return ISO_ENOMEM;
+    it->len = (uint16_t)len;
+    if (len)
+        memcpy(it->data, data, len);
+    return ISO_OK;
+}
+
+int iso_dev_fake_push_gone(iso_dev_source *s, int64_t t_ns)
+{
+    fake_item *it = fake_add(s, t_ns);
+    if (!it)
+        return ISO_ENOMEM;
+    it->gone = 1;
+    return ISO_OK;
+}
+
+int iso_dev_fake_writes(iso_dev_source *s, int *last_level)
+{
+    fake *f = s->impl;
+    if (last_level)
+        *last_level = f->last_level;
+    return f->writes;
+}
+
+/* ---- replay -------------------------------------------------------------- */
+
+typedef struct replay {
+    iso_dev_rec_reader *r;
+    iso_dev_chunk next;
+    int have; /* next holds the record after the last one handed out */
+} replay;
+
+static void replay_fill(iso_dev_source *s)
+{
+    replay *p = s->impl;
+    if (!p->have)
+        p->have = iso_dev_rec_next(p->r, &p->next, NULL) == 1;
+}
+
+int64_t iso_dev_replay_peek(iso_dev_source *s)
+{
+    replay_fill(s);
+    replay *p = s->impl;
+    return p->have ? p->next.t_ns : INT64_MAX;
+}
+
+static int replay_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
+{
+    (void)err;
+    replay *p = s->impl;
+    replay_fill(s);
+    if (!p->have || p->next.t_ns > until)
+        return 0;
+    *out = p->next;
+    p->have = 0;
+    return 1;
+}
+
+static void replay_close(iso_dev_source *s)
+{
+    free(s->impl);
+    free(s);
+}
+
+static const iso_dev_source_ops replay_ops = {"replay", NULL, replay_read, NULL, replay_close};
+
+int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    iso_dev_source *s = calloc(1, sizeof *s);
+    replay *p = calloc(1, sizeof *p);
+    if (!s || !p) {
+        free(s);
+        free(p);
+        return iso_err_set(err, ISO_ENOMEM, -1, "replay: out of memory");
+    }
+    p->r = r;
+    s->ops = &replay_ops;
+    s->multiplexed = 1;
+    snprintf(s->info.name, sizeof s->info.name, "replay");
+    s->impl = p;
+    *out = s;
+    return ISO_OK;
+}
+
+const iso_dev_rec_reader *iso_dev_replay_reader(iso_dev_source *s)
+{
+    return s->ops == &replay_ops ? ((replay *)s->impl)->r : NULL;
+}
+
+int64_t iso_dev_replay_next_tick(iso_dev_source *s)
+{
+    if (s->ops != &replay_ops)
+        return INT64_MAX;
+    replay *p = s->impl;
+    replay_fill(s);
+    if (!p->have)
+        return INT64_MAX;
+    if (p->next.type == ISO_DEV_CHUNK_TICK)
+        return p->next.t_ns;
+    /* Look ahead on a copy: the reader is a cursor over memory. */
+    iso_dev_rec_reader look = *p->r;
+    iso_dev_chunk c;
+    while (iso_dev_rec_next(&look, &c, NULL) == 1)
+        if (c.type == ISO_DEV_CHUNK_TICK)
+            return c.t_ns;
+    return INT64_MAX;
+}

@@ -1,0 +1,258 @@
+/* tests/streams/make_streams.c -- writes the small recordings in this
+ * folder from the documented report formats (devices/RECORDING.md). They
+ * are committed; rebuild them only when the format changes:
+ *
+ *   cc -std=c11 -D_POSIX_C_SOURCE=200809L -I devices -I common -I solver \
+ *      -I firmware-bridge tests/streams/make_streams.c -L build-dev -lisoshape \
+ *      -Wl,-rpath,$PWD/build-dev -o /tmp/make_streams && /tmp/make_streams tests/streams
+ *
+ * test_dev_streams.c replays each one and asserts what it decodes to. */
+#include "iso_dev.h"
+#include "iso_fb.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MS 1000000LL
+
+static FILE *f;
+static char dir[1024];
+
+static void start(const char *name, const iso_dev_info *infos, size_t n)
+{
+    char path[1200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    f = fopen(path, "wb");
+    if (!f) {
+        perror(path);
+        exit(1);
+    }
+    static uint8_t buf[80000];
+    int len = iso_dev_rec_encode_header(buf, sizeof buf, infos, n, 0);
+    fwrite(buf, 1, (size_t)len, f);
+}
+
+static void rec(int type, int src, int64_t t, const void *data, size_t len)
+{
+    iso_dev_chunk c;
+    memset(&c, 0, sizeof c);
+    c.type = (uint8_t)type;
+    c.source = (uint8_t)src;
+    c.t_ns = t;
+    c.len = (uint16_t)len;
+    if (len)
+        memcpy(c.data, data, len);
+    uint8_t buf[300];
+    int n = iso_dev_rec_encode_record(buf, sizeof buf, &c);
+    fwrite(buf, 1, (size_t)n, f);
+}
+
+static void tick(int64_t t)
+{
+    rec(ISO_DEV_CHUNK_TICK, 0, t, NULL, 0);
+}
+
+static void hid6(int src, int64_t t, int tx, int ty, int tz, int rx, int ry, int rz)
+{
+    int v[6] = {tx, ty, tz, rx, ry, rz};
+    uint8_t r[13];
+    r[0] = 1;
+    for (int i = 0; i < 6; i++) {
+        r[1 + 2 * i] = (uint8_t)(v[i] & 0xff);
+        r[2 + 2 * i] = (uint8_t)((v[i] >> 8) & 0xff);
+    }
+    rec(ISO_DEV_CHUNK_DATA, src, t, r, 13);
+}
+
+static void hid_split(int src, int64_t t, int id, int a, int b, int c)
+{
+    int v[3] = {a, b, c};
+    uint8_t r[7];
+    r[0] = (uint8_t)id;
+    for (int i = 0; i < 3; i++) {
+        r[1 + 2 * i] = (uint8_t)(v[i] & 0xff);
+        r[2 + 2 * i] = (uint8_t)((v[i] >> 8) & 0xff);
+    }
+    rec(ISO_DEV_CHUNK_DATA, src, t, r, 7);
+}
+
+static void hid_buttons(int src, int64_t t, unsigned b)
+{
+    uint8_t r[3] = {3, (uint8_t)(b & 0xff), (uint8_t)(b >> 8)};
+    rec(ISO_DEV_CHUNK_DATA, src, t, r, 3);
+}
+
+static iso_dev_info hid_info(uint16_t vid, uint16_t pid, const char *name)
+{
+    iso_dev_info i;
+    memset(&i, 0, sizeof i);
+    i.kind = ISO_DEV_KIND_HID;
+    i.vid = vid;
+    i.pid = pid;
+    snprintf(i.name, sizeof i.name, "%s", name);
+    return i;
+}
+
+static size_t sample_frame(uint8_t *dst, uint16_t seq, int kind, unsigned buttons,
+                           const int32_t v[6])
+{
+    iso_fb_sample s;
+    memset(&s, 0, sizeof s);
+    s.t_us = seq * 1000u;
+    s.kind = (uint8_t)kind;
+    s.buttons = (uint16_t)buttons;
+    memcpy(s.v, v, sizeof s.v);
+    uint8_t pl[64];
+    int n = iso_fb_sample_pack(pl, sizeof pl, &s);
+    int w = iso_fb_frame_encode(dst, ISO_FB_FRAME_MAX, ISO_FB_HANDLE_SAMPLE, seq, pl, (size_t)n);
+    return (size_t)w;
+}
+
+int main(int argc, char **argv)
+{
+    snprintf(dir, sizeof dir, "%s", argc > 1 ? argv[1] : ".");
+
+    /* 1. A 3D-mouse twist: the universal receiver (combined 13-byte report 1)
+     * and a SpaceNavigator (split reports 1 and 2), ticks every 1 ms. */
+    iso_dev_info two[2] = {hid_info(0x256f, 0xc652, "SpaceMouse Wireless (receiver)"),
+                           hid_info(0x046d, 0xc626, "SpaceNavigator")};
+    start("sm_twist.isorec", two, 2);
+    for (int k = 1; k <= 10; k++) {
+        int64_t t = k * MS;
+        if (k == 2)
+            hid6(0, t - MS / 2, 175, 0, 0, 0, 0, -350);
+        if (k == 3) {
+            hid_split(1, t - MS / 2, 1, 0, 350, 0);
+            hid_split(1, t - MS / 4, 2, 0, 0, 0);
+        }
+        if (k == 8)
+            hid6(0, t - MS / 2, 0, 0, 0, 0, 0, 0);
+        tick(t);
+    }
+    fclose(f);
+
+    /* 2. A button-driven clutch sequence: deflected throughout; button 0
+     * (clutch) held over ticks 3..5, button 1 (next handle) at tick 8. */
+    iso_dev_info one = hid_info(0x256f, 0xc635, "SpaceMouse Compact");
+    start("clutch_buttons.isorec", &one, 1);
+    hid6(0, MS / 2, 350, 0, 0, 0, 0, 0);
+    for (int k = 1; k <= 10; k++) {
+        int64_t t = k * MS;
+        if (k == 3)
+            hid_buttons(0, t - 10, 0x1);
+        if (k == 6)
+            hid_buttons(0, t - 10, 0x0);
+        if (k == 8)
+            hid_buttons(0, t - 10, 0x2);
+        if (k == 9)
+            hid_buttons(0, t - 10, 0x0);
+        tick(t);
+    }
+    fclose(f);
+
+    /* 3. An unplug and replug: deflected, gone at tick 4, back at tick 7,
+     * deflected again (a fresh device starts from rest). */
+    start("unplug_replug.isorec", &one, 1);
+    hid6(0, MS / 2, 0, 0, 350, 0, 0, 0);
+    for (int k = 1; k <= 10; k++) {
+        int64_t t = k * MS;
+        if (k == 4)
+            rec(ISO_DEV_CHUNK_GONE, 0, t, NULL, 0);
+        if (k == 7)
+            rec(ISO_DEV_CHUNK_BACK, 0, t, NULL, 0);
+        if (k == 8)
+            hid6(0, t - 10, 0, 0, -350, 0, 0, 0);
+        tick(t);
+    }
+    fclose(f);
+
+    /* 4. A serial pose stream with garbage and a bad checksum: four pose
+     * samples (x = 1, 2, 3, 4 mm); noise before the first, the second split
+     * over two reads, the third with one payload byte flipped (CRC fails). */
+    iso_dev_info ser;
+    memset(&ser, 0, sizeof ser);
+    ser.kind = ISO_DEV_KIND_SERIAL;
+    ser.baud = 115200;
+    ser.data_bits = 8;
+    ser.parity = 'N';
+    ser.stop_bits = 1;
+    snprintf(ser.name, sizeof ser.name, "/dev/ttyACM0");
+    start("serial_pose.isorec", &ser, 1);
+    uint8_t buf[200], fr[ISO_FB_FRAME_MAX];
+    size_t n = 0;
+    const uint8_t noise[] = {0x13, 0x37, 0xff, 0x42, 0x00, 0x99, 0x01};
+    memcpy(buf, noise, sizeof noise);
+    n = sizeof noise;
+    for (int k = 1; k <= 4; k++) {
+        int32_t v[6] = {k * 1000, 0, 0, 0, 0, 0};
+        size_t w = sample_frame(fr, (uint16_t)k, ISO_FB_SAMPLE_POSE, k == 4 ? 1 : 0, v);
+        if (k == 3)
+            fr[10] ^= 0x40;
+        int64_t t = k * MS;
+        if (k == 2) {
+            rec(ISO_DEV_CHUNK_DATA, 0, t - MS / 2, fr, 9);
+            rec(ISO_DEV_CHUNK_DATA, 0, t - MS / 4, fr + 9, w - 9);
+        } else {
+            memcpy(buf + n, fr, w);
+            rec(ISO_DEV_CHUNK_DATA, 0, t - MS / 2, buf, n + w);
+        }
+        n = 0;
+        tick(t);
+    }
+    fclose(f);
+
+    /* 5. GPIO: the clutch bounces (three edges within 1 ms), the e-stop is
+     * pressed at 5.2 ms and released with a bounce at 8 ms; 2 ms debounce. */
+    iso_dev_info gp;
+    memset(&gp, 0, sizeof gp);
+    gp.kind = ISO_DEV_KIND_GPIO;
+    gp.debounce_us = 2000;
+    snprintf(gp.name, sizeof gp.name, "gpiochip0");
+    start("gpio_estop.isorec", &gp, 1);
+    uint8_t init[4] = {ISO_DEV_GPIO_CLUTCH, 0, ISO_DEV_GPIO_ESTOP, 0};
+    rec(ISO_DEV_CHUNK_DATA, 0, 0, init, 4);
+    const struct {
+        int64_t t;
+        uint8_t role, level;
+    } edges[] = {{3 * MS, 0, 1},          {3 * MS + 200000, 0, 0}, {3 * MS + 400000, 0, 1},
+                 {5 * MS + 200000, 1, 1}, {8 * MS, 1, 0},          {8 * MS + 100000, 1, 1},
+                 {8 * MS + 300000, 1, 0}};
+    size_t e = 0;
+    for (int k = 1; k <= 14; k++) {
+        int64_t t = k * MS;
+        for (; e < sizeof edges / sizeof edges[0] && edges[e].t <= t; e++) {
+            uint8_t p[2] = {edges[e].role, edges[e].level};
+            rec(ISO_DEV_CHUNK_DATA, 0, edges[e].t, p, 2);
+        }
+        tick(t);
+    }
+    fclose(f);
+
+    /* 6. Torn: the twist stream with record 6 damaged (one byte flipped)
+     * and the file cut off 5 bytes into its last record. */
+    char src[1200], dst[1200];
+    snprintf(src, sizeof src, "%s/sm_twist.isorec", dir);
+    snprintf(dst, sizeof dst, "%s/torn.isorec", dir);
+    FILE *in = fopen(src, "rb");
+    static uint8_t all[100000];
+    size_t len = fread(all, 1, sizeof all, in);
+    fclose(in);
+    iso_dev_rec_reader r;
+    if (iso_dev_rec_reader_init(&r, all, len, NULL) != ISO_OK)
+        return 1;
+    size_t starts[64], ns = 0;
+    iso_dev_chunk c;
+    starts[ns++] = r.pos;
+    while (iso_dev_rec_next(&r, &c, NULL) == 1 && ns < 64)
+        starts[ns++] = r.pos;
+    iso_dev_rec_reader_deinit(&r);
+    all[starts[5] + 8] ^= 0x01;      /* inside record 6's timestamp */
+    size_t cut = starts[ns - 2] + 5; /* 5 bytes into the last record */
+    FILE *o = fopen(dst, "wb");
+    fwrite(all, 1, cut, o);
+    fclose(o);
+    printf("torn.isorec: damaged record at byte %zu, cut at byte %zu of %zu\n", starts[5], cut,
+           len);
+    return 0;
+}
