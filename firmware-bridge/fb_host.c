@@ -144,6 +144,8 @@ static void handle_frame(iso_fb_host *h, const iso_fb_view *v)
         if ((bad = iso_fb_heartbeat_unpack(&m, v->payload, v->len) != 0))
             break;
         h->stats.heartbeats++;
+        if (h->cb.on_heartbeat)
+            h->cb.on_heartbeat(h->cb.ctx, &m);
         /* A heartbeat that says "not armed" while we stream means our HELLO
          * answer or a FAULT was lost on the wire: shake hands again. */
         if (h->state == ISO_FB_HOST_STREAMING && m.state != ISO_FB_STATE_ARMED)

@@ -22,6 +22,7 @@ typedef struct iso_fb_host_callbacks {
     void (*on_ack)(void *ctx, const iso_fb_ack *a);        /* SETPOINTS echoes */
     void (*on_fault)(void *ctx, const iso_fb_fault *f);    /* MCU went to its safe state */
     void (*on_hello)(void *ctx, const iso_fb_hello *h);    /* any HELLO, asked or not */
+    void (*on_heartbeat)(void *ctx, const iso_fb_heartbeat *hb);
     void *ctx;
 } iso_fb_host_callbacks;
 

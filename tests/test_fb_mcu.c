@@ -373,7 +373,7 @@ static void host_streams_recovers_from_watchdog_and_link_loss(void **state)
     rig *r = rig_new(20);
     seen z;
     memset(&z, 0, sizeof z);
-    iso_fb_host_callbacks cb = {on_sample, on_ack, on_fault, on_hello, &z};
+    iso_fb_host_callbacks cb = {on_sample, on_ack, on_fault, on_hello, NULL, &z};
     iso_fb_host_opts opts = {0};
     opts.reopen_ms = 1;
     iso_fb_host h;

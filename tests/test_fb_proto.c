@@ -37,7 +37,8 @@ static void cobs_round_trip_every_length(void **state)
             assert_null(memchr(enc, 0, (size_t)e));
             int d = iso_fb_cobs_decode(dec, sizeof dec, enc, (size_t)e);
             assert_int_equal(d, (int)len);
-            assert_memory_equal(dec, src, len ? len : 1);
+            if (len)
+                assert_memory_equal(dec, src, len);
             /* in place */
             d = iso_fb_cobs_decode(enc, sizeof enc, enc, (size_t)e);
             assert_int_equal(d, (int)len);
