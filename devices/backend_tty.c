@@ -5,6 +5,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,9 +52,16 @@ static int tty_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
     }
     if (n < 0 && (errno == EAGAIN || errno == EINTR))
         return 0;
-    /* 0 (hang-up of the other side) or EIO: the device is gone. */
-    return iso_err_set(err, ISO_EIO, -1, "%s: %s", s->info.name,
-                       n == 0 ? "the other end hung up" : strerror(errno));
+    if (n == 0) {
+        /* Raw mode with VMIN = VTIME = 0 reads 0 bytes when there are none;
+         * only a hang-up on the descriptor says the device is gone. */
+        struct pollfd p = {t->fd, POLLIN, 0};
+        if (poll(&p, 1, 0) == 1 && (p.revents & (POLLHUP | POLLERR | POLLNVAL)))
+            return iso_err_set(err, ISO_EIO, -1, "%s: the other end hung up", s->info.name);
+        return 0;
+    }
+    /* EIO: a pty whose master closed, an unplugged adapter. */
+    return iso_err_set(err, ISO_EIO, -1, "%s: %s", s->info.name, strerror(errno));
 }
 
 static void tty_close(iso_dev_source *s)

@@ -1,0 +1,164 @@
+/* devices/backend_hidapi.c -- 3D mice through hidapi's hidraw backend.
+ *
+ * hidraw, not libusb: the kernel keeps its driver bound, so a running
+ * spacenavd (which reads the evdev node) keeps working beside us. hidapi
+ * exposes no descriptor to poll, so the hub reads it without blocking each
+ * tick. Report descriptors come from sysfs, for the recording's header. */
+#include "internal.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef ISO_DEV_WITH_HIDAPI
+#include <hidapi.h>
+
+typedef struct hid {
+    hid_device *dev;
+} hid;
+
+static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
+{
+    (void)until;
+    hid *h = s->impl;
+    int n = hid_read(h->dev, out->data, ISO_DEV_CHUNK_MAX);
+    if (n > 0) {
+        out->t_ns = iso_dev_now_ns();
+        out->len = (uint16_t)n;
+        return 1;
+    }
+    if (n == 0)
+        return 0;
+    const wchar_t *why = hid_error(h->dev);
+    return iso_err_set(err, ISO_EIO, -1, "%s: %ls", s->info.name, why ? why : L"read failed");
+}
+
+static void hid_close_source(iso_dev_source *s)
+{
+    hid *h = s->impl;
+    hid_close(h->dev);
+    free(h);
+    free(s);
+}
+
+static const iso_dev_source_ops hid_ops = {"hidapi", NULL, hid_read_chunk, NULL, hid_close_source};
+
+/* /dev/hidrawN -> /sys/class/hidraw/hidrawN/device/report_descriptor */
+static void read_descriptor(iso_dev_info *info)
+{
+    const char *base = strrchr(info->name, '/');
+    if (!base || strncmp(base + 1, "hidraw", 6) != 0)
+        return;
+    char path[256];
+    snprintf(path, sizeof path, "/sys/class/hidraw/%s/device/report_descriptor", base + 1);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return;
+    info->desc_len = (uint16_t)fread(info->desc, 1, ISO_DEV_DESC_MAX, f);
+    fclose(f);
+}
+
+int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    if (hid_init() != 0)
+        return iso_err_set(err, ISO_EIO, -1, "hidapi: cannot initialise");
+    char found[ISO_DEV_NAME_MAX] = "";
+    uint16_t vid = 0, pid = 0;
+    struct hid_device_info *all = hid_enumerate(0, 0);
+    for (struct hid_device_info *d = all; d; d = d->next) {
+        int match =
+            path ? strcmp(d->path, path) == 0 : iso_dev_is_3dmouse(d->vendor_id, d->product_id);
+        if (match) {
+            snprintf(found, sizeof found, "%s", d->path);
+            vid = d->vendor_id;
+            pid = d->product_id;
+            break;
+        }
+    }
+    hid_free_enumeration(all);
+    if (!found[0] && !path)
+        return iso_err_set(err, ISO_EIO, -1,
+                           "no 3D mouse found (3Dconnexion 046d or 256f): is it plugged in?");
+    const char *p = found[0] ? found : path;
+    hid_device *dev = hid_open_path(p);
+    if (!dev) {
+        int e = errno;
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot open%s%s", p, e ? ": " : "",
+                           e ? strerror(e) : "");
+    }
+    hid_set_nonblocking(dev, 1);
+    iso_dev_source *s = calloc(1, sizeof *s);
+    hid *h = calloc(1, sizeof *h);
+    if (!s || !h) {
+        free(s);
+        free(h);
+        hid_close(dev);
+        return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", p);
+    }
+    h->dev = dev;
+    s->ops = &hid_ops;
+    s->impl = h;
+    s->info.kind = ISO_DEV_KIND_HID;
+    s->info.vid = vid;
+    s->info.pid = pid;
+    snprintf(s->info.name, sizeof s->info.name, "%s", p);
+    read_descriptor(&s->info);
+    *out = s;
+    return ISO_OK;
+}
+
+size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
+{
+    size_t n = 0;
+    if (hid_init() != 0)
+        return 0;
+    struct hid_device_info *all = hid_enumerate(0, 0);
+    for (struct hid_device_info *d = all; d && n < cap; d = d->next) {
+        if (!iso_dev_is_3dmouse(d->vendor_id, d->product_id))
+            continue;
+        iso_dev_found *f = &out[n++];
+        memset(f, 0, sizeof *f);
+        snprintf(f->backend, sizeof f->backend, "hidapi");
+        snprintf(f->path, sizeof f->path, "%s", d->path);
+        snprintf(f->what, sizeof f->what, "%ls %ls",
+                 d->manufacturer_string ? d->manufacturer_string : L"",
+                 d->product_string ? d->product_string : L"3D mouse");
+        f->vid = d->vendor_id;
+        f->pid = d->product_id;
+        hid_device *dev = hid_open_path(d->path);
+        f->usable = dev != NULL;
+        if (dev) {
+            hid_close(dev);
+        } else {
+            char rule[160];
+            iso_dev_udev_rule(d->vendor_id, rule, sizeof rule);
+            snprintf(f->why, sizeof f->why,
+                     "cannot open %s (%s): add the udev rule '%s' to "
+                     "/etc/udev/rules.d/69-3dconnexion.rules, then run 'udevadm control "
+                     "--reload && udevadm trigger' and replug",
+                     d->path, errno ? strerror(errno) : "permission", rule);
+        }
+    }
+    hid_free_enumeration(all);
+    return n;
+}
+
+#else
+
+int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    return iso_err_set(err, ISO_ENOTSUP, -1,
+                       "%s: this build has no hidapi backend (install libhidapi-dev and rebuild)",
+                       path ? path : "3D mouse");
+}
+
+size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
+{
+    (void)out;
+    (void)cap;
+    return 0;
+}
+#endif

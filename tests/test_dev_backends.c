@@ -1,0 +1,201 @@
+/* tests/test_dev_backends.c -- the OS backends against real kernel objects:
+ * the POSIX tty backend on a pseudo-terminal (openpty), the TCP client on
+ * 127.0.0.1, and the hardware backends up to where hardware is needed. */
+#define _DEFAULT_SOURCE /* openpty */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <arpa/inet.h>
+#include <cmocka.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <pty.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include "iso_dev.h"
+#include "testutil.h"
+
+/* Reads until `want` bytes came or a second passed. */
+static size_t read_all(iso_dev_source *s, uint8_t *out, size_t want)
+{
+    size_t got = 0;
+    for (int spin = 0; spin < 1000 && got < want; spin++) {
+        struct pollfd p = {iso_dev_source_fd(s), POLLIN, 0};
+        poll(&p, 1, 1);
+        iso_dev_chunk c;
+        iso_err err;
+        iso_err_clear(&err);
+        int rc = iso_dev_source_read(s, INT64_MAX, &c, &err);
+        assert_true(rc >= 0);
+        if (rc == 1) {
+            assert_true(c.t_ns > 0);
+            memcpy(out + got, c.data, c.len);
+            got += c.len;
+        }
+    }
+    return got;
+}
+
+static void tty_on_a_pty(void **state)
+{
+    (void)state;
+    int master, slave;
+    char name[256];
+    assert_int_equal(openpty(&master, &slave, name, NULL, NULL), 0);
+    iso_dev_source *s;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tty_open(name, 115200, &s, &err), ISO_OK);
+    assert_int_equal(s->info.kind, ISO_DEV_KIND_SERIAL);
+    assert_int_equal(s->info.baud, 115200);
+    assert_true(iso_dev_source_fd(s) >= 0);
+    close(slave);
+    /* raw mode: 0x00, 0x0a, 0x0d and 0x03 pass untouched */
+    uint8_t msg[300];
+    for (int i = 0; i < 300; i++)
+        msg[i] = (uint8_t)(i * 31);
+    msg[0] = 0x03;
+    msg[1] = 0x0a;
+    msg[2] = 0x0d;
+    assert_int_equal(write(master, msg, sizeof msg), (ssize_t)sizeof msg);
+    uint8_t got[300];
+    assert_int_equal(read_all(s, got, sizeof got), sizeof got);
+    assert_memory_equal(got, msg, sizeof msg);
+    /* nothing more: 0, not an error */
+    iso_dev_chunk c;
+    assert_int_equal(iso_dev_source_read(s, INT64_MAX, &c, &err), 0);
+    /* the other side goes away: an error with the path */
+    close(master);
+    int rc = iso_dev_source_read(s, INT64_MAX, &c, &err);
+    assert_int_equal(rc, ISO_EIO);
+    assert_non_null(strstr(err.msg, name));
+    iso_dev_source_close(s);
+    /* errors */
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tty_open("/dev/nonexistent-tty", 115200, &s, &err), ISO_EIO);
+    assert_string_equal(err.msg, "/dev/nonexistent-tty: cannot open: No such file or directory");
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tty_open("/dev/null", 12345, &s, &err), ISO_EINVAL);
+    assert_string_equal(err.msg, "/dev/null: 12345 baud is not a standard rate (9600 ... 921600)");
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tty_open("/dev/null", 9600, &s, &err), ISO_EIO);
+    assert_non_null(strstr(err.msg, "/dev/null: not a terminal"));
+}
+
+static void tcp_client_on_loopback(void **state)
+{
+    (void)state;
+    int ls = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in a;
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(bind(ls, (struct sockaddr *)&a, sizeof a), 0);
+    assert_int_equal(listen(ls, 1), 0);
+    socklen_t al = sizeof a;
+    getsockname(ls, (struct sockaddr *)&a, &al);
+    char hp[64];
+    snprintf(hp, sizeof hp, "127.0.0.1:%u", ntohs(a.sin_port));
+    iso_dev_source *s;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tcp_open(hp, 1000, &s, &err), ISO_OK);
+    int cs = accept(ls, NULL, NULL);
+    assert_true(cs >= 0);
+    uint8_t msg[1000];
+    for (int i = 0; i < 1000; i++)
+        msg[i] = (uint8_t)(i ^ 0x5a);
+    assert_int_equal(write(cs, msg, sizeof msg), (ssize_t)sizeof msg);
+    uint8_t got[1000];
+    assert_int_equal(read_all(s, got, sizeof got), sizeof got);
+    assert_memory_equal(got, msg, sizeof msg);
+    close(cs);
+    iso_dev_chunk c;
+    int rc = 0;
+    for (int spin = 0; spin < 1000 && rc == 0; spin++) {
+        rc = iso_dev_source_read(s, INT64_MAX, &c, &err);
+        if (rc == 0)
+            usleep(1000);
+    }
+    assert_int_equal(rc, ISO_EIO);
+    char expect[128];
+    snprintf(expect, sizeof expect, "tcp:%s: the bridge closed the connection", hp);
+    assert_string_equal(err.msg, expect);
+    iso_dev_source_close(s);
+    /* nobody listening any more */
+    close(ls);
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tcp_open(hp, 1000, &s, &err), ISO_EIO);
+    snprintf(expect, sizeof expect, "%s: cannot connect: Connection refused", hp);
+    assert_string_equal(err.msg, expect);
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_tcp_open("no-port", 1000, &s, &err), ISO_EINVAL);
+    assert_string_equal(err.msg, "'no-port' is not HOST:PORT");
+}
+
+static void hardware_backends_without_hardware(void **state)
+{
+    (void)state;
+    iso_dev_source *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    int rc = iso_dev_hid_open("/dev/hidraw-none", &s, &err);
+    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
+    assert_null(s);
+    assert_non_null(strstr(err.msg, "/dev/hidraw-none"));
+    iso_err_clear(&err);
+    rc = iso_dev_spnav_open(&s, &err);
+    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP || rc == ISO_OK);
+    if (rc == ISO_OK)
+        iso_dev_source_close(s); /* a spacenavd runs here */
+    else
+        assert_non_null(strstr(err.msg, "spacenavd"));
+    iso_err_clear(&err);
+    rc = iso_dev_serialport_open("/dev/ttyNONE9", 115200, &s, &err);
+    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
+    assert_non_null(strstr(err.msg, "/dev/ttyNONE9"));
+    iso_dev_gpio_opts g = {"gpiochip-none", 3, 4, -1, 1, 2000};
+    iso_err_clear(&err);
+    rc = iso_dev_gpiod_open(&g, &s, &err);
+    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
+    assert_non_null(strstr(err.msg, "gpiochip-none"));
+    g.clutch_line = g.estop_line = -1;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_gpiod_open(&g, &s, &err), ISO_EINVAL);
+    /* discovery never fails, and says why for what it cannot use */
+    iso_dev_found f[32];
+    size_t n = iso_dev_enumerate(f, 32);
+    for (size_t i = 0; i < n; i++)
+        assert_true(f[i].usable || f[i].why[0]);
+    iso_dev_usb_watch *w = NULL;
+    iso_err_clear(&err);
+    rc = iso_dev_usb_watch_create(&w, &err);
+    if (rc == ISO_OK) {
+        assert_int_equal(iso_dev_usb_watch_poll(w), 0);
+        iso_dev_usb_watch_destroy(w);
+    } else {
+        assert_true(err.msg[0] != 0);
+    }
+    assert_true(iso_dev_is_3dmouse(0x256f, 0xc652));
+    assert_true(iso_dev_is_3dmouse(0x046d, 0xc626));
+    assert_false(iso_dev_is_3dmouse(0x046d, 0xc077)); /* a Logitech mouse */
+    char rule[256];
+    iso_dev_udev_rule(0x256f, rule, sizeof rule);
+    assert_string_equal(rule, "KERNEL==\"hidraw*\", ATTRS{idVendor}==\"256f\", MODE=\"0660\", "
+                              "TAG+=\"uaccess\"");
+}
+
+int main(void)
+{
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(tty_on_a_pty),
+        cmocka_unit_test(tcp_client_on_loopback),
+        cmocka_unit_test(hardware_backends_without_hardware),
+    };
+    return cmocka_run_group_tests_name("dev_backends", t, NULL, NULL);
+}
