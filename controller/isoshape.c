@@ -22,10 +22,20 @@ static void usage(FILE *f)
             "  field    solve the deformation field once, at the rest pose\n"
             "  metrics  distortion between an original mesh and a deformed copy\n"
             "  bench    time the four benchmark problems against the paper and this machine\n"
+            "  record   record live input devices (3D mouse, serial, GPIO) while running them\n"
+            "  replay   replay a device recording, deterministically, at any speed\n"
+            "  inspect  print a device recording, record by record, decoded\n"
+            "  devices  list input devices, usable or why not\n"
             "\n"
             "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
             "  isoshape <command> --help\n");
 }
+
+/* Device commands (controller/cmd_record.c, cmd_replay.c, cmd_inspect.c, cmd_devices.c). */
+int iso_cli__record(int argc, char **argv);
+int iso_cli__replay(int argc, char **argv);
+int iso_cli__inspect(int argc, char **argv);
+int iso_cli__devices(int argc, char **argv);
 
 int main(int argc, char **argv)
 {
@@ -50,6 +60,14 @@ int main(int argc, char **argv)
         return iso_cli__metrics(argc - 1, argv + 1);
     if (strcmp(cmd, "bench") == 0)
         return iso_cli__bench_run(argc - 1, argv + 1);
+    if (strcmp(cmd, "record") == 0)
+        return iso_cli__record(argc - 1, argv + 1);
+    if (strcmp(cmd, "replay") == 0)
+        return iso_cli__replay(argc - 1, argv + 1);
+    if (strcmp(cmd, "inspect") == 0)
+        return iso_cli__inspect(argc - 1, argv + 1);
+    if (strcmp(cmd, "devices") == 0)
+        return iso_cli__devices(argc - 1, argv + 1);
     if (cmd[0] == '-')
         iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
     else
