@@ -4,7 +4,6 @@
  * rest pose to the handle's final pose along the screw motion. */
 #include "internal.h"
 
-#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -160,18 +159,9 @@ double iso_cli__per_evaluation_ms(double seconds, long evaluations)
     return evaluations > 0 ? 1e3 * seconds / (double)evaluations : NAN;
 }
 
-/* The flop count is CHOLMOD's Common->fl, which only the solver sees. The
- * accessor is looked up at run time so that this command builds against a
- * library that predates it (and then reports the rate as unknown). dlsym
- * returns an object pointer; memcpy makes it a function pointer without the
- * cast ISO C forbids. */
+/* Flops of one numeric factorization (CHOLMOD's count), NaN if unknown. */
 double iso_cli__factor_flops(const iso_solver *s)
 {
-    double (*flops)(const iso_solver *) = NULL;
-    void *sym = dlsym(RTLD_DEFAULT, "iso_solver_factor_flops");
-    if (!sym)
-        return NAN;
-    memcpy(&flops, &sym, sizeof flops);
-    double f = flops(s);
+    double f = iso_solver_factor_flops(s);
     return f > 0 ? f : NAN;
 }

@@ -102,6 +102,11 @@ typedef struct iso_solver_stats {
 } iso_solver_stats;
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 
+/* Floating-point operations of one numeric factorization, as CHOLMOD's
+ * analysis counts them (Common->fl); 0 when there are no free vertices. For
+ * reporting a factorization's achieved rate beside the machine's dgemm. */
+double iso_solver_factor_flops(const iso_solver *s);
+
 /* One line about a choice the solver made that the user should hear of
  * (e.g. "OpenCL: no platform found; using the C assembly"), or "". */
 const char *iso_solver_notice(const iso_solver *s);

@@ -476,6 +476,7 @@ static int analyse(iso_solver *s, iso_err *err)
         return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the right-hand side");
     s->st.nnz_a = Ap[n3];
     s->st.nnz_l = (long)s->c.lnz;
+    s->factor_flops = s->c.fl;
     return ISO_OK;
 }
 
@@ -503,6 +504,11 @@ static int start_opencl(iso_solver *s, iso_err *err)
     (void)err;
     s->o.assembly = ISO_ASSEMBLY_CPU;
     return ISO_OK;
+}
+
+double iso_solver_factor_flops(const iso_solver *s)
+{
+    return s->factor_flops;
 }
 
 const char *iso_solver_notice(const iso_solver *s)

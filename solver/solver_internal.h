@@ -48,6 +48,7 @@ struct iso_solver {
     cholmod_dense *B, *X, *Y, *E;
     cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
     int have_factor;        /* L holds a numeric factor of some earlier A */
+    double factor_flops;    /* CHOLMOD's Common->fl after analysis */
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
     iso_solver_stats st;
 };
