@@ -243,6 +243,11 @@ static void on_fatal_signal(int sig)
 
 static int find_qemu(char *out, size_t cap)
 {
+    const char *env = getenv("ISO_FB_QEMU"); /* an override; "" means "no emulator here" */
+    if (env) {
+        snprintf(out, cap, "%s", env);
+        return env[0] && access(env, X_OK) == 0;
+    }
     if (ISO_FB_QEMU_PATH[0] && access(ISO_FB_QEMU_PATH, X_OK) == 0) {
         snprintf(out, cap, "%s", ISO_FB_QEMU_PATH);
         return 1;
@@ -381,9 +386,9 @@ static int group_setup(void **state)
     (void)state;
     char qemu[4096];
     if (!find_qemu(qemu, sizeof qemu)) {
-        printf("SKIP: qemu-system-arm not found (configure-time path '%s', not on PATH); "
-               "install Debian's qemu-system-arm to run the firmware end to end\n",
-               ISO_FB_QEMU_PATH);
+        printf("SKIP: qemu-system-arm not found (ISO_FB_QEMU '%s', configure-time path '%s', not on "
+               "PATH); install Debian's qemu-system-arm to run the firmware end to end\n",
+               getenv("ISO_FB_QEMU") ? getenv("ISO_FB_QEMU") : "unset", ISO_FB_QEMU_PATH);
         fflush(stdout);
         exit(ISO_TEST_SKIP);
     }
@@ -547,8 +552,8 @@ static void bit_errors_never_accepted_and_link_recovers(void **state)
     assert_true(rx->resyncs - s0.rx.resyncs > 5);
     /* nothing corrupted got through, either way: every ACK echoes exactly
      * what the host sent for that tick, every sample is the sensor's value */
-    assert_int_equal(g.z.bad_echo, 0);
-    assert_int_equal(g.z.bad_samples, 0);
+    assert_int_equal(g.z.bad_echo, before.bad_echo);
+    assert_int_equal(g.z.bad_samples, before.bad_samples);
     assert_int_equal(g.host.stats.bad_payloads, s0.bad_payloads);
     assert_true(noisy_acks > sent / 4);
     /* and it recovered without help */
@@ -567,6 +572,7 @@ static int got_armed_heartbeat_moved(void)
 static void watchdog_safe_state_then_resume_after_hello(void **state)
 {
     (void)state;
+    int bad_echo0 = g.z.bad_echo;
     run_host(5000, 1, streaming);
     /* drive every channel away from its safe position and let it arrive */
     g.hold_from = g.tick;
@@ -607,7 +613,7 @@ static void watchdog_safe_state_then_resume_after_hello(void **state)
     assert_true(got_armed_heartbeat_moved());
     g.hold_to = g.tick;
     run_host(200, 1, NULL);
-    assert_int_equal(g.z.bad_echo, 0);
+    assert_int_equal(g.z.bad_echo, bad_echo0);
 }
 
 static int got_boot_hello(void) { return g.z.boot_hellos > 0; }
@@ -639,7 +645,7 @@ static void hardware_watchdog_resets_hung_firmware(void **state)
     assert_int_equal(g.host.state, ISO_FB_HOST_STREAMING);
     run_host(1200, 1, NULL);
     assert_true(g.z.acks - before.acks >= 30);
-    assert_int_equal(g.z.bad_echo, 0);
+    assert_int_equal(g.z.bad_echo, before.bad_echo);
 }
 
 int main(void)
