@@ -1,6 +1,7 @@
 /* solver/assemble_cpu.c -- the C assembly path: element forms at the
  * current positions, scattered through the slot map (solver_internal.h). */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "solver_internal.h"
@@ -77,8 +78,59 @@ static void edge_matrix(iso_solver *s, const element *e, const double *x, double
     }
 }
 
+/* The rigid fit of triangle t at positions x, computed once per evaluation:
+ * a triangle is the source of Q1 and of up to three pairs. */
+static const iso_elem_fit *cached_fit(iso_solver *s, int t, const double *x)
+{
+    if (s->fit_stamp[t] == s->fit_epoch)
+        return &s->fits[t];
+    const int *tri = iso_mesh_triangles(s->m) + 3 * t;
+    double xt[9];
+    for (int k = 0; k < 3; k++)
+        memcpy(xt + 3 * k, x + 3 * tri[k], 3 * sizeof(double));
+    if (iso_elem_fit_compute(xt, &s->fits[t]) != 0)
+        return NULL;
+    s->fit_stamp[t] = s->fit_epoch;
+    return &s->fits[t];
+}
+
+static int ensure_fit_cache(iso_solver *s, iso_err *err)
+{
+    if (s->fits)
+        return ISO_OK;
+    size_t nt = (size_t)iso_mesh_triangle_count(s->m) + 1;
+    s->fits = malloc(nt * sizeof *s->fits);
+    s->fit_stamp = calloc(nt, sizeof *s->fit_stamp);
+    if (!s->fits || !s->fit_stamp)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rigid-fit cache");
+    return ISO_OK;
+}
+
+/* Q of a triangle or pair element through the fit cache; −1 if degenerate. */
+static int cached_element_matrix(iso_solver *s, const element *e, const double *x, double *Q)
+{
+    const iso_elem_fit *f = cached_fit(s, e->tri, x);
+    if (!f)
+        return -1;
+    double xi[9];
+    for (int k = 0; k < 3; k++)
+        memcpy(xi + 3 * k, x + 3 * e->v[k], 3 * sizeof(double));
+    if (e->kind == 1)
+        iso_elem_q1_from_fit(xi, f, s->o.weighting, Q);
+    else
+        iso_elem_q2_from_fit(f, xi, x + 3 * e->v[3], e->jmap, s->o.weighting, Q);
+    return 0;
+}
+
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
+    int rc = ensure_fit_cache(s, err);
+    if (rc != ISO_OK)
+        return rc;
+    if (++s->fit_epoch == 0) { /* wrapped: forget every stamp */
+        memset(s->fit_stamp, 0, ((size_t)iso_mesh_triangle_count(s->m) + 1) * sizeof(unsigned));
+        s->fit_epoch = 1;
+    }
     double *Ax = s->A->x, *rhs = s->B->x;
     int n3 = 3 * s->nf;
     memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
@@ -92,7 +144,7 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
             scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
             continue;
         }
-        if (iso_solver__element_matrix(&s->o, e, x, Q) != 0)
+        if (cached_element_matrix(s, e, x, Q) != 0)
             return iso_err_set(err, ISO_ENUMERIC, -1,
                                "%s: triangle %d has degenerated during the deformation (its "
                                "rigid fit is singular)",

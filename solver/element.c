@@ -142,22 +142,29 @@ int iso_elem_rigid_fit(const double x[9], double R[54])
     return rigid_fit_from_e(E, R, JE);
 }
 
-int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])
+int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
 {
-    double c[3], s, E[54], JE[54], R[54];
-    iso_elem_frame(x, c, &s);
-    if (!(s > 0))
+    double E[54], JE[54];
+    iso_elem_frame(x, f->c, &f->s);
+    if (!(f->s > 0))
         return -1;
-    iso_elem_eval_matrix(x, c, s, E);
-    if (rigid_fit_from_e(E, R, JE) != 0)
-        return -1;
+    iso_elem_eval_matrix(x, f->c, f->s, E);
+    return rigid_fit_from_e(E, f->R, JE);
+}
+
+void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
+                          double Q[81])
+{
+    double E[54], JE[54];
+    iso_elem_eval_matrix(x, f->c, f->s, E);
+    apply_j(E, 6, JE);
     /* Q1 = σ (Jx − JE R): N − N E (Eᵀ N E)^{-1} Eᵀ N with N = σ Jx. */
     double sigma = iso_elem_n_scale(x, w);
     for (int i = 0; i < 9; i++)
         for (int j = 0; j < 9; j++) {
             double acc = (i % 3 == j % 3) ? J3[i / 3][j / 3] : 0.0;
             for (int k = 0; k < 6; k++)
-                acc -= JE[6 * i + k] * R[9 * k + j];
+                acc -= JE[6 * i + k] * f->R[9 * k + j];
             Q[9 * i + j] = sigma * acc;
         }
     /* Symmetrise: the two halves differ only by rounding. */
@@ -166,19 +173,12 @@ int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])
             double m = 0.5 * (Q[9 * i + j] + Q[9 * j + i]);
             Q[9 * i + j] = Q[9 * j + i] = m;
         }
-    return 0;
 }
 
-int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_weighting w,
-                double Q[144])
+void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
+                          const int jmap[3], iso_weighting w, double Q[144])
 {
-    double c[3], s, E[54], JE[54], R[54];
-    iso_elem_frame(xi, c, &s);
-    if (!(s > 0))
-        return -1;
-    iso_elem_eval_matrix(xi, c, s, E);
-    if (rigid_fit_from_e(E, R, JE) != 0)
-        return -1;
+    const double *R = fi->R;
     /* Tj's corners, and Ti's rigid fit evaluated there: G = E_j^{(c_i)} R_i. */
     double xj[9];
     for (int k = 0; k < 3; k++) {
@@ -186,7 +186,7 @@ int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_w
         memcpy(xj + 3 * k, src, 3 * sizeof(double));
     }
     double Ej[54], M[108];
-    iso_elem_eval_matrix(xj, c, s, Ej);
+    iso_elem_eval_matrix(xj, fi->c, fi->s, Ej);
     /* M (9x12) = I' − G P: picks v at Tj's corners minus the extrapolated fit. */
     memset(M, 0, sizeof M);
     for (int r = 0; r < 9; r++) {
@@ -208,5 +208,23 @@ int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_w
                 acc += M[12 * r + i] * JM[12 * r + j];
             Q[12 * i + j] = Q[12 * j + i] = sigma * acc;
         }
+}
+
+int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])
+{
+    iso_elem_fit f;
+    if (iso_elem_fit_compute(x, &f) != 0)
+        return -1;
+    iso_elem_q1_from_fit(x, &f, w, Q);
+    return 0;
+}
+
+int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_weighting w,
+                double Q[144])
+{
+    iso_elem_fit f;
+    if (iso_elem_fit_compute(xi, &f) != 0)
+        return -1;
+    iso_elem_q2_from_fit(&f, xi, xo, jmap, w, Q);
     return 0;
 }

@@ -34,6 +34,22 @@ void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double
  * normal matrix is not positive definite (degenerate triangle). */
 int iso_elem_rigid_fit(const double x[9], double R[54]);
 
+/* A triangle's best rigid fit with its frame, computed once per evaluation
+ * and shared by its Q1 and the Q2 of every pair it is the source of. */
+typedef struct iso_elem_fit {
+    double c[3], s; /* iso_elem_frame */
+    double R[54];   /* iso_elem_rigid_fit */
+} iso_elem_fit;
+
+/* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
+int iso_elem_fit_compute(const double x[9], iso_elem_fit *f);
+/* Q1 and Q2 from a precomputed fit of triangle x (Q1) or Ti (Q2): the same
+ * values as iso_elem_q1 / iso_elem_q2, with the fit not recomputed. */
+void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
+                          double Q[81]);
+void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
+                          const int jmap[3], iso_weighting w, double Q[144]);
+
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);
 

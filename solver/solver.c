@@ -575,6 +575,8 @@ void iso_solver_destroy(iso_solver *s)
     free(s->vert_of);
     free(s->el);
     free(s->slots);
+    free(s->fits);
+    free(s->fit_stamp);
     free(s->rest_len);
     free(s->edge_w);
     free(s);
