@@ -8,9 +8,27 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #ifdef ISO_DEV_WITH_SPNAV
 #include <spnav.h>
+
+/* spacenavd's socket (SOCK_NAME in spacenavd and libspnav) accepts a connection. */
+static int daemon_listens(void)
+{
+    int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0)
+        return 0;
+    struct sockaddr_un a;
+    memset(&a, 0, sizeof a);
+    a.sun_family = AF_UNIX;
+    snprintf(a.sun_path, sizeof a.sun_path, "%s", "/var/run/spnav.sock");
+    int ok = connect(fd, (struct sockaddr *)&a, sizeof a) == 0;
+    close(fd);
+    return ok;
+}
 
 static int spnav_fd_of(iso_dev_source *s)
 {
@@ -75,10 +93,13 @@ static const iso_dev_source_ops spnav_ops = {"spnav", spnav_fd_of, spnav_read_ch
 int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
-    if (spnav_open() == -1)
+    /* Ask the socket first: libspnav 1.0 leaks a little on every failed
+     * spnav_open, and a loop retrying an absent daemon would pile it up. */
+    if (!daemon_listens() || spnav_open() == -1) {
         return iso_err_set(err, ISO_EIO, -1,
                            "spacenavd is not running (no socket to connect to): start it, or "
                            "read the 3D mouse through hidapi");
+    }
     iso_dev_source *s = calloc(1, sizeof *s);
     if (!s) {
         spnav_close();
@@ -93,10 +114,7 @@ int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 
 int iso_dev__spnav_running(void)
 {
-    if (spnav_open() == -1)
-        return 0;
-    spnav_close();
-    return 1;
+    return daemon_listens();
 }
 
 #else
