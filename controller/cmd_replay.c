@@ -173,6 +173,124 @@ static uint64_t fnv(uint64_t h, const void *p, size_t n)
     return h;
 }
 
+/* ---- a scene driven by the replayed commands ---------------------------- */
+/* Handle h's motion is piecewise screw: in tick k, from its pose G_k at the
+ * tick's start, exp((t − t_k) ξ_k) G_k with the tick's constant world twist.
+ * The integrator asks for it through an iso_path: the vertex output is a
+ * function of the recording alone. */
+typedef struct replay_path {
+    int n, nh, cap;
+    double *t;     /* n + 1 tick boundaries, seconds from the first tick */
+    iso_twist *xi; /* n × nh */
+    iso_pose *g;   /* n × nh: pose at the start of each tick */
+} replay_path;
+
+static int path_push(replay_path *rp, double dt, const iso_dev_tick *out, const iso_pose *P)
+{
+    if (rp->n == rp->cap) {
+        int nc = rp->cap ? 2 * rp->cap : 1024;
+        double *t = realloc(rp->t, (size_t)(nc + 1) * sizeof *t);
+        if (t)
+            rp->t = t;
+        iso_twist *xi = realloc(rp->xi, (size_t)nc * (size_t)rp->nh * sizeof *xi);
+        if (xi)
+            rp->xi = xi;
+        iso_pose *g = realloc(rp->g, (size_t)nc * (size_t)rp->nh * sizeof *g);
+        if (g)
+            rp->g = g;
+        if (!t || !xi || !g)
+            return ISO_ENOMEM;
+        rp->cap = nc;
+    }
+    if (rp->n == 0)
+        rp->t[0] = 0;
+    for (int h = 0; h < rp->nh; h++) {
+        rp->xi[(size_t)rp->n * (size_t)rp->nh + (size_t)h] = out->twist[h];
+        rp->g[(size_t)rp->n * (size_t)rp->nh + (size_t)h] = P[h];
+    }
+    rp->t[rp->n + 1] = rp->t[rp->n] + dt;
+    rp->n++;
+    return ISO_OK;
+}
+
+static int path_eval(void *ctx, int h, double t, iso_pose *pose, iso_twist *tw)
+{
+    const replay_path *rp = ctx;
+    memset(tw, 0, sizeof *tw);
+    iso_pose_identity(pose);
+    if (h >= rp->nh || rp->n == 0)
+        return 0; /* scene handles beyond the mapped ones hold still */
+    int lo = 0, hi = rp->n - 1;
+    while (lo < hi) { /* the last tick starting at or before t */
+        int mid = (lo + hi + 1) / 2;
+        if (rp->t[mid] <= t)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    size_t k = (size_t)lo * (size_t)rp->nh + (size_t)h;
+    *tw = rp->xi[k];
+    iso_pose e;
+    iso_twist_exp(&rp->xi[k], t - rp->t[lo], &e);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double s = 0;
+            for (int q = 0; q < 3; q++)
+                s += e.R[3 * i + q] * rp->g[k].R[3 * q + j];
+            pose->R[3 * i + j] = s;
+        }
+    iso_pose_apply(&e, rp->g[k].p, pose->p);
+    return 0;
+}
+
+/* Loads the scene, integrates it along the replayed path, prints a checksum
+ * of the vertices and saves them when out_path is given. */
+static int run_scene(const iso_cli__source *src, replay_path *rp, int steps, const char *out_path)
+{
+    const char *cmd = "replay";
+    iso_err err;
+    iso_err_clear(&err);
+    iso_cli__problem p;
+    double *x = NULL;
+    iso_solver *s = NULL;
+    int rc = iso_cli__problem_load(cmd, src, &p, &err);
+    if (rc == ISO_OK && rp->n == 0)
+        rc = iso_err_set(&err, ISO_EINVAL, -1, "the recording has no ticks to integrate");
+    int nv = rc == ISO_OK ? iso_mesh_vertex_count(p.mesh) : 0;
+    if (rc == ISO_OK && !(x = malloc((size_t)nv * 3 * sizeof *x)))
+        rc = iso_err_set(&err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so); /* the C assembly: the same bits on every machine */
+    if (rc == ISO_OK) {
+        memcpy(x, iso_mesh_positions(p.mesh), (size_t)nv * 3 * sizeof *x);
+        rc = iso_solver_create(p.mesh, &p.reg, &so, &s, &err);
+    }
+    iso_integrate_stats st;
+    memset(&st, 0, sizeof st);
+    if (rc == ISO_OK) {
+        iso_integrate_opts io;
+        iso_integrate_opts_default(&io);
+        io.t0 = 0;
+        io.t1 = rp->t[rp->n];
+        io.steps = steps > 0 ? steps : rp->n;
+        iso_path path = {path_eval, rp};
+        rc = iso_integrate(s, p.mesh, &p.reg, &path, &io, x, &st, &err);
+    }
+    if (rc == ISO_OK) {
+        uint64_t sum = fnv(0xcbf29ce484222325ULL, x, (size_t)nv * 3 * sizeof *x);
+        printf("scene %s: %d vertices, %d steps, vertices checksum %016" PRIx64 "\n", p.label, nv,
+               st.steps, sum);
+        if (out_path)
+            rc = iso_mesh_save(p.mesh, x, out_path, ISO_MESH_FMT_AUTO, &err);
+    }
+    if (rc != ISO_OK)
+        iso_cli__fail(cmd, "%s", err.msg);
+    iso_solver_destroy(s);
+    free(x);
+    iso_cli__problem_deinit(&p);
+    return rc == ISO_OK ? 0 : 1;
+}
+
 static void sleep_until(int64_t t_ns)
 {
     struct timespec ts = {(time_t)(t_ns / 1000000000), (long)(t_ns % 1000000000)};
@@ -199,15 +317,24 @@ static void usage(void)
            "  --fast             as fast as possible\n"
            "  --tick-ms T        tick length for recordings without TICK records (default 1)\n"
            "  --print-ticks      one line per tick: time, active handle, clutch, e-stop,\n"
-           "                     buttons, and the active handle's twist (w, v) in "
-           "%%a\n" ISO_CLI_DEV_MAP_HELP);
+           "                     buttons, and the active handle's twist (w, v) in %%a\n"
+           "A scene moved by the replayed commands (the mapping's handle h drives the\n"
+           "scene's handle h), integrated, with a checksum of its vertices:\n"
+           "  --shape NAME       a built-in shape (bar, cylinder, bumpplane, cactus)\n"
+           "  --resolution N     the built-in shape's resolution (0: its default)\n"
+           "  --mesh M --sel S   or a mesh and its regions\n"
+           "  --steps N          integration steps (default: one per tick)\n"
+           "  --out FILE         save the deformed mesh\n"
+           "Mapping:\n" ISO_CLI_DEV_MAP_HELP);
 }
 
 int iso_cli__replay(int argc, char **argv)
 {
-    const char *cmd = "replay", *path = NULL, *v;
+    const char *cmd = "replay", *path = NULL, *v, *out_path = NULL;
     double speed = 1, tick_ms = 1;
-    int fast = 0, print = 0;
+    int fast = 0, print = 0, steps = 0;
+    iso_cli__source src;
+    memset(&src, 0, sizeof src);
     iso_dev_map_opts mo;
     iso_dev_map_opts_default(&mo);
     for (int i = 1; i < argc; i++) {
@@ -247,6 +374,28 @@ int iso_cli__replay(int argc, char **argv)
                 return 2;
             continue;
         }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--shape", &src.shape)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--mesh", &src.mesh)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--sel", &src.sel)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--out", &out_path)) != 0) {
+            if (r < 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--resolution", &v)) != 0) {
+            if (r < 0 || iso_cli__int(cmd, "--resolution", v, &src.resolution) != 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--steps", &v)) != 0) {
+            if (r < 0 || iso_cli__int(cmd, "--steps", v, &steps) != 0)
+                return 2;
+            if (steps < 1) {
+                iso_cli__fail(cmd, "--steps %s must be >= 1.", v);
+                return 2;
+            }
+            continue;
+        }
         if (argv[i][0] == '-' || path)
             return iso_cli__unknown(cmd, argv[i]);
         path = argv[i];
@@ -255,6 +404,16 @@ int iso_cli__replay(int argc, char **argv)
         iso_cli__fail(cmd, "no recording given (isoshape replay FILE).");
         return 2;
     }
+    int scene = src.shape || src.mesh || src.sel;
+    if (scene && !src.shape && (!src.mesh || !src.sel)) {
+        iso_cli__fail(cmd, "a scene needs --shape NAME, or both --mesh and --sel.");
+        return 2;
+    }
+    if (out_path && !scene) {
+        iso_cli__fail(cmd, "--out needs a scene (--shape, or --mesh and --sel).");
+        return 2;
+    }
+    replay_path rp = {0, mo.n_handles, 0, NULL, NULL, NULL};
     iso_err err;
     iso_err_clear(&err);
     iso_dev_map m;
@@ -306,6 +465,10 @@ int iso_cli__replay(int argc, char **argv)
             damaged_seen = r.damaged;
         }
         sum = fnv(sum, &out, sizeof out);
+        if (scene && path_push(&rp, dt, &out, P) != ISO_OK) {
+            iso_cli__fail(cmd, "out of memory for %d ticks of handle motion.", rp.n);
+            break;
+        }
         for (int k = 0; k < out.n_handles; k++)
             advance(&P[k], &out.twist[k], dt);
         if (print) {
@@ -337,5 +500,9 @@ int iso_cli__replay(int argc, char **argv)
     }
     iso_dev_hub_destroy(h);
     iso_dev_rec_reader_deinit(&r);
-    return 0;
+    int status = scene ? run_scene(&src, &rp, steps, out_path) : 0;
+    free(rp.t);
+    free(rp.xi);
+    free(rp.g);
+    return status;
 }

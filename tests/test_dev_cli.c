@@ -78,6 +78,33 @@ static void replay_is_the_same_at_every_speed(void **state)
                                "or directory\n");
 }
 
+/* The scene's vertices: the same at any speed, and moved by the commands. */
+static void replay_moves_a_scene_the_same_at_every_speed(void **state)
+{
+    (void)state;
+    char s[1024], out[1024];
+    stream(s, sizeof s, "sm_twist.isorec");
+    iso_test_tmp(out, sizeof out, "dev_cli_scene.off");
+    assert_int_equal(run("%s replay %s --fast --shape bar --resolution 4 --out %s", bin(), s, out),
+                     0);
+    const char *line = strstr(g_out, "scene built-in bar (resolution 4): 425 vertices, 10 steps");
+    assert_non_null(line);
+    char fast[256];
+    snprintf(fast, sizeof fast, "%s", line);
+    assert_int_equal(run("%s replay %s --speed 2 --shape bar --resolution 4", bin(), s), 0);
+    assert_non_null(strstr(g_out, fast));
+    FILE *f = fopen(out, "r");
+    assert_non_null(f);
+    fclose(f);
+    /* a recording in which nothing moves gives another result */
+    stream(s, sizeof s, "gpio_estop.isorec");
+    assert_int_equal(run("%s replay %s --fast --shape bar --resolution 4 --steps 10", bin(), s), 0);
+    assert_null(strstr(g_out, strchr(fast, ',') + 1));
+    assert_int_equal(run("%s replay %s --fast --mesh m.off 2>&1", bin(), s), 2);
+    assert_string_equal(g_out,
+                        "isoshape replay: a scene needs --shape NAME, or both --mesh and --sel.\n");
+}
+
 static void inspect_reports_damage_and_tear(void **state)
 {
     (void)state;
@@ -196,6 +223,7 @@ int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(replay_is_the_same_at_every_speed),
+        cmocka_unit_test(replay_moves_a_scene_the_same_at_every_speed),
         cmocka_unit_test(inspect_reports_damage_and_tear),
         cmocka_unit_test(record_from_a_pty_then_kill_9),
     };
