@@ -38,6 +38,14 @@ static int open_spec(const src_spec *sp, iso_dev_source **out, iso_err *err)
         return iso_dev_hid_open(strcmp(sp->arg, "auto") == 0 ? NULL : sp->arg, out, err);
     if (strcmp(sp->kind, "spnav") == 0)
         return iso_dev_spnav_open(out, err);
+    if (strcmp(sp->kind, "mouse") == 0) {
+        /* spacenavd when it runs (it owns the device), else hidraw */
+        iso_err quiet;
+        iso_err_clear(&quiet);
+        if (iso_dev_spnav_open(out, &quiet) == ISO_OK)
+            return ISO_OK;
+        return iso_dev_hid_open(NULL, out, err);
+    }
     if (strcmp(sp->kind, "tty") == 0)
         return iso_dev_tty_open(sp->arg, sp->baud, out, err);
     if (strcmp(sp->kind, "serial") == 0)
@@ -66,6 +74,7 @@ static void usage(void)
            "Records live input devices (devices/RECORDING.md) while running the device side\n"
            "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n"
            "  --hid PATH|auto    a 3D mouse through hidapi/hidraw (auto: the first one)\n"
+           "  --mouse            a 3D mouse: through spacenavd when it runs, else hidapi\n"
            "  --spnav            3D mouse events from the spacenavd daemon\n"
            "  --tty PATH         a serial stream on a tty or pseudo-terminal\n"
            "  --serial NAME      a serial adapter through libserialport\n"
@@ -96,14 +105,22 @@ int iso_cli__record(int argc, char **argv)
             usage();
             return 0;
         }
-        if (strcmp(argv[i], "--spnav") == 0 || strcmp(argv[i], "--active-low") == 0 ||
-            strcmp(argv[i], "--quiet") == 0) {
-            if (argv[i][2] == 'a')
-                gp.active_low = 1;
-            else if (argv[i][2] == 'q')
-                quiet = 1;
-            else if (n < (int)ISO_DEV_MAX_SOURCES)
-                snprintf(specs[n++].kind, sizeof specs[0].kind, "spnav");
+        if (strcmp(argv[i], "--active-low") == 0) {
+            gp.active_low = 1;
+            continue;
+        }
+        if (strcmp(argv[i], "--quiet") == 0) {
+            quiet = 1;
+            continue;
+        }
+        if (strcmp(argv[i], "--spnav") == 0 || strcmp(argv[i], "--mouse") == 0) {
+            if (n >= (int)ISO_DEV_MAX_SOURCES) {
+                iso_cli__fail(cmd, "more than 16 sources.");
+                return 2;
+            }
+            memset(&specs[n], 0, sizeof specs[n]);
+            snprintf(specs[n].kind, sizeof specs[n].kind, "%s", argv[i] + 2);
+            n++;
             continue;
         }
         static const char *const kinds[] = {"--hid", "--tty", "--serial", "--tcp", "--gpio"};

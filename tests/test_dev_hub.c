@@ -172,7 +172,23 @@ static void hub_refuses_mixing_replay_and_live(void **state)
     assert_int_equal(iso_dev_replay_open(&r, &rs, &err), ISO_OK);
     assert_int_equal(iso_dev_hub_add(h, rs, NULL, NULL, &err), ISO_EINVAL);
     assert_string_equal(err.msg, "device hub: a replay must be the hub's only source");
-    /* drain with a small buffer hands the rest out next time */
+    /* drain with a small buffer hands the rest out next time, in order */
+    iso_dev_hub_destroy(h);
+    assert_int_equal(iso_dev_hub_create(NULL, NULL, &h, &err), ISO_OK);
+    iso_dev_source *s = fake(ISO_DEV_KIND_HID, "b", 0);
+    for (int k = 0; k < 5; k++)
+        hid_report(s, k, (int16_t)(k + 1));
+    assert_int_equal(iso_dev_hub_add(h, s, NULL, NULL, &err), ISO_OK);
+    iso_dev_event ev[2];
+    size_t n, seen = 0;
+    for (int round = 0; round < 3; round++) {
+        assert_int_equal(iso_dev_hub_drain(h, 10, ev, 2, &n, &err), ISO_OK);
+        assert_int_equal(n, round < 2 ? 2 : 1);
+        for (size_t k = 0; k < n; k++)
+            assert_int_equal(ev[k].axes[0], (int)(++seen));
+    }
+    assert_int_equal(iso_dev_hub_drain(h, 10, ev, 2, &n, &err), ISO_OK);
+    assert_int_equal(n, 0);
     iso_dev_hub_destroy(h);
 }
 
