@@ -9,10 +9,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const uint16_t known_vids[] = {0x046d, 0x256f};
-
 #ifdef ISO_DEV_WITH_LIBUSB
 #include <libusb.h>
+
+static const uint16_t known_vids[] = {0x046d, 0x256f};
 
 struct iso_dev_usb_watch {
     libusb_context *ctx;
