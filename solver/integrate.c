@@ -325,3 +325,146 @@ int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const 
     integ_deinit(&g);
     return rc;
 }
+
+/* ===== real time: one step per tick ===================================== */
+
+struct iso_stepper {
+    integ g;
+    iso_path path;
+    double *x;
+    double t;          /* start of the current tick */
+    int nh;
+    iso_pose *base;    /* per handle: pose at t */
+    iso_twist *tw;     /* per handle: twist held over the current tick */
+    int since_restart; /* steps since the history was dropped; 0 = f_n not yet valid */
+    iso_integrate_stats st;
+};
+
+/* g = a ∘ b: first b, then a. */
+static void pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g)
+{
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++)
+            g->R[3 * i + j] = a->R[3 * i] * b->R[j] + a->R[3 * i + 1] * b->R[3 + j] +
+                              a->R[3 * i + 2] * b->R[6 + j];
+        g->p[i] = a->R[3 * i] * b->p[0] + a->R[3 * i + 1] * b->p[1] + a->R[3 * i + 2] * b->p[2] +
+                  a->p[i];
+    }
+}
+
+/* The tick's path: exp((t − t_n) ξ) ∘ pose(t_n), constant world twist ξ. */
+static int tick_path_eval(void *ctx, int handle, double t, iso_pose *pose, iso_twist *twist)
+{
+    iso_stepper *st = ctx;
+    if (handle < 0 || handle >= st->nh)
+        return ISO_EINVAL;
+    iso_pose e;
+    iso_twist_exp(&st->tw[handle], t - st->t, &e);
+    pose_compose(&e, &st->base[handle], pose);
+    *twist = st->tw[handle];
+    return ISO_OK;
+}
+
+int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r, double *x,
+                       iso_stepper **out, iso_err *err)
+{
+    *out = NULL;
+    iso_stepper *st = calloc(1, sizeof *st);
+    if (!st)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the stepper");
+    st->nh = r->n_handles > 0 ? r->n_handles : 1;
+    st->base = calloc((size_t)st->nh, sizeof *st->base);
+    st->tw = calloc((size_t)st->nh, sizeof *st->tw);
+    st->path.eval = tick_path_eval;
+    st->path.ctx = st;
+    st->x = x;
+    int rc = st->base && st->tw ? integ_init(&st->g, s, m, r, &st->path, err)
+                                : iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+    if (rc != ISO_OK) {
+        iso_stepper_destroy(st);
+        return rc;
+    }
+    for (int h = 0; h < st->nh; h++)
+        iso_pose_identity(&st->base[h]);
+    iso_solver_get_restore(s, &st->g.restore_mu, &st->g.restore_tau);
+    st->g.restore_kappa = ISO_INTEGRATE_RESTORE_KAPPA;
+    *out = st;
+    return ISO_OK;
+}
+
+void iso_stepper_destroy(iso_stepper *st)
+{
+    if (!st)
+        return;
+    if (st->g.s && st->g.restore_mu > 0) {
+        iso_err ignored; /* put back the τ the caller configured; it was valid */
+        if (iso_solver_set_restore_tau(st->g.s, st->g.restore_tau, &ignored) != ISO_OK)
+            ignored.code = ISO_OK;
+    }
+    integ_deinit(&st->g);
+    free(st->base);
+    free(st->tw);
+    free(st);
+}
+
+int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int restart,
+                     iso_err *err)
+{
+    if (!(h > 0) || !isfinite(h))
+        return iso_err_set(err, ISO_EINVAL, -1, "step %g must be positive and finite", h);
+    integ *g = &st->g;
+    memcpy(st->tw, twists, (size_t)st->nh * sizeof *st->tw);
+    long evals0 = g->evaluations;
+    int rc = set_step_tau(g, h, err);
+    if (rc != ISO_OK)
+        return rc;
+    if (restart || st->since_restart == 0) {
+        /* f at the tick's start, with this tick's twists. */
+        st->since_restart = 0;
+        if ((rc = eval_field(g, st->t, st->x, g->f[0], err)) != ISO_OK)
+            return rc;
+        g->tf[0] = st->t;
+    }
+    if (st->since_restart < 2) {
+        if ((rc = rk4_step(g, st->t, h, st->x, err)) != ISO_OK)
+            return rc;
+        st->st.rk4_steps++;
+    } else {
+        double est, *xc = g->xs;
+        if ((rc = abm_predict_correct(g, h, st->x, xc, &est, err)) != ISO_OK)
+            return rc;
+        st->st.max_err_estimate =
+            fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
+        memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
+    }
+    push_history(g, st->t + h);
+    if ((rc = eval_field(g, st->t + h, st->x, g->f[0], err)) != ISO_OK)
+        return rc;
+    /* The tick is done: its end becomes the next tick's base. */
+    for (int k = 0; k < st->nh; k++) {
+        iso_pose end;
+        iso_twist tw;
+        tick_path_eval(st, k, st->t + h, &end, &tw); /* reads base[k]: no aliasing */
+        st->base[k] = end;
+    }
+    st->t += h;
+    st->since_restart++;
+    st->st.steps++;
+    st->st.evaluations += g->evaluations - evals0;
+    return ISO_OK;
+}
+
+double iso_stepper_time(const iso_stepper *st)
+{
+    return st->t;
+}
+
+const iso_pose *iso_stepper_pose(const iso_stepper *st, int handle)
+{
+    return handle >= 0 && handle < st->nh ? &st->base[handle] : NULL;
+}
+
+void iso_stepper_stats(const iso_stepper *st, iso_integrate_stats *out)
+{
+    *out = st->st;
+}

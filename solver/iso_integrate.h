@@ -52,4 +52,34 @@ ISO_NODISCARD int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regi
                                 const iso_path *path, const iso_integrate_opts *opts,
                                 double *x, iso_integrate_stats *st, iso_err *err);
 
+/* ===== real time: one step per tick =====================================
+ *
+ * The controller advances the mesh by one step per tick, with each handle
+ * moving at a constant world twist over the tick (the latest device input).
+ * The stepper keeps the Adams history between ticks; the caller asks for a
+ * restart (RK4 again) after a discontinuity such as the clutch. The poses
+ * accumulate: pose(t_n + τ) = exp(τ ξ) ∘ pose(t_n). Deterministic: the same
+ * twists and step lengths give bit-identical positions. */
+typedef struct iso_stepper iso_stepper; /* opaque */
+
+/* x (3*nv, caller-owned, must outlive the stepper) holds the current
+ * positions and is advanced in place; handles start at the identity pose
+ * (x's handle vertices are placed from the mesh's rest positions).
+ * s, m and r must outlive the stepper. */
+ISO_NODISCARD int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r,
+                                     double *x, iso_stepper **out, iso_err *err);
+void iso_stepper_destroy(iso_stepper *st); /* NULL is a no-op */
+
+/* Advances by h > 0 with twists[k] (one per handle) held over the step.
+ * restart != 0 drops the multistep history first. A step is RK4 (four
+ * field evaluations) for the first two steps after a restart, else ABM3
+ * PECE (two). On error x is left at the last completed step. */
+ISO_NODISCARD int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists,
+                                   int restart, iso_err *err);
+
+/* Current time (sum of steps), handle k's pose, and counters. */
+double iso_stepper_time(const iso_stepper *st);
+const iso_pose *iso_stepper_pose(const iso_stepper *st, int handle);
+void iso_stepper_stats(const iso_stepper *st, iso_integrate_stats *out);
+
 #endif
