@@ -47,7 +47,7 @@ static int run(const char *fmt, ...)
 
 static char *stream(char *buf, size_t cap, const char *name)
 {
-    snprintf(buf, cap, "%s/../streams/%s", ISO_TEST_DATA, name);
+    snprintf(buf, cap, "%s/%s", ISO_TEST_STREAMS, name);
     return buf;
 }
 

@@ -34,7 +34,7 @@ static void count_msg(void *ctx, const char *msg)
 static void replay(const char *name, const iso_dev_map_opts *mo, run *out)
 {
     char path[1024];
-    snprintf(path, sizeof path, "%s/../streams/%s", ISO_TEST_DATA, name);
+    snprintf(path, sizeof path, "%s/%s", ISO_TEST_STREAMS, name);
     memset(out, 0, sizeof *out);
     iso_err err;
     iso_err_clear(&err);
