@@ -10,7 +10,9 @@
  * The policy: try PCG from the previous solution; if it has not reached the
  * tolerance within cg_max_iter iterations, or stalls, factor afresh and
  * solve directly. When the previous PCG already needed most of the budget,
- * factor at once rather than spend the iterations first. */
+ * factor at once rather than spend the iterations first; abandon an attempt
+ * early when its rate cannot make the budget; and after failures back off
+ * (see iso_solver__linsolve). */
 #include <math.h>
 #include <string.h>
 
@@ -100,6 +102,16 @@ static int ensure_work(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
+/* Iterations to reach `target` from r0 at the geometric rate shown by the
+ * first k iterations (r0 → rk). */
+static double predicted_iterations(double r0, double rk, int k, double target)
+{
+    if (!(rk < r0) || !(rk > 0))
+        return rk > 0 ? HUGE_VAL : (double)k;
+    double rate = log(rk / r0) / k; /* < 0 */
+    return log(target / r0) / rate;
+}
+
 /* PCG from the previous X. Returns 1 if converged, 0 if it should give up
  * (budget spent, stall, or loss of positive curvature), or a negative code. */
 static int pcg(iso_solver *s, int *iters, iso_err *err)
@@ -114,7 +126,7 @@ static int pcg(iso_solver *s, int *iters, iso_err *err)
     for (int i = 0; i < n; i++)
         r[i] = b[i] - ap[i];
     double bnorm = sqrt(dot(b, b, n)), target = s->o.cg_tol * (bnorm > 0 ? bnorm : 1.0);
-    double rnorm = sqrt(dot(r, r, n)), prev = rnorm;
+    double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
     if (rnorm <= target)
         return 1;
     if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
@@ -142,6 +154,12 @@ static int pcg(iso_solver *s, int *iters, iso_err *err)
         slow = rnorm > 0.9 * prev ? slow + 1 : 0;
         if (slow >= 3)
             return 0;
+        /* Hopeless: at the rate seen so far the budget would not suffice,
+         * so stop now rather than spend it (the common case when the factor
+         * is older than a few small steps). */
+        if (*iters >= 3 && predicted_iterations(r0norm, rnorm, *iters, target) >
+                               (double)s->o.cg_max_iter)
+            return 0;
         prev = rnorm;
         if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
             return rc;
@@ -160,6 +178,14 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
     int rc;
     int reuse = s->o.refactor == ISO_REFACTOR_ADAPTIVE && s->have_factor && s->X &&
                 s->last_cg_iters < (3 * s->o.cg_max_iter) / 4;
+    /* Back off after failures: when the factor goes stale within one step
+     * (large offline steps), each attempt costs iterations for nothing, so
+     * skip PCG for 1, 2, 4, ... up to 16 evaluations after consecutive
+     * failures; one success resets it. */
+    if (reuse && s->cg_skip > 0) {
+        s->cg_skip--;
+        reuse = 0;
+    }
     if (reuse) {
         if ((rc = ensure_work(s, err)) != ISO_OK)
             return rc;
@@ -172,9 +198,12 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
             return rc;
         if (rc == 1) {
             s->last_cg_iters = iters;
+            s->cg_failures = 0;
             return check_finite(s, err);
         }
         s->st.refactors++;
+        s->cg_failures++;
+        s->cg_skip = s->cg_failures >= 5 ? 16 : 1 << (s->cg_failures - 1);
     }
     if ((rc = direct_solve(s, err)) != ISO_OK)
         return rc;

@@ -53,6 +53,8 @@ struct iso_solver {
     unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
     unsigned fit_epoch;
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
+    int cg_failures;        /* consecutive PCG attempts that had to refactor */
+    int cg_skip;            /* evaluations left before PCG is tried again */
     iso_solver_stats st;
 };
 
