@@ -75,6 +75,9 @@ int iso_cli__same_connectivity(const struct iso_mesh *a, const struct iso_mesh *
 /* Prints the version lines of --version: isoshape, CHOLMOD (run time and
  * build time) and the BLAS that is loaded, with its resolved path. */
 void iso_cli__print_version(void);
+/* Re-executes the program with OPENBLAS_CORETYPE set when OpenBLAS fell
+ * back to its generic kernels on a CPU with AVX2/AVX-512; returns otherwise. */
+void iso_cli__tune_blas(char **argv);
 
 /* OpenBLAS's build and kernel line (openblas_get_config), or "" when the
  * BLAS loaded is not OpenBLAS. Never NULL. */
