@@ -1,0 +1,120 @@
+/* controller/cmd_check.c -- isoshape check SCENE: validates a scene file
+ * without running it. Loads the mesh and regions (config/iso_scene.h) and
+ * builds the solver, so ill-posed constraints are caught too; prints a short
+ * summary and exits 0, or the error and exits 1. */
+#include "internal.h"
+
+#include <stdio.h>
+#include <string.h>
+
+#include "iso_scene.h"
+
+int iso_cli__check(int argc, char **argv);
+
+/* The scene layer resolves `benchmark:` through the command's own lookup,
+ * so a scene finds the benchmark exactly where --benchmark does. */
+static int bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
+                      size_t why_cap)
+{
+    (void)ctx;
+    iso_cli__bench b;
+    if (!iso_cli__bench_find(name, NULL, &b, why, why_cap))
+        return 0;
+    snprintf(mesh, ISO_SCENE_PATH_MAX, "%s", b.mesh);
+    snprintf(sel, ISO_SCENE_PATH_MAX, "%s", b.sel);
+    snprintf(def, ISO_SCENE_PATH_MAX, "%s", b.def);
+    return 1;
+}
+
+static void print_summary(const iso_scene *s)
+{
+    const iso_scene_mesh_src *m = &s->mesh_src;
+    int nv = iso_mesh_vertex_count(s->mesh);
+    int counts[3] = {0, 0, 0};
+    for (int v = 0; v < nv; v++)
+        counts[s->regions.kind[v] <= ISO_HANDLE ? s->regions.kind[v] : 1]++;
+    printf("scene %s: %s\n", s->name, s->path);
+    if (m->used == ISO_SCENE_MESH_BENCHMARK)
+        printf("  mesh: benchmark %s (%s)\n", m->benchmark, m->path);
+    else if (m->used == ISO_SCENE_MESH_SHAPE)
+        printf("  mesh: built-in shape %s%s\n", m->fallback_shape[0] && m->kind == ISO_SCENE_MESH_BENCHMARK
+                                                   ? m->fallback_shape : m->shape,
+               m->note[0] ? " (benchmark absent)" : "");
+    else
+        printf("  mesh: %s\n", m->path);
+    printf("  vertices %d, triangles %d: free %d, fixed %d, handle %d\n", nv,
+           iso_mesh_triangle_count(s->mesh), counts[ISO_FREE], counts[ISO_FIXED], counts[ISO_HANDLE]);
+    for (int h = 0; h < s->n_handles; h++) {
+        const iso_scene_handle *hd = &s->handles[h];
+        const iso_scene_driver *d = &hd->driver;
+        printf("  handle %d '%s': %d vertices, driven by %s", h, hd->name, hd->region.count,
+               iso_scene_driver_name(d->kind));
+        if (d->kind == ISO_SCENE_DRIVE_DEVICE)
+            printf(" '%s' (%s)", s->devices[d->device].name,
+                   iso_scene_backend_name(s->devices[d->device].backend));
+        else if (d->kind == ISO_SCENE_DRIVE_SCREW)
+            printf(" over %g s", d->duration);
+        else if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES)
+            printf(" (%d keyframes, %g s)", d->n_keys, d->keys[d->n_keys - 1].t);
+        printf("\n");
+    }
+    printf("  solver: omega %g, %s weighting, restore %s; tick %g Hz\n", s->solver.omega,
+           s->solver.weighting == ISO_WEIGHT_AREA ? "area" : "param",
+           s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz);
+    printf("  sinks:");
+    if (s->display.enabled)
+        printf(" display %s:%d", s->display.host, s->display.port);
+    if (s->ply.enabled)
+        printf(" ply %s (every %d)", s->ply.dir, s->ply.every);
+    if (s->actuators.enabled)
+        printf(" actuators %d channels over %s", s->actuators.n_ch,
+               iso_scene_link_name(s->actuators.link));
+    if (!s->display.enabled && !s->ply.enabled && !s->actuators.enabled)
+        printf(" none");
+    printf("\n");
+    if (s->recording[0])
+        printf("  recording: %s\n", s->recording);
+}
+
+int iso_cli__check(int argc, char **argv)
+{
+    const char *path = NULL;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            printf("usage: isoshape check SCENE\n"
+                   "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
+                   "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n");
+            return 0;
+        }
+        if (argv[i][0] == '-' || path)
+            return iso_cli__unknown("check", argv[i]);
+        path = argv[i];
+    }
+    if (!path) {
+        iso_cli__fail("check", "missing SCENE (usage: isoshape check SCENE)");
+        return 2;
+    }
+    iso_err err;
+    iso_err_clear(&err);
+    iso_scene_opts opts = {.bench_find = bench_find};
+    iso_scene *s = NULL;
+    if (iso_scene_load_opts(path, &opts, &s, &err) != ISO_OK) {
+        fprintf(stderr, "isoshape check: %s\n", err.msg);
+        return 1;
+    }
+    if (s->mesh_src.note[0])
+        fprintf(stderr, "isoshape check: %s\n", s->mesh_src.note);
+    iso_solver *solver = NULL;
+    iso_solver_opts so = s->solver;
+    so.assembly = ISO_ASSEMBLY_CPU; /* the constraints' check does not need OpenCL */
+    if (iso_solver_create(s->mesh, &s->regions, &so, &solver, &err) != ISO_OK) {
+        fprintf(stderr, "isoshape check: %s: regions: %s\n", s->path, err.msg);
+        iso_scene_destroy(s);
+        return 1;
+    }
+    print_summary(s);
+    printf("ok\n");
+    iso_solver_destroy(solver);
+    iso_scene_destroy(s);
+    return 0;
+}
