@@ -26,6 +26,7 @@ static void usage(FILE *f)
             "  replay   replay a device recording, deterministically, at any speed\n"
             "  inspect  print a device recording, record by record, decoded\n"
             "  devices  list input devices, usable or why not\n"
+            "  check    validate a scene file without running it\n"
             "\n"
             "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
             "  isoshape <command> --help\n");
@@ -70,6 +71,8 @@ int main(int argc, char **argv)
         return iso_cli__inspect(argc - 1, argv + 1);
     if (strcmp(cmd, "devices") == 0)
         return iso_cli__devices(argc - 1, argv + 1);
+    if (strcmp(cmd, "check") == 0)
+        return iso_cli__check(argc - 1, argv + 1);
     if (cmd[0] == '-')
         iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
     else
