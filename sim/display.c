@@ -27,9 +27,9 @@ struct iso_display {
     struct mg_context *ctx;
     const iso_mesh *mesh;
     int nv, port;
-    char *three, *orbit;      /* file contents; orbit may be NULL */
+    char *three, *orbit; /* file contents; orbit may be NULL */
     size_t three_len, orbit_len;
-    char *topology;           /* the JSON sent on connect */
+    char *topology; /* the JSON sent on connect */
     size_t topology_len;
 
     /* The latest frame: written by publish, read by the sender. */
@@ -39,10 +39,11 @@ struct iso_display {
     unsigned long latest_seq; /* 0 = nothing published yet */
     int stopping;
 
-    /* Sender-owned copy, and the clients it writes to. */
+    /* Lock order: clients_lock, then frame_lock; the sender never holds both. */
     pthread_t sender;
     int sender_started;
-    unsigned char *sending;
+    unsigned char *sending; /* the sender thread's own copy */
+    unsigned char *welcome; /* ws_ready's copy, under clients_lock */
     size_t frame_len;
     pthread_mutex_t clients_lock; /* held while writing to any client */
     struct mg_connection *clients[MAX_CLIENTS];
@@ -56,8 +57,7 @@ static int read_file(const char *path, char **out, size_t *len, iso_err *err)
 {
     FILE *f = fopen(path, "rb");
     if (!f)
-        return iso_err_set(err, ISO_EIO, -1, "display: cannot read %s: %s", path,
-                           strerror(errno));
+        return iso_err_set(err, ISO_EIO, -1, "display: cannot read %s: %s", path, strerror(errno));
     char *buf = NULL;
     size_t cap = 0, n = 0;
     for (;;) {
@@ -67,8 +67,7 @@ static int read_file(const char *path, char **out, size_t *len, iso_err *err)
             if (!nb) {
                 free(buf);
                 fclose(f);
-                return iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory reading %s",
-                                   path);
+                return iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory reading %s", path);
             }
             buf = nb;
             cap = ncap;
@@ -128,8 +127,8 @@ static int build_topology(iso_display *d, const iso_regions *r, iso_err *err)
     const double *x = iso_mesh_positions(d->mesh);
     const int *tri = iso_mesh_triangles(d->mesh);
     int nt = iso_mesh_triangle_count(d->mesh);
-    sb_printf(&b, "{\"type\":\"topology\",\"nv\":%d,\"nt\":%d,\"strain_full\":%g,\"rest\":[",
-              d->nv, nt, ISO_DISPLAY_STRAIN_FULL);
+    sb_printf(&b, "{\"type\":\"topology\",\"nv\":%d,\"nt\":%d,\"strain_full\":%g,\"rest\":[", d->nv,
+              nt, ISO_DISPLAY_STRAIN_FULL);
     for (int i = 0; i < 3 * d->nv; i++)
         sb_printf(&b, "%s%.9g", i ? "," : "", x[i]);
     sb_printf(&b, "],\"tri\":[");
@@ -170,8 +169,7 @@ static int page_handler(struct mg_connection *c, void *cb)
 static int app_handler(struct mg_connection *c, void *cb)
 {
     (void)cb;
-    return send_body(c, "application/javascript", iso_display__app_js,
-                     strlen(iso_display__app_js));
+    return send_body(c, "application/javascript", iso_display__app_js, strlen(iso_display__app_js));
 }
 
 static int three_handler(struct mg_connection *c, void *cb)
@@ -214,11 +212,10 @@ static void ws_ready(struct mg_connection *c, void *cb)
     pthread_mutex_lock(&d->frame_lock);
     int have = d->latest_seq > 0;
     if (have)
-        memcpy(d->sending, d->latest, d->frame_len);
+        memcpy(d->welcome, d->latest, d->frame_len);
     pthread_mutex_unlock(&d->frame_lock);
     if (have)
-        mg_websocket_write(c, MG_WEBSOCKET_OPCODE_BINARY, (const char *)d->sending,
-                           d->frame_len);
+        mg_websocket_write(c, MG_WEBSOCKET_OPCODE_BINARY, (const char *)d->welcome, d->frame_len);
     pthread_mutex_unlock(&d->clients_lock);
 }
 
@@ -258,9 +255,11 @@ static void *sender_main(void *arg)
             return NULL;
         }
         seen = d->latest_seq;
-        pthread_mutex_lock(&d->clients_lock);
         memcpy(d->sending, d->latest, d->frame_len);
         pthread_mutex_unlock(&d->frame_lock);
+        /* Never hold frame_lock while writing: publish must not wait on the
+         * network, and ws_ready takes the locks clients first. */
+        pthread_mutex_lock(&d->clients_lock);
         int wrote = 0;
         for (int i = 0; i < d->n_clients; i++)
             wrote |= mg_websocket_write(d->clients[i], MG_WEBSOCKET_OPCODE_BINARY,
@@ -286,13 +285,12 @@ int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err 
     if (!opts || !opts->mesh || !out)
         return iso_err_set(err, ISO_EINVAL, -1, "display: NULL options, mesh or out argument");
     if (opts->port < 0 || opts->port > 65535)
-        return iso_err_set(err, ISO_EINVAL, -1, "display: port %d is outside 0..65535",
-                           opts->port);
+        return iso_err_set(err, ISO_EINVAL, -1, "display: port %d is outside 0..65535", opts->port);
     int nv = iso_mesh_vertex_count(opts->mesh);
     if (opts->regions && opts->regions->nv != nv)
         return iso_err_set(err, ISO_EINVAL, -1,
-                           "display: regions have %d vertices, the mesh has %d",
-                           opts->regions->nv, nv);
+                           "display: regions have %d vertices, the mesh has %d", opts->regions->nv,
+                           nv);
     const char *host = opts->host ? opts->host : ISO_DISPLAY_DEFAULT_HOST;
     if (strlen(host) > 200 || strchr(host, ','))
         return iso_err_set(err, ISO_EINVAL, -1, "display: bad host \"%.60s\"", host);
@@ -323,15 +321,16 @@ int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err 
         goto fail;
     d->latest = calloc(1, d->frame_len);
     d->sending = calloc(1, d->frame_len);
-    if (!d->latest || !d->sending) {
+    d->welcome = calloc(1, d->frame_len);
+    if (!d->latest || !d->sending || !d->welcome) {
         rc = iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory");
         goto fail;
     }
 
     char ports[256];
     snprintf(ports, sizeof ports, "%s:%d", host, opts->port);
-    const char *options[] = {"listening_ports", ports, "num_threads", "8",
-                             "enable_keep_alive", "no", NULL};
+    const char *options[] = {"listening_ports",   ports, "num_threads", "8",
+                             "enable_keep_alive", "no",  NULL};
     struct mg_callbacks cbs;
     memset(&cbs, 0, sizeof cbs);
     cbs.log_message = log_quiet;
@@ -377,6 +376,8 @@ int iso_display_port(const iso_display *d)
 
 int iso_display_clients(const iso_display *d)
 {
+    if (!d)
+        return 0;
     iso_display *m = (iso_display *)d; /* the lock is not part of the value */
     pthread_mutex_lock(&m->clients_lock);
     int n = m->n_clients;
@@ -386,6 +387,8 @@ int iso_display_clients(const iso_display *d)
 
 long iso_display_frames_sent(const iso_display *d)
 {
+    if (!d)
+        return 0;
     iso_display *m = (iso_display *)d;
     pthread_mutex_lock(&m->clients_lock);
     long n = m->frames_sent;
@@ -414,8 +417,9 @@ int iso_display_publish(iso_display *d, long tick, const double *x, const iso_di
         s[1] = to_f32(st->tick_ms_p99);
         s[2] = to_f32(st->tick_ms_max);
         s[3] = to_f32(st->latency_ms);
-        misses[0] = st->misses < 0 ? 0 : st->misses > 0xffffffffL ? 0xffffffffu
-                                                                   : (uint32_t)st->misses;
+        misses[0] = st->misses < 0             ? 0
+                    : st->misses > 0xffffffffL ? 0xffffffffu
+                                               : (uint32_t)st->misses;
     }
     memcpy(f, u, 8);
     memcpy(f + 8, &t, 8);
@@ -453,6 +457,7 @@ void iso_display_destroy(iso_display *d)
     free(d->topology);
     free(d->latest);
     free(d->sending);
+    free(d->welcome);
     free(d);
 }
 

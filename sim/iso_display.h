@@ -69,27 +69,28 @@ typedef struct iso_display_stats {
  * missing or unreadable, naming the path and the package; the address cannot
  * be bound), ISO_ENOTSUP (built without civetweb) or ISO_ENOMEM; *out is then
  * NULL and err says which. */
-ISO_NODISCARD int iso_display_create(const iso_display_opts *opts, iso_display **out,
-                                     iso_err *err);
+ISO_NODISCARD int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err *err);
 
 /* The TCP port actually bound (useful with opts.port = 0). */
 int iso_display_port(const iso_display *d);
 
-/* Number of browsers connected to /ws right now. */
+/* Number of browsers connected to /ws right now (0 for NULL). */
 int iso_display_clients(const iso_display *d);
 
-/* Number of frames the sender thread has written to at least one browser. */
+/* Number of frames the sender thread has written to at least one browser
+ * (0 for NULL). */
 long iso_display_frames_sent(const iso_display *d);
 
 /* Hands the positions x (3*nv, as the mesh) of `tick` to the display and
  * returns at once: no network I/O, no allocation, one memcpy under a lock
- * the sender holds only for its own copy. stats may be NULL. Returns
+ * other holders keep only for a memcpy of their own. stats may be NULL. Returns
  * ISO_EINVAL for NULL d or x; non-finite positions are sent as they are. */
-int iso_display_publish(iso_display *d, long tick, const double *x,
-                        const iso_display_stats *stats, iso_err *err);
+int iso_display_publish(iso_display *d, long tick, const double *x, const iso_display_stats *stats,
+                        iso_err *err);
 
 /* Stops the server (closing browser connections) and the sender thread,
- * then frees everything. NULL is a no-op. */
+ * then frees everything. With a browser that stopped reading, this waits
+ * for civetweb's write and shutdown timeouts (a few seconds). NULL is a no-op. */
 void iso_display_destroy(iso_display *d);
 
 #endif

@@ -24,8 +24,7 @@ int iso_ply_frames_create(const char *dir, const iso_mesh *m, int every_n, iso_p
         return iso_err_set(err, ISO_EINVAL, -1, "PLY frames: every_n must be >= 1, got %d",
                            every_n);
     if (strlen(dir) + 32 > sizeof((iso_ply_frames *)0)->dir)
-        return iso_err_set(err, ISO_EINVAL, -1, "PLY frames: folder name too long: %.64s...",
-                           dir);
+        return iso_err_set(err, ISO_EINVAL, -1, "PLY frames: folder name too long: %.64s...", dir);
     if (mkdir(dir, 0777) != 0 && errno != EEXIST)
         return iso_err_set(err, ISO_EIO, -1, "PLY frames: cannot make folder %s: %s", dir,
                            strerror(errno));

@@ -240,8 +240,8 @@ int iso_snapshot_png(const iso_mesh *m, const double *x, const iso_regions *regi
     float *zbuf = malloc(npx * sizeof *zbuf);
     int rc = ISO_OK;
     if (!img || !zbuf) {
-        rc = iso_err_set(err, ISO_ENOMEM, -1, "snapshot %s: out of memory for %dx%d pixels",
-                         path, width, height);
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "snapshot %s: out of memory for %dx%d pixels", path,
+                         width, height);
         goto out;
     }
     render(img, zbuf, width, height, m, x, regions, view);

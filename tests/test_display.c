@@ -41,8 +41,8 @@ static void scene_init(scene *s, const char *name, int res)
     memset(s, 0, sizeof *s);
     if (iso_shape_init(&s->shape, name, res, &err) != ISO_OK)
         fail_msg("%s", err.msg);
-    if (iso_mesh_create(s->shape.nv, s->shape.x, s->shape.nt, s->shape.tri, name, &s->mesh,
-                        &err) != ISO_OK)
+    if (iso_mesh_create(s->shape.nv, s->shape.x, s->shape.nt, s->shape.tri, name, &s->mesh, &err) !=
+        ISO_OK)
         fail_msg("%s", err.msg);
     if (iso_shape_regions(&s->shape, &s->regions, &err) != ISO_OK)
         fail_msg("%s", err.msg);
@@ -148,8 +148,7 @@ static void snapshot_shows_mesh_and_distortion(void **state)
     assert_non_null(strstr(err.msg, "4x4"));
     iso_err_clear(&err);
     assert_int_equal(
-        iso_snapshot_png(s.mesh, x, NULL, "/nonexistent-dir/a.png", 32, 32, NULL, &err),
-        ISO_EIO);
+        iso_snapshot_png(s.mesh, x, NULL, "/nonexistent-dir/a.png", 32, 32, NULL, &err), ISO_EIO);
     assert_non_null(strstr(err.msg, "/nonexistent-dir/a.png"));
     free(x);
     scene_deinit(&s);
@@ -421,6 +420,43 @@ static void server_serves_page_and_streams_frames(void **state)
     scene_deinit(&s);
 }
 
+/* A browser that stops reading must not stall publish, nor destroy. */
+static void stalled_browser_never_blocks_publish(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "cylinder", 64);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int fd = connect_local(iso_display_port(d));
+    send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                 "Sec-WebSocket-Version: 13\r\n\r\n");
+    for (int w = 0; w < 500 && iso_display_clients(d) < 1; w++)
+        sleep_ms(10);
+    assert_int_equal(iso_display_clients(d), 1);
+    struct timespec t0, t1;
+    double worst = 0;
+    for (long tick = 0; tick < 400; tick++) { /* ~400 x 100 KB: far beyond socket buffers */
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        assert_int_equal(iso_display_publish(d, tick, s.shape.x, NULL, NULL), ISO_OK);
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        double ms = (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) / 1e6;
+        worst = ms > worst ? ms : worst;
+        if (tick % 50 == 0)
+            sleep_ms(5);
+    }
+    print_message("stalled browser: slowest publish %.3f ms\n", worst);
+    assert_true(worst < 50);
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    iso_display_destroy(d);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double ms = (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) / 1e6;
+    print_message("stalled browser: destroy took %.0f ms\n", ms);
+    close(fd);
+    scene_deinit(&s);
+}
+
 /* ---- (d) a real browser ------------------------------------------------- */
 
 typedef struct publisher {
@@ -543,8 +579,7 @@ static void chromium_renders_live_page(void **state)
                        abs(c[2] - ISO_SNAPSHOT_BG_B) >
                    60;
         }
-    print_message("chromium: %ld of %d pixels differ from the background\n", lit,
-                  pic.w * pic.h);
+    print_message("chromium: %ld of %d pixels differ from the background\n", lit, pic.w * pic.h);
     assert_true(lit > pic.w * pic.h / 50);
     const unsigned char *mid = pixel(&pic, 400, 330);
     assert_false(abs(mid[0] - ISO_SNAPSHOT_BG_R) + abs(mid[1] - ISO_SNAPSHOT_BG_G) +
@@ -561,6 +596,7 @@ int main(void)
         cmocka_unit_test(snapshot_shows_mesh_and_distortion),
         cmocka_unit_test(ply_frames_round_trip_exactly),
         cmocka_unit_test(server_serves_page_and_streams_frames),
+        cmocka_unit_test(stalled_browser_never_blocks_publish),
         cmocka_unit_test(chromium_renders_live_page),
     };
     return cmocka_run_group_tests_name("display", t, NULL, NULL);
