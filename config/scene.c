@@ -1421,7 +1421,8 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
             rc = iso_err_set(err, ISO_EPARSE, e->line + 1, "%s:%d:%d: YAML syntax error: %s", path,
                              e->line + 1, e->column + 1, e->msg ? e->msg : "?");
         else
-            rc = iso_err_set(err, ISO_EPARSE, -1, "%s: YAML syntax error", path);
+            rc = iso_err_set(err, ISO_EPARSE, 1, "%s:1:1: (top level): the file is empty or holds "
+                             "no YAML document (expected a mapping with mesh and regions)", path);
         goto out;
     }
     sctx c = {.s = s, .file = path, .err = err, .check_files = !(opts->flags & ISO_SCENE_PARSE_ONLY)};
