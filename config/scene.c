@@ -19,7 +19,9 @@
 
 /* Key paths ("regions.handles[0].select[2].box.min") are built into fixed
  * buffers for messages; a path longer than KEY_MAX is cut, by design. */
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wformat-truncation"
+#endif
 
 /* ------------------------------------------------------------------------ */
 /* Context and messages                                                      */
@@ -30,6 +32,12 @@ typedef struct sctx {
     const char *file; /* the scene's name in messages */
     iso_err *err;
     int check_files;  /* 0 with ISO_SCENE_PARSE_ONLY */
+    /* Scalar text, copied: libfyaml 0.7.12's fy_node_get_scalar0() leaks
+     * the NUL-terminated copy it makes of a scalar in several chunks
+     * (found by fuzz_scene), so we copy from fy_node_get_scalar(). A ring,
+     * because a caller may hold a few at once. */
+    char text[8][ISO_SCENE_PATH_MAX];
+    unsigned next;
 } sctx;
 
 typedef struct fy_node fnode;
@@ -136,6 +144,8 @@ static void list_keys(char *buf, size_t cap, const char *const *known)
     }
 }
 
+static const char *scalar(sctx *c, fnode *n);
+
 static const char *type_name(fnode *n)
 {
     if (!n)
@@ -165,8 +175,7 @@ static int check_keys(sctx *c, fnode *map, const char *path, const char *const *
     struct fy_node_pair *p;
     while ((p = fy_node_mapping_iterate(map, &it)) != NULL) {
         fnode *k = fy_node_pair_key(p);
-        const char *ks = k && fy_node_is_scalar(k) && !fy_node_is_alias(k) ? fy_node_get_scalar0(k)
-                                                                           : NULL;
+        const char *ks = scalar(c, k);
         if (!ks)
             return fail(c, k ? k : map, ISO_EPARSE, path && *path ? path : "(top level)",
                         "expected a plain key, found %s", type_name(k));
@@ -194,16 +203,25 @@ static fnode *get(fnode *map, const char *name)
 }
 
 /* The text of a scalar (NULL for collections and aliases). */
-static const char *scalar(fnode *n)
+static const char *scalar(sctx *c, fnode *n)
 {
     if (!n || !fy_node_is_scalar(n) || fy_node_is_alias(n))
         return NULL;
-    return fy_node_get_scalar0(n);
+    size_t len = 0;
+    const char *t = fy_node_get_scalar(n, &len);
+    if (!t)
+        return NULL;
+    char *buf = c->text[c->next++ % 8];
+    if (len >= ISO_SCENE_PATH_MAX)
+        len = ISO_SCENE_PATH_MAX - 1; /* longer than any field: refused by to_string */
+    memcpy(buf, t, len);
+    buf[len] = '\0';
+    return buf;
 }
 
 static int to_double(sctx *c, fnode *n, const char *key, double *out)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     if (!t)
         return fail(c, n, ISO_EPARSE, key, "expected a number, found %s", type_name(n));
     char *end;
@@ -217,7 +235,7 @@ static int to_double(sctx *c, fnode *n, const char *key, double *out)
 
 static int to_long(sctx *c, fnode *n, const char *key, long lo, long hi, long *out)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     if (!t)
         return fail(c, n, ISO_EPARSE, key, "expected an integer, found %s", type_name(n));
     char *end;
@@ -245,7 +263,7 @@ static int to_bool(sctx *c, fnode *n, const char *key, int *out)
 {
     static const char *const yes[] = {"true", "yes", "on", NULL};
     static const char *const no[] = {"false", "no", "off", NULL};
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     for (size_t i = 0; t && yes[i]; i++)
         if (strcmp(t, yes[i]) == 0)
             return (*out = 1), ISO_OK;
@@ -259,7 +277,7 @@ static int to_bool(sctx *c, fnode *n, const char *key, int *out)
 /* One of `names` (NULL-terminated); *out is its index. */
 static int to_enum(sctx *c, fnode *n, const char *key, const char *const *names, int *out)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     char all[256];
     list_keys(all, sizeof all, names);
     if (!t)
@@ -276,7 +294,7 @@ static int to_enum(sctx *c, fnode *n, const char *key, const char *const *names,
 
 static int to_string(sctx *c, fnode *n, const char *key, char *out, size_t cap)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     if (!t || !*t)
         return fail(c, n, ISO_EPARSE, key, "expected a non-empty string, found %s",
                     t ? "an empty one" : type_name(n));
@@ -699,7 +717,7 @@ static int parse_keyframes(sctx *c, fnode *n, const char *key, iso_scene_driver 
 
 static int find_device(sctx *c, fnode *n, const char *key, int *out)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     if (!t)
         return fail(c, n, ISO_EPARSE, key, "expected a device name, found %s", type_name(n));
     const char *names[ISO_SCENE_MAX_DEVICES + 1];
@@ -726,7 +744,7 @@ static int parse_driver(sctx *c, fnode *n, const char *key, iso_scene_driver *d)
     int rc;
     iso_dev_map_opts_default(&d->map);
     d->device = -1;
-    if (n && scalar(n) && strcmp(scalar(n), "none") == 0)
+    if (n && scalar(c, n) && strcmp(scalar(c, n), "none") == 0)
         return (d->kind = ISO_SCENE_DRIVE_NONE), ISO_OK;
     if ((rc = want_map(c, n, key, "none, {device, mapping}, {screw} or {keyframes}")) ||
         (rc = check_keys(c, n, key, keys)))
@@ -770,7 +788,7 @@ static int parse_driver(sctx *c, fnode *n, const char *key, iso_scene_driver *d)
                     d->duration);
     fnode *def = get(screw, "def");
     join(sub2, sizeof sub2, sub, "def");
-    if (!def || (scalar(def) && strcmp(scalar(def), "builtin") == 0))
+    if (!def || (scalar(c, def) && strcmp(scalar(c, def), "builtin") == 0))
         d->def[0] = '\0';
     else if ((rc = file_at(c, def, sub2, d->def, sizeof d->def)))
         return rc;
@@ -789,7 +807,7 @@ static int parse_regions(sctx *c, fnode *n)
     fnode *sel = get(n, "sel"), *fixed = get(n, "fixed"), *handles = get(n, "handles");
     mark_of(sel ? sel : n, &s->sel_line, &s->sel_col);
     if (sel) {
-        if (scalar(sel) && strcmp(scalar(sel), "builtin") == 0)
+        if (scalar(c, sel) && strcmp(scalar(c, sel), "builtin") == 0)
             snprintf(s->sel, sizeof s->sel, "builtin");
         else if ((rc = file_at(c, sel, "regions.sel", s->sel, sizeof s->sel)))
             return rc;
@@ -888,7 +906,7 @@ static int parse_solver(sctx *c, fnode *n)
         (rc = to_int(c, v, "solver.cg_max_iter", 1, 100000, &o->cg_max_iter)))
         return rc;
     if ((v = get(n, "restore"))) {
-        if (scalar(v) && strcmp(scalar(v), "off") == 0) {
+        if (scalar(c, v) && strcmp(scalar(c, v), "off") == 0) {
             o->restore_mu = 0;
             o->restore_tau = 0;
             return ISO_OK;
@@ -953,7 +971,7 @@ const char *iso_scene_backend_name(int b)
 /* "host:port" with a port in 1..65535. */
 static int host_port(sctx *c, fnode *n, const char *key, char *host, size_t cap, int *port)
 {
-    const char *t = scalar(n);
+    const char *t = scalar(c, n);
     const char *colon = t ? strrchr(t, ':') : NULL;
     char *end;
     long p = colon ? strtol(colon + 1, &end, 10) : 0;
@@ -1403,17 +1421,53 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
     struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_COLLECT_DIAG, .diag = diag};
     struct fy_document *doc = NULL;
     int rc = ISO_OK;
-    if (text) {
-        doc = fy_document_build_from_string(&cfg, text, len);
-    } else {
+    char *owned = NULL;
+    if (!text) {
         FILE *f = fopen(path, "rb");
         if (!f) {
             rc = iso_err_set(err, ISO_EIO, -1, "%s: cannot open the scene: %s", path, strerror(errno));
             goto out;
         }
+        size_t cap = 0;
+        len = 0;
+        for (;;) {
+            if (len == cap) {
+                char *p = cap < (16u << 20) ? realloc(owned, cap ? 2 * cap : 4096) : NULL;
+                if (!p) {
+                    fclose(f);
+                    rc = iso_err_set(err, ISO_EINVAL, -1, "%s: larger than 16 MiB, not a scene", path);
+                    goto out;
+                }
+                owned = p;
+                cap = cap ? 2 * cap : 4096;
+            }
+            size_t n = fread(owned + len, 1, cap - len, f);
+            len += n;
+            if (n == 0)
+                break;
+        }
         fclose(f);
-        doc = fy_document_build_from_file(&cfg, path);
+        text = owned ? owned : "";
     }
+    /* libfyaml 0.7.12 can loop forever scanning a malformed directive
+     * (found by fuzz_scene), and scenes have no use for directives: refuse
+     * any line that starts with '%' (after LF or CR), and control bytes,
+     * before the parser sees them. */
+    for (size_t i = 0, line = 1; i < len; i++) {
+        unsigned char ch = (unsigned char)text[i];
+        if (ch < 0x20 && ch != '\t' && ch != '\n' && ch != '\r') {
+            rc = iso_err_set(err, ISO_EPARSE, (long)line, "%s:%zu: control byte 0x%02x: a scene is "
+                             "a text file", path, line, ch);
+            goto out;
+        }
+        if ((i == 0 || text[i - 1] == '\n' || text[i - 1] == '\r') && ch == '%') {
+            rc = iso_err_set(err, ISO_EPARSE, (long)line, "%s:%zu:1: YAML directives ('%%...') are "
+                             "not supported in scene files", path, line);
+            goto out;
+        }
+        line += text[i] == '\n';
+    }
+    doc = fy_document_build_from_string(&cfg, text, len);
     if (!doc) {
         void *it = NULL;
         struct fy_diag_error *e = fy_diag_errors_iterate(diag, &it);
@@ -1425,13 +1479,24 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
                              "no YAML document (expected a mapping with mesh and regions)", path);
         goto out;
     }
-    sctx c = {.s = s, .file = path, .err = err, .check_files = !(opts->flags & ISO_SCENE_PARSE_ONLY)};
-    rc = parse_root(&c, fy_document_root(doc));
+    sctx *c0 = calloc(1, sizeof *c0);
+    if (!c0) {
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+        goto out;
+    }
+    c0->s = s;
+    c0->file = path;
+    c0->err = err;
+    c0->check_files = !(opts->flags & ISO_SCENE_PARSE_ONLY);
+    rc = parse_root(c0, fy_document_root(doc));
     fy_document_destroy(doc);
     doc = NULL;
-    if (rc == ISO_OK && c.check_files)
+    int check_files = c0->check_files;
+    free(c0);
+    if (rc == ISO_OK && check_files)
         rc = iso_scene__build(s, opts, err);
 out:
+    free(owned);
     fy_diag_destroy(diag);
     if (rc != ISO_OK) {
         iso_scene_destroy(s);
