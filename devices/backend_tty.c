@@ -74,9 +74,9 @@ static void tty_close(iso_dev_source *s)
 
 static const iso_dev_source_ops tty_ops = {"tty", tty_fd, tty_read, NULL, tty_close};
 
-int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_err *err)
+int iso_dev_tty_open_raw(const char *path, uint32_t baud, int *fd_out, iso_err *err)
 {
-    *out = NULL;
+    *fd_out = -1;
     speed_t sp = baud_code(baud);
     if (!sp)
         return iso_err_set(err, ISO_EINVAL, -1,
@@ -91,14 +91,13 @@ int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_
         close(fd);
         return ISO_EIO;
     }
-    /* cfmakeraw by hand (it is not POSIX). */
-    tio.c_iflag &= ~(tcflag_t)(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON);
+    /* cfmakeraw by hand (it is not POSIX), 8N1, no flow control. */
+    tio.c_iflag &= ~(tcflag_t)(IGNBRK | BRKINT | PARMRK | ISTRIP | INLCR | IGNCR | ICRNL | IXON |
+                               IXOFF | IXANY);
     tio.c_oflag &= ~(tcflag_t)OPOST;
     tio.c_lflag &= ~(tcflag_t)(ECHO | ECHONL | ICANON | ISIG | IEXTEN);
-    tio.c_cflag &= ~(tcflag_t)(CSIZE | PARENB);
-    tio.c_cflag |= CS8;
-    tio.c_cflag |= CLOCAL | CREAD;
-    tio.c_cflag &= ~(tcflag_t)(CSTOPB | PARENB);
+    tio.c_cflag &= ~(tcflag_t)(CSIZE | PARENB | CSTOPB);
+    tio.c_cflag |= CS8 | CLOCAL | CREAD;
     tio.c_cc[VMIN] = 0;
     tio.c_cc[VTIME] = 0;
     cfsetispeed(&tio, sp);
@@ -108,6 +107,17 @@ int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_
         close(fd);
         return ISO_EIO;
     }
+    *fd_out = fd;
+    return ISO_OK;
+}
+
+int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_err *err)
+{
+    *out = NULL;
+    int fd;
+    int rc = iso_dev_tty_open_raw(path, baud, &fd, err);
+    if (rc != ISO_OK)
+        return rc;
     iso_dev_source *s = calloc(1, sizeof *s);
     tty *t = calloc(1, sizeof *t);
     if (!s || !t) {

@@ -1,15 +1,13 @@
 /* firmware-bridge/link_tty.c -- POSIX tty backend: real UARTs, ptys and
  * QEMU's -serial pty. Raw 8N1 without flow control, non-blocking fd. */
-#define _DEFAULT_SOURCE /* cfsetspeed rates beyond POSIX's table */
 #include <errno.h>
-#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <termios.h>
 #include <unistd.h>
 
 #include "internal.h"
+#include "iso_dev.h"
 
 typedef struct tty_link {
     iso_link base;
@@ -19,51 +17,14 @@ typedef struct tty_link {
     char what[280]; /* "tty /dev/ttyUSB0" for messages */
 } tty_link;
 
-static speed_t baud_constant(int baud)
-{
-    switch (baud) {
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 115200: return B115200;
-    case 230400: return B230400;
-    case 460800: return B460800;
-    case 921600: return B921600;
-    default: return 0;
-    }
-}
-
-static int tty_configure(int fd, int baud, const char *what, iso_err *err)
-{
-    struct termios t;
-    if (tcgetattr(fd, &t) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: not a terminal: %s", what, strerror(errno));
-    cfmakeraw(&t);
-    t.c_cflag |= CLOCAL | CREAD;
-    t.c_cflag &= ~(tcflag_t)(CSTOPB | PARENB | CRTSCTS);
-    t.c_iflag &= ~(tcflag_t)(IXON | IXOFF | IXANY);
-    t.c_cc[VMIN] = 0;
-    t.c_cc[VTIME] = 0;
-    speed_t s = baud_constant(baud);
-    if (s && (cfsetispeed(&t, s) != 0 || cfsetospeed(&t, s) != 0))
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot set %d baud: %s", what, baud, strerror(errno));
-    if (tcsetattr(fd, TCSANOW, &t) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: tcsetattr: %s", what, strerror(errno));
-    return ISO_OK;
-}
-
+/* Opening and raw configuration are the devices layer's, so a port behaves
+ * the same whether it feeds an input source or this link. */
 static int tty_connect(tty_link *t, iso_err *err)
 {
-    t->fd = open(t->path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-    if (t->fd < 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: open: %s", t->what, strerror(errno));
-    int rc = tty_configure(t->fd, t->baud, t->what, err);
-    if (rc != ISO_OK) {
-        close(t->fd);
-        t->fd = -1;
-    }
-    return rc;
+    if (t->baud <= 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: baud rate %d is not positive", t->what,
+                           t->baud);
+    return iso_dev_tty_open_raw(t->path, (uint32_t)t->baud, &t->fd, err);
 }
 
 static int tty_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
@@ -107,8 +68,6 @@ int iso_link_tty_open(const char *path, int baud, iso_link **out, iso_err *err)
         return iso_err_set(err, ISO_EINVAL, -1, "tty link: NULL path or out");
     if (strlen(path) >= sizeof ((tty_link *)0)->path)
         return iso_err_set(err, ISO_EINVAL, -1, "tty link: path too long: %.64s...", path);
-    if (baud_constant(baud) == 0)
-        return iso_err_set(err, ISO_EINVAL, -1, "tty %s: unsupported baud rate %d", path, baud);
     tty_link *t = calloc(1, sizeof *t);
     if (!t)
         return iso_err_set(err, ISO_ENOMEM, -1, "tty %s: out of memory", path);
