@@ -68,7 +68,7 @@ static void test_examples_load(void **state)
     static const char *const names[] = {"cactus", "bar", "cylinder", "bumpplane", "mouse_cactus",
                                         "replay_cactus"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
-        char path[512];
+        char path[1100];
         snprintf(path, sizeof path, "%s/%s.yaml", SCENES, names[i]);
         iso_scene *s = NULL;
         iso_err err;
