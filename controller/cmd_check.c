@@ -11,21 +11,6 @@
 
 int iso_cli__check(int argc, char **argv);
 
-/* The scene layer resolves `benchmark:` through the command's own lookup,
- * so a scene finds the benchmark exactly where --benchmark does. */
-static int bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
-                      size_t why_cap)
-{
-    (void)ctx;
-    iso_cli__bench b;
-    if (!iso_cli__bench_find(name, NULL, &b, why, why_cap))
-        return 0;
-    snprintf(mesh, ISO_SCENE_PATH_MAX, "%s", b.mesh);
-    snprintf(sel, ISO_SCENE_PATH_MAX, "%s", b.sel);
-    snprintf(def, ISO_SCENE_PATH_MAX, "%s", b.def);
-    return 1;
-}
-
 static void print_summary(const iso_scene *s)
 {
     const iso_scene_mesh_src *m = &s->mesh_src;
@@ -96,14 +81,9 @@ int iso_cli__check(int argc, char **argv)
     }
     iso_err err;
     iso_err_clear(&err);
-    iso_scene_opts opts = {.bench_find = bench_find};
     iso_scene *s = NULL;
-    if (iso_scene_load_opts(path, &opts, &s, &err) != ISO_OK) {
-        fprintf(stderr, "isoshape check: %s\n", err.msg);
+    if (iso_cli__scene_load("check", path, &s) != 0)
         return 1;
-    }
-    if (s->mesh_src.note[0])
-        fprintf(stderr, "isoshape check: %s\n", s->mesh_src.note);
     iso_solver *solver = NULL;
     iso_solver_opts so = s->solver;
     so.assembly = ISO_ASSEMBLY_CPU; /* the constraints' check does not need OpenCL */

@@ -176,4 +176,14 @@ double iso_cli__factor_flops(const iso_solver *s);
 /* 1e3 * seconds / evaluations, NAN when there were none. */
 double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 
+/* ------------------------------------------------------------------------ */
+/* Scenes (cli_scene.c)                                                       */
+/* ------------------------------------------------------------------------ */
+
+struct iso_scene;
+/* Loads a scene file, resolving `benchmark:` exactly like --benchmark does;
+ * prints the fallback notice, or the error as "isoshape <cmd>: ...".
+ * Returns 0 with *out set, or 1. */
+int iso_cli__scene_load(const char *cmd, const char *path, struct iso_scene **out);
+
 #endif

@@ -4,6 +4,7 @@
  *   isoshape field    one field solve at the rest pose
  *   isoshape metrics  distortion between two meshes
  *   isoshape bench    the four benchmark problems, timed against this machine's limits
+ *   isoshape run      a scene in real time (controller/loop.h)
  *   isoshape --version */
 #include "internal.h"
 
@@ -27,6 +28,7 @@ static void usage(FILE *f)
             "  inspect  print a device recording, record by record, decoded\n"
             "  devices  list input devices, usable or why not\n"
             "  check    validate a scene file without running it\n"
+            "  run      run a scene: devices or a replay drive the mesh in real time\n"
             "\n"
             "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
             "  isoshape <command> --help\n");
@@ -38,6 +40,7 @@ int iso_cli__replay(int argc, char **argv);
 int iso_cli__inspect(int argc, char **argv);
 int iso_cli__devices(int argc, char **argv);
 int iso_cli__check(int argc, char **argv); /* controller/cmd_check.c */
+int iso_cli__run_scene(int argc, char **argv);   /* controller/cmd_run.c */
 
 int main(int argc, char **argv)
 {
@@ -73,9 +76,11 @@ int main(int argc, char **argv)
         return iso_cli__devices(argc - 1, argv + 1);
     if (strcmp(cmd, "check") == 0)
         return iso_cli__check(argc - 1, argv + 1);
+    if (strcmp(cmd, "run") == 0)
+        return iso_cli__run_scene(argc - 1, argv + 1);
     if (cmd[0] == '-')
         iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
     else
-        iso_cli__fail(NULL, "unknown command '%s': use deform, field, metrics or bench.", cmd);
+        iso_cli__fail(NULL, "unknown command '%s': see isoshape --help.", cmd);
     return 2;
 }

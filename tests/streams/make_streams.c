@@ -4,12 +4,13 @@
  *
  *   cc -std=c11 -D_POSIX_C_SOURCE=200809L -I devices -I common -I solver \
  *      -I firmware-bridge tests/streams/make_streams.c -L build-dev -lisoshape \
- *      -Wl,-rpath,$PWD/build-dev -o /tmp/make_streams && /tmp/make_streams tests/streams
+ *      -lm -Wl,-rpath,$PWD/build-dev -o /tmp/make_streams && /tmp/make_streams tests/streams
  *
  * test_dev_streams.c replays each one and asserts what it decodes to. */
 #include "iso_dev.h"
 #include "iso_fb.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -109,9 +110,64 @@ static size_t sample_frame(uint8_t *dst, uint16_t seq, int kind, unsigned button
     return (size_t)w;
 }
 
+/* A 3D-mouse session of 6.5 s for the README's main job: a SpaceMouse
+ * Wireless receiver reporting every 8 ms (combined report 1, as the real
+ * one does), ticks at 60 Hz. Bends the cactus's top over like the
+ * benchmark's handle motion (rx with ty and tz), holds the clutch while
+ * deflecting (nothing may move), then brings it a third of the way back
+ * with a twist (rz). Deflections rise
+ * and fall as sin² bumps with a few counts of sensor noise (a fixed LCG, so
+ * the file is the same on every rebuild). */
+static unsigned lcg_state = 12345u;
+static int noise(void)
+{
+    lcg_state = lcg_state * 1103515245u + 12345u;
+    return (int)((lcg_state >> 16) % 7u) - 3; /* -3..3 counts, inside the dead zone */
+}
+
+static double bump(double t, double t0, double t1)
+{
+    if (t <= t0 || t >= t1)
+        return 0;
+    double s = sin(3.14159265358979323846 * (t - t0) / (t1 - t0));
+    return s * s;
+}
+
+static void session(void)
+{
+    iso_dev_info one = hid_info(0x256f, 0xc652, "SpaceMouse Wireless (receiver)");
+    start("sm_session.isorec", &one, 1);
+    const int64_t tick_ns = 16666667, report_ns = 8 * MS, end = 6500 * MS;
+    int64_t next_tick = tick_ns, next_report = 4 * MS;
+    unsigned buttons = 0;
+    while (next_tick <= end) {
+        if (next_report < next_tick) {
+            double t = (double)next_report * 1e-9;
+            int rx = (int)lround(-330 * bump(t, 0.3, 3.3) - 300 * bump(t, 3.6, 4.6) +
+                                 150 * bump(t, 4.8, 6.3));
+            int ty = (int)lround(280 * bump(t, 0.3, 3.3) - 120 * bump(t, 4.8, 6.3));
+            int tz = (int)lround(-200 * bump(t, 0.3, 3.3) + 80 * bump(t, 4.8, 6.3));
+            int rz = (int)lround(100 * bump(t, 4.8, 6.3));
+            unsigned b = (t >= 3.55 && t < 4.65) ? 1u : 0u; /* clutch around the 2nd bump */
+            if (b != buttons)
+                hid_buttons(0, next_report, b);
+            buttons = b;
+            hid6(0, next_report, noise(), ty + noise(), tz + noise(), rx + noise(), noise(),
+                 rz + noise());
+            next_report += report_ns;
+        } else {
+            tick(next_tick);
+            next_tick += tick_ns;
+        }
+    }
+    fclose(f);
+}
+
 int main(int argc, char **argv)
 {
     snprintf(dir, sizeof dir, "%s", argc > 1 ? argv[1] : ".");
+
+    session();
 
     /* 1. A 3D-mouse twist: the universal receiver (combined 13-byte report 1)
      * and a SpaceNavigator (split reports 1 and 2), ticks every 1 ms. */

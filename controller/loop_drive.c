@@ -1,0 +1,120 @@
+/* controller/loop_drive.c -- the scripted handle drivers of a scene as one
+ * world twist per tick: a `.def` screw spread over its duration, and
+ * keyframed poses.
+ *
+ * Keyframes: key k says "at time t_k the handle is translated by T_k and
+ * rotated by the rotation vector r_k about its rest centroid c", i.e. the
+ * pose y = R_k (x - c) + c + T_k. Between keys T and r are interpolated
+ * linearly (before the first key from the rest pose at t = 0; after the last
+ * the pose holds). The tick's twist is the one constant twist that carries
+ * the handle from where it is now to the keyframed pose at the tick's end:
+ * ξ = log(P(t+h) G⁻¹) / h. Aiming at the pose, not differentiating it,
+ * means round-off and clamped steps never accumulate into drift. */
+#include "loop_internal.h"
+
+#include <string.h>
+
+/* Pose of a keyframed handle at time t; c is its rest centroid. */
+static void key_pose(const iso_scene_driver *d, const double c[3], double t, iso_pose *P)
+{
+    const iso_scene_keyframe *k = d->keys;
+    int n = d->n_keys;
+    double tr[3] = {0, 0, 0}, rv[3] = {0, 0, 0};
+    if (t >= k[n - 1].t) {
+        memcpy(tr, k[n - 1].translate, sizeof tr);
+        memcpy(rv, k[n - 1].rotate, sizeof rv);
+    } else {
+        static const double rest[3] = {0, 0, 0}; /* before the first key */
+        double t0 = 0, a;
+        const double *tr0 = rest, *rv0 = rest;
+        int i = 0;
+        while (i < n && k[i].t <= t) {
+            t0 = k[i].t;
+            tr0 = k[i].translate;
+            rv0 = k[i].rotate;
+            i++;
+        }
+        a = k[i].t > t0 ? (t - t0) / (k[i].t - t0) : 1.0;
+        for (int j = 0; j < 3; j++) {
+            tr[j] = tr0[j] + a * (k[i].translate[j] - tr0[j]);
+            rv[j] = rv0[j] + a * (k[i].rotate[j] - rv0[j]);
+        }
+    }
+    iso_twist w;
+    memset(&w, 0, sizeof w);
+    for (int j = 0; j < 3; j++)
+        w.w[j] = rv[j] * (3.14159265358979323846 / 180.0);
+    iso_pose rot;
+    iso_twist_exp(&w, 1.0, &rot); /* v = 0: a pure rotation about the origin */
+    memcpy(P->R, rot.R, sizeof P->R);
+    double Rc[3];
+    iso_pose_apply(&rot, c, Rc);
+    for (int j = 0; j < 3; j++)
+        P->p[j] = c[j] + tr[j] - Rc[j];
+}
+
+int iso_loop__twist_between(const iso_pose *G, const iso_pose *P, double h, iso_twist *xi,
+                            iso_err *err)
+{
+    double M[16] = {0};
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++) {
+            double s = 0;
+            for (int q = 0; q < 3; q++)
+                s += P->R[3 * i + q] * G->R[3 * j + q]; /* R_P R_Gᵀ */
+            M[4 * i + j] = s;
+        }
+    }
+    for (int i = 0; i < 3; i++) {
+        double s = P->p[i];
+        for (int j = 0; j < 3; j++)
+            s -= M[4 * i + j] * G->p[j];
+        M[4 * i + 3] = s;
+    }
+    M[15] = 1;
+    int rc = iso_twist_from_matrix(M, xi, err);
+    if (rc != ISO_OK)
+        return rc;
+    for (int j = 0; j < 3; j++) {
+        xi->w[j] /= h;
+        xi->v[j] /= h;
+    }
+    return ISO_OK;
+}
+
+int iso_loop__scripted_twist(const iso_scene_driver *d, const double c[3], const iso_pose *G,
+                             double t, double h, iso_twist *xi, int *crossed, iso_err *err)
+{
+    memset(xi, 0, sizeof *xi);
+    *crossed = 0;
+    if (d->kind == ISO_SCENE_DRIVE_SCREW) {
+        /* exp(1·ξ) = M, spread evenly over [0, duration] */
+        double T = d->duration;
+        double a = t < T ? t : T, b = t + h < T ? t + h : T;
+        double f = (b - a) / (T * h);
+        for (int j = 0; j < 3; j++) {
+            xi->w[j] = d->twist.w[j] * f;
+            xi->v[j] = d->twist.v[j] * f;
+        }
+        *crossed = t < T && t + h >= T;
+        return ISO_OK;
+    }
+    if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES) {
+        for (int i = 0; i < d->n_keys; i++)
+            if (d->keys[i].t > t && d->keys[i].t <= t + h)
+                *crossed = 1;
+        iso_pose P;
+        key_pose(d, c, t + h, &P);
+        return iso_loop__twist_between(G, &P, h, xi, err);
+    }
+    return ISO_OK;
+}
+
+double iso_loop__scripted_end(const iso_scene_driver *d)
+{
+    if (d->kind == ISO_SCENE_DRIVE_SCREW)
+        return d->duration;
+    if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES)
+        return d->keys[d->n_keys - 1].t;
+    return 0;
+}

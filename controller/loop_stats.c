@@ -1,0 +1,194 @@
+/* controller/loop_stats.c -- tick statistics of the real-time loop, and the
+ * summary it prints and writes as JSON. Samples are kept whole rather than
+ * in a histogram: quantiles are exact, and a long run costs 16 bytes a tick. */
+#include "loop.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void iso_loop__stats_init(iso_loop_stats *s)
+{
+    memset(s, 0, sizeof *s);
+}
+
+void iso_loop__stats_deinit(iso_loop_stats *s)
+{
+    free(s->tick_ms);
+    free(s->lat_ms);
+    memset(s, 0, sizeof *s);
+}
+
+int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms, iso_err *err)
+{
+    if (s->n == s->cap) {
+        long nc = s->cap ? 2 * s->cap : 4096;
+        double *a = realloc(s->tick_ms, (size_t)nc * sizeof *a);
+        if (a)
+            s->tick_ms = a;
+        double *b = realloc(s->lat_ms, (size_t)nc * sizeof *b);
+        if (b)
+            s->lat_ms = b;
+        if (!a || !b)
+            return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %ld tick samples", nc);
+        s->cap = nc;
+    }
+    s->tick_ms[s->n] = tick_ms;
+    s->lat_ms[s->n] = lat_ms;
+    s->n++;
+    s->recent[s->head] = tick_ms;
+    s->head = (s->head + 1) % (int)(sizeof s->recent / sizeof s->recent[0]);
+    if (s->n_recent < (int)(sizeof s->recent / sizeof s->recent[0]))
+        s->n_recent++;
+    return ISO_OK;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+double iso_loop__quantile(const double *v, long n, double q)
+{
+    if (n <= 0)
+        return NAN;
+    double *c = malloc((size_t)n * sizeof *c);
+    if (!c)
+        return NAN;
+    memcpy(c, v, (size_t)n * sizeof *c);
+    qsort(c, (size_t)n, sizeof *c, cmp_double);
+    /* nearest rank: the smallest value with at least q of the samples at or below it */
+    long k = (long)ceil(q * (double)n) - 1;
+    if (k < 0)
+        k = 0;
+    if (k >= n)
+        k = n - 1;
+    double r = c[k];
+    free(c);
+    return r;
+}
+
+void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, double *max)
+{
+    *med = iso_loop__quantile(s->recent, s->n_recent, 0.5);
+    *p99 = iso_loop__quantile(s->recent, s->n_recent, 0.99);
+    *max = iso_loop__quantile(s->recent, s->n_recent, 1.0);
+}
+
+/* ---- the summary ---------------------------------------------------------- */
+
+void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f)
+{
+    fprintf(f, "scene %s: %ld ticks, %.3f s of stream time in %.3f s wall (%.1f ticks/s)\n",
+            sc->name, s->ticks, s->stream_s, s->wall_s,
+            s->wall_s > 0 ? (double)s->ticks / s->wall_s : 0.0);
+    fprintf(f, "  tick time   median %.2f ms, p99 %.2f ms, max %.2f ms (period %.2f ms)\n",
+            s->tick_median, s->tick_p99, s->tick_max, s->period_ms);
+    fprintf(f, "  latency     median %.2f ms, p99 %.2f ms, max %.2f ms (input due to published)\n",
+            s->latency_median, s->latency_p99, s->latency_max);
+    fprintf(f, "  deadlines   %ld missed of %ld (%.2f%%), %ld skipped to catch up\n", s->misses,
+            s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
+    fprintf(f, "  integrator  %d steps (%d RK4, %ld restarts), %ld field evaluations\n",
+            s->integ.steps, s->integ.rk4_steps, s->restarts, s->integ.evaluations);
+    double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
+    fprintf(f,
+            "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms; "
+            "%ld factorizations, %ld CG iterations\n",
+            1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
+            1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations);
+    fprintf(f,
+            "  distortion  metricErr %.6g, areaErr %.6g, angleErr %.6g, max edge strain %.4g\n",
+            s->metrics.metric_err, s->metrics.area_err, s->metrics.angle_err,
+            s->metrics.max_edge_strain);
+    for (int h = 0; h < s->n_handles; h++)
+        fprintf(f, "  handle %d    '%s' at %.6g %.6g %.6g\n", h, sc->handles[h].name,
+                s->handle_p[h][0], s->handle_p[h][1], s->handle_p[h][2]);
+    if (sc->display.enabled || s->frames_sent)
+        fprintf(f, "  display     %ld frames sent\n", s->frames_sent);
+    if (s->ply_frames || s->snapshots)
+        fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames, s->snapshots);
+    if (s->act_line[0])
+        fprintf(f, "  actuators   %s\n", s->act_line);
+    fprintf(f, "  realtime    %s\n",
+            s->rt_active ? "SCHED_FIFO" : (s->rt_note[0] ? s->rt_note : "off (--fast or --no-rt)"));
+    fprintf(f, "  vertices checksum %016llx\n", (unsigned long long)s->checksum);
+}
+
+/* JSON numbers: non-finite values become null (JSON has no NaN). */
+static void num(FILE *f, const char *key, double v, int comma)
+{
+    if (isfinite(v))
+        fprintf(f, "\"%s\": %.17g%s", key, v, comma ? ", " : "");
+    else
+        fprintf(f, "\"%s\": null%s", key, comma ? ", " : "");
+}
+
+static void json_string(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(f, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(f, "\\u%04x", c);
+        else
+            fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const char *path,
+                        iso_err *err)
+{
+    FILE *f = fopen(path, "w");
+    if (!f)
+        return iso_err_set(err, ISO_EIO, -1, "--stats-json %s: cannot write it", path);
+    fprintf(f, "{\"scene\": ");
+    json_string(f, sc->name);
+    fprintf(f, ", \"ticks\": %ld, ", s->ticks);
+    num(f, "stream_s", s->stream_s, 1);
+    num(f, "wall_s", s->wall_s, 1);
+    num(f, "period_ms", s->period_ms, 1);
+    fprintf(f, "\n \"tick_ms\": {");
+    num(f, "median", s->tick_median, 1);
+    num(f, "p99", s->tick_p99, 1);
+    num(f, "max", s->tick_max, 0);
+    fprintf(f, "},\n \"latency_ms\": {");
+    num(f, "median", s->latency_median, 1);
+    num(f, "p99", s->latency_p99, 1);
+    num(f, "max", s->latency_max, 0);
+    fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses,
+            s->skipped, s->restarts);
+    fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"evaluations\": %ld,\n", s->integ.steps,
+            s->integ.rk4_steps, s->integ.evaluations);
+    fprintf(f, " \"solver\": {\"factorizations\": %ld, \"cg_iterations\": %ld, ",
+            s->solver.factorizations, s->solver.cg_iterations);
+    num(f, "assembly_s", s->solver.t_assembly, 1);
+    num(f, "factor_s", s->solver.t_factor, 1);
+    num(f, "solve_s", s->solver.t_solve, 0);
+    fprintf(f, "},\n \"metrics\": {");
+    num(f, "metric_err", s->metrics.metric_err, 1);
+    num(f, "area_err", s->metrics.area_err, 1);
+    num(f, "angle_err", s->metrics.angle_err, 1);
+    num(f, "max_edge_strain", s->metrics.max_edge_strain, 1);
+    num(f, "rms_edge_strain", s->metrics.rms_edge_strain, 0);
+    fprintf(f, "},\n \"handles\": [");
+    for (int h = 0; h < s->n_handles; h++) {
+        fprintf(f, "%s{\"name\": ", h ? ", " : "");
+        json_string(f, sc->handles[h].name);
+        fprintf(f, ", \"p\": [%.17g, %.17g, %.17g]}", s->handle_p[h][0], s->handle_p[h][1],
+                s->handle_p[h][2]);
+    }
+    fprintf(f, "],\n \"frames_sent\": %ld, \"ply_frames\": %ld, \"snapshots\": %ld, ",
+            s->frames_sent, s->ply_frames, s->snapshots);
+    fprintf(f, "\"realtime\": %s, \"memory_locked\": %s, ", s->rt_active ? "true" : "false",
+            s->mem_locked ? "true" : "false");
+    fprintf(f, "\"actuators\": ");
+    json_string(f, s->act_line);
+    fprintf(f, ",\n \"checksum\": \"%016llx\"}\n", (unsigned long long)s->checksum);
+    if (fclose(f) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "--stats-json %s: write failed", path);
+    return ISO_OK;
+}
