@@ -1,0 +1,503 @@
+/* sim/emu_firmware.c -- an actuator MCU without hardware, behind an
+ * iso_link: the real firmware ELF in qemu-system-arm, or the same protocol
+ * logic (iso_fb_mcu.c) in a thread. See iso_actuators.h. */
+#define _GNU_SOURCE /* openpty, prctl */
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <pthread.h>
+#include <pty.h>
+#include <sched.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "fb_test_config.h" /* ISO_FB_FIRMWARE_ELF, ISO_FB_QEMU_PATH: where the build put them */
+#include "iso_actuators.h"
+
+#define QEMU_CONNECT_MS 5000 /* QEMU connects its UART at start-up; loaded CI is slow */
+
+typedef struct emu_link {
+    iso_link base;
+    int mode; /* ISO_ACT_EMU_QEMU or ISO_ACT_EMU_NATIVE */
+    char what[64];
+    /* QEMU: its UART0 is a TCP connection it made to us */
+    pid_t qemu;
+    int sock;
+    /* native: the MCU logic on the pty master, the host on a tty link */
+    iso_link *tty;
+    int master, slave_keep;
+    pthread_t thread;
+    int thread_started;
+    atomic_int stop;
+    atomic_uint tx_dropped; /* bytes the host did not take in time */
+    iso_fb_mcu mcu;         /* touched only by the thread once it runs */
+    struct timespec t0;
+} emu_link;
+
+void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg)
+{
+    /* Keep in step with firmware-bridge/firmware/main.c; test_actuators
+     * compares this HELLO with the firmware's own under QEMU. */
+    iso_fb_mcu_config_default(cfg, 4);
+    cfg->ch[1].min = -1500;
+    cfg->ch[1].max = 1500;
+    cfg->ch[2].max_rate = 500;
+    cfg->ch[3].min = 0;
+    cfg->ch[3].max = 2000;
+    cfg->ch[3].safe = 0;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Socket I/O for the QEMU stream                                            */
+/* ------------------------------------------------------------------------ */
+
+static uint64_t now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
+static int ms_left(uint64_t deadline)
+{
+    uint64_t now = now_us();
+    return now >= deadline ? 0 : (int)((deadline - now + 999u) / 1000u);
+}
+
+static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
+{
+    struct pollfd p = {e->sock, POLLIN, 0};
+    int r = poll(&p, 1, timeout_ms < 0 ? 0 : timeout_ms);
+    if (r < 0 && errno != EINTR)
+        return iso_err_set(err, ISO_EIO, -1, "%s: poll: %s", e->what, strerror(errno));
+    if (r <= 0)
+        return 0;
+    ssize_t n = read(e->sock, buf, cap);
+    if (n > 0)
+        return (int)n;
+    if (n < 0 && (errno == EAGAIN || errno == EINTR))
+        return 0;
+    return iso_err_set(err, ISO_EIO, -1, "%s: QEMU closed its UART (%s)", e->what,
+                       n == 0 ? "end of stream" : strerror(errno));
+}
+
+static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
+{
+    uint64_t deadline = now_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
+    size_t done = 0;
+    while (done < n) {
+        ssize_t w = send(e->sock, buf + done, n - done, MSG_NOSIGNAL);
+        if (w > 0) {
+            done += (size_t)w;
+            continue;
+        }
+        if (w < 0 && errno != EAGAIN && errno != EINTR)
+            return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", e->what, strerror(errno));
+        int left = ms_left(deadline);
+        struct pollfd p = {e->sock, POLLOUT, 0};
+        if (left == 0 || poll(&p, 1, left) == 0)
+            return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms", e->what,
+                               timeout_ms);
+    }
+    return ISO_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The link                                                                   */
+/* ------------------------------------------------------------------------ */
+
+static int emu_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
+{
+    emu_link *e = (emu_link *)l;
+    if (e->mode == ISO_ACT_EMU_NATIVE)
+        return iso_link_read(e->tty, buf, cap, timeout_ms, err);
+    return sock_read(e, buf, cap, timeout_ms, err);
+}
+
+static int emu_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
+{
+    emu_link *e = (emu_link *)l;
+    if (e->mode == ISO_ACT_EMU_NATIVE)
+        return iso_link_write(e->tty, buf, n, timeout_ms, err);
+    return sock_write(e, buf, n, timeout_ms, err);
+}
+
+static int emu_poll_fd(iso_link *l)
+{
+    emu_link *e = (emu_link *)l;
+    return e->mode == ISO_ACT_EMU_NATIVE ? iso_link_poll_fd(e->tty) : e->sock;
+}
+
+/* The stream itself never breaks while the emulation lives, so a "loss"
+ * (no frame for link_timeout_ms, e.g. QEMU descheduled on a loaded machine)
+ * is answered by handshaking again on the same stream. */
+static int emu_reopen(iso_link *l, iso_err *err)
+{
+    emu_link *e = (emu_link *)l;
+    if (e->mode == ISO_ACT_EMU_QEMU) {
+        if (e->qemu <= 0 || waitpid(e->qemu, NULL, WNOHANG) != 0) {
+            e->qemu = -1;
+            return iso_err_set(err, ISO_EIO, -1, "%s: QEMU has exited", e->what);
+        }
+        return e->sock >= 0 ? ISO_OK : iso_err_set(err, ISO_EIO, -1, "%s: no UART stream", e->what);
+    }
+    return atomic_load(&e->stop) ? iso_err_set(err, ISO_EIO, -1, "%s: stopped", e->what) : ISO_OK;
+}
+
+static void emu_close(iso_link *l)
+{
+    emu_link *e = (emu_link *)l;
+    if (e->qemu > 0) {
+        kill(e->qemu, SIGKILL);
+        while (waitpid(e->qemu, NULL, 0) < 0 && errno == EINTR) {
+        }
+    }
+    if (e->thread_started) {
+        atomic_store(&e->stop, 1);
+        pthread_join(e->thread, NULL);
+    }
+    iso_link_close(e->tty);
+    if (e->sock >= 0)
+        close(e->sock);
+    if (e->master >= 0)
+        close(e->master);
+    if (e->slave_keep >= 0)
+        close(e->slave_keep);
+    free(e);
+}
+
+static const iso_link_ops emu_ops = {"emulated",  emu_read,   emu_write,
+                                     emu_poll_fd, emu_reopen, emu_close};
+
+static emu_link *emu_new(int mode)
+{
+    emu_link *e = calloc(1, sizeof *e);
+    if (!e)
+        return NULL;
+    e->base.ops = &emu_ops;
+    e->mode = mode;
+    e->qemu = -1;
+    e->sock = e->master = e->slave_keep = -1;
+    snprintf(e->what, sizeof e->what, "emulated MCU (%s)",
+             mode == ISO_ACT_EMU_QEMU ? "QEMU" : "native");
+    return e;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Native: iso_fb_mcu in a thread                                             */
+/* ------------------------------------------------------------------------ */
+
+static uint32_t mcu_ms(const emu_link *e)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    int64_t ms =
+        (int64_t)(ts.tv_sec - e->t0.tv_sec) * 1000 + (ts.tv_nsec - e->t0.tv_nsec) / 1000000;
+    return (uint32_t)ms;
+}
+
+/* The firmware queues replies in its UART ring and waits for room; here the
+ * pty buffer is the ring. A host that stops reading for 10 ms loses bytes
+ * (counted), as it would on a UART; the thread itself never stalls for
+ * long, so the watchdog keeps its 1 ms resolution. */
+static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
+{
+    emu_link *e = ctx;
+    size_t done = 0;
+    int waits = 0;
+    while (done < n) {
+        ssize_t w = write(e->master, bytes + done, n - done);
+        if (w > 0) {
+            done += (size_t)w;
+            continue;
+        }
+        if (w < 0 && errno != EAGAIN && errno != EINTR)
+            break;
+        struct pollfd p = {e->master, POLLOUT, 0};
+        if (waits++ >= 10 || poll(&p, 1, 1) < 0)
+            break;
+    }
+    if (done < n)
+        atomic_fetch_add(&e->tx_dropped, (unsigned)(n - done));
+}
+
+/* Hardware runs on its own; a thread shares the cores. On a loaded machine
+ * it can be descheduled for 100+ ms (measured: 151 ms with 5 runnable
+ * threads on 2 cores), which trips the link watchdog as a stalled host
+ * would. Real-time priority, where the process may take it, keeps the
+ * emulated clock honest; without it the emulation still works, with the
+ * occasional watchdog FAULT under load that the host recovers from. */
+static void try_realtime(void)
+{
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = sched_get_priority_min(SCHED_FIFO);
+    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
+static void *mcu_thread(void *arg)
+{
+    emu_link *e = arg;
+    try_realtime();
+    uint32_t last = mcu_ms(e);
+    uint8_t buf[256];
+    while (!atomic_load(&e->stop)) {
+        struct pollfd p = {e->master, POLLIN, 0};
+        int r = poll(&p, 1, 1);
+        if (r > 0 && (p.revents & POLLIN)) {
+            ssize_t n = read(e->master, buf, sizeof buf);
+            if (n > 0)
+                iso_fb_mcu_rx(&e->mcu, buf, (size_t)n);
+        } else if (r > 0 && (p.revents & (POLLHUP | POLLERR))) {
+            /* no slave open for a moment (a reopen): do not spin */
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+        }
+        uint32_t now = mcu_ms(e);
+        if (now != last) {
+            last = now;
+            iso_fb_mcu_tick(&e->mcu, now);
+        }
+    }
+    return NULL;
+}
+
+static int native_open(emu_link *e, iso_err *err)
+{
+    struct termios raw;
+    memset(&raw, 0, sizeof raw);
+    cfmakeraw(&raw);
+    char slave[128];
+    if (openpty(&e->master, &e->slave_keep, slave, &raw, NULL) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: openpty: %s", e->what, strerror(errno));
+    /* The kept slave fd stops the master reading EIO between host reopens. */
+    if (fcntl(e->master, F_SETFL, O_NONBLOCK) != 0 || fcntl(e->master, F_SETFD, FD_CLOEXEC) != 0 ||
+        fcntl(e->slave_keep, F_SETFD, FD_CLOEXEC) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: fcntl: %s", e->what, strerror(errno));
+    int rc = iso_link_tty_open(slave, 115200, &e->tty, err);
+    if (rc != ISO_OK)
+        return rc;
+    iso_fb_mcu_config cfg;
+    iso_act_emu_firmware_config(&cfg);
+    clock_gettime(CLOCK_MONOTONIC, &e->t0);
+    if (iso_fb_mcu_init(&e->mcu, &cfg, mcu_write, e, mcu_ms(e)) != 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: the firmware configuration is invalid",
+                           e->what);
+    int pe = pthread_create(&e->thread, NULL, mcu_thread, e);
+    if (pe != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: cannot start its thread: %s", e->what,
+                           strerror(pe));
+    e->thread_started = 1;
+    return ISO_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* QEMU                                                                       */
+/* ------------------------------------------------------------------------ */
+
+static int executable(const char *p)
+{
+    return p && p[0] && access(p, X_OK) == 0;
+}
+static int readable(const char *p)
+{
+    struct stat st;
+    return p && p[0] && stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* Returns 1 with the path in out, or 0 with where it looked in why. */
+static int find_qemu(char *out, size_t cap, char *why, size_t why_cap)
+{
+    const char *env = getenv("ISO_FB_QEMU");
+    if (env) {
+        snprintf(out, cap, "%s", env);
+        snprintf(why, why_cap, "ISO_FB_QEMU='%s' is %s", env, env[0] ? "not executable" : "empty");
+        return executable(env);
+    }
+    if (executable(ISO_FB_QEMU_PATH)) {
+        snprintf(out, cap, "%s", ISO_FB_QEMU_PATH);
+        return 1;
+    }
+    const char *path = getenv("PATH");
+    char dirs[4096];
+    snprintf(dirs, sizeof dirs, "%s", path ? path : "/usr/bin:/bin");
+    for (char *save = NULL, *d = strtok_r(dirs, ":", &save); d; d = strtok_r(NULL, ":", &save)) {
+        if ((size_t)snprintf(out, cap, "%s/qemu-system-arm", d) < cap && executable(out))
+            return 1;
+    }
+    snprintf(why, why_cap, "qemu-system-arm is not installed (not on PATH)");
+    return 0;
+}
+
+static int find_elf(char *out, size_t cap, char *why, size_t why_cap)
+{
+    const char *env = getenv("ISO_FB_FIRMWARE");
+    if (env) {
+        snprintf(out, cap, "%s", env);
+        snprintf(why, why_cap, "ISO_FB_FIRMWARE='%s' is not a file", env);
+        return readable(env);
+    }
+    if (readable(ISO_FB_FIRMWARE_ELF)) {
+        snprintf(out, cap, "%s", ISO_FB_FIRMWARE_ELF);
+        return 1;
+    }
+    char exe[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n > 0) {
+        exe[n] = '\0';
+        char *slash = strrchr(exe, '/');
+        if (slash) {
+            *slash = '\0';
+            static const char *const rel[] = {"fb_firmware.elf",
+                                              "../share/isoshape/fb_firmware.elf"};
+            for (size_t i = 0; i < 2; i++)
+                if ((size_t)snprintf(out, cap, "%s/%s", exe, rel[i]) < cap && readable(out))
+                    return 1;
+        }
+    }
+    snprintf(why, why_cap,
+             "the firmware ELF was not built (no arm-none-eabi-gcc at configure "
+             "time) nor found next to the program");
+    return 0;
+}
+
+static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *err)
+{
+    int lfd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    struct sockaddr_in a;
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t alen = sizeof a;
+    if (lfd < 0 || bind(lfd, (struct sockaddr *)&a, sizeof a) != 0 || listen(lfd, 1) != 0 ||
+        getsockname(lfd, (struct sockaddr *)&a, &alen) != 0) {
+        int rc = iso_err_set(err, ISO_EIO, -1, "%s: loopback listen: %s", e->what, strerror(errno));
+        if (lfd >= 0)
+            close(lfd);
+        return rc;
+    }
+    char serial[64];
+    snprintf(serial, sizeof serial, "tcp:127.0.0.1:%d", ntohs(a.sin_port));
+    /* Everything the child needs is built before fork: after it, only
+     * async-signal-safe calls (this process may have threads). */
+    char *const argv[] = {(char *)qemu, "-M",        "mps2-an385", "-nodefaults", "-display",
+                          "none",       "-monitor",  "none",       "-serial",     serial,
+                          "-kernel",    (char *)elf, NULL};
+    pid_t parent = getpid();
+    pid_t pid = fork();
+    if (pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL); /* never outlive us, even on a crash */
+        if (getppid() != parent)
+            _exit(127);
+        int devnull = open("/dev/null", O_RDWR);
+        if (devnull >= 0) {
+            dup2(devnull, 0);
+            dup2(devnull, 1); /* stderr stays: QEMU's own errors reach the user */
+        }
+        execv(qemu, argv);
+        _exit(127);
+    }
+    if (pid < 0) {
+        close(lfd);
+        return iso_err_set(err, ISO_EIO, -1, "%s: fork: %s", e->what, strerror(errno));
+    }
+    e->qemu = pid;
+    uint64_t deadline = now_us() + QEMU_CONNECT_MS * 1000u;
+    while (e->sock < 0) {
+        int status;
+        if (waitpid(pid, &status, WNOHANG) == pid) {
+            e->qemu = -1;
+            close(lfd);
+            return iso_err_set(err, ISO_EIO, -1, "%s: %s exited (%s %d) before connecting its UART",
+                               e->what, qemu, WIFEXITED(status) ? "status" : "signal",
+                               WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
+        }
+        int left = ms_left(deadline);
+        if (left == 0) {
+            close(lfd);
+            return iso_err_set(err, ISO_EIO, -1, "%s: %s did not connect its UART within %d ms",
+                               e->what, qemu, QEMU_CONNECT_MS);
+        }
+        struct pollfd p = {lfd, POLLIN, 0};
+        if (poll(&p, 1, left < 50 ? left : 50) > 0)
+            e->sock = accept4(lfd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    }
+    close(lfd);
+    int one = 1;
+    setsockopt(e->sock, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    return ISO_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Choosing                                                                   */
+/* ------------------------------------------------------------------------ */
+
+int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err)
+{
+    iso_act_emu_info local;
+    if (!info)
+        info = &local;
+    memset(info, 0, sizeof *info);
+    if (out)
+        *out = NULL;
+    if (!out || mode < ISO_ACT_EMU_AUTO || mode > ISO_ACT_EMU_NATIVE)
+        return iso_err_set(err, ISO_EINVAL, -1, "emulated MCU: NULL out or unknown mode %d", mode);
+
+    char qemu[PATH_MAX], elf[PATH_MAX], why[PATH_MAX + 128] = "";
+    int have = 0;
+    if (mode != ISO_ACT_EMU_NATIVE)
+        have = find_qemu(qemu, sizeof qemu, why, sizeof why) &&
+               find_elf(elf, sizeof elf, why, sizeof why);
+    if (mode == ISO_ACT_EMU_QEMU && !have)
+        return iso_err_set(err, ISO_ENOTSUP, -1, "emulated MCU: QEMU asked for, but %s", why);
+    if (have) {
+        emu_link *e = emu_new(ISO_ACT_EMU_QEMU);
+        if (!e)
+            return iso_err_set(err, ISO_ENOMEM, -1, "emulated MCU: out of memory");
+        iso_err qerr;
+        iso_err_clear(&qerr);
+        if (qemu_open(e, qemu, elf, &qerr) == ISO_OK) {
+            info->used = ISO_ACT_EMU_QEMU;
+            snprintf(info->line, sizeof info->line,
+                     "actuators: emulated MCU: the firmware ELF %.300s in %.300s -M mps2-an385 "
+                     "(UART0 on "
+                     "loopback TCP)",
+                     elf, qemu);
+            *out = &e->base;
+            return ISO_OK;
+        }
+        emu_close(&e->base);
+        if (mode == ISO_ACT_EMU_QEMU)
+            return iso_err_set(err, qerr.code, -1, "%s", qerr.msg);
+        snprintf(why, sizeof why, "QEMU did not start: %s", qerr.msg);
+    }
+    emu_link *e = emu_new(ISO_ACT_EMU_NATIVE);
+    if (!e)
+        return iso_err_set(err, ISO_ENOMEM, -1, "emulated MCU: out of memory");
+    int rc = native_open(e, err);
+    if (rc != ISO_OK) {
+        emu_close(&e->base);
+        return rc;
+    }
+    info->used = ISO_ACT_EMU_NATIVE;
+    snprintf(
+        info->line, sizeof info->line,
+        "actuators: emulated MCU: native (iso_fb_mcu.c in a thread behind a pty, the firmware's "
+        "4-channel configuration) because %.500s",
+        mode == ISO_ACT_EMU_NATIVE ? "native was asked for" : why);
+    *out = &e->base;
+    return ISO_OK;
+}

@@ -1,0 +1,217 @@
+/* sim/iso_actuators.h -- the actuator sink: chosen mesh points, one axis
+ * each, streamed as setpoints to the actuator microcontroller over the
+ * firmware bridge (iso_fb_host.h), or to an emulated one.
+ *
+ * Each channel follows a vertex or the centroid of a region (the fixed
+ * region, or handle k as labelled by an iso_regions) along x, y or z. Per
+ * tick the value in scene units is clamped to the channel's [min, max],
+ * multiplied by `scale` (scene units to actuator milli-units), rounded and
+ * clamped to int16; every channel that needed either clamp counts one clamp
+ * for that tick. Channel c of the spec is entry c of the SETPOINTS frame.
+ *
+ * The MCU accepts SETPOINTS only with n equal to its own channel count. Its
+ * HELLO answer tells that count: when the spec drives fewer channels, the
+ * others are sent at the MCU's safe position for them (with a one-line
+ * notice); when the spec names a channel the MCU does not have, nothing is
+ * sent and iso_actuators_publish() reports it, so the MCU's link watchdog
+ * keeps it safe.
+ *
+ * Stopping: the protocol has no "go safe" request, and this sink does not
+ * add one (the protocol and the firmware are fixed here). A clean stop
+ * therefore uses the link watchdog: iso_actuators_safe_stop() stops sending
+ * SETPOINTS and listens until the MCU reports FAULT(watchdog) or a HEARTBEAT
+ * in the safe (or idle) state, which PROTOCOL.md bounds at 100 ms + one
+ * frame after the last setpoints. An explicit request would cut that to one
+ * round trip; it would be a protocol version 2 change.
+ *
+ * Emulated firmware (emu_firmware.c): the real firmware ELF in
+ * `qemu-system-arm -M mps2-an385` with its UART0 on a loopback TCP
+ * connection, or, where QEMU or the ELF is absent, the same iso_fb_mcu.c
+ * logic in a thread of this process behind a pty pair, clocked from
+ * CLOCK_MONOTONIC, with the firmware's channel configuration. Either way the
+ * result is an iso_link whose close also ends the emulation (kills and reaps
+ * QEMU, or joins the thread).
+ *
+ * sim/ does not depend on config/: the controller converts a scene's
+ * iso_scene_actuators into the structs below. Not thread-safe: one thread
+ * (the real-time loop) per handle. */
+#ifndef ISO_ACTUATORS_H
+#define ISO_ACTUATORS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "iso_err.h"
+#include "iso_fb.h"
+#include "iso_fb_mcu.h"
+#include "iso_link.h"
+#include "iso_regions.h"
+
+/* A SETPOINTS frame carries at most this many channels. */
+#define ISO_ACT_MAX_CHANNELS ((int)ISO_FB_MAX_CHANNELS)
+#define ISO_ACT_PATH_MAX 4096
+
+/* ---- channels ------------------------------------------------------------ */
+#define ISO_ACT_REGION_NONE (-2)  /* the channel follows `vertex` */
+#define ISO_ACT_REGION_FIXED (-1) /* the centroid of the fixed vertices */
+
+typedef struct iso_act_channel {
+    int channel;     /* SETPOINTS index, 0..ISO_ACT_MAX_CHANNELS-1, each once */
+    int vertex;      /* a vertex index, or -1 when `region` is set */
+    int region;      /* ISO_ACT_REGION_FIXED, a handle index >= 0, or ISO_ACT_REGION_NONE */
+    int axis;        /* 0 x, 1 y, 2 z */
+    double min, max; /* limits in scene units, min < max */
+    double scale;    /* scene units -> actuator milli-units, finite and != 0 */
+} iso_act_channel;
+
+/* ---- the link ------------------------------------------------------------ */
+typedef enum iso_act_link_kind {
+    ISO_ACT_LINK_NONE = 0,    /* compute only: publish computes, sends nothing */
+    ISO_ACT_LINK_TTY = 1,     /* path, baud */
+    ISO_ACT_LINK_TCP = 2,     /* host, port */
+    ISO_ACT_LINK_SERIAL = 3,  /* path (libserialport name), baud */
+    ISO_ACT_LINK_EMULATED = 4 /* emulation: ISO_ACT_EMU_* */
+} iso_act_link_kind;
+
+typedef enum iso_act_emu_mode {
+    ISO_ACT_EMU_AUTO = 0,  /* QEMU when qemu-system-arm and the ELF are found, else native */
+    ISO_ACT_EMU_QEMU = 1,  /* QEMU or an error saying what is missing */
+    ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread behind a pty pair */
+} iso_act_emu_mode;
+
+typedef struct iso_act_link_spec {
+    int kind;                    /* iso_act_link_kind */
+    char path[ISO_ACT_PATH_MAX]; /* TTY device or serial port name */
+    char host[256];              /* TCP */
+    int port;                    /* TCP */
+    int baud;                    /* TTY, SERIAL; 0 = 115200 */
+    int emulation;               /* EMULATED: iso_act_emu_mode */
+} iso_act_link_spec;
+
+/* Called with one line (no newline) for things the user should know: which
+ * emulation runs and why, a channel-count or limit disagreement with the
+ * MCU. NULL in the options prints the line to stderr. */
+typedef void (*iso_act_notice_fn)(void *ctx, const char *line);
+
+typedef struct iso_act_opts {
+    int link_timeout_ms;      /* no valid frame this long -> link lost; 0 = 1000 (3000 emulated) */
+    iso_act_notice_fn notice; /* NULL = stderr */
+    void *notice_ctx;
+} iso_act_opts;
+
+/* ---- counters ------------------------------------------------------------ */
+typedef struct iso_act_stats {
+    uint64_t ticks;           /* publish calls that computed values */
+    uint64_t setpoints_sent;  /* SETPOINTS frames that went out */
+    uint64_t acks;            /* SETPOINTS ACKs received */
+    uint64_t echo_mismatches; /* ACKs whose tick or values differ from what was sent */
+    uint64_t echo_unknown;    /* ACKs for a tick too old to check (or never sent) */
+    uint64_t clamps;          /* channel-ticks that were clamped, all channels */
+    uint64_t clamps_ch[ISO_ACT_MAX_CHANNELS]; /* by channel */
+    uint32_t link_losses, handshakes, faults, naks;
+    uint32_t last_fault_reason;    /* ISO_FB_FAULT_*, 0 before any */
+    uint32_t last_fault_detail_ms; /* WATCHDOG: last setpoints to safe, MCU clock */
+    /* SETPOINTS to its ACK: from before the write to the ACK's handling,
+     * so it includes the wait until the next publish/poll reads it. */
+    uint32_t rtt_count;
+    double rtt_avg_ms, rtt_min_ms, rtt_max_ms, rtt_last_ms;
+    double publish_max_ms;                 /* the longest publish call */
+    uint64_t publish_over_1ms;             /* publish calls that took longer than 1 ms */
+    int mcu_channels;                      /* from the MCU's last HELLO answer; 0 before */
+    int mcu_state;                         /* last HEARTBEAT's ISO_FB_STATE_*, -1 before any */
+    uint32_t mcu_uptime_ms;                /* last HEARTBEAT's */
+    int16_t mcu_pos[ISO_ACT_MAX_CHANNELS]; /* last HEARTBEAT's positions */
+    uint32_t heartbeats;
+} iso_act_stats;
+
+typedef struct iso_actuators iso_actuators; /* opaque */
+
+/* Creates the sink for n_ch channels over a mesh of nv vertices whose
+ * regions are `regions` (may be NULL when no channel follows a region).
+ * The region vertex lists are copied, so regions need not outlive the
+ * handle. Then opens the link (for ISO_ACT_LINK_EMULATED: starts the
+ * emulation and reports which one through the notice) and sends the first
+ * HELLO; it does not wait for the answer.
+ * A bad spec is ISO_EINVAL with a sentence naming the channel entry and
+ * what is wrong: a channel index used twice or out of range, min >= max, a
+ * zero or non-finite scale, an axis outside 0..2, a vertex out of range, a
+ * region that does not exist or has no vertex. Link failures are ISO_EIO
+ * (ISO_ENOTSUP for a transport this build lacks).
+ * On success stores a new handle in *out (iso_actuators_destroy frees it);
+ * on failure leaves *out NULL and fills err. */
+ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, /* in */
+                                       int nv, const iso_regions *regions,  /* in, may be NULL */
+                                       const iso_act_link_spec *link,       /* in, NULL = NONE */
+                                       const iso_act_opts *opts, /* in, NULL = defaults */
+                                       iso_actuators **out,      /* out */
+                                       iso_err *err);            /* out, may be NULL */
+/* Closes the link (and ends an emulation) without waiting for the MCU: call
+ * iso_actuators_safe_stop() first for a clean stop. NULL is a no-op. */
+void iso_actuators_destroy(iso_actuators *a);
+
+/* Computes the channel values for positions x (3*nv, xyz interleaved) into
+ * values[ch] for every configured channel (others are left alone), counting
+ * clamps. ISO_ENUMERIC, naming the channel, when a coordinate is not finite.
+ * Sends nothing. */
+ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
+                                        int16_t values[ISO_ACT_MAX_CHANNELS], iso_err *err);
+
+/* One control tick: computes the values and hands them to iso_fb_host_step
+ * (reopen, HELLO, SETPOINTS, drain the replies), all without waiting: writes
+ * time out after 1 ms. Returns 1 if setpoints went out, 0 if not (the link
+ * is down or the handshake is pending; both recover by themselves in later
+ * ticks), or a negative code: ISO_ENUMERIC for non-finite positions,
+ * ISO_EINVAL when the MCU lacks a channel the spec drives or after
+ * safe_stop. With ISO_ACT_LINK_NONE it only computes (returns 0). */
+ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
+                                        iso_err *err);
+
+/* Handles what arrives within timeout_ms (ACKs, HEARTBEATs, ...) without
+ * sending setpoints; for waiting between ticks. Returns frames handled, at
+ * once (0) while the link is down: only publish brings it back. */
+int iso_actuators_poll(iso_actuators *a, int timeout_ms);
+
+/* Stops streaming for good and waits up to timeout_ms for the MCU to report
+ * its safe state: FAULT(watchdog), or a HEARTBEAT whose state is safe or
+ * idle. Returns ISO_OK when it was seen (*safe_ms, if not NULL, gets the time
+ * from the last setpoints sent to its arrival, host clock), or ISO_EIO
+ * saying it was not or that the link is down (ISO_EINVAL without a link).
+ * Allow at least 150 ms:
+ * the watchdog needs 100 ms plus a frame. Later publish calls fail. */
+ISO_NODISCARD int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms,
+                                          iso_err *err);
+
+/* A snapshot of the counters. */
+void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
+
+/* The MCU's last HELLO answer (channel limits, rates, safe positions).
+ * Returns 1 when there is one, else 0. */
+int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);
+
+/* One line of counters: this sink's, then the link's
+ * (iso_fb_host_format_stats). Returns snprintf's result. */
+int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
+
+/* ---- emulated firmware (emu_firmware.c) ---------------------------------- */
+typedef struct iso_act_emu_info {
+    int used;       /* ISO_ACT_EMU_QEMU or ISO_ACT_EMU_NATIVE */
+    char line[768]; /* which emulation runs and why, one line */
+} iso_act_emu_info;
+
+/* The firmware's fixed channel configuration (firmware-bridge/firmware/
+ * main.c): 4 channels, limits [-1000, 1000] except channel 1 [-1500, 1500]
+ * and channel 3 [0, 2000], rate 2000/s except channel 2 at 500/s, safe
+ * position 0. The native emulation runs with this, so both behave alike. */
+void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
+
+/* Starts an emulated MCU and opens a link to it. AUTO tries QEMU (found as
+ * $ISO_FB_QEMU, "" meaning none, then the build's path, then PATH; the ELF
+ * as $ISO_FB_FIRMWARE, then the build's fb_firmware.elf, then next to the
+ * running program and in its ../share/isoshape/) and falls back to native,
+ * saying why in info->line. The returned link owns the emulation:
+ * iso_link_close() kills and reaps QEMU or stops and joins the thread.
+ * Its reopen is a no-op while the emulation lives (the host's loss recovery
+ * then shakes hands again on the same stream). */
+ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err);
+
+#endif

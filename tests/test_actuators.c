@@ -1,0 +1,625 @@
+/* tests/test_actuators.c -- the actuator sink (sim/iso_actuators.h): channel
+ * values against their closed form, bad specs, and end to end through the
+ * firmware bridge to the emulated MCU, natively and in QEMU.
+ *
+ * The mesh is six hand-placed vertices: 0 and 1 fixed, 2 and 3 on handle 0,
+ * 4 on handle 1, 5 free, so every centroid is a number one can write down.
+ * End to end, the channels drive the firmware's 4 channels (limits
+ * [-1000,1000], [-1500,1500], [-1000,1000] at 500/s, [0,2000]; rate 2000/s
+ * elsewhere). Assertions on time are one-sided where physics gives a bound
+ * (the rate limit) and generous otherwise: CI runs this on two loaded
+ * cores, also under ASan. */
+#define _GNU_SOURCE
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "iso_actuators.h"
+#include "iso_shapes.h"
+#include "testutil.h"
+
+#define NV 6
+
+static struct {
+    char notices[8][800];
+    int n_notices;
+} g;
+
+static void on_notice(void *ctx, const char *line)
+{
+    (void)ctx;
+    if (g.n_notices < 8)
+        snprintf(g.notices[g.n_notices++], sizeof g.notices[0], "%s", line);
+    printf("  notice: %s\n", line);
+}
+
+static int noticed(const char *needle)
+{
+    for (int i = 0; i < g.n_notices; i++)
+        if (strstr(g.notices[i], needle))
+            return 1;
+    return 0;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* 0,1 fixed; 2,3 handle 0; 4 handle 1; 5 free. */
+static void tiny_regions(iso_regions *r)
+{
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_regions_init(r, NV, &err), ISO_OK);
+    static const unsigned char kind[NV] = {ISO_FIXED,  ISO_FIXED,  ISO_HANDLE,
+                                           ISO_HANDLE, ISO_HANDLE, ISO_FREE};
+    static const int handle[NV] = {-1, -1, 0, 0, 1, -1};
+    memcpy(r->kind, kind, sizeof kind);
+    memcpy(r->handle, handle, sizeof handle);
+    r->n_handles = 2;
+}
+
+static iso_act_channel vtx(int channel, int vertex, int axis, double min, double max, double scale)
+{
+    iso_act_channel c = {channel, vertex, ISO_ACT_REGION_NONE, axis, min, max, scale};
+    return c;
+}
+
+static iso_act_channel reg(int channel, int region, int axis, double min, double max, double scale)
+{
+    iso_act_channel c = {channel, -1, region, axis, min, max, scale};
+    return c;
+}
+
+/* ---- closed form ----------------------------------------------------------- */
+
+static void values_equal_closed_form_and_clamps_are_counted(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    /* channel order differs from entry order on purpose */
+    iso_act_channel ch[5] = {
+        vtx(3, 5, 0, -1, 1, 1000),                     /* vertex 5, x */
+        reg(0, ISO_ACT_REGION_FIXED, 1, -10, 10, 100), /* centroid of 0,1, y */
+        reg(1, 0, 2, 0, 2, -500),                      /* centroid of 2,3, z, negative scale */
+        reg(2, 1, 0, -100, 100, 1000),                 /* vertex 4 alone, x: int16 clamp */
+        vtx(6, 0, 2, -5, 5, 0.5),
+    };
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_actuators_create(ch, 5, NV, &r, NULL, NULL, &a, &err), ISO_OK);
+
+    double x[3 * NV] = {
+        1.0,    2.0, 3.0,  /* 0 */
+        -1.0,   4.5, -3.0, /* 1 */
+        0.0,    0.0, 0.25, /* 2 */
+        0.0,    0.0, 1.75, /* 3 */
+        20.0,   0.0, 0.0,  /* 4 */
+        0.4567, 9.0, 9.0,  /* 5 */
+    };
+    int16_t v[ISO_ACT_MAX_CHANNELS];
+    memset(v, 0x55, sizeof v);
+    assert_int_equal(iso_actuators_compute(a, x, v, &err), ISO_OK);
+    assert_int_equal(v[3], 457);              /* 0.4567 * 1000, rounded */
+    assert_int_equal(v[0], 325);              /* (2 + 4.5) / 2 * 100 */
+    assert_int_equal(v[1], -500);             /* (0.25 + 1.75) / 2 * -500 */
+    assert_int_equal(v[2], 20000);            /* vertex 4 alone: 20 * 1000 */
+    assert_int_equal(v[6], 2);                /* 3.0 * 0.5 = 1.5, rounded to even */
+    assert_int_equal((uint16_t)v[4], 0x5555); /* unconfigured: untouched */
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    assert_int_equal(s.clamps, 0);
+    assert_int_equal(s.ticks, 1);
+    assert_int_equal(s.mcu_state, -1); /* no link: no MCU */
+    int16_t same[ISO_ACT_MAX_CHANNELS];
+    memcpy(same, v, sizeof v);
+    assert_int_equal(iso_actuators_publish(a, 0, x, &err), 0); /* computes, sends nothing */
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+}
+
+static void clamps_to_limits_and_int16_counted_per_channel(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_channel ch[3] = {
+        vtx(0, 5, 0, -1, 1, 1000),
+        reg(1, 1, 0, -100, 100, 1000), /* 40 * 1000 > 32767: int16 clamp */
+        reg(2, 0, 1, -2, 3, -20000),   /* 3 * -20000 < -32768: int16 clamp after the limit */
+    };
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_actuators_create(ch, 3, NV, &r, NULL, NULL, &a, &err), ISO_OK);
+    double x[3 * NV];
+    memset(x, 0, sizeof x);
+    int16_t v[ISO_ACT_MAX_CHANNELS];
+
+    /* in range: nothing clamped */
+    x[3 * 5 + 0] = -0.25;
+    x[3 * 4 + 0] = 12.5;
+    x[3 * 2 + 1] = 1.0;
+    x[3 * 3 + 1] = 0.0;
+    assert_int_equal(iso_actuators_compute(a, x, v, &err), ISO_OK);
+    assert_int_equal(v[0], -250);
+    assert_int_equal(v[1], 12500);
+    assert_int_equal(v[2], -10000); /* 0.5 * -20000 */
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    assert_int_equal(s.clamps, 0);
+
+    /* beyond the limits and beyond int16 */
+    x[3 * 5 + 0] = -7.0; /* -> -1 -> -1000 */
+    x[3 * 4 + 0] = 40.0; /* 40000 -> 32767 */
+    x[3 * 2 + 1] = 9.0;
+    x[3 * 3 + 1] = 9.0; /* 9 -> 3 -> -60000 -> -32768 */
+    assert_int_equal(iso_actuators_compute(a, x, v, &err), ISO_OK);
+    assert_int_equal(v[0], -1000);
+    assert_int_equal(v[1], INT16_MAX);
+    assert_int_equal(v[2], INT16_MIN);
+    x[3 * 5 + 0] = 1.5; /* only channel 0 again */
+    x[3 * 4 + 0] = 0.0;
+    x[3 * 2 + 1] = x[3 * 3 + 1] = 0.0;
+    assert_int_equal(iso_actuators_compute(a, x, v, &err), ISO_OK);
+    assert_int_equal(v[0], 1000);
+    iso_actuators_stats(a, &s);
+    assert_int_equal(s.clamps, 4);
+    assert_int_equal(s.clamps_ch[0], 2);
+    assert_int_equal(s.clamps_ch[1], 1);
+    assert_int_equal(s.clamps_ch[2], 1);
+    assert_int_equal(s.ticks, 3);
+
+    /* a non-finite position is refused, naming the channel */
+    x[3 * 2 + 1] = NAN;
+    assert_int_equal(iso_actuators_compute(a, x, v, &err), ISO_ENUMERIC);
+    assert_non_null(strstr(err.msg, "channel 2"));
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+}
+
+static void builtin_shape_centroids(void **state)
+{
+    (void)state;
+    iso_shape sh;
+    iso_regions r;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_shape_init(&sh, "bar", 4, &err), ISO_OK);
+    assert_int_equal(iso_shape_regions(&sh, &r, &err), ISO_OK);
+    double cf[3] = {0}, ch0[3] = {0};
+    int nf = 0, nh = 0;
+    for (int v = 0; v < sh.nv; v++)
+        for (int k = 0; k < 3; k++) {
+            if (sh.kind[v] == ISO_FIXED)
+                cf[k] += sh.x[3 * v + k], nf += k == 0;
+            else if (sh.kind[v] == ISO_HANDLE)
+                ch0[k] += sh.x[3 * v + k], nh += k == 0;
+        }
+    assert_true(nf > 0 && nh > 0);
+    iso_act_channel ch[3] = {
+        reg(0, ISO_ACT_REGION_FIXED, 2, -100, 100, 100),
+        reg(1, 0, 2, -100, 100, 100),
+        reg(2, 0, 0, -100, 100, 1000),
+    };
+    iso_actuators *a = NULL;
+    assert_int_equal(iso_actuators_create(ch, 3, sh.nv, &r, NULL, NULL, &a, &err), ISO_OK);
+    int16_t v[ISO_ACT_MAX_CHANNELS];
+    assert_int_equal(iso_actuators_compute(a, sh.x, v, &err), ISO_OK);
+    printf("bar: fixed centroid z %.4f, handle centroid z %.4f x %.4f\n", cf[2] / nf, ch0[2] / nh,
+           ch0[0] / nh);
+    assert_int_equal(v[0], (int)lrint(cf[2] / nf * 100));
+    assert_int_equal(v[1], (int)lrint(ch0[2] / nh * 100));
+    assert_int_equal(v[2], (int)lrint(ch0[0] / nh * 1000));
+    assert_true(v[1] > v[0]); /* the handle is the top of the bar */
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+    iso_shape_deinit(&sh);
+}
+
+/* ---- bad specs ----------------------------------------------------------- */
+
+static void expect_bad(const iso_act_channel *ch, int n, const iso_regions *r, long entry,
+                       const char *needle1, const char *needle2)
+{
+    iso_actuators *a = (iso_actuators *)&g; /* must come back NULL */
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_actuators_create(ch, n, NV, r, NULL, NULL, &a, &err), ISO_EINVAL);
+    assert_null(a);
+    printf("  bad spec: %s\n", err.msg);
+    assert_int_equal(err.offset, entry);
+    assert_non_null(strstr(err.msg, needle1));
+    assert_non_null(strstr(err.msg, needle2));
+}
+
+static void bad_specs_give_clear_errors(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_channel twice[3] = {vtx(0, 0, 0, -1, 1, 1), vtx(1, 1, 0, -1, 1, 1),
+                                vtx(0, 2, 1, -1, 1, 1)};
+    expect_bad(twice, 3, &r, 2, "channel 0 is used twice", "entries 0 and 2");
+    iso_act_channel minmax[2] = {vtx(0, 0, 0, -1, 1, 1), vtx(1, 1, 0, 2, 2, 1)};
+    expect_bad(minmax, 2, &r, 1, "channel 1", "min < max");
+    iso_act_channel vrange[1] = {vtx(2, NV, 1, -1, 1, 1)};
+    expect_bad(vrange, 1, &r, 0, "vertex 6 is out of range", "6 vertices");
+    /* handle 1 exists but nothing is on it now */
+    r.kind[4] = ISO_FREE;
+    r.handle[4] = -1;
+    iso_act_channel empty[2] = {vtx(0, 0, 0, -1, 1, 1), reg(3, 1, 2, -1, 1, 1)};
+    expect_bad(empty, 2, &r, 1, "channel 3 follows handle 1", "empty");
+    r.kind[0] = r.kind[1] = ISO_FREE;
+    iso_act_channel nofixed[1] = {reg(1, ISO_ACT_REGION_FIXED, 0, -1, 1, 1)};
+    expect_bad(nofixed, 1, &r, 0, "the fixed region", "empty");
+    iso_act_channel nohandle[1] = {reg(0, 2, 0, -1, 1, 1)};
+    expect_bad(nohandle, 1, &r, 0, "handle 2 does not exist", "2 handles");
+    expect_bad(nohandle, 1, NULL, 0, "channel 0 follows handle 2", "no regions");
+    iso_act_channel chrange[1] = {vtx(8, 0, 0, -1, 1, 1)};
+    expect_bad(chrange, 1, &r, 0, "channel 8 is out of range", "0..7");
+    iso_act_channel scale0[1] = {vtx(0, 0, 0, -1, 1, 0)};
+    expect_bad(scale0, 1, &r, 0, "scale 0", "not 0");
+    iso_act_channel axis[1] = {vtx(0, 0, 3, -1, 1, 1)};
+    expect_bad(axis, 1, &r, 0, "axis 3", "2 (z)");
+    iso_regions_deinit(&r);
+}
+
+/* ---- end to end ---------------------------------------------------------- */
+
+/* The four firmware channels: vertex 5 x, fixed centroid y, handle 0
+ * centroid z (scale -500), handle 1 (vertex 4) x. */
+static const double TARGET_X[3 * NV] = {
+    0,   -12, 0,    0, -12, 0,    /* fixed: y -12 -> ch1 -1200 */
+    0,   0,   -1.0, 0, 0,   -1.4, /* handle 0: z -1.2 -> ch2 600 (the 500/s channel) */
+    1.5, 0,   0,                  /* handle 1: x 1.5 -> ch3 1500 */
+    0.8, 0,   0,                  /* vertex 5: x 0.8 -> ch0 800 */
+};
+static const int TARGET[4] = {800, -1200, 600, 1500};
+
+static void moving_x(uint32_t tick, double x[3 * NV])
+{
+    memcpy(x, TARGET_X, sizeof TARGET_X);
+    double t = tick * 0.01;
+    x[3 * 5 + 0] = 0.8 * sin(3.1 * t);
+    x[3 * 0 + 1] = -10 + 3 * cos(1.7 * t);
+    x[3 * 2 + 2] = -1.0 + 0.3 * sin(2.3 * t);
+    x[3 * 4 + 0] = 1.0 + 0.5 * sin(0.9 * t) + 0.0001 * (tick % 7);
+}
+
+typedef struct hb_log {
+    uint32_t uptime[256];
+    int16_t pos[256][4];
+    double host_t[256];
+    uint32_t faults[256]; /* a FAULT between two entries is a brake, not a ramp */
+    int n;
+} hb_log;
+
+/* Runs 100 Hz ticks for `ms` (or until done), logging new heartbeats.
+ * x_of: positions per tick (NULL: TARGET_X). Returns setpoints sent. */
+static int run_ticks(iso_actuators *a, uint32_t *tick, int ms, void (*x_of)(uint32_t, double *),
+                     hb_log *log, int (*done)(iso_actuators *, const hb_log *))
+{
+    double end = now_s() + ms / 1000.0, next = now_s();
+    int sent = 0;
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    uint32_t seen_hb = s.heartbeats;
+    for (;;) {
+        double now = now_s();
+        if (now >= end)
+            break;
+        if (now >= next) {
+            double x[3 * NV];
+            if (x_of)
+                x_of(*tick, x);
+            else
+                memcpy(x, TARGET_X, sizeof x);
+            iso_err err;
+            iso_err_clear(&err);
+            int r = iso_actuators_publish(a, (*tick)++, x, &err);
+            assert_true(r >= 0);
+            sent += r;
+            next += 0.01;
+            if (next < now)
+                next = now + 0.01;
+        }
+        int wait = (int)((next - now_s()) * 1000);
+        iso_actuators_poll(a, wait < 0 ? 0 : wait > 10 ? 10 : wait);
+        iso_actuators_stats(a, &s);
+        if (log && s.heartbeats != seen_hb && s.mcu_state == ISO_FB_STATE_ARMED && log->n < 256) {
+            seen_hb = s.heartbeats;
+            log->uptime[log->n] = s.mcu_uptime_ms;
+            memcpy(log->pos[log->n], s.mcu_pos, sizeof log->pos[0]);
+            log->host_t[log->n] = now_s();
+            log->faults[log->n] = s.faults;
+            log->n++;
+        }
+        if (done && done(a, log))
+            break;
+    }
+    return sent;
+}
+
+static int streaming(iso_actuators *a, const hb_log *log)
+{
+    (void)log;
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    return s.setpoints_sent > 0;
+}
+
+static int at_target(iso_actuators *a, const hb_log *log)
+{
+    (void)a;
+    if (log->n == 0)
+        return 0;
+    for (int c = 0; c < 4; c++)
+        if (log->pos[log->n - 1][c] != TARGET[c])
+            return 0;
+    return 1;
+}
+
+static const iso_act_channel E2E[4] = {
+    {0, 5, ISO_ACT_REGION_NONE, 0, -1, 1, 1000},
+    {1, -1, ISO_ACT_REGION_FIXED, 1, -15, 15, 100},
+    {2, -1, 0, 2, -2, 2, -500},
+    {3, -1, 1, 0, 0, 2, 1000},
+};
+
+/* Returns 0 when the emulation is not available here (the caller skips). */
+static int end_to_end(int mode, const char *label)
+{
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_EMULATED;
+    link.emulation = mode;
+    iso_act_opts opts = {0, on_notice, NULL};
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    g.n_notices = 0;
+    int rc = iso_actuators_create(E2E, 4, NV, &r, &link, &opts, &a, &err);
+    if (rc == ISO_ENOTSUP) {
+        printf("SKIP %s: %s\n", label, err.msg);
+        iso_regions_deinit(&r);
+        return 0;
+    }
+    if (rc != ISO_OK)
+        printf("create: %s\n", err.msg);
+    assert_int_equal(rc, ISO_OK);
+    assert_true(noticed(mode == ISO_ACT_EMU_QEMU ? "qemu-system-arm" : "native"));
+
+    /* HELLO: the MCU's description is the firmware's */
+    uint32_t tick = 0;
+    double t_create = now_s();
+    hb_log log;
+    memset(&log, 0, sizeof log);
+    /* the first setpoints go out right after the answer; they are the
+     * targets, from every channel at its safe position 0 */
+    run_ticks(a, &tick, 8000, NULL, NULL, streaming);
+    double t_first = now_s();
+    iso_fb_hello h;
+    assert_int_equal(iso_actuators_mcu_hello(a, &h), 1);
+    iso_fb_mcu_config cfg;
+    iso_act_emu_firmware_config(&cfg);
+    assert_int_equal(h.n_channels, 4);
+    for (int c = 0; c < 4; c++) {
+        assert_int_equal(h.ch[c].min, cfg.ch[c].min);
+        assert_int_equal(h.ch[c].max, cfg.ch[c].max);
+        assert_int_equal(h.ch[c].max_rate, cfg.ch[c].max_rate);
+        assert_int_equal(h.ch[c].safe, cfg.ch[c].safe);
+    }
+    assert_int_equal(g.n_notices, 1); /* counts and limits agree: nothing to say */
+
+    /* convergence at the rate limit: 600 at 500/s is the slowest, 1.2 s */
+    run_ticks(a, &tick, 4000, NULL, &log, at_target);
+    assert_true(at_target(a, &log));
+    double conv = log.host_t[log.n - 1] - t_first;
+    for (int i = 1; i < log.n; i++) {
+        if (log.faults[i] != log.faults[i - 1])
+            continue;
+        double dt = (double)(log.uptime[i] - log.uptime[i - 1]) / 1000.0;
+        for (int c = 0; c < 4; c++) {
+            double step = fabs((double)log.pos[i][c] - log.pos[i - 1][c]);
+            if (step > cfg.ch[c].max_rate * dt + 2)
+                fail_msg("channel %d moved %.0f in %.3f s, faster than its rate %u/s", c, step, dt,
+                         (unsigned)cfg.ch[c].max_rate);
+        }
+    }
+    assert_true(conv >= 1.2 - 0.01); /* cannot beat the rate limit */
+    assert_true(conv <= 1.2 + 1.0);  /* generous: heartbeats every 100 ms, loaded CI */
+
+    /* 150+ ticks of moving setpoints, every echo checked by the sink */
+    iso_act_stats s0, s;
+    iso_actuators_stats(a, &s0);
+    int sent = run_ticks(a, &tick, 2000, moving_x, NULL, NULL);
+    run_ticks(a, &tick, 100, moving_x, NULL, NULL); /* collect the ACKs in flight */
+    iso_actuators_stats(a, &s);
+    uint64_t acks = s.acks - s0.acks;
+    assert_true(sent >= 100);
+    assert_true(acks + 12 >= (uint64_t)sent);
+    assert_int_equal(s.echo_mismatches, 0);
+    assert_int_equal(s.echo_unknown, 0);
+    assert_int_equal(s.link_losses, 0);
+    assert_true(s.clamps == 0);
+    /* A watchdog FAULT while streaming means a thread was descheduled for
+     * 100+ ms (a loaded machine); the sink recovers by itself. */
+    uint32_t stall_faults = s.faults;
+    if (stall_faults)
+        printf(
+            "%s: %u watchdog FAULT(s) while streaming: this machine stalled a thread for 100+ ms; "
+            "recovered with %u handshakes\n",
+            label, (unsigned)stall_faults, (unsigned)s.handshakes);
+
+    /* safe stop: the link watchdog, 100 ms + one frame on the MCU clock */
+    run_ticks(a, &tick, 300, moving_x, NULL, NULL);
+    iso_actuators_stats(a, &s0);
+    double safe_ms = -1;
+    double t_stop = now_s();
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, &safe_ms, &err), ISO_OK);
+    double waited = (now_s() - t_stop) * 1000;
+    iso_actuators_stats(a, &s);
+    if (s.faults == s0.faults + 1 && s.last_fault_reason == ISO_FB_FAULT_WATCHDOG) {
+        /* the FAULT of this stop: it cannot come before the watchdog time
+         * (less the MCU's 1 ms clock, which may be a tick stale) */
+        assert_true(safe_ms >= 98.0);
+        assert_true(s.last_fault_detail_ms >= 100);
+        if (mode == ISO_ACT_EMU_NATIVE && s.last_fault_detail_ms <= 110)
+            assert_true(safe_ms <= 150.0);
+        else if (mode == ISO_ACT_EMU_NATIVE)
+            printf(
+                "native: the MCU thread itself ran %u ms late (loaded machine): no 150 ms bound\n",
+                (unsigned)s.last_fault_detail_ms);
+        assert_true(safe_ms <= 1000.0);
+    } else {
+        printf("%s: the MCU was already safe when the stop began (a stall just before it)\n",
+               label);
+    }
+    double end = now_s() + 1.0; /* the next heartbeats say safe, at the safe positions */
+    while (now_s() < end && s.mcu_state != ISO_FB_STATE_SAFE) {
+        iso_actuators_poll(a, 20);
+        iso_actuators_stats(a, &s);
+    }
+    assert_int_equal(s.mcu_state, ISO_FB_STATE_SAFE);
+    for (int c = 0; c < 4; c++)
+        assert_int_equal(s.mcu_pos[c], cfg.ch[c].safe);
+    assert_int_equal(iso_actuators_publish(a, tick, TARGET_X, &err), ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "stopped by safe_stop"));
+
+    char line[2048];
+    iso_actuators_format_stats(a, line, sizeof line);
+    printf("%s: HELLO after %.1f ms; converged in %.0f ms (rate limit: 1200 ms); %d setpoints over "
+           "%.1f s, %llu acked, rtt avg %.3f ms (min %.3f, max %.3f), publish max %.3f ms (%llu of "
+           "%llu "
+           "over 1 ms); safe "
+           "state %.1f ms after the last setpoints (MCU: %u ms; stop waited %.1f ms)\n%s\n",
+           label, (t_first - t_create) * 1000, conv * 1000, sent, 2.0, (unsigned long long)acks,
+           s.rtt_avg_ms, s.rtt_min_ms, s.rtt_max_ms, s.publish_max_ms,
+           (unsigned long long)s.publish_over_1ms, (unsigned long long)s.ticks, safe_ms,
+           (unsigned)s.last_fault_detail_ms, waited, line);
+    assert_true(s.rtt_count > 100);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+    return 1;
+}
+
+static void native_end_to_end(void **state)
+{
+    (void)state;
+    assert_int_equal(end_to_end(ISO_ACT_EMU_NATIVE, "native"), 1);
+}
+
+static void qemu_end_to_end(void **state)
+{
+    (void)state;
+    if (!end_to_end(ISO_ACT_EMU_QEMU, "qemu"))
+        skip();
+}
+
+static void auto_falls_back_to_native_and_says_why(void **state)
+{
+    (void)state;
+    const char *old = getenv("ISO_FB_QEMU");
+    char keep[4096];
+    if (old)
+        snprintf(keep, sizeof keep, "%s", old);
+    setenv("ISO_FB_QEMU", "", 1);
+    iso_link *l = NULL;
+    iso_act_emu_info info;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_act_emu_open(ISO_ACT_EMU_AUTO, &l, &info, &err), ISO_OK);
+    printf("  %s\n", info.line);
+    assert_int_equal(info.used, ISO_ACT_EMU_NATIVE);
+    assert_non_null(strstr(info.line, "native"));
+    assert_non_null(strstr(info.line, "ISO_FB_QEMU='' is empty"));
+    iso_link_close(l);
+    assert_int_equal(iso_act_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err), ISO_ENOTSUP);
+    assert_null(l);
+    assert_non_null(strstr(err.msg, "QEMU asked for"));
+    if (old)
+        setenv("ISO_FB_QEMU", keep, 1);
+    else
+        unsetenv("ISO_FB_QEMU");
+}
+
+static void mcu_channel_count_disagreement(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_EMULATED;
+    link.emulation = ISO_ACT_EMU_NATIVE;
+    iso_act_opts opts = {0, on_notice, NULL};
+    iso_err err;
+    uint32_t tick = 0;
+
+    /* fewer channels than the MCU: the rest go out at their safe position */
+    iso_act_channel two[2] = {E2E[0], E2E[3]};
+    two[0].max = 5; /* beyond the MCU's 1000 milli-units: a notice */
+    iso_actuators *a = NULL;
+    iso_err_clear(&err);
+    g.n_notices = 0;
+    assert_int_equal(iso_actuators_create(two, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
+    run_ticks(a, &tick, 8000, NULL, NULL, streaming);
+    run_ticks(a, &tick, 300, NULL, NULL, NULL);
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    assert_true(noticed("the MCU has 4 channels, the spec drives 2: channel 1 held at its safe 0; "
+                        "channel 2 held at its safe 0"));
+    assert_true(
+        noticed("channel 0 spans [-1000, 5000] milli-units, the MCU's limits are [-1000, 1000]"));
+    assert_true(s.setpoints_sent >= 10);
+    assert_true(s.acks >= 10);
+    assert_int_equal(s.naks, 0);
+    assert_int_equal(s.echo_mismatches, 0);
+    iso_actuators_destroy(a);
+
+    /* a channel the MCU lacks: nothing is sent, and publish says why */
+    iso_act_channel five[2] = {E2E[0], E2E[1]};
+    five[1].channel = 5;
+    a = NULL;
+    g.n_notices = 0;
+    assert_int_equal(iso_actuators_create(five, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
+    int rc = 0;
+    double end = now_s() + 8;
+    while (now_s() < end && rc == 0) {
+        iso_err_clear(&err);
+        rc = iso_actuators_publish(a, tick++, TARGET_X, &err);
+        iso_actuators_poll(a, 10);
+    }
+    assert_int_equal(rc, ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "the MCU has 4 channels but the spec drives channel 5"));
+    assert_true(noticed("sending no setpoints"));
+    iso_actuators_stats(a, &s);
+    assert_int_equal(s.setpoints_sent, 0);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+}
+
+int main(void)
+{
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(values_equal_closed_form_and_clamps_are_counted),
+        cmocka_unit_test(clamps_to_limits_and_int16_counted_per_channel),
+        cmocka_unit_test(builtin_shape_centroids),
+        cmocka_unit_test(bad_specs_give_clear_errors),
+        cmocka_unit_test(native_end_to_end),
+        cmocka_unit_test(qemu_end_to_end),
+        cmocka_unit_test(auto_falls_back_to_native_and_says_why),
+        cmocka_unit_test(mcu_channel_count_disagreement),
+    };
+    return cmocka_run_group_tests_name("actuators", t, NULL, NULL);
+}
