@@ -162,8 +162,16 @@ typedef struct iso_scene_ply {
 typedef enum iso_scene_link_kind {
     ISO_SCENE_LINK_TTY = 1,    /* path, baud */
     ISO_SCENE_LINK_TCP = 2,    /* host, port */
-    ISO_SCENE_LINK_SERIAL = 3  /* path (libserialport name), baud */
+    ISO_SCENE_LINK_SERIAL = 3, /* path (libserialport name), baud */
+    ISO_SCENE_LINK_EMULATED = 4 /* emulation: firmware in QEMU or in-process (sim/iso_actuators.h) */
 } iso_scene_link_kind;
+
+/* Which emulated MCU; the values are sim/iso_actuators.h's ISO_ACT_EMU_*. */
+typedef enum iso_scene_emu_mode {
+    ISO_SCENE_EMU_AUTO = 0,  /* QEMU when it and the firmware ELF are there, else native */
+    ISO_SCENE_EMU_QEMU = 1,  /* QEMU or an error */
+    ISO_SCENE_EMU_NATIVE = 2 /* the MCU logic in a thread behind a pty */
+} iso_scene_emu_mode;
 
 typedef struct iso_scene_channel {
     int channel;      /* actuator channel, 0..ISO_SCENE_MAX_CHANNELS-1, each once */
@@ -186,6 +194,7 @@ typedef struct iso_scene_actuators {
     char host[ISO_SCENE_NAME_MAX];
     int port;
     int baud;                      /* default 115200 */
+    int emulation;                 /* EMULATED: iso_scene_emu_mode */
     iso_scene_channel ch[ISO_SCENE_MAX_CHANNELS];
     int n_ch;
 } iso_scene_actuators;

@@ -1173,25 +1173,49 @@ static int parse_display(sctx *c, fnode *n)
     return ISO_OK;
 }
 
+#define LINK_FORMS "{tty: PATH}, {tcp: host:port}, {serial: PORT} or {emulated: auto|qemu|native}"
+
+/* `link: emulated` is short for {emulated: auto}. */
+static int parse_emulated(sctx *c, fnode *n, iso_scene_actuators *a)
+{
+    static const char *const modes[] = {"auto", "qemu", "native", NULL};
+    a->link = ISO_SCENE_LINK_EMULATED;
+    a->emulation = ISO_SCENE_EMU_AUTO;
+    return n ? to_enum(c, n, "sinks.actuators.link.emulated", modes, &a->emulation) : ISO_OK;
+}
+
 static int parse_link(sctx *c, fnode *n, iso_scene_actuators *a)
 {
-    static const char *const keys[] = {"tty", "tcp", "serial", "baud", NULL};
+    static const char *const keys[] = {"tty", "tcp", "serial", "emulated", "baud", NULL};
     const char *key = "sinks.actuators.link";
     int rc;
-    if ((rc = want_map(c, n, key, "{tty: PATH} or {tcp: host:port} or {serial: PORT}, with baud")) ||
+    a->baud = 115200;
+    const char *word = scalar(c, n);
+    if (word && *word) {
+        static const char *const words[] = {"emulated", NULL};
+        if (strcmp(word, "emulated") == 0)
+            return parse_emulated(c, NULL, a);
+        if (nearest(word, words))
+            return fail(c, n, ISO_EPARSE, key, "unknown link '%s'; did you mean 'emulated'? (expected "
+                        LINK_FORMS ", or emulated alone)", word);
+        return fail(c, n, ISO_EPARSE, key, "expected " LINK_FORMS ", or emulated alone; found '%s'",
+                    word);
+    }
+    if ((rc = want_map(c, n, key, LINK_FORMS ", with baud for tty and serial")) ||
         (rc = check_keys(c, n, key, keys)))
         return rc;
-    fnode *tty = get(n, "tty"), *tcp = get(n, "tcp"), *ser = get(n, "serial");
-    int count = (tty != NULL) + (tcp != NULL) + (ser != NULL);
+    fnode *tty = get(n, "tty"), *tcp = get(n, "tcp"), *ser = get(n, "serial"), *emu = get(n, "emulated");
+    int count = (tty != NULL) + (tcp != NULL) + (ser != NULL) + (emu != NULL);
     if (count != 1)
-        return fail(c, n, ISO_EPARSE, key, "expected exactly one of tty, tcp or serial, found %d",
+        return fail(c, n, ISO_EPARSE, key, "expected exactly one of tty, tcp, serial or emulated, found %d",
                     count);
-    a->baud = 115200;
+    if ((tcp || emu) && get(n, "baud"))
+        return fail(c, get(n, "baud"), ISO_EPARSE, "sinks.actuators.link.baud",
+                    "only goes with tty or serial");
+    if (emu)
+        return parse_emulated(c, emu, a);
     if (tcp) {
         a->link = ISO_SCENE_LINK_TCP;
-        if (get(n, "baud"))
-            return fail(c, get(n, "baud"), ISO_EPARSE, "sinks.actuators.link.baud",
-                        "only goes with tty or serial");
         return host_port(c, tcp, "sinks.actuators.link.tcp", a->host, sizeof a->host, &a->port);
     }
     a->link = tty ? ISO_SCENE_LINK_TTY : ISO_SCENE_LINK_SERIAL;
@@ -1288,7 +1312,7 @@ static int parse_sinks(sctx *c, fnode *n)
             (rc = check_keys(c, v, "sinks.actuators", ak)))
             return rc;
         if (!get(v, "link"))
-            return missing(c, v, "sinks.actuators", "link", "{tty: PATH}, {tcp: host:port} or {serial: PORT}");
+            return missing(c, v, "sinks.actuators", "link", LINK_FORMS);
         if ((rc = parse_link(c, get(v, "link"), a)))
             return rc;
         fnode *chs = get(v, "channels");
@@ -1553,6 +1577,7 @@ const char *iso_scene_link_name(int link)
     case ISO_SCENE_LINK_TTY: return "tty";
     case ISO_SCENE_LINK_TCP: return "tcp";
     case ISO_SCENE_LINK_SERIAL: return "serial";
+    case ISO_SCENE_LINK_EMULATED: return "emulated";
     }
     return "?";
 }

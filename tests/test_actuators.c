@@ -17,6 +17,8 @@
 #include <time.h>
 
 #include "iso_actuators.h"
+#include "iso_mesh.h"
+#include "iso_scene.h"
 #include "iso_shapes.h"
 #include "testutil.h"
 
@@ -609,6 +611,162 @@ static void mcu_channel_count_disagreement(void **state)
     iso_regions_deinit(&r);
 }
 
+/* ---- scenes: link: emulated ------------------------------------------------ */
+
+#define SCENE_HEAD                                                                                 \
+    "mesh: {shape: bar, resolution: 4}\n"                                                          \
+    "regions:\n"                                                                                   \
+    "  sel: builtin\n"                                                                             \
+    "  handles:\n"                                                                                 \
+    "    - name: top\n"                                                                            \
+    "      driver: {screw: {duration: 1}}\n"                                                       \
+    "sinks:\n"                                                                                     \
+    "  actuators:\n"
+#define SCENE_CHANNELS                                                                             \
+    "    channels:\n"                                                                              \
+    "      - {channel: 0, region: top, axis: z, min: -12, max: 12, scale: 80}\n"                   \
+    "      - {channel: 1, region: fixed, axis: x, min: -1, max: 1, scale: 1000}\n"                 \
+    "      - {channel: 2, vertex: 3, axis: y, min: -2, max: 2, scale: 100}\n"                      \
+    "      - {channel: 3, region: top, axis: x, min: 0, max: 1, scale: 1000}\n"
+
+static int load_scene(const char *text, iso_scene **s, iso_err *err)
+{
+    iso_err_clear(err);
+    return iso_scene_load_mem(text, strlen(text), "emu.yaml", NULL, s, err);
+}
+
+static void expect_scene_error(const char *text, int code, const char *a, const char *b,
+                               const char *c)
+{
+    iso_scene *s = NULL;
+    iso_err err;
+    int rc = load_scene(text, &s, &err);
+    printf("  scene error: %s\n", err.msg);
+    assert_int_equal(rc, code);
+    assert_null(s);
+    assert_non_null(strstr(err.msg, a));
+    assert_non_null(strstr(err.msg, b));
+    assert_non_null(strstr(err.msg, c));
+}
+
+static void scene_link_emulated_forms_and_errors(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *link;
+        int mode;
+    } ok[] = {
+        {"    link: emulated\n", ISO_SCENE_EMU_AUTO},
+        {"    link: {emulated: auto}\n", ISO_SCENE_EMU_AUTO},
+        {"    link: {emulated: qemu}\n", ISO_SCENE_EMU_QEMU},
+        {"    link: {emulated: native}\n", ISO_SCENE_EMU_NATIVE},
+    };
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0]; i++) {
+        char text[2048];
+        snprintf(text, sizeof text, "%s%s%s", SCENE_HEAD, ok[i].link, SCENE_CHANNELS);
+        iso_scene *s = NULL;
+        iso_err err;
+        if (load_scene(text, &s, &err) != ISO_OK)
+            fail_msg("%s", err.msg);
+        assert_int_equal(s->actuators.link, ISO_SCENE_LINK_EMULATED);
+        assert_int_equal(s->actuators.emulation, ok[i].mode);
+        assert_string_equal(iso_scene_link_name(s->actuators.link), "emulated");
+        assert_int_equal(s->actuators.n_ch, 4);
+        iso_scene_destroy(s);
+    }
+    /* the scene's modes are the sink's */
+    assert_int_equal(ISO_SCENE_EMU_AUTO, ISO_ACT_EMU_AUTO);
+    assert_int_equal(ISO_SCENE_EMU_QEMU, ISO_ACT_EMU_QEMU);
+    assert_int_equal(ISO_SCENE_EMU_NATIVE, ISO_ACT_EMU_NATIVE);
+
+    expect_scene_error(SCENE_HEAD "    link: {emulated: nativ}\n" SCENE_CHANNELS, ISO_EPARSE,
+                       "emu.yaml:9:22: sinks.actuators.link.emulated", "did you mean 'native'",
+                       "auto, qemu, native");
+    expect_scene_error(SCENE_HEAD "    link: {emulatd: qemu}\n" SCENE_CHANNELS, ISO_EPARSE,
+                       "emu.yaml:9:12: sinks.actuators.link.emulatd", "did you mean 'emulated'",
+                       "unknown key");
+    expect_scene_error(SCENE_HEAD "    link: emulate\n" SCENE_CHANNELS, ISO_EPARSE,
+                       "emu.yaml:9:11: sinks.actuators.link", "did you mean 'emulated'",
+                       "{emulated: auto|qemu|native}");
+    expect_scene_error(SCENE_HEAD "    link: /dev/ttyUSB0\n" SCENE_CHANNELS, ISO_EPARSE,
+                       "emu.yaml:9:11: sinks.actuators.link", "{tty: PATH}",
+                       "found '/dev/ttyUSB0'");
+    expect_scene_error(SCENE_HEAD "    link: {emulated: qemu, baud: 9600}\n" SCENE_CHANNELS,
+                       ISO_EPARSE, "emu.yaml:9:34: sinks.actuators.link.baud", "only goes with",
+                       "tty or serial");
+    expect_scene_error(SCENE_HEAD "    link: {emulated: qemu, tty: /dev/ttyS0}\n" SCENE_CHANNELS,
+                       ISO_EPARSE, "emu.yaml:9:12: sinks.actuators.link", "exactly one of",
+                       "emulated, found 2");
+    expect_scene_error(SCENE_HEAD SCENE_CHANNELS, ISO_EPARSE, "sinks.actuators.link",
+                       "missing required key", "{emulated: auto|qemu|native}");
+}
+
+/* What the controller does with a scene's actuators; here to show a scene
+ * runs to the emulated MCU with no hardware. */
+static void scene_channels_to_sink(const iso_scene_actuators *sa, iso_act_channel *out)
+{
+    for (int i = 0; i < sa->n_ch; i++) {
+        const iso_scene_channel *c = &sa->ch[i];
+        iso_act_channel a = {c->channel,
+                             c->vertex,
+                             c->region == ISO_SCENE_REGION_NONE    ? ISO_ACT_REGION_NONE
+                             : c->region == ISO_SCENE_REGION_FIXED ? ISO_ACT_REGION_FIXED
+                                                                   : c->region,
+                             c->axis,
+                             c->min,
+                             c->max,
+                             c->scale};
+        out[i] = a;
+    }
+}
+
+static void scene_runs_hardware_free(void **state)
+{
+    (void)state;
+    iso_scene *s = NULL;
+    iso_err err;
+    if (load_scene(SCENE_HEAD "    link: {emulated: native}\n" SCENE_CHANNELS, &s, &err) != ISO_OK)
+        fail_msg("%s", err.msg);
+    iso_act_channel ch[ISO_SCENE_MAX_CHANNELS];
+    scene_channels_to_sink(&s->actuators, ch);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_EMULATED;
+    link.emulation = s->actuators.emulation;
+    iso_act_opts opts = {0, on_notice, NULL};
+    iso_actuators *a = NULL;
+    g.n_notices = 0;
+    int nv = iso_mesh_vertex_count(s->mesh);
+    iso_err_clear(&err);
+    if (iso_actuators_create(ch, s->actuators.n_ch, nv, &s->regions, &link, &opts, &a, &err))
+        fail_msg("%s", err.msg);
+    const double *x = iso_mesh_positions(s->mesh);
+    int16_t want[ISO_ACT_MAX_CHANNELS];
+    assert_int_equal(iso_actuators_compute(a, x, want, &err), ISO_OK);
+    uint32_t tick = 0;
+    run_ticks(a, &tick, 8000, NULL, NULL, streaming);
+    double end = now_s() + 0.5, next = now_s();
+    while (now_s() < end) { /* 100 Hz */
+        if (now_s() >= next) {
+            assert_true(iso_actuators_publish(a, tick++, x, &err) >= 0);
+            next += 0.01;
+        }
+        int wait = (int)((next - now_s()) * 1000);
+        iso_actuators_poll(a, wait < 0 ? 0 : wait);
+    }
+    iso_act_stats st;
+    iso_actuators_stats(a, &st);
+    printf("  scene -> native MCU: values %d %d %d %d, %llu sent, %llu acked\n", want[0], want[1],
+           want[2], want[3], (unsigned long long)st.setpoints_sent, (unsigned long long)st.acks);
+    assert_true(st.setpoints_sent >= 20 && st.setpoints_sent <= 60);
+    assert_true(st.acks + 3 >= st.setpoints_sent);
+    assert_int_equal(st.echo_mismatches, 0);
+    assert_int_equal(g.n_notices, 1); /* 4 channels, as the firmware has */
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
+    iso_actuators_destroy(a);
+    iso_scene_destroy(s);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -620,6 +778,8 @@ int main(void)
         cmocka_unit_test(qemu_end_to_end),
         cmocka_unit_test(auto_falls_back_to_native_and_says_why),
         cmocka_unit_test(mcu_channel_count_disagreement),
+        cmocka_unit_test(scene_link_emulated_forms_and_errors),
+        cmocka_unit_test(scene_runs_hardware_free),
     };
     return cmocka_run_group_tests_name("actuators", t, NULL, NULL);
 }
