@@ -245,18 +245,18 @@ static int path_eval(void *ctx, int h, double t, iso_pose *pose, iso_twist *tw)
 
 /* Loads the scene, integrates it along the replayed path, prints a checksum
  * of the vertices and saves them when out_path is given. */
-static int run_scene(const iso_cli__source *src, replay_path *rp, int steps, const char *out_path)
+static int run_scene(iso_cli__problem *pp, replay_path *rp, int steps, const char *out_path)
 {
     const char *cmd = "replay";
     iso_err err;
     iso_err_clear(&err);
-    iso_cli__problem p;
+    iso_cli__problem p = *pp;
     double *x = NULL;
     iso_solver *s = NULL;
-    int rc = iso_cli__problem_load(cmd, src, &p, &err);
-    if (rc == ISO_OK && rp->n == 0)
+    int rc = ISO_OK;
+    if (rp->n == 0)
         rc = iso_err_set(&err, ISO_EINVAL, -1, "the recording has no ticks to integrate");
-    int nv = rc == ISO_OK ? iso_mesh_vertex_count(p.mesh) : 0;
+    int nv = iso_mesh_vertex_count(p.mesh);
     if (rc == ISO_OK && !(x = malloc((size_t)nv * 3 * sizeof *x)))
         rc = iso_err_set(&err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
     iso_solver_opts so;
@@ -287,8 +287,28 @@ static int run_scene(const iso_cli__source *src, replay_path *rp, int steps, con
         iso_cli__fail(cmd, "%s", err.msg);
     iso_solver_destroy(s);
     free(x);
-    iso_cli__problem_deinit(&p);
     return rc == ISO_OK ? 0 : 1;
+}
+
+/* Handle h's rest centroid: device rotations turn about it, as in the
+ * real-time loop (controller/loop.c), so both give the same motion. */
+static void set_centres(iso_dev_map *m, const iso_cli__problem *p)
+{
+    const double *X = iso_mesh_positions(p->mesh);
+    int nv = iso_mesh_vertex_count(p->mesh);
+    for (int h = 0; h < m->o.n_handles; h++) {
+        double c[3] = {0, 0, 0}, n = 0;
+        for (int v = 0; v < nv; v++) {
+            if (p->reg.kind[v] != ISO_HANDLE || p->reg.handle[v] != h)
+                continue;
+            for (int j = 0; j < 3; j++)
+                c[j] += X[3 * v + j];
+            n += 1;
+        }
+        for (int j = 0; j < 3 && n > 0; j++)
+            c[j] /= n;
+        iso_dev_map_set_centre(m, h, c);
+    }
 }
 
 static void sleep_until(int64_t t_ns)
@@ -421,9 +441,20 @@ int iso_cli__replay(int argc, char **argv)
         iso_cli__fail(cmd, "%s", err.msg);
         return 2;
     }
+    iso_cli__problem prob;
+    memset(&prob, 0, sizeof prob);
+    if (scene) {
+        if (iso_cli__problem_load(cmd, &src, &prob, &err) != ISO_OK) {
+            iso_cli__fail(cmd, "%s", err.msg);
+            iso_cli__problem_deinit(&prob);
+            return 1;
+        }
+        set_centres(&m, &prob);
+    }
     iso_dev_rec_reader r;
     if (iso_dev_rec_reader_load(&r, path, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
+        iso_cli__problem_deinit(&prob);
         return 1;
     }
     iso_dev_source *s = NULL;
@@ -440,6 +471,7 @@ int iso_cli__replay(int argc, char **argv)
         iso_dev_source_close(s);
         iso_dev_hub_destroy(h);
         iso_dev_rec_reader_deinit(&r);
+        iso_cli__problem_deinit(&prob);
         return 1;
     }
     iso_pose P[ISO_DEV_MAX_HANDLES];
@@ -500,7 +532,8 @@ int iso_cli__replay(int argc, char **argv)
     }
     iso_dev_hub_destroy(h);
     iso_dev_rec_reader_deinit(&r);
-    int status = scene ? run_scene(&src, &rp, steps, out_path) : 0;
+    int status = scene ? run_scene(&prob, &rp, steps, out_path) : 0;
+    iso_cli__problem_deinit(&prob);
     free(rp.t);
     free(rp.xi);
     free(rp.g);

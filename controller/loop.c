@@ -123,7 +123,11 @@ static int init_mapping(iso_loop *l, iso_err *err)
         l->dev_handle[l->n_dev++] = h;
     }
     mo.n_handles = l->n_dev > 0 ? l->n_dev : 1;
-    return iso_dev_map_init(&l->map, &mo, err);
+    int rc = iso_dev_map_init(&l->map, &mo, err);
+    /* a twist of the 3D mouse turns the handle about its own centre */
+    for (int j = 0; j < l->n_dev && rc == ISO_OK; j++)
+        iso_dev_map_set_centre(&l->map, j, l->centroid[l->dev_handle[j]]);
+    return rc;
 }
 
 /* ======================================================================== */
@@ -218,6 +222,14 @@ int iso_loop_shutdown(iso_loop *l, iso_err *err)
         return ISO_OK;
     l->shut = 1;
     int rc = iso_loop__sinks_close(l, err);
+    if (l->hub && l->recording && !l->replay) {
+        /* what arrived after the last tick goes into the recording too */
+        iso_dev_event ev[64];
+        size_t n = 0;
+        int r1 = iso_dev_hub_drain(l->hub, l->stream_now + l->period_ns, ev, 64, &n, err);
+        if (rc == ISO_OK)
+            rc = r1;
+    }
     if (l->hub && l->recording) {
         int r2 = iso_dev_hub_record_stop(l->hub, err);
         l->recording = 0;
@@ -250,18 +262,13 @@ void iso_loop_destroy(iso_loop *l)
 /* One tick                                                                 */
 /* ======================================================================== */
 
-/* Device poses for the mapping: rotation about the handle's current centre,
- * so a twist of the 3D mouse turns the handle about itself. */
+/* The device-driven handles' poses, in the mapping's order. */
 static void map_poses(const iso_loop *l, iso_pose *P)
 {
     for (int j = 0; j < (int)ISO_DEV_MAX_HANDLES; j++)
         iso_pose_identity(&P[j]);
-    for (int j = 0; j < l->n_dev; j++) {
-        int h = l->dev_handle[j];
-        const iso_pose *G = iso_stepper_pose(l->st, h);
-        P[j] = *G;
-        iso_pose_apply(G, l->centroid[h], P[j].p);
-    }
+    for (int j = 0; j < l->n_dev; j++)
+        P[j] = *iso_stepper_pose(l->st, l->dev_handle[j]);
 }
 
 static int discontinuity(const iso_dev_tick *a, const iso_dev_tick *b)

@@ -82,6 +82,15 @@ int iso_loop__twist_between(const iso_pose *G, const iso_pose *P, double h, iso_
     return ISO_OK;
 }
 
+/* A velocity jump at time T needs a restart in the tick [t, t + h] when it
+ * lies inside it or at its start; one at its end belongs to the next tick
+ * (which then starts on it). ε absorbs the round-off of summed tick lengths. */
+static int jump_within(double T, double t, double h)
+{
+    double eps = 1e-9 * h;
+    return T > t - eps && T < t + h - eps;
+}
+
 int iso_loop__scripted_twist(const iso_scene_driver *d, const double c[3], const iso_pose *G,
                              double t, double h, iso_twist *xi, int *crossed, iso_err *err)
 {
@@ -96,12 +105,12 @@ int iso_loop__scripted_twist(const iso_scene_driver *d, const double c[3], const
             xi->w[j] = d->twist.w[j] * f;
             xi->v[j] = d->twist.v[j] * f;
         }
-        *crossed = t < T && t + h >= T;
+        *crossed = jump_within(T, t, h);
         return ISO_OK;
     }
     if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES) {
         for (int i = 0; i < d->n_keys; i++)
-            if (d->keys[i].t > t && d->keys[i].t <= t + h)
+            if (jump_within(d->keys[i].t, t, h))
                 *crossed = 1;
         iso_pose P;
         key_pose(d, c, t + h, &P);

@@ -320,16 +320,24 @@ typedef struct iso_dev_map {
     uint8_t clutch, estop;
     uint32_t gone;
     iso_dev_map_src src[ISO_DEV_MAX_SOURCES];
+    /* Each handle's centre in rest coordinates (0 unless set): the point
+     * device rotations turn about, carried along by the handle's pose. */
+    double centre[ISO_DEV_MAX_HANDLES][3];
 } iso_dev_map;
 
 ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
+/* Sets handle h's centre (rest coordinates): a twist of the device then
+ * turns the handle about R c + p, where it is now, instead of about p. */
+void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);
 /* The mapping of one device reading (6 raw axes) to a twist for a handle
  * at pose g (rotation about its centre g->p). Pure: no state. */
 void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const iso_pose *g,
                       iso_twist *out);
 /* Applies this tick's events in order and writes the tick's command.
- * poses[h] is handle h's current pose (for the device frame, rotation about
- * the handle, and pose streams); dt_s the tick length. Deterministic. */
+ * poses[h] is handle h's current pose, rest to current (for the device
+ * frame, rotation about the handle's centre, and pose streams, whose
+ * samples are poses in the same sense); dt_s the tick length.
+ * Deterministic. */
 void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
                       double dt_s, const iso_pose *poses, iso_dev_tick *out);
 

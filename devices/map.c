@@ -63,6 +63,12 @@ int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err)
     return ISO_OK;
 }
 
+void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3])
+{
+    if (h >= 0 && h < (int)ISO_DEV_MAX_HANDLES)
+        memcpy(m->centre[h], c, sizeof m->centre[h]);
+}
+
 static void cross(const double a[3], const double b[3], double c[3])
 {
     c[0] = a[1] * b[2] - a[2] * b[1];
@@ -266,6 +272,8 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
     if (m->estop || hold)
         return;
     const iso_pose *g = &poses[m->active];
+    iso_pose gc = *g; /* rotations turn about the handle's centre, where it is now */
+    iso_pose_apply(g, m->centre[m->active], gc.p);
     iso_twist *t = &out->twist[m->active];
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         iso_twist x;
@@ -280,9 +288,9 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
                 v[k] = s->v[k] * m->o.pose_scale;
                 w[k] = s->v[3 + k];
             }
-            twist_about(v, w, g->p, &x);
+            twist_about(v, w, gc.p, &x);
         } else {
-            iso_dev_map_axes(&m->o, s->axes, g, &x);
+            iso_dev_map_axes(&m->o, s->axes, &gc, &x);
         }
         for (int k = 0; k < 3; k++) {
             t->w[k] += x.w[k];

@@ -1,10 +1,14 @@
 /* tests/testutil.c -- see testutil.h. */
 #include "testutil.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 const char *iso_test_tmp(char *buf, size_t cap, const char *name)
 {
@@ -49,4 +53,55 @@ double iso_test_max_abs(const double *a, size_t n)
     for (size_t i = 0; i < n; i++)
         m = fmax(m, fabs(a[i]));
     return m;
+}
+
+static void slurp(const char *path, char *buf, size_t cap)
+{
+    FILE *f = fopen(path, "rb");
+    size_t n = 0;
+    if (f) {
+        n = fread(buf, 1, cap - 1, f);
+        fclose(f);
+    }
+    buf[n] = '\0';
+}
+
+int iso_test_sh(const char *cmd, char *out, size_t out_cap, char *err, size_t err_cap)
+{
+    char o[PATH_MAX], e[PATH_MAX], name[64];
+    snprintf(name, sizeof name, "sh_%ld.stdout", (long)getpid());
+    iso_test_tmp(o, sizeof o, name);
+    snprintf(name, sizeof name, "sh_%ld.stderr", (long)getpid());
+    iso_test_tmp(e, sizeof e, name);
+    size_t cap = strlen(cmd) + strlen(o) + strlen(e) + 32;
+    char *line = malloc(cap);
+    assert_non_null(line);
+    snprintf(line, cap, "%s >'%s' 2>'%s' </dev/null", cmd, o, e);
+    int st = system(line);
+    free(line);
+    slurp(o, out, out_cap);
+    slurp(e, err, err_cap);
+    return st != -1 && WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+int iso_test_isoshape_bin(char *buf, size_t cap)
+{
+    const char *env = getenv("ISOSHAPE_BIN");
+    if (env && *env) {
+        snprintf(buf, cap, "%s", env);
+        return access(buf, X_OK);
+    }
+    char self[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0)
+        return -1;
+    self[n] = '\0';
+    for (int up = 0; up < 2; up++) { /* <build>/tests/test_x -> <build> */
+        char *slash = strrchr(self, '/');
+        if (!slash)
+            return -1;
+        *slash = '\0';
+    }
+    snprintf(buf, cap, "%s/isoshape", self);
+    return access(buf, X_OK);
 }

@@ -26,4 +26,12 @@ double iso_test_max_abs_diff(const double *a, const double *b, size_t n);
 /* max |a_i| */
 double iso_test_max_abs(const double *a, size_t n);
 
+/* Runs `sh -c "<cmd>"` with stdin from /dev/null and stdout and stderr
+ * captured into out and err (NUL-terminated, truncated to cap). Returns the
+ * exit status, or -1 when it did not exit normally. */
+int iso_test_sh(const char *cmd, char *out, size_t out_cap, char *err, size_t err_cap);
+/* The isoshape binary: $ISOSHAPE_BIN, else <build>/isoshape next to this
+ * test's build folder. Returns 0 if it is there and executable. */
+int iso_test_isoshape_bin(char *buf, size_t cap);
+
 #endif

@@ -1,0 +1,507 @@
+/* tests/test_run.c -- `isoshape run`, the real-time loop, as a real process.
+ *
+ * - Every recording in tests/streams drives the built-in cactus (resolution 1,
+ *   570 vertices, C assembly) through the whole loop as fast as possible on
+ *   stream time. Two runs give byte-identical final meshes, and the result
+ *   matches the golden summary in tests/streams/golden (tick count, distortion,
+ *   every 10th vertex). Golden tolerance 1e-7 of the bounding-box diagonal:
+ *   the run repeats the same operations, so only the BLAS kernels OpenBLAS
+ *   picks for another CPU can move the bits (round-off, ~1e-13 here); any
+ *   change of logic moves vertices by 1e-5 or more. Rewrite the goldens
+ *   with ISO_UPDATE_GOLDEN=1 after a deliberate change, and say why.
+ * - Independent checks of the loop: the same recording through `isoshape
+ *   replay --shape` (iso_integrate on a path built from the tick commands,
+ *   not the stepper) lands within 1e-3 of the diagonal — the two differ only
+ *   in which side of a tick boundary the handle twist is sampled at a step's
+ *   end, a first-order difference in the twist's jumps; a wrong rotation
+ *   centre gave 0.57. A screw driver equals `isoshape deform --steps N` to
+ *   1e-12 (same integrator, constant twist; measured 4e-15). Keyframes end
+ *   at their pose.
+ * - Time: overruns are counted and skipped, latency does not pile up, and
+ *   pacing follows --speed.
+ * - SIGTERM mid-run with a live device (a pseudo-terminal) exits 0 and
+ *   leaves a whole recording.
+ * - Bad scenes and options give errors that name what is wrong. */
+#define _DEFAULT_SOURCE /* openpty, kill */
+#include "testutil.h"
+
+#include <fcntl.h>
+#include <limits.h>
+#include <math.h>
+#include <pty.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "iso_dev.h"
+#include "iso_mesh.h"
+
+static char g_bin[PATH_MAX];
+static char g_out[1 << 16], g_err[1 << 16];
+
+#define DIAG_TOL_GOLDEN 1e-7
+#define DIAG_TOL_REPLAY 1e-3
+#define DIAG_TOL_DEFORM 1e-12
+
+static const char *const streams[] = {"sm_twist",   "clutch_buttons", "unplug_replug", "serial_pose",
+                                      "gpio_estop", "torn",           "sm_session"};
+
+/* ---- helpers ---------------------------------------------------------------- */
+
+static int iso(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static int iso(const char *fmt, ...)
+{
+    char args[4096], cmd[PATH_MAX + 4200];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(args, sizeof args, fmt, ap);
+    va_end(ap);
+    snprintf(cmd, sizeof cmd, "'%s' %s", g_bin, args);
+    return iso_test_sh(cmd, g_out, sizeof g_out, g_err, sizeof g_err);
+}
+
+static double json_num(const char *json, const char *key)
+{
+    char k[128];
+    snprintf(k, sizeof k, "\"%s\": ", key);
+    const char *p = strstr(json, k);
+    assert_non_null(p);
+    return strtod(p + strlen(k), NULL);
+}
+
+static void json_handle_p(const char *json, double p[3])
+{
+    const char *q = strstr(json, "\"p\": [");
+    assert_non_null(q);
+    q += 6;
+    for (int j = 0; j < 3; j++) {
+        char *end;
+        p[j] = strtod(q, &end);
+        q = end + 1;
+    }
+}
+
+static void slurp(const char *path, char *buf, size_t cap)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, cap - 1, f);
+    buf[n] = 0;
+    fclose(f);
+}
+
+static iso_mesh *load(const char *path)
+{
+    iso_mesh *m = NULL;
+    iso_err e;
+    iso_err_clear(&e);
+    if (iso_mesh_load(path, &m, &e) != ISO_OK)
+        fail_msg("%s: %s", path, e.msg);
+    return m;
+}
+
+static double bbox_diag(const iso_mesh *m)
+{
+    const double *x = iso_mesh_positions(m);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int v = 0; v < iso_mesh_vertex_count(m); v++)
+        for (int j = 0; j < 3; j++) {
+            lo[j] = fmin(lo[j], x[3 * v + j]);
+            hi[j] = fmax(hi[j], x[3 * v + j]);
+        }
+    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+}
+
+static double max_diff(const char *a, const char *b, double *diag)
+{
+    iso_mesh *ma = load(a), *mb = load(b);
+    int nv = iso_mesh_vertex_count(ma);
+    assert_int_equal(nv, iso_mesh_vertex_count(mb));
+    double d = iso_test_max_abs_diff(iso_mesh_positions(ma), iso_mesh_positions(mb), (size_t)nv * 3);
+    *diag = bbox_diag(ma);
+    iso_mesh_destroy(ma);
+    iso_mesh_destroy(mb);
+    return d;
+}
+
+static int same_bytes(const char *a, const char *b)
+{
+    char cmd[2 * PATH_MAX + 16], o[16], e[16];
+    snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", a, b);
+    return iso_test_sh(cmd, o, sizeof o, e, sizeof e) == 0;
+}
+
+/* A scene on the built-in cactus at resolution 1, driven by `driver`. */
+static void write_scene(const char *path, const char *devices, const char *driver,
+                        const char *extra)
+{
+    static char text[16384];
+    snprintf(text, sizeof text,
+             "name: test\n"
+             "mesh: {shape: cactus, resolution: 1}\n"
+             "%s"
+             "regions:\n"
+             "  sel: builtin\n"
+             "  handles:\n"
+             "    - name: top\n"
+             "      driver: %s\n"
+             "solver: {assembly: cpu, refactor: always}\n"
+             "%s",
+             devices, driver, extra);
+    iso_test_write(path, text, -1);
+}
+
+static void replay_scene(const char *path, const char *stream)
+{
+    char dev[PATH_MAX + 100];
+    snprintf(dev, sizeof dev, "devices:\n  - {name: dev, kind: replay, file: %s/%s.isorec}\n",
+             ISO_TEST_STREAMS, stream);
+    write_scene(path, dev, "{device: dev}", "");
+}
+
+/* ---- goldens ------------------------------------------------------------------ */
+
+static void golden_path(char *buf, size_t cap, const char *stream)
+{
+    snprintf(buf, cap, "%s/golden/%s.txt", ISO_TEST_STREAMS, stream);
+}
+
+static void write_golden(const char *stream, const char *json, const char *off)
+{
+    char path[PATH_MAX];
+    golden_path(path, sizeof path, stream);
+    iso_mesh *m = load(off);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "# isoshape run: built-in cactus (resolution 1) driven by %s.isorec, C assembly.\n"
+               "# Written by tests/test_run.c with ISO_UPDATE_GOLDEN=1.\n",
+            stream);
+    fprintf(f, "ticks %.0f\nmetric_err %.17g\n", json_num(json, "ticks"),
+            json_num(json, "metric_err"));
+    const double *x = iso_mesh_positions(m);
+    for (int v = 0; v < iso_mesh_vertex_count(m); v += 10)
+        fprintf(f, "v %d %.17g %.17g %.17g\n", v, x[3 * v], x[3 * v + 1], x[3 * v + 2]);
+    fclose(f);
+    iso_mesh_destroy(m);
+    printf("wrote %s\n", path);
+}
+
+static void check_golden(const char *stream, const char *json, const char *off)
+{
+    char path[PATH_MAX], line[512];
+    golden_path(path, sizeof path, stream);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        fail_msg("%s is missing (ISO_UPDATE_GOLDEN=1 writes it)", path);
+    iso_mesh *m = load(off);
+    double diag = bbox_diag(m), worst = 0;
+    const double *x = iso_mesh_positions(m);
+    int checked = 0;
+    while (fgets(line, sizeof line, f)) {
+        double a, b, c;
+        int v;
+        if (sscanf(line, "ticks %lf", &a) == 1)
+            assert_int_equal((long)a, (long)json_num(json, "ticks"));
+        if (sscanf(line, "metric_err %lf", &a) == 1)
+            assert_true(fabs(json_num(json, "metric_err") - a) <= 1e-6 * a + 1e-300);
+        if (sscanf(line, "v %d %lf %lf %lf", &v, &a, &b, &c) == 4) {
+            worst = fmax(worst, fmax(fabs(x[3 * v] - a), fmax(fabs(x[3 * v + 1] - b),
+                                                              fabs(x[3 * v + 2] - c))));
+            checked++;
+        }
+    }
+    fclose(f);
+    iso_mesh_destroy(m);
+    printf("%-15s golden: %d vertices, max deviation %.3g of the diagonal\n", stream, checked,
+           worst / diag);
+    assert_true(checked > 10);
+    assert_true(worst <= DIAG_TOL_GOLDEN * diag);
+}
+
+static void each_stream_replays_deterministically_to_its_golden(void **state)
+{
+    (void)state;
+    int update = getenv("ISO_UPDATE_GOLDEN") != NULL;
+    for (size_t i = 0; i < sizeof streams / sizeof streams[0]; i++) {
+        const char *s = streams[i];
+        char scene[PATH_MAX], a[PATH_MAX], b[PATH_MAX], ja[PATH_MAX], jb[PATH_MAX], name[64];
+        snprintf(name, sizeof name, "run_%s.yaml", s);
+        replay_scene(iso_test_tmp(scene, sizeof scene, name), s);
+        snprintf(name, sizeof name, "run_%s_a.off", s);
+        iso_test_tmp(a, sizeof a, name);
+        snprintf(name, sizeof name, "run_%s_b.off", s);
+        iso_test_tmp(b, sizeof b, name);
+        snprintf(name, sizeof name, "run_%s_a.json", s);
+        iso_test_tmp(ja, sizeof ja, name);
+        snprintf(name, sizeof name, "run_%s_b.json", s);
+        iso_test_tmp(jb, sizeof jb, name);
+        int st = iso("run '%s' --fast --quiet --out '%s' --stats-json '%s'", scene, a, ja);
+        if (st != 0)
+            fail_msg("%s: exit %d: %s", s, st, g_err);
+        if (strcmp(s, "torn") == 0) /* the damage is reported, the rest replays */
+            assert_non_null(strstr(g_err, "byte"));
+        assert_int_equal(iso("run '%s' --fast --quiet --out '%s' --stats-json '%s'", scene, b, jb),
+                         0);
+        assert_true(same_bytes(a, b));
+        static char j1[8192], j2[8192];
+        slurp(ja, j1, sizeof j1);
+        slurp(jb, j2, sizeof j2);
+        assert_non_null(strstr(j1, "\"checksum\""));
+        assert_string_equal(strstr(j1, "\"checksum\""), strstr(j2, "\"checksum\""));
+        assert_true(json_num(j1, "ticks") >= 4);
+        if (update)
+            write_golden(s, j1, a);
+        else
+            check_golden(s, j1, a);
+    }
+}
+
+/* ---- independent checks ---------------------------------------------------------- */
+
+static void loop_agrees_with_the_replay_command(void **state)
+{
+    (void)state;
+    static const char *const which[] = {"sm_twist", "serial_pose", "sm_session"};
+    for (size_t i = 0; i < 3; i++) {
+        char scene[PATH_MAX], a[PATH_MAX], b[PATH_MAX], name[64];
+        snprintf(name, sizeof name, "cross_%s.yaml", which[i]);
+        replay_scene(iso_test_tmp(scene, sizeof scene, name), which[i]);
+        snprintf(name, sizeof name, "cross_%s_run.off", which[i]);
+        iso_test_tmp(a, sizeof a, name);
+        snprintf(name, sizeof name, "cross_%s_replay.off", which[i]);
+        iso_test_tmp(b, sizeof b, name);
+        assert_int_equal(iso("run '%s' --fast --quiet --out '%s'", scene, a), 0);
+        assert_int_equal(iso("replay --fast '%s/%s.isorec' --shape cactus --resolution 1 --out '%s'",
+                             ISO_TEST_STREAMS, which[i], b),
+                         0);
+        double diag, d = max_diff(a, b, &diag);
+        printf("%-12s loop vs replay command: %.3g of the diagonal\n", which[i], d / diag);
+        assert_true(d <= DIAG_TOL_REPLAY * diag);
+        assert_true(d > 0 || i == 1); /* they are different code, not a copy */
+    }
+}
+
+static void screw_driver_equals_deform(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], a[PATH_MAX], b[PATH_MAX];
+    write_scene(iso_test_tmp(scene, sizeof scene, "screw.yaml"), "",
+                "{screw: {def: builtin, duration: 1.0}}", "tick_hz: 20\n");
+    iso_test_tmp(a, sizeof a, "screw_run.off");
+    iso_test_tmp(b, sizeof b, "screw_deform.off");
+    assert_int_equal(iso("run '%s' --fast --quiet --out '%s' --stats-json /dev/null", scene, a), 0);
+    assert_int_equal(iso("deform --shape cactus --resolution 1 --steps 20 --restore off "
+                         "--assembly cpu --refactor always --out '%s'",
+                         b),
+                     0);
+    double diag, d = max_diff(a, b, &diag);
+    printf("screw: loop vs deform --steps 20: %.3g of the diagonal\n", d / diag);
+    assert_true(d <= DIAG_TOL_DEFORM * diag);
+}
+
+static void keyframes_end_at_their_pose(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], json[PATH_MAX];
+    static char j[8192];
+    write_scene(iso_test_tmp(scene, sizeof scene, "still.yaml"), "", "none", "tick_hz: 20\n");
+    iso_test_tmp(json, sizeof json, "still.json");
+    assert_int_equal(iso("run '%s' --fast --quiet --ticks 1 --stats-json '%s'", scene, json), 0);
+    slurp(json, j, sizeof j);
+    double c[3], p[3];
+    json_handle_p(j, c); /* held still: the rest centroid */
+    write_scene(scene, "",
+                "{keyframes: [{t: 0.5, translate: [0, 0.05, 0], rotate: [20, 0, 0]},"
+                " {t: 1.0, translate: [0.02, 0.1, -0.05], rotate: [30, 0, 10]}]}",
+                "tick_hz: 40\n");
+    iso_test_tmp(json, sizeof json, "keys.json");
+    assert_int_equal(iso("run '%s' --fast --quiet --stats-json '%s'", scene, json), 0);
+    slurp(json, j, sizeof j);
+    json_handle_p(j, p);
+    assert_int_equal((long)json_num(j, "ticks"), 40);
+    const double T[3] = {0.02, 0.1, -0.05};
+    for (int k = 0; k < 3; k++) /* rotation about the centroid keeps it: centre = c + T */
+        assert_true(fabs(p[k] - (c[k] + T[k])) < 1e-9);
+    assert_true(json_num(j, "restarts") >= 1); /* the key at 0.5 s is a velocity jump */
+}
+
+/* ---- time ------------------------------------------------------------------------ */
+
+static void overruns_are_counted_and_skipped(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], json[PATH_MAX];
+    static char j[8192];
+    /* 1 kHz ticks on a mesh that needs ~10 ms a tick: every deadline is missed */
+    write_scene(iso_test_tmp(scene, sizeof scene, "overrun.yaml"), "",
+                "{screw: {def: builtin, duration: 0.1}}", "tick_hz: 1000\n");
+    iso_test_tmp(json, sizeof json, "overrun.json");
+    assert_int_equal(iso("run '%s' --no-rt --quiet --stats-json '%s'", scene, json), 0);
+    slurp(json, j, sizeof j);
+    double ticks = json_num(j, "ticks"), misses = json_num(j, "misses");
+    double skipped = json_num(j, "skipped"), tmax = json_num(j, "max");
+    double wall = json_num(j, "wall_s");
+    printf("overrun: %.0f ticks, %.0f misses, %.0f skipped, wall %.2f s\n", ticks, misses, skipped,
+           wall);
+    assert_int_equal((long)ticks, 100); /* stream time is kept: every tick runs */
+    assert_true(misses >= 90);
+    assert_true(skipped >= ticks); /* each overrun of ~10 periods skips them */
+    /* no pile-up: a tick starts at once after an overrun, so the wait from one
+     * drain to the next publish is at most two tick times (max is from the
+     * latency object, the last "max" key) */
+    const char *lat = strstr(j, "\"latency_ms\"");
+    assert_non_null(lat);
+    double lat_max = json_num(lat, "max");
+    const char *tk = strstr(j, "\"tick_ms\"");
+    double tick_max = json_num(tk, "max");
+    (void)tmax;
+    assert_true(lat_max <= 2 * tick_max + 5);
+}
+
+static void pacing_follows_speed(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], json[PATH_MAX];
+    static char j[8192];
+    write_scene(iso_test_tmp(scene, sizeof scene, "paced.yaml"), "", "none", "tick_hz: 20\n");
+    iso_test_tmp(json, sizeof json, "paced.json");
+    assert_int_equal(iso("run '%s' --no-rt --quiet --duration 1 --speed 2 --stats-json '%s'",
+                         scene, json),
+                     0);
+    slurp(json, j, sizeof j);
+    double wall = json_num(j, "wall_s"), stream = json_num(j, "stream_s");
+    printf("paced: %.3f s of stream in %.3f s wall at speed 2\n", stream, wall);
+    assert_int_equal((long)json_num(j, "ticks"), 20);
+    assert_true(fabs(stream - 1.0) < 1e-6);
+    assert_true(wall >= 0.45); /* it waited for its deadlines (19 periods of 25 ms) */
+}
+
+/* ---- signals and recording ----------------------------------------------------------- */
+
+static void sigterm_closes_the_recording_whole(void **state)
+{
+    (void)state;
+    int master, slave;
+    char tty[256];
+    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
+    /* raw from the start: a cooked line discipline would eat XON (0x11)
+     * before isoshape opens the line and makes it raw itself */
+    struct termios raw;
+    assert_int_equal(tcgetattr(slave, &raw), 0);
+    cfmakeraw(&raw);
+    assert_int_equal(tcsetattr(slave, TCSANOW, &raw), 0);
+    char scene[PATH_MAX], rec[PATH_MAX], out[PATH_MAX], dev[512];
+    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
+             tty);
+    write_scene(iso_test_tmp(scene, sizeof scene, "live.yaml"), dev, "{device: link}",
+                "tick_hz: 50\n");
+    iso_test_tmp(rec, sizeof rec, "live.isorec");
+    iso_test_tmp(out, sizeof out, "live.off");
+    unlink(rec);
+    unlink(out);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int null = open("/dev/null", O_WRONLY);
+        dup2(null, 1);
+        dup2(null, 2);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--record", rec, "--out", out,
+              (char *)NULL);
+        _exit(127);
+    }
+    /* bytes on the line for a second: not frames, so they are counted as
+     * garbage, but every one is recorded */
+    const uint8_t junk[8] = {0x11, 0x22, 0x33, 0x44, 0x55, 0x66, 0x77, 0x88};
+    for (int i = 0; i < 20; i++) {
+        assert_int_equal(write(master, junk, sizeof junk), (ssize_t)sizeof junk);
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    assert_int_equal(kill(pid, SIGTERM), 0);
+    int status = 0;
+    for (int i = 0; i < 200 && waitpid(pid, &status, WNOHANG) == 0; i++) {
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    if (waitpid(pid, &status, WNOHANG) == 0) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        fail_msg("isoshape run did not stop within 10 s of SIGTERM");
+    }
+    close(master);
+    close(slave);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    assert_int_equal(access(out, R_OK), 0); /* the final mesh was written */
+    iso_dev_rec_reader r;
+    iso_err e;
+    iso_err_clear(&e);
+    assert_int_equal(iso_dev_rec_reader_load(&r, rec, &e), ISO_OK);
+    iso_dev_chunk c;
+    long ticks = 0, bytes = 0;
+    while (iso_dev_rec_next(&r, &c, NULL) == 1) {
+        if (c.type == ISO_DEV_CHUNK_TICK)
+            ticks++;
+        else if (c.type == ISO_DEV_CHUNK_DATA)
+            bytes += c.len;
+    }
+    printf("recording after SIGTERM: %ld ticks, %ld bytes, torn %d, damaged %ld\n", ticks, bytes,
+           r.torn, r.damaged);
+    assert_int_equal(r.torn, 0);
+    assert_int_equal(r.damaged, 0);
+    assert_true(ticks >= 20);
+    assert_int_equal(bytes, 20 * 8);
+    iso_dev_rec_reader_deinit(&r);
+}
+
+/* ---- bad input ---------------------------------------------------------------------- */
+
+static void bad_input_is_named(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX];
+    write_scene(iso_test_tmp(scene, sizeof scene, "missing.yaml"),
+                "devices:\n  - {name: dev, kind: replay, file: /nonexistent/x.isorec}\n",
+                "{device: dev}", "");
+    assert_int_equal(iso("run '%s' --fast --quiet", scene), 1);
+    assert_non_null(strstr(g_err, "/nonexistent/x.isorec"));
+    assert_int_equal(iso("run '%s' --speed 0", scene), 2);
+    assert_non_null(strstr(g_err, "--speed"));
+    assert_int_equal(iso("run '%s' --bogus", scene), 2);
+    assert_non_null(strstr(g_err, "--bogus"));
+    assert_int_equal(iso("run"), 2);
+    assert_non_null(strstr(g_err, "SCENE"));
+    char dev[PATH_MAX + 200];
+    snprintf(dev, sizeof dev,
+             "devices:\n  - {name: a, kind: replay, file: %s/sm_twist.isorec}\n"
+             "  - {name: b, kind: tcp, address: '127.0.0.1:1'}\n",
+             ISO_TEST_STREAMS);
+    write_scene(scene, dev, "{device: a}", "");
+    assert_int_equal(iso("run '%s' --fast --quiet", scene), 1);
+    assert_non_null(strstr(g_err, "replay"));
+}
+
+int main(void)
+{
+    if (iso_test_isoshape_bin(g_bin, sizeof g_bin) != 0) {
+        printf("skipped: no isoshape binary at %s (set ISOSHAPE_BIN)\n", g_bin);
+        return ISO_TEST_SKIP;
+    }
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(each_stream_replays_deterministically_to_its_golden),
+        cmocka_unit_test(loop_agrees_with_the_replay_command),
+        cmocka_unit_test(screw_driver_equals_deform),
+        cmocka_unit_test(keyframes_end_at_their_pose),
+        cmocka_unit_test(overruns_are_counted_and_skipped),
+        cmocka_unit_test(pacing_follows_speed),
+        cmocka_unit_test(sigterm_closes_the_recording_whole),
+        cmocka_unit_test(bad_input_is_named),
+    };
+    return cmocka_run_group_tests(t, NULL, NULL);
+}
