@@ -30,6 +30,14 @@ static int open_display(iso_loop *l, iso_err *err)
     o.mesh = l->sc->mesh;
     o.regions = &l->sc->regions;
     int rc = iso_display_create(&o, &l->sinks->display, err);
+    if (rc == ISO_EIO && o.port != 0 && l->o.port < 0) {
+        /* the scene's port is taken (another run, another server): any free
+         * one serves as well, and the line below says which */
+        fprintf(l->log, "isoshape run: %s; using a free port instead\n", err->msg);
+        iso_err_clear(err);
+        o.port = 0;
+        rc = iso_display_create(&o, &l->sinks->display, err);
+    }
     if (rc == ISO_ENOTSUP) { /* a build without civetweb still runs headless */
         fprintf(l->log, "isoshape run: no live display: %s\n", err->msg);
         iso_err_clear(err);
