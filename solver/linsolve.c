@@ -13,16 +13,98 @@
  * factor at once rather than spend the iterations first; abandon an attempt
  * early when its rate cannot make the budget; and after failures back off
  * (see iso_solver__linsolve). */
+#include <dlfcn.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "iso_clock.h"
 #include "solver_internal.h"
 
+/* ===== threads ========================================================== */
+
+/* Debian's CHOLMOD 3 is built with OpenMP and asks for a fixed team of
+ * CHOLMOD_OMP_NUM_THREADS (4) in its supernodal scatter loops, whatever
+ * OMP_NUM_THREADS says. Those loops are tiny; on two cores a team of four,
+ * beside OpenBLAS's own spinning threads, spends most of the factorization
+ * waking and parking threads (futex): the cactus factorization took 90-110
+ * ms with the team and 43-55 ms without, and the process used 3x the CPU.
+ * So, once, before the first factorization, cap OpenMP at no active
+ * parallel level: every region then runs on the calling thread. The
+ * setting is process-wide (an OpenMP ICV); a user who sets
+ * OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT keeps their choice. Looked up
+ * rather than linked, so that a CHOLMOD without OpenMP needs nothing. */
+static void serialise_cholmod_openmp(iso_solver *s)
+{
+    if (s->omp_serialised)
+        return;
+    s->omp_serialised = 1;
+    if (getenv("OMP_MAX_ACTIVE_LEVELS") || getenv("OMP_THREAD_LIMIT"))
+        return;
+    void (*set_levels)(int) = NULL;
+    void *sym = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels");
+    if (!sym)
+        return;
+    memcpy(&set_levels, &sym, sizeof set_levels);
+    set_levels(0);
+}
+
+/* OpenBLAS threads pay only on large supernodes. On the benchmark meshes
+ * of a few thousand vertices (0.5 GFLOP factorizations, supernodes of tens
+ * of columns) a second thread gained nothing measurable (cactus: 33 ms with
+ * one thread or two), and after every call it spins in sched_yield for
+ * ~0.1 s, on the core the OpenCL assembly of the next evaluation wants:
+ * the PoCL assembly took 28 ms beside it and 17 ms without it. So below
+ * ISO_LINSOLVE_THREADED_FLOPS per factorization CHOLMOD's BLAS calls run on
+ * one thread, and the count in force before is restored after each call, so
+ * nothing else in the process sees the change. A user who sets
+ * OPENBLAS_NUM_THREADS keeps their choice. A fixed thread count also keeps
+ * the results bit-identical on machines with more cores: OpenBLAS's
+ * threaded and single-threaded kernels round differently. */
+#define ISO_LINSOLVE_THREADED_FLOPS 4e9
+
+static void look_up_blas_threads(iso_solver *s)
+{
+    s->blas_looked_up = 1;
+    if (getenv("OPENBLAS_NUM_THREADS") || s->factor_flops >= ISO_LINSOLVE_THREADED_FLOPS)
+        return;
+    void *get = dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+    void *set = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    if (!get || !set)
+        return;
+    memcpy(&s->blas_get_threads, &get, sizeof get);
+    memcpy(&s->blas_set_threads, &set, sizeof set);
+}
+
+/* Enters a CHOLMOD call: returns the thread count to restore, 0 if none. */
+static int blas_begin(iso_solver *s)
+{
+    if (!s->blas_looked_up)
+        look_up_blas_threads(s);
+    if (!s->blas_set_threads)
+        return 0;
+    int before = s->blas_get_threads();
+    if (before == 1)
+        return 0;
+    s->blas_set_threads(1);
+    return before;
+}
+
+static void blas_end(iso_solver *s, int before)
+{
+    if (before > 0)
+        s->blas_set_threads(before);
+}
+
+/* ===== factor and solve ================================================= */
+
 static int factorize(iso_solver *s, iso_err *err)
 {
+    serialise_cholmod_openmp(s);
     double t0 = iso_clock_now();
+    int threads = blas_begin(s);
     int ok = cholmod_factorize(s->A, s->L, &s->c);
+    blas_end(s, threads);
     s->st.t_factor += iso_clock_now() - t0;
     s->have_factor = 0;
     if (!ok || s->c.status < CHOLMOD_OK)
@@ -45,8 +127,10 @@ static int factorize(iso_solver *s, iso_err *err)
 /* Z = L⁻ᵀL⁻¹ R with the cached factor, reusing CHOLMOD's workspace. */
 static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_err *err)
 {
-    if (!cholmod_solve2(CHOLMOD_A, s->L, R, NULL, Z, NULL, &s->Y, &s->E, &s->c) ||
-        s->c.status < CHOLMOD_OK)
+    int threads = blas_begin(s);
+    int ok = cholmod_solve2(CHOLMOD_A, s->L, R, NULL, Z, NULL, &s->Y, &s->E, &s->c);
+    blas_end(s, threads);
+    if (!ok || s->c.status < CHOLMOD_OK)
         return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)",
                            s->c.status);
     return ISO_OK;

@@ -55,6 +55,10 @@ struct iso_solver {
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
     int cg_failures;        /* consecutive PCG attempts that had to refactor */
     int cg_skip;            /* evaluations left before PCG is tried again */
+    int omp_serialised;     /* linsolve.c has capped CHOLMOD's OpenMP teams */
+    int blas_looked_up;     /* linsolve.c has decided on OpenBLAS threads: */
+    int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */
+    void (*blas_set_threads)(int);
     iso_solver_stats st;
 };
 
