@@ -21,6 +21,8 @@
  *   pacing follows --speed.
  * - SIGTERM mid-run with a live device (a pseudo-terminal) exits 0 and
  *   leaves a whole recording.
+ * - A headless Chromium opens the live view while a replay runs and receives
+ *   frames (screenshot kept as tests/tmp/run_live.png in the build folder).
  * - Bad scenes and options give errors that name what is wrong. */
 #define _DEFAULT_SOURCE /* openpty, kill */
 #include "testutil.h"
@@ -460,6 +462,106 @@ static void sigterm_closes_the_recording_whole(void **state)
     iso_dev_rec_reader_deinit(&r);
 }
 
+
+/* ---- the live view in a real browser ------------------------------------------------ */
+
+/* Waits up to 20 s for "live view on http://127.0.0.1:PORT/" in the log. */
+static int wait_for_port(const char *log)
+{
+    for (int i = 0; i < 400; i++) {
+        static char buf[8192];
+        FILE *f = fopen(log, "rb");
+        if (f) {
+            size_t n = fread(buf, 1, sizeof buf - 1, f);
+            buf[n] = 0;
+            fclose(f);
+            const char *p = strstr(buf, "live view on http://127.0.0.1:");
+            if (p)
+                return atoi(p + strlen("live view on http://127.0.0.1:"));
+        }
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    return -1;
+}
+
+static void chromium_watches_a_replay_run(void **state)
+{
+    (void)state;
+    if (access("/usr/bin/chromium", X_OK) != 0) {
+        print_message("skipped: /usr/bin/chromium is not installed (apt-get install chromium)\n");
+        skip();
+    }
+    char scene[PATH_MAX], log[PATH_MAX], json[PATH_MAX], dev[PATH_MAX + 100];
+    snprintf(dev, sizeof dev, "devices:\n  - {name: dev, kind: replay, file: %s/sm_session.isorec}\n",
+             ISO_TEST_STREAMS);
+    write_scene(iso_test_tmp(scene, sizeof scene, "live_view.yaml"), dev, "{device: dev}",
+                "sinks:\n  display: {host: 127.0.0.1}\n");
+    iso_test_tmp(log, sizeof log, "live_view.log");
+    iso_test_tmp(json, sizeof json, "live_view.json");
+    unlink(log);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) { /* 6.5 s of stream at half speed: 13 s or more of updates */
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--port", "0", "--speed", "0.5", "--stats-json",
+              json, (char *)NULL);
+        _exit(127);
+    }
+    int port = wait_for_port(log);
+    char profile[PATH_MAX], dom[PATH_MAX], shot[PATH_MAX], clog[PATH_MAX];
+    static char cmd[8 * PATH_MAX];
+    iso_test_tmp(profile, sizeof profile, "run-chromium-profile");
+    iso_test_tmp(dom, sizeof dom, "run_live_dom.html");
+    iso_test_tmp(shot, sizeof shot, "run_live.png");
+    iso_test_tmp(clog, sizeof clog, "run_chromium.log");
+    static const char flags[] =
+        "--headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
+        "--disable-background-networking --disable-component-update --disable-sync "
+        "--use-angle=swiftshader --enable-unsafe-swiftshader --mute-audio "
+        "--window-size=800,600 --virtual-time-budget=3000";
+    int rc_dom = -1, rc_shot = -1;
+    if (port > 0) {
+        snprintf(cmd, sizeof cmd,
+                 "rm -rf '%s'; timeout 40 /usr/bin/chromium %s --user-data-dir='%s' --dump-dom "
+                 "http://127.0.0.1:%d/ >'%s' 2>'%s'",
+                 profile, flags, profile, port, dom, clog);
+        rc_dom = system(cmd);
+        snprintf(cmd, sizeof cmd,
+                 "rm -rf '%s'; timeout 40 /usr/bin/chromium %s --user-data-dir='%s' "
+                 "--screenshot='%s' http://127.0.0.1:%d/ 2>>'%s'; rm -rf '%s'",
+                 profile, flags, profile, shot, port, clog, profile);
+        rc_shot = system(cmd);
+    }
+    kill(pid, SIGTERM); /* if it is still running: it stops cleanly */
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (port <= 0)
+        fail_msg("isoshape run printed no live view address; see %s", log);
+    assert_true(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    if (rc_dom != 0 || rc_shot != 0)
+        fail_msg("chromium failed (dump-dom %d, screenshot %d); see %s", rc_dom, rc_shot, clog);
+    static char html[1 << 16], j[8192];
+    slurp(dom, html, sizeof html);
+    const char *mark = strstr(html, "data-frames=\"");
+    if (!mark)
+        fail_msg("%s has no data-frames attribute: the page did not run", dom);
+    int frames = atoi(mark + strlen("data-frames=\""));
+    const char *tk = strstr(html, "data-tick=\"");
+    assert_non_null(tk);
+    long tick = atol(tk + strlen("data-tick=\""));
+    slurp(json, j, sizeof j);
+    double sent = json_num(j, "frames_sent");
+    print_message("chromium: %d frames received, last tick %ld; the loop sent %.0f; screenshot %s\n",
+                  frames, tick, sent, shot);
+    assert_true(frames >= 2); /* updates arrived while the replay ran */
+    assert_true(tick > 0);
+    assert_true(sent >= 2);
+    assert_int_equal(access(shot, R_OK), 0);
+}
+
 /* ---- bad input ---------------------------------------------------------------------- */
 
 static void bad_input_is_named(void **state)
@@ -501,6 +603,7 @@ int main(void)
         cmocka_unit_test(overruns_are_counted_and_skipped),
         cmocka_unit_test(pacing_follows_speed),
         cmocka_unit_test(sigterm_closes_the_recording_whole),
+        cmocka_unit_test(chromium_watches_a_replay_run),
         cmocka_unit_test(bad_input_is_named),
     };
     return cmocka_run_group_tests(t, NULL, NULL);
