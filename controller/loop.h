@@ -81,7 +81,7 @@ typedef struct iso_loop_summary {
     int rt_active;                 /* 1: SCHED_FIFO held */
     int mem_locked;
     char rt_note[256];             /* why not, "" when it is */
-    char act_line[512];            /* the actuator link's counters, "" without one */
+    char act_line[1200];           /* the actuator link's counters, "" without one */
 } iso_loop_summary;
 
 /* Builds the loop for scene sc (which must outlive it): solver, stepper,

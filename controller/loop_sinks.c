@@ -10,8 +10,13 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "iso_actuators.h"
+
 struct iso_loop_sinks {
     iso_display *display;
+    iso_actuators *act;
+    char act_line[560]; /* kept when the actuators close */
+    char act_stop[600]; /* how the safe stop went */
     iso_ply_frames *ply;
     long ply_written, snapshots;
     long frames_sent; /* kept when the display closes */
@@ -50,12 +55,57 @@ static int open_display(iso_loop *l, iso_err *err)
     return ISO_OK;
 }
 
+static void act_notice(void *ctx, const char *line)
+{
+    iso_loop *l = ctx;
+    fprintf(l->log, "isoshape run: %s\n", line);
+}
+
+/* The scene's actuator channels and link, in the sink's own terms (sim/
+ * does not read scene files). */
+static int open_actuators(iso_loop *l, iso_err *err)
+{
+    const iso_scene_actuators *a = &l->sc->actuators;
+    if (!a->enabled)
+        return ISO_OK;
+    if (a->n_ch > ISO_ACT_MAX_CHANNELS)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "sinks.actuators: %d channels, a SETPOINTS frame carries at most %d",
+                           a->n_ch, ISO_ACT_MAX_CHANNELS);
+    iso_act_channel ch[ISO_ACT_MAX_CHANNELS];
+    for (int i = 0; i < a->n_ch; i++) {
+        const iso_scene_channel *c = &a->ch[i];
+        ch[i] = (iso_act_channel){c->channel, c->vertex,
+                                  c->region == ISO_SCENE_REGION_FIXED  ? ISO_ACT_REGION_FIXED
+                                  : c->region == ISO_SCENE_REGION_NONE ? ISO_ACT_REGION_NONE
+                                                                       : c->region,
+                                  c->axis, c->min, c->max, c->scale};
+    }
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    static const int kinds[] = {[ISO_SCENE_LINK_TTY] = ISO_ACT_LINK_TTY,
+                                [ISO_SCENE_LINK_TCP] = ISO_ACT_LINK_TCP,
+                                [ISO_SCENE_LINK_SERIAL] = ISO_ACT_LINK_SERIAL,
+                                [ISO_SCENE_LINK_EMULATED] = ISO_ACT_LINK_EMULATED};
+    link.kind = a->link >= 0 && a->link <= ISO_SCENE_LINK_EMULATED ? kinds[a->link] : 0;
+    snprintf(link.path, sizeof link.path, "%s", a->path);
+    snprintf(link.host, sizeof link.host, "%s", a->host);
+    link.port = a->port;
+    link.baud = a->baud;
+    link.emulation = a->emulation;
+    iso_act_opts o = {0, act_notice, l};
+    return iso_actuators_create(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &l->sinks->act,
+                                err);
+}
+
 int iso_loop__sinks_open(iso_loop *l, iso_err *err)
 {
     l->sinks = calloc(1, sizeof *l->sinks);
     if (!l->sinks)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the sinks");
     int rc = open_display(l, err);
+    if (rc == ISO_OK)
+        rc = open_actuators(l, err);
     if (rc == ISO_OK && l->sc->ply.enabled) {
         rc = iso_ply_frames_create(l->sc->ply.dir, l->sc->mesh, l->sc->ply.every, &l->sinks->ply,
                                    err);
@@ -110,22 +160,50 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
     }
     if (rc == ISO_OK)
         rc = snapshot(l, tick, err);
+    if (rc == ISO_OK && k->act) {
+        /* 1: sent, 0: link down or handshaking (it recovers by itself) */
+        int r = iso_actuators_publish(k->act, (uint32_t)tick, l->x, err);
+        rc = r < 0 ? r : ISO_OK;
+    }
+    return rc;
+}
+
+/* A clean stop: no more setpoints, then wait for the MCU's own report of
+ * its safe state (the link watchdog: 100 ms plus a frame). */
+#define ISO_LOOP_SAFE_STOP_MS 400
+
+static int close_actuators(struct iso_loop_sinks *k, iso_err *err)
+{
+    if (!k->act)
+        return ISO_OK;
+    double safe_ms = 0;
+    int rc = iso_actuators_safe_stop(k->act, ISO_LOOP_SAFE_STOP_MS, &safe_ms, err);
+    if (rc == ISO_OK)
+        snprintf(k->act_stop, sizeof k->act_stop, "safe state reported %.0f ms after the last setpoints",
+                 safe_ms);
+    else
+        snprintf(k->act_stop, sizeof k->act_stop, "safe state NOT confirmed: %s", err->msg);
+    iso_actuators_format_stats(k->act, k->act_line, sizeof k->act_line);
+    iso_actuators_destroy(k->act);
+    k->act = NULL;
     return rc;
 }
 
 int iso_loop__sinks_close(iso_loop *l, iso_err *err)
 {
-    (void)err;
     struct iso_loop_sinks *k = l->sinks;
     if (!k)
         return ISO_OK;
+    int rc = close_actuators(k, err);
+    if (k->act_stop[0])
+        fprintf(l->log, "isoshape run: actuators: %s\n", k->act_stop);
     if (k->display)
         k->frames_sent = iso_display_frames_sent(k->display);
     iso_display_destroy(k->display);
     iso_ply_frames_destroy(k->ply);
     k->display = NULL;
     k->ply = NULL;
-    return ISO_OK;
+    return rc;
 }
 
 void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
@@ -136,6 +214,10 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
     s->frames_sent = k->display ? iso_display_frames_sent(k->display) : k->frames_sent;
     s->ply_frames = k->ply_written;
     s->snapshots = k->snapshots;
+    if (k->act)
+        iso_actuators_format_stats(k->act, s->act_line, sizeof s->act_line);
+    else if (k->act_line[0])
+        snprintf(s->act_line, sizeof s->act_line, "%s; %s", k->act_line, k->act_stop);
 }
 
 void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
@@ -144,4 +226,11 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
     buf[0] = 0;
     if (k && k->display)
         snprintf(buf, cap, "browsers %d", iso_display_clients(k->display));
+    if (k && k->act) {
+        iso_act_stats st;
+        iso_actuators_stats(k->act, &st);
+        size_t n = strlen(buf);
+        snprintf(buf + n, cap - n, "%sactuators %llu acks", n ? "  " : "",
+                 (unsigned long long)st.acks);
+    }
 }
