@@ -49,18 +49,7 @@ static void slurp(const char *path, char *buf, size_t cap)
 /* Runs `sh -c "<cmd>"` with stdout and stderr captured. */
 static void run_sh(const char *cmd, result *r)
 {
-    char out[PATH_MAX], err[PATH_MAX];
-    iso_test_tmp(out, sizeof out, "cli.stdout");
-    iso_test_tmp(err, sizeof err, "cli.stderr");
-    size_t cap = strlen(cmd) + strlen(out) + strlen(err) + 32;
-    char *line = malloc(cap);
-    assert_non_null(line);
-    snprintf(line, cap, "%s >'%s' 2>'%s' </dev/null", cmd, out, err);
-    int st = system(line);
-    free(line);
-    r->status = st != -1 && WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-    slurp(out, r->out, sizeof r->out);
-    slurp(err, r->err, sizeof r->err);
+    r->status = iso_test_sh(cmd, r->out, sizeof r->out, r->err, sizeof r->err);
 }
 
 /* Runs the isoshape binary with `args`. */
