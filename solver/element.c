@@ -142,72 +142,209 @@ int iso_elem_rigid_fit(const double x[9], double R[54])
     return rigid_fit_from_e(E, R, JE);
 }
 
-int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
+/* ===== closed forms for the assembly ===================================
+ *
+ * With corners r_k = (x_k − c)/s about the centroid, E's normal matrix is
+ * Eᵀ(J⊗I)E = diag(12 I, S), S = Σ_k (|r_k|² I − r_k r_kᵀ) (the cross terms
+ * vanish because Σ r_k = 0), so the best rigid fit is
+ *     R = [I/3 I/3 I/3; B_0 B_1 B_2],  B_l = W [r_l]×,  W = S⁻¹,
+ * a 3x3 inverse instead of a 6x6 solve with nine right-hand sides. The
+ * OpenCL kernels (assemble_cl_kernels.h) use the same forms. */
+
+/* ([a]× B)_ij = (a × B[:, j])_i for a 3x3 row-major B. */
+static void cross_mat(const double a[3], const double B[9], double C[9])
 {
-    double E[54], JE[54];
-    iso_elem_frame(x, f->c, &f->s);
-    if (!(f->s > 0))
-        return -1;
-    iso_elem_eval_matrix(x, f->c, f->s, E);
-    return rigid_fit_from_e(E, f->R, JE);
+    for (int j = 0; j < 3; j++) {
+        C[j] = a[1] * B[6 + j] - a[2] * B[3 + j];
+        C[3 + j] = a[2] * B[j] - a[0] * B[6 + j];
+        C[6 + j] = a[0] * B[3 + j] - a[1] * B[j];
+    }
 }
 
+/* C = Aᵀ B for 3x3 row-major A, B. */
+static void mul_tn3(const double A[9], const double B[9], double C[9])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            C[3 * i + j] = A[i] * B[j] + A[3 + i] * B[3 + j] + A[6 + i] * B[6 + j];
+}
+
+/* C = A B for 3x3 row-major A, B. */
+static void mul_nn3(const double A[9], const double B[9], double C[9])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
+}
+
+/* Block l of R's lower half, B_l = W [r_l]×, as it sits in R (6x9). */
+static void fit_block(const double R[54], int l, double B[9])
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            B[3 * i + j] = R[9 * (3 + i) + 3 * l + j];
+}
+
+/* Points x (n of them) in the fit's frame: (x − c)/s − δ, where δ is the
+ * mean of the triangle's own scaled corners. The closed forms rely on the
+ * corners summing to zero; the rounded centroid c leaves them summing to
+ * ~eps |c| / s, 1e-10 for a 1e-2 triangle 1e4 from the origin, enough to
+ * break the null space of translations at that level. Subtracting δ from
+ * every point, the triangle's and its neighbours' alike, moves the frame's
+ * centre to the exact centroid of the scaled corners. */
+static void frame_points(const iso_elem_fit *f, const double *x, int n, double *r)
+{
+    for (int i = 0; i < 3 * n; i++)
+        r[i] = (x[i] - f->c[i % 3]) / f->s - f->d[i % 3];
+}
+
+int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
+{
+    iso_elem_frame(x, f->c, &f->s);
+    double s = f->s, r[9];
+    memset(f->d, 0, sizeof f->d);
+    frame_points(f, x, 3, r);
+    for (int a = 0; a < 3; a++)
+        f->d[a] = (r[a] + r[3 + a] + r[6 + a]) / 3.0;
+    frame_points(f, x, 3, r);
+    double S00 = 0, S11 = 0, S22 = 0, S01 = 0, S02 = 0, S12 = 0;
+    for (int k = 0; k < 3; k++) {
+        double a0 = r[3 * k], a1 = r[3 * k + 1], a2 = r[3 * k + 2];
+        S00 += a1 * a1 + a2 * a2;
+        S11 += a0 * a0 + a2 * a2;
+        S22 += a0 * a0 + a1 * a1;
+        S01 -= a0 * a1;
+        S02 -= a0 * a2;
+        S12 -= a1 * a2;
+    }
+    /* Cholesky of S; a pivot that is not positive (or s = 0, which makes
+     * everything NaN) means the triangle has degenerated. */
+    double L00 = sqrt(S00), L10 = S01 / L00, L20 = S02 / L00;
+    double d1 = S11 - L10 * L10, L11 = sqrt(d1), L21 = (S12 - L20 * L10) / L11;
+    double d2 = S22 - L20 * L20 - L21 * L21, L22 = sqrt(d2);
+    if (!(s > 0) || !(S00 > 0) || !(d1 > 0) || !(d2 > 0))
+        return -1;
+    double I00 = 1.0 / L00, I11 = 1.0 / L11, I22 = 1.0 / L22;
+    double I10 = -L10 * I00 * I11, I21 = -L21 * I11 * I22;
+    double I20 = -(L20 * I00 + L21 * I10) * I22;
+    double w00 = I00 * I00 + I10 * I10 + I20 * I20, w01 = I10 * I11 + I20 * I21,
+           w02 = I20 * I22, w11 = I11 * I11 + I21 * I21, w12 = I21 * I22, w22 = I22 * I22;
+    double W[9] = {w00, w01, w02, w01, w11, w12, w02, w12, w22};
+    double *R = f->R;
+    memset(R, 0, 27 * sizeof(double));
+    for (int l = 0; l < 3; l++) {
+        for (int a = 0; a < 3; a++)
+            R[9 * a + 3 * l + a] = 1.0 / 3.0;
+        const double *q = r + 3 * l;
+        /* B_l = W [r_l]×: row i is W's row i crossed with r_l. */
+        for (int i = 0; i < 3; i++) {
+            const double *wi = W + 3 * i;
+            double *row = R + 9 * (3 + i) + 3 * l;
+            row[0] = wi[1] * q[2] - wi[2] * q[1];
+            row[1] = wi[2] * q[0] - wi[0] * q[2];
+            row[2] = wi[0] * q[1] - wi[1] * q[0];
+        }
+    }
+    return 0;
+}
+
+/* Q1 block (k, l) = σ ((J_kl − 4/3) I + [r_k]× B_l): N − N E R with the fit
+ * above written out; only the upper blocks are computed, then mirrored. */
 void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
                           double Q[81])
 {
-    double E[54], JE[54];
-    iso_elem_eval_matrix(x, f->c, f->s, E);
-    apply_j(E, 6, JE);
-    /* Q1 = σ (Jx − JE R): N − N E (Eᵀ N E)^{-1} Eᵀ N with N = σ Jx. */
-    double sigma = iso_elem_n_scale(x, w);
-    for (int i = 0; i < 9; i++)
-        for (int j = 0; j < 9; j++) {
-            double acc = (i % 3 == j % 3) ? J3[i / 3][j / 3] : 0.0;
-            for (int k = 0; k < 6; k++)
-                acc -= JE[6 * i + k] * f->R[9 * k + j];
-            Q[9 * i + j] = sigma * acc;
-        }
-    /* Symmetrise: the two halves differ only by rounding. */
-    for (int i = 0; i < 9; i++)
-        for (int j = i + 1; j < 9; j++) {
-            double m = 0.5 * (Q[9 * i + j] + Q[9 * j + i]);
-            Q[9 * i + j] = Q[9 * j + i] = m;
+    double sigma = iso_elem_n_scale(x, w), r[9], B[27];
+    frame_points(f, x, 3, r);
+    for (int l = 0; l < 3; l++)
+        fit_block(f->R, l, B + 9 * l);
+    for (int k = 0; k < 3; k++)
+        for (int l = k; l < 3; l++) {
+            double C[9];
+            cross_mat(r + 3 * k, B + 9 * l, C);
+            double jk = k == l ? 2.0 / 3.0 : -1.0 / 3.0;
+            for (int i = 0; i < 3; i++)
+                for (int j = (k == l ? i : 0); j < 3; j++) {
+                    double v = sigma * ((i == j ? jk : 0.0) + C[3 * i + j]);
+                    Q[9 * (3 * k + i) + 3 * l + j] = Q[9 * (3 * l + j) + 3 * k + i] = v;
+                }
         }
 }
 
+/* Q2 in closed form. With M = P − E_j R (9x12) split into 3x3 blocks
+ * M_kl = c_kl I + D_kl, c_kl = [jmap_k = l] − [l < 3]/3 and D_kl = [q_k]× B_l
+ * (q_k: Tj's corner k in Ti's frame; B_3 = 0, the fourth vertex has no
+ * part in Ti's fit), and J = I + 11ᵀ, the block (l, m) of Mᵀ(J⊗I)M is
+ *     (c_lᵀ J c_m) I + [w_l]× B_m + ([w_m]× B_l)ᵀ + B_lᵀ T B_m,
+ * w_l = Σ_k c_kl u_k, u_k = Σ_k' J_kk' q_k', and
+ * T = Σ_kk' J_kk' [q_k]×ᵀ[q_k']× = Σ_k (|q_k|² I − q_k q_kᵀ) + |Σq|² I − Σq Σqᵀ:
+ * about a third of the work of forming M and Mᵀ(J⊗I)M. */
 void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
                           const int jmap[3], iso_weighting w, double Q[144])
 {
-    const double *R = fi->R;
-    /* Tj's corners, and Ti's rigid fit evaluated there: G = E_j^{(c_i)} R_i. */
-    double xj[9];
+    double xj[9], q[9], B[36], c[12], wv[12], TB[27], T[9];
     for (int k = 0; k < 3; k++) {
         const double *src = jmap[k] < 3 ? xi + 3 * jmap[k] : xo;
         memcpy(xj + 3 * k, src, 3 * sizeof(double));
     }
-    double Ej[54], M[108];
-    iso_elem_eval_matrix(xj, fi->c, fi->s, Ej);
-    /* M (9x12) = I' − G P: picks v at Tj's corners minus the extrapolated fit. */
-    memset(M, 0, sizeof M);
-    for (int r = 0; r < 9; r++) {
-        for (int col = 0; col < 9; col++) {
-            double g = 0;
-            for (int k = 0; k < 6; k++)
-                g += Ej[6 * r + k] * R[9 * k + col];
-            M[12 * r + col] = -g;
-        }
-        M[12 * r + 3 * jmap[r / 3] + r % 3] += 1.0;
-    }
-    double JM[108];
-    apply_j(M, 12, JM);
     double sigma = iso_elem_n_scale(xj, w);
-    for (int i = 0; i < 12; i++)
-        for (int j = i; j < 12; j++) {
+    frame_points(fi, xj, 3, q);
+    for (int l = 0; l < 3; l++)
+        fit_block(fi->R, l, B + 9 * l);
+    memset(B + 27, 0, 9 * sizeof(double));
+    double sq[3] = {q[0] + q[3] + q[6], q[1] + q[4] + q[7], q[2] + q[5] + q[8]};
+    double sq2 = sq[0] * sq[0] + sq[1] * sq[1] + sq[2] * sq[2];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            T[3 * i + j] = (i == j ? sq2 : 0.0) - sq[i] * sq[j];
+    for (int k = 0; k < 3; k++) {
+        const double *a = q + 3 * k;
+        double a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                T[3 * i + j] += (i == j ? a2 : 0.0) - a[i] * a[j];
+    }
+    for (int l = 0; l < 4; l++) {
+        for (int k = 0; k < 3; k++)
+            c[3 * l + k] = (jmap[k] == l ? 1.0 : 0.0) - (l < 3 ? 1.0 / 3.0 : 0.0);
+        for (int a = 0; a < 3; a++) {
             double acc = 0;
-            for (int r = 0; r < 9; r++)
-                acc += M[12 * r + i] * JM[12 * r + j];
-            Q[12 * i + j] = Q[12 * j + i] = sigma * acc;
+            for (int k = 0; k < 3; k++)
+                acc += c[3 * l + k] * (q[3 * k + a] + sq[a]);
+            wv[3 * l + a] = acc;
         }
+    }
+    for (int m = 0; m < 3; m++)
+        mul_nn3(T, B + 9 * m, TB + 9 * m);
+    for (int l = 0; l < 4; l++) {
+        const double *cl = c + 3 * l;
+        double suml = cl[0] + cl[1] + cl[2];
+        for (int m = l; m < 4; m++) {
+            const double *cm = c + 3 * m;
+            double cjc = cl[0] * cm[0] + cl[1] * cm[1] + cl[2] * cm[2] +
+                         suml * (cm[0] + cm[1] + cm[2]);
+            double blk[9] = {cjc, 0, 0, 0, cjc, 0, 0, 0, cjc}, C[9];
+            if (m < 3) {
+                cross_mat(wv + 3 * l, B + 9 * m, C);
+                for (int i = 0; i < 9; i++)
+                    blk[i] += C[i];
+            }
+            if (l < 3) {
+                cross_mat(wv + 3 * m, B + 9 * l, C);
+                for (int i = 0; i < 3; i++)
+                    for (int j = 0; j < 3; j++)
+                        blk[3 * i + j] += C[3 * j + i];
+            }
+            if (l < 3 && m < 3) {
+                mul_tn3(B + 9 * l, TB + 9 * m, C);
+                for (int i = 0; i < 9; i++)
+                    blk[i] += C[i];
+            }
+            for (int i = 0; i < 3; i++)
+                for (int j = (l == m ? i : 0); j < 3; j++)
+                    Q[12 * (3 * l + i) + 3 * m + j] = Q[12 * (3 * m + j) + 3 * l + i] =
+                        sigma * blk[3 * i + j];
+        }
+    }
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])

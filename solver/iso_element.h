@@ -38,7 +38,9 @@ int iso_elem_rigid_fit(const double x[9], double R[54]);
  * and shared by its Q1 and the Q2 of every pair it is the source of. */
 typedef struct iso_elem_fit {
     double c[3], s; /* iso_elem_frame */
-    double R[54];   /* iso_elem_rigid_fit */
+    double d[3];    /* rounding shift of the frame: the scaled corners
+                       (x − c)/s sum to 3d, not exactly zero */
+    double R[54];   /* iso_elem_rigid_fit, in the frame (c + s d, s) */
 } iso_elem_fit;
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
