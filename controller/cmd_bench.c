@@ -77,7 +77,11 @@ typedef struct bench_accuracy {
 
 typedef struct bench_machine {
     int dgemm_n, dgemm_reps;
-    double dgemm_gflops;
+    double dgemm_gflops;   /* with OpenBLAS's own thread count */
+    double dgemm1_gflops;  /* on one thread: the ceiling of a factorization the
+                              solver runs single-threaded (linsolve.c); NAN
+                              when the BLAS has no thread control */
+    int dgemm_threads;     /* OpenBLAS's thread count, 0 if unknown */
     int bare_reps, unknowns;
     long nnz_l;
     double flops, bare_factor_s, bare_solve_s;
@@ -231,6 +235,26 @@ out:
     free(A);
     free(B);
     free(C);
+    return rate;
+}
+
+/* dgemm's rate on one thread, through OpenBLAS's thread control (looked
+ * up, like dgemm_); the count in force is restored. NAN without it. */
+static double dgemm_rate_one_thread(int n, int reps, int *threads)
+{
+    void *get = dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+    void *set = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    *threads = 0;
+    if (!get || !set)
+        return NAN;
+    int (*get_threads)(void) = NULL;
+    void (*set_threads)(int) = NULL;
+    memcpy(&get_threads, &get, sizeof get);
+    memcpy(&set_threads, &set, sizeof set);
+    *threads = get_threads();
+    set_threads(1);
+    double rate = dgemm_rate(n, reps);
+    set_threads(*threads);
     return rate;
 }
 
@@ -484,9 +508,11 @@ static void print_text(const bench_args *a, const bench_result *res)
     }
 
     printf("\nthis machine\n");
-    printf("  dense dgemm, n = %d: %.1f GFLOP/s (median of %d), the ceiling for the "
-           "factorization's dense kernels\n",
-           m->dgemm_n, m->dgemm_gflops, m->dgemm_reps);
+    printf("  dense dgemm, n = %d: %.1f GFLOP/s on %d thread%s, %.1f on one (median of %d): "
+           "the ceilings for the factorization's dense kernels (below 4 GFLOP per "
+           "factorization the solver runs them on one thread)\n",
+           m->dgemm_n, m->dgemm_gflops, m->dgemm_threads, m->dgemm_threads == 1 ? "" : "s",
+           m->dgemm1_gflops, m->dgemm_reps);
     const char *blas = iso_cli__blas_config();
     printf("  BLAS: %s\n", *blas ? blas : "not OpenBLAS (see isoshape --version)");
     printf("  cactus system: %d unknowns, nnz(L) %ld, ", m->unknowns, m->nnz_l);
@@ -496,8 +522,8 @@ static void print_text(const bench_args *a, const bench_result *res)
         printf("flop count unavailable (the library lacks iso_solver_factor_flops)\n");
     printf("  bare CHOLMOD factorization %.2f ms", 1e3 * m->bare_factor_s);
     if (isfinite(m->flops))
-        printf(" = %.2f GFLOP/s (%.0f%% of dgemm)", m->flops / m->bare_factor_s / 1e9,
-               100.0 * m->flops / m->bare_factor_s / 1e9 / m->dgemm_gflops);
+        printf(" = %.2f GFLOP/s (%.0f%% of one-thread dgemm)", m->flops / m->bare_factor_s / 1e9,
+               100.0 * m->flops / m->bare_factor_s / 1e9 / m->dgemm1_gflops);
     printf(", bare solve %.2f ms (median of %d)\n", 1e3 * m->bare_solve_s, m->bare_reps);
 }
 
@@ -573,6 +599,8 @@ static void print_json(const bench_args *a, const bench_result *res)
     }
     printf("], \"machine\": {\"dgemmN\": %d, \"dgemmReps\": %d, ", m->dgemm_n, m->dgemm_reps);
     json_num("dgemmGflops", m->dgemm_gflops, ", ");
+    printf("\"dgemmThreads\": %d, ", m->dgemm_threads);
+    json_num("dgemmOneThreadGflops", m->dgemm1_gflops, ", ");
     json_str("blas", iso_cli__blas_config(), ", ");
     printf("\"cactusUnknowns\": %d, \"cactusNnzL\": %ld, \"bareReps\": %d, ", m->unknowns, m->nnz_l,
            m->bare_reps);
@@ -619,6 +647,8 @@ int iso_cli__bench_run(int argc, char **argv)
     if (a.tty)
         fprintf(stderr, "isoshape bench: dgemm, n = %d ...\n", res->mach.dgemm_n);
     res->mach.dgemm_gflops = dgemm_rate(res->mach.dgemm_n, res->mach.dgemm_reps);
+    res->mach.dgemm1_gflops =
+        dgemm_rate_one_thread(res->mach.dgemm_n, res->mach.dgemm_reps, &res->mach.dgemm_threads);
     if (a.json)
         print_json(&a, res);
     else
