@@ -390,7 +390,7 @@ static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *er
         return rc;
     }
     char serial[64];
-    snprintf(serial, sizeof serial, "tcp:127.0.0.1:%d", ntohs(a.sin_port));
+    snprintf(serial, sizeof serial, "tcp:127.0.0.1:%d,nodelay=on", ntohs(a.sin_port));
     /* Everything the child needs is built before fork: after it, only
      * async-signal-safe calls (this process may have threads). */
     char *const argv[] = {(char *)qemu, "-M",        "mps2-an385", "-nodefaults", "-display",
