@@ -473,9 +473,10 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
             info->used = ISO_ACT_EMU_QEMU;
             snprintf(info->line, sizeof info->line,
                      "actuators: emulated MCU: the firmware ELF %.300s in %.300s -M mps2-an385 "
-                     "(UART0 on "
-                     "loopback TCP)",
-                     elf, qemu);
+                     "(UART0 on loopback TCP) because %s",
+                     elf, qemu,
+                     mode == ISO_ACT_EMU_QEMU ? "qemu was asked for"
+                                              : "both were found (auto prefers the real firmware)");
             *out = &e->base;
             return ISO_OK;
         }
