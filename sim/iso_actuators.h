@@ -66,10 +66,10 @@ typedef struct iso_act_channel {
 
 /* ---- the link ------------------------------------------------------------ */
 typedef enum iso_act_link_kind {
-    ISO_ACT_LINK_NONE = 0,    /* compute only: publish computes, sends nothing */
-    ISO_ACT_LINK_TTY = 1,     /* path, baud */
-    ISO_ACT_LINK_TCP = 2,     /* host, port */
-    ISO_ACT_LINK_SERIAL = 3,  /* path (libserialport name), baud */
+    ISO_ACT_LINK_NONE = 0,   /* compute only: publish computes, sends nothing */
+    ISO_ACT_LINK_TTY = 1,    /* path, baud */
+    ISO_ACT_LINK_TCP = 2,    /* host, port; connects within 5 ms, so a reopen in publish is short */
+    ISO_ACT_LINK_SERIAL = 3, /* path (libserialport name), baud */
     ISO_ACT_LINK_EMULATED = 4 /* emulation: ISO_ACT_EMU_* */
 } iso_act_link_kind;
 
@@ -211,7 +211,10 @@ void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * saying why in info->line. The returned link owns the emulation:
  * iso_link_close() kills and reaps QEMU or stops and joins the thread.
  * Its reopen is a no-op while the emulation lives (the host's loss recovery
- * then shakes hands again on the same stream). */
+ * then shakes hands again on the same stream). info may be NULL. The native
+ * MCU thread asks for SCHED_FIFO (lowest priority) and goes on without it
+ * where that is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
+ * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */
 ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err);
 
 #endif
