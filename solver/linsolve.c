@@ -11,8 +11,8 @@
  * tolerance within cg_max_iter iterations, or stalls, factor afresh and
  * solve directly. When the previous PCG already needed most of the budget,
  * factor at once rather than spend the iterations first; abandon an attempt
- * early when its rate cannot make the budget; and after failures back off
- * (see iso_solver__linsolve). */
+ * early when its rate cannot make the budget; and learn at which age the
+ * factor stops paying (see want_reuse). */
 #include <dlfcn.h>
 #include <math.h>
 #include <stdlib.h>
@@ -257,20 +257,69 @@ static int pcg(iso_solver *s, int *iters, iso_err *err)
     return 0;
 }
 
+/* Whether to try PCG with the cached factor this evaluation.
+ *
+ * The factor's age (evaluations since it was computed) is what decides
+ * whether it still preconditions well, and along one path the age at which
+ * it stops doing so is steady, so the solver learns it: after an attempt
+ * fails at age a, only ages below a are tried (never less than 1), and
+ * every eighth factorization one age more is probed. Under the offline
+ * integrator's PECE steps this settles on the pattern that pays: factor at
+ * the predicted point, and reuse that factor at the corrected point, which
+ * differs from it by the local error only (cactus: 8 iterations or fewer),
+ * instead of spending iterations on a factor a whole step old. The older
+ * rule, a back-off of 1, 2, 4, ... evaluations after each failure, skipped
+ * exactly those cheap corrector solves. Only when even age 1 keeps failing
+ * (steps so large that the corrector moves far from the predictor) does it
+ * still back off, so that hopeless attempts stay rare. */
+static int want_reuse(iso_solver *s)
+{
+    if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || !s->have_factor || !s->X)
+        return 0;
+    if (s->last_cg_iters >= (3 * s->o.cg_max_iter) / 4)
+        return 0; /* the previous solve nearly spent the budget: refactor now */
+    if (s->reuse_horizon > 0 && s->factor_age > s->reuse_horizon)
+        return 0;
+    if (s->cg_skip > 0) {
+        s->cg_skip--;
+        return 0;
+    }
+    return 1;
+}
+
+static void learn_from_attempt(iso_solver *s, int converged)
+{
+    int age = s->factor_age;
+    if (converged) {
+        s->cg_failures = 0;
+        return;
+    }
+    s->reuse_horizon = age > 2 ? age - 1 : 1;
+    s->horizon_probe = 8;
+    if (age > 1)
+        return;
+    s->cg_failures++;
+    if (s->cg_failures >= 3)
+        s->cg_skip = s->cg_failures >= 7 ? 16 : 1 << (s->cg_failures - 3);
+}
+
+/* A learned horizon is probed one evaluation further every eighth
+ * factorization, so that it can grow again when the steps shrink. */
+static void after_factorization(iso_solver *s)
+{
+    s->factor_age = 0;
+    if (s->reuse_horizon > 0 && s->horizon_probe > 0 && --s->horizon_probe == 0) {
+        s->reuse_horizon++;
+        s->horizon_probe = 8;
+    }
+}
+
 int iso_solver__linsolve(iso_solver *s, iso_err *err)
 {
     int rc;
-    int reuse = s->o.refactor == ISO_REFACTOR_ADAPTIVE && s->have_factor && s->X &&
-                s->last_cg_iters < (3 * s->o.cg_max_iter) / 4;
-    /* Back off after failures: when the factor goes stale within one step
-     * (large offline steps), each attempt costs iterations for nothing, so
-     * skip PCG for 1, 2, 4, ... up to 16 evaluations after consecutive
-     * failures; one success resets it. */
-    if (reuse && s->cg_skip > 0) {
-        s->cg_skip--;
-        reuse = 0;
-    }
-    if (reuse) {
+    if (s->have_factor)
+        s->factor_age++;
+    if (want_reuse(s)) {
         if ((rc = ensure_work(s, err)) != ISO_OK)
             return rc;
         int iters = 0;
@@ -280,16 +329,15 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
         s->st.cg_iterations += iters;
         if (rc < 0)
             return rc;
+        learn_from_attempt(s, rc == 1);
         if (rc == 1) {
             s->last_cg_iters = iters;
-            s->cg_failures = 0;
             return check_finite(s, err);
         }
         s->st.refactors++;
-        s->cg_failures++;
-        s->cg_skip = s->cg_failures >= 5 ? 16 : 1 << (s->cg_failures - 1);
     }
     if ((rc = direct_solve(s, err)) != ISO_OK)
         return rc;
+    after_factorization(s);
     return check_finite(s, err);
 }

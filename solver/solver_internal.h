@@ -53,8 +53,11 @@ struct iso_solver {
     unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
     unsigned fit_epoch;
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
-    int cg_failures;        /* consecutive PCG attempts that had to refactor */
+    int cg_failures;        /* consecutive PCG attempts at factor age 1 that failed */
     int cg_skip;            /* evaluations left before PCG is tried again */
+    int factor_age;         /* evaluations since L was computed (this one included) */
+    int reuse_horizon;      /* oldest factor age PCG is tried at; 0: not learned yet */
+    int horizon_probe;      /* factorizations left until the horizon is probed */
     int omp_serialised;     /* linsolve.c has capped CHOLMOD's OpenMP teams */
     int blas_looked_up;     /* linsolve.c has decided on OpenBLAS threads: */
     int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */
