@@ -238,6 +238,24 @@ static void shapes_agree(void **state)
     }
 }
 
+/* The cactus shape shrunk to 1e-2 and moved 1e4 from the origin: the
+ * rounded centroid of each triangle is then off by ~1e-10 of its size,
+ * which both paths must absorb alike (element.c's frame_points, the
+ * kernels' FIT_D) rather than each in its own rounding. */
+static void far_from_origin_agree(void **state)
+{
+    (void)state;
+    problem p;
+    problem_shape(&p, "cactus");
+    snprintf(p.name, sizeof p.name, "cactus, 1e4 away");
+    int nv = iso_mesh_vertex_count(p.m);
+    const double off[3] = {1e4, -1e4, 1e4};
+    for (int i = 0; i < 3 * nv; i++)
+        p.x[i] = 1e-2 * p.x[i] + off[i % 3];
+    check_agreement(&p);
+    problem_free(&p);
+}
+
 static const char *const BENCH[4][2] = {{"00-plane-lift", "knubbel"},
                                         {"01-cylinder-bend", "cylinder"},
                                         {"02-bar-twist", "bar"},
@@ -440,6 +458,7 @@ int main(void)
     skip_without_opencl();
     const struct CMUnitTest t[] = {
         cmocka_unit_test(shapes_agree),
+        cmocka_unit_test(far_from_origin_agree),
         cmocka_unit_test(benchmark_meshes_agree),
         cmocka_unit_test(degenerate_triangle_reported_alike),
         cmocka_unit_test(missing_device_falls_back),
