@@ -161,7 +161,7 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
     if (rc == ISO_OK)
         rc = snapshot(l, tick, err);
     if (rc == ISO_OK && k->act) {
-        /* 1: sent, 0: link down or handshaking (it recovers by itself) */
+        /* 1: streaming, 0: link down or handshaking (the sink recovers by itself) */
         int r = iso_actuators_publish(k->act, (uint32_t)tick, l->x, err);
         rc = r < 0 ? r : ISO_OK;
     }

@@ -1,5 +1,6 @@
 /* sim/actuators.c -- see iso_actuators.h. */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -8,7 +9,8 @@
 #include "iso_actuators.h"
 #include "iso_fb_host.h"
 
-#define ECHO_SLOTS 128u /* sent values kept for the ACK check, by tick */
+#define ECHO_SLOTS 128u   /* sent frames kept for the ACK check, by frame seq */
+#define PERIOD_US 10000u  /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
 
 typedef struct act_channel {
     iso_act_channel spec;
@@ -16,33 +18,52 @@ typedef struct act_channel {
     int n_verts;
 } act_channel;
 
+/* One SETPOINTS frame as it went out. Keyed by the frame's seq, which the
+ * ACK echoes: the tick may repeat (the sender re-sends the latest values
+ * when the loop has no new tick), the seq never does within 65536 frames. */
 typedef struct echo_slot {
     uint64_t sent_us; /* before the write, so a preempted write still counts */
     uint32_t tick;
+    uint16_t seq;
     uint8_t n, used;
     int16_t value[ISO_ACT_MAX_CHANNELS];
 } echo_slot;
 
+/* Threads: the loop calls publish; with a link, the sender thread owns the
+ * host and the link (host, echo, told_channels are its alone). Everything
+ * both touch is under `lock`, held for copies only, never across I/O. */
 struct iso_actuators {
     act_channel ch[ISO_ACT_MAX_CHANNELS];
     int n_ch, nv;
-    int top;                              /* highest configured channel + 1 */
-    int16_t values[ISO_ACT_MAX_CHANNELS]; /* last computed */
+    int top; /* highest configured channel + 1 */
     iso_act_notice_fn notice;
     void *notice_ctx;
 
     iso_link *link; /* owned */
     iso_fb_host host;
     int host_up;
-    int stopped;
-    int mismatch;      /* the MCU lacks a configured channel */
     int told_channels; /* the count notice went out for this MCU description */
     echo_slot echo[ECHO_SLOTS];
-    iso_fb_hello hello; /* MCU's last answer */
+
+    pthread_t sender;
+    int sender_started;
+    pthread_mutex_t lock;
+    pthread_cond_t cond; /* frames handled, safe state seen, link state changed */
+    /* ---- under lock ---- */
+    int16_t values[ISO_ACT_MAX_CHANNELS]; /* latest published, by channel */
+    uint32_t tick;                        /* and its tick */
+    int have_tick;                        /* the loop has published at least once */
+    int stopped;                          /* safe_stop: send no more SETPOINTS */
+    int quit;                             /* destroy: the sender ends */
+    int link_state;                       /* the host's ISO_FB_HOST_*, after the last step */
+    int mismatch;                         /* the MCU lacks a configured channel */
+    iso_fb_hello hello;                   /* MCU's last answer */
     int have_hello;
-    /* safe_stop watches for these */
-    int saw_safe;
+    int saw_safe; /* safe_stop watches for these */
     uint64_t safe_us, last_sent_us;
+    uint64_t frames;           /* frames the sender handled, for poll */
+    iso_fb_host_stats host_st; /* the host's counters after the last step */
+    iso_err down;              /* why the link last went down */
     iso_act_stats st;
 };
 
@@ -150,9 +171,10 @@ static int collect_region(act_channel *c, int nv, const iso_regions *r, int i, i
 }
 
 /* ------------------------------------------------------------------------ */
-/* Callbacks from the firmware-bridge host                                    */
+/* Callbacks from the firmware-bridge host (on the sender thread)             */
 /* ------------------------------------------------------------------------ */
 
+/* Reads a->hello without the lock: only the sender thread writes it. */
 static void tell_channel_disagreement(iso_actuators *a)
 {
     char line[512];
@@ -212,15 +234,17 @@ static void on_hello(void *ctx, const iso_fb_hello *h)
     iso_actuators *a = ctx;
     if (h->flags & ISO_FB_HELLO_BOOT)
         return; /* the unasked one; the answer follows our HELLO */
+    pthread_mutex_lock(&a->lock);
     int changed = !a->have_hello || a->hello.n_channels != h->n_channels ||
                   memcmp(a->hello.ch, h->ch, sizeof h->ch) != 0;
     a->hello = *h;
     a->have_hello = 1;
     a->st.mcu_channels = h->n_channels;
     a->mismatch = a->top > h->n_channels;
+    pthread_mutex_unlock(&a->lock);
     if (changed)
         a->told_channels = 0;
-    if (!a->told_channels) {
+    if (!a->told_channels) { /* outside the lock: the notice may take its time */
         a->told_channels = 1;
         if (a->top > h->n_channels || a->n_ch != h->n_channels)
             tell_channel_disagreement(a);
@@ -233,28 +257,33 @@ static void on_ack(void *ctx, const iso_fb_ack *k)
     iso_actuators *a = ctx;
     if (k->type != ISO_FB_SETPOINTS)
         return;
-    a->st.acks++;
-    const echo_slot *s = &a->echo[k->tick % ECHO_SLOTS];
-    if (!s->used || s->tick != k->tick) {
-        a->st.echo_unknown++;
-        return;
-    }
-    if (s->n != k->n || memcmp(s->value, k->value, (size_t)k->n * sizeof k->value[0]) != 0)
-        a->st.echo_mismatches++;
-    double ms = (double)(now_us() - s->sent_us) / 1000.0;
+    const echo_slot *s = &a->echo[k->seq % ECHO_SLOTS];
+    int known = s->used && s->seq == k->seq;
+    int same = known && s->tick == k->tick && s->n == k->n &&
+               memcmp(s->value, k->value, (size_t)k->n * sizeof k->value[0]) == 0;
+    double ms = known ? (double)(now_us() - s->sent_us) / 1000.0 : 0;
+    pthread_mutex_lock(&a->lock);
     iso_act_stats *st = &a->st;
-    st->rtt_last_ms = ms;
-    st->rtt_avg_ms = (st->rtt_avg_ms * st->rtt_count + ms) / (st->rtt_count + 1);
-    if (st->rtt_count == 0 || ms < st->rtt_min_ms)
-        st->rtt_min_ms = ms;
-    if (ms > st->rtt_max_ms)
-        st->rtt_max_ms = ms;
-    st->rtt_count++;
+    st->acks++;
+    if (!known) {
+        st->echo_unknown++;
+    } else {
+        st->echo_mismatches += !same;
+        st->rtt_last_ms = ms;
+        st->rtt_avg_ms = (st->rtt_avg_ms * st->rtt_count + ms) / (st->rtt_count + 1);
+        if (st->rtt_count == 0 || ms < st->rtt_min_ms)
+            st->rtt_min_ms = ms;
+        if (ms > st->rtt_max_ms)
+            st->rtt_max_ms = ms;
+        st->rtt_count++;
+    }
+    pthread_mutex_unlock(&a->lock);
 }
 
 static void on_fault(void *ctx, const iso_fb_fault *f)
 {
     iso_actuators *a = ctx;
+    pthread_mutex_lock(&a->lock);
     a->st.faults++;
     a->st.last_fault_reason = f->reason;
     a->st.last_fault_detail_ms = f->detail;
@@ -262,11 +291,13 @@ static void on_fault(void *ctx, const iso_fb_fault *f)
         a->saw_safe = 1;
         a->safe_us = now_us();
     }
+    pthread_mutex_unlock(&a->lock);
 }
 
 static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
 {
     iso_actuators *a = ctx;
+    pthread_mutex_lock(&a->lock);
     a->st.heartbeats++;
     a->st.mcu_state = hb->state;
     a->st.mcu_uptime_ms = hb->uptime_ms;
@@ -276,6 +307,119 @@ static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
         a->saw_safe = 1;
         a->safe_us = now_us();
     }
+    pthread_mutex_unlock(&a->lock);
+}
+
+/* ------------------------------------------------------------------------ */
+/* The sender thread                                                          */
+/* ------------------------------------------------------------------------ */
+
+static void remember(iso_actuators *a, uint16_t seq, uint32_t tick, const int16_t *v, unsigned n)
+{
+    echo_slot *s = &a->echo[seq % ECHO_SLOTS];
+    s->seq = seq;
+    s->tick = tick;
+    s->n = (uint8_t)n;
+    s->used = 1;
+    s->sent_us = now_us();
+    memcpy(s->value, v, n * sizeof *v);
+}
+
+/* What the host did, for the other threads: its state, its counters, and
+ * why the link went down. Wakes safe_stop and poll. */
+static void share_host(iso_actuators *a, int frames)
+{
+    pthread_mutex_lock(&a->lock);
+    a->link_state = a->host.state;
+    a->host_st = a->host.stats;
+    if (a->host.state == ISO_FB_HOST_DOWN)
+        a->down = a->host.last_err;
+    a->frames += (uint64_t)frames;
+    pthread_cond_broadcast(&a->cond);
+    pthread_mutex_unlock(&a->lock);
+}
+
+/* One period's SETPOINTS: the latest values, undriven channels at the MCU's
+ * safe position. Nothing before the first publish, after safe_stop, or
+ * while the MCU lacks a driven channel (only the replies are read then). */
+static void send_latest(iso_actuators *a)
+{
+    int16_t vals[ISO_ACT_MAX_CHANNELS], v[ISO_ACT_MAX_CHANNELS];
+    pthread_mutex_lock(&a->lock);
+    int go = a->have_tick && !a->stopped && !a->mismatch;
+    uint32_t tick = a->tick;
+    memcpy(vals, a->values, sizeof vals);
+    unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
+    for (unsigned c = 0; c < n; c++)
+        v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
+    pthread_mutex_unlock(&a->lock);
+    if (!go) {
+        share_host(a, iso_fb_host_poll(&a->host, 0));
+        return;
+    }
+    for (int i = 0; i < a->n_ch; i++)
+        v[a->ch[i].spec.channel] = vals[a->ch[i].spec.channel];
+    /* Setpoints go out in this step only if the host streams already (its
+     * service sends HELLO, never SETPOINTS, on the way up), and then with
+     * seq = tx_seq. Remember before sending: the ACK may be read inside
+     * this very step. */
+    if (a->host.state == ISO_FB_HOST_STREAMING)
+        remember(a, a->host.tx_seq, tick, v, n);
+    uint64_t t_send = now_us();
+    uint64_t rx0 = a->host.stats.rx_frames;
+    int sent = iso_fb_host_step(&a->host, tick, v, n);
+    int frames = (int)(a->host.stats.rx_frames - rx0);
+    if (sent == 1) {
+        pthread_mutex_lock(&a->lock);
+        a->st.setpoints_sent++;
+        a->last_sent_us = t_send; /* before the write: the watchdog counts from its arrival */
+        pthread_mutex_unlock(&a->lock);
+    }
+    share_host(a, frames);
+}
+
+static int quitting(iso_actuators *a)
+{
+    pthread_mutex_lock(&a->lock);
+    int q = a->quit;
+    pthread_mutex_unlock(&a->lock);
+    return q;
+}
+
+static void to_timespec(uint64_t us, struct timespec *ts)
+{
+    ts->tv_sec = (time_t)(us / 1000000u);
+    ts->tv_nsec = (long)(us % 1000000u) * 1000;
+}
+
+/* SETPOINTS every PERIOD_US on absolute CLOCK_MONOTONIC deadlines, the
+ * replies read in between; a period missed by more than one is skipped, not
+ * caught up in a burst. */
+static void *sender_main(void *arg)
+{
+    iso_actuators *a = arg;
+    uint64_t next = now_us();
+    while (!quitting(a)) {
+        send_latest(a);
+        next += PERIOD_US;
+        uint64_t now = now_us();
+        if (next + PERIOD_US < now)
+            next = now + PERIOD_US;
+        while ((now = now_us()) < next) {
+            uint64_t left = next - now;
+            int frames = 0;
+            if (left >= 1000u && a->host.state != ISO_FB_HOST_DOWN)
+                frames = iso_fb_host_poll(&a->host, (int)(left / 1000u));
+            else {
+                struct timespec ts;
+                to_timespec(next, &ts);
+                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
+            }
+            if (frames > 0 || a->host.state == ISO_FB_HOST_DOWN)
+                share_host(a, frames);
+        }
+    }
+    return NULL;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -288,7 +432,7 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
     switch (l->kind) {
     case ISO_ACT_LINK_TTY: return iso_link_tty_open(l->path, baud, &a->link, err);
     case ISO_ACT_LINK_SERIAL: return iso_link_sp_open(l->path, baud, &a->link, err);
-    /* 5 ms: a reopen after a loss runs inside publish, which must stay short */
+    /* 5 ms: a reopen after a loss runs inside a sender period */
     case ISO_ACT_LINK_TCP: return iso_link_tcp_open(l->host, l->port, 5, &a->link, err);
     case ISO_ACT_LINK_EMULATED: {
         iso_act_emu_info info;
@@ -316,6 +460,12 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
     iso_actuators *a = calloc(1, sizeof *a);
     if (!a)
         return iso_err_set(err, ISO_ENOMEM, -1, "actuators: out of memory");
+    pthread_condattr_t ca;
+    pthread_condattr_init(&ca);
+    pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    pthread_mutex_init(&a->lock, NULL);
+    pthread_cond_init(&a->cond, &ca);
+    pthread_condattr_destroy(&ca);
     a->nv = nv;
     a->st.mcu_state = -1;
     if (opts) {
@@ -347,12 +497,20 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
         if (rc == ISO_OK) {
             iso_fb_host_callbacks cb = {NULL, on_ack, on_fault, on_hello, on_heartbeat, a};
             iso_fb_host_opts ho = {0};
-            ho.write_timeout_ms = 1; /* never hold the loop */
+            ho.write_timeout_ms = 1; /* never hold a period */
             ho.link_timeout_ms = opts && opts->link_timeout_ms > 0     ? opts->link_timeout_ms
                                  : link->kind == ISO_ACT_LINK_EMULATED ? 3000
                                                                        : 1000;
             rc = iso_fb_host_init(&a->host, a->link, &ho, &cb, err);
             a->host_up = rc == ISO_OK;
+            a->link_state = a->host.state;
+        }
+        if (rc == ISO_OK) {
+            if (pthread_create(&a->sender, NULL, sender_main, a) == 0)
+                a->sender_started = 1;
+            else
+                rc = iso_err_set(err, ISO_EIO, -1,
+                                 "actuators: cannot start the setpoints sender thread");
         }
     }
     if (rc != ISO_OK) {
@@ -367,11 +525,19 @@ void iso_actuators_destroy(iso_actuators *a)
 {
     if (!a)
         return;
+    if (a->sender_started) {
+        pthread_mutex_lock(&a->lock);
+        a->quit = 1;
+        pthread_mutex_unlock(&a->lock);
+        pthread_join(a->sender, NULL); /* within a period: it checks once per period */
+    }
     if (a->host_up)
         iso_fb_host_deinit(&a->host);
     iso_link_close(a->link);
     for (int i = 0; i < a->n_ch; i++)
         free(a->ch[i].verts);
+    pthread_cond_destroy(&a->cond);
+    pthread_mutex_destroy(&a->lock);
     free(a);
 }
 
@@ -390,11 +556,12 @@ static double coordinate(const act_channel *c, const double *x)
     return sum / c->n_verts;
 }
 
-int iso_actuators_compute(iso_actuators *a, const double *x, int16_t values[ISO_ACT_MAX_CHANNELS],
-                          iso_err *err)
+/* The values into values[channel], the clamps into clamped[channel] (0/1);
+ * touches nothing shared. */
+static int compute_values(const iso_actuators *a, const double *x,
+                          int16_t values[ISO_ACT_MAX_CHANNELS],
+                          uint8_t clamped[ISO_ACT_MAX_CHANNELS], iso_err *err)
 {
-    if (!a || !x || !values)
-        return iso_err_set(err, ISO_EINVAL, -1, "actuators: NULL handle, positions or values");
     double u[ISO_ACT_MAX_CHANNELS];
     for (int i = 0; i < a->n_ch; i++) {
         u[i] = coordinate(&a->ch[i], x);
@@ -406,80 +573,101 @@ int iso_actuators_compute(iso_actuators *a, const double *x, int16_t values[ISO_
     }
     for (int i = 0; i < a->n_ch; i++) {
         const iso_act_channel *c = &a->ch[i].spec;
-        int clamped = 0;
+        int cl = 0;
         double v = u[i];
         if (v < c->min || v > c->max) {
             v = v < c->min ? c->min : c->max;
-            clamped = 1;
+            cl = 1;
         }
         double m = nearbyint(v * c->scale);
         if (m < INT16_MIN || m > INT16_MAX) {
             m = m < INT16_MIN ? INT16_MIN : INT16_MAX;
-            clamped = 1;
+            cl = 1;
         }
         values[c->channel] = (int16_t)m;
-        a->st.clamps += (uint64_t)clamped;
-        a->st.clamps_ch[c->channel] += (uint64_t)clamped;
+        clamped[c->channel] = (uint8_t)cl;
     }
-    a->st.ticks++;
     return ISO_OK;
 }
 
-static void remember(iso_actuators *a, uint32_t tick, const int16_t *v, unsigned n)
+/* Under the lock: one tick's clamps and the tick itself. */
+static void count_tick(iso_actuators *a, const uint8_t clamped[ISO_ACT_MAX_CHANNELS])
 {
-    echo_slot *s = &a->echo[tick % ECHO_SLOTS];
-    s->tick = tick;
-    s->n = (uint8_t)n;
-    s->used = 1;
-    s->sent_us = now_us();
-    memcpy(s->value, v, n * sizeof *v);
+    for (int i = 0; i < a->n_ch; i++) {
+        int c = a->ch[i].spec.channel;
+        a->st.clamps += clamped[c];
+        a->st.clamps_ch[c] += clamped[c];
+    }
+    a->st.ticks++;
+}
+
+int iso_actuators_compute(iso_actuators *a, const double *x, int16_t values[ISO_ACT_MAX_CHANNELS],
+                          iso_err *err)
+{
+    if (!a || !x || !values)
+        return iso_err_set(err, ISO_EINVAL, -1, "actuators: NULL handle, positions or values");
+    uint8_t clamped[ISO_ACT_MAX_CHANNELS];
+    int rc = compute_values(a, x, values, clamped, err);
+    if (rc != ISO_OK)
+        return rc;
+    pthread_mutex_lock(&a->lock);
+    count_tick(a, clamped);
+    pthread_mutex_unlock(&a->lock);
+    return ISO_OK;
 }
 
 int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_err *err)
 {
     if (!a || !x)
         return iso_err_set(err, ISO_EINVAL, -1, "actuators: NULL handle or positions");
-    if (a->stopped)
+    uint64_t t0 = now_us();
+    int16_t v[ISO_ACT_MAX_CHANNELS];
+    uint8_t clamped[ISO_ACT_MAX_CHANNELS];
+    memset(v, 0, sizeof v);
+    int rc = compute_values(a, x, v, clamped, err);
+    pthread_mutex_lock(&a->lock);
+    int stopped = a->stopped, mismatch = a->mismatch, state = a->link_state;
+    int mcu_n = a->hello.n_channels;
+    if (!stopped && rc == ISO_OK) {
+        count_tick(a, clamped);
+        memcpy(a->values, v, sizeof v);
+        a->tick = tick;
+        a->have_tick = 1;
+        double ms = (double)(now_us() - t0) / 1000.0;
+        if (ms > a->st.publish_max_ms)
+            a->st.publish_max_ms = ms;
+        a->st.publish_over_1ms += ms > 1.0;
+    }
+    pthread_mutex_unlock(&a->lock);
+    if (stopped)
         return iso_err_set(err, ISO_EINVAL, -1,
                            "actuators: stopped by safe_stop; create a new sink");
-    uint64_t t0 = now_us();
-    int rc = iso_actuators_compute(a, x, a->values, err);
     if (rc != ISO_OK || !a->host_up)
         return rc == ISO_OK ? 0 : rc;
-    if (a->mismatch) {
-        iso_fb_host_poll(&a->host, 0); /* keep the counters and the MCU state current */
+    if (mismatch)
         return iso_err_set(err, ISO_EINVAL, -1,
                            "actuators: the MCU has %d channels but the spec drives channel %d; "
                            "nothing sent",
-                           a->hello.n_channels, a->top - 1);
-    }
-    /* Undriven channels go out at the MCU's safe position. */
-    int16_t v[ISO_ACT_MAX_CHANNELS];
-    unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
-    for (unsigned c = 0; c < n; c++)
-        v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
-    for (int i = 0; i < a->n_ch; i++)
-        v[a->ch[i].spec.channel] = a->values[a->ch[i].spec.channel];
-    /* Remember before sending: the ACK may be read inside this very step. */
-    remember(a, tick, v, n);
-    uint64_t t_send = now_us();
-    int sent = iso_fb_host_step(&a->host, tick, v, n);
-    if (sent == 1) {
-        a->st.setpoints_sent++;
-        a->last_sent_us = t_send; /* before the write: the watchdog counts from its arrival */
-    }
-    double ms = (double)(now_us() - t0) / 1000.0;
-    if (ms > a->st.publish_max_ms)
-        a->st.publish_max_ms = ms;
-    a->st.publish_over_1ms += ms > 1.0;
-    return sent < 0 ? iso_err_set(err, sent, -1, "actuators: bad setpoints for the link") : sent;
+                           mcu_n, a->top - 1);
+    return state == ISO_FB_HOST_STREAMING;
 }
 
 int iso_actuators_poll(iso_actuators *a, int timeout_ms)
 {
     if (!a || !a->host_up)
         return 0;
-    return iso_fb_host_poll(&a->host, timeout_ms);
+    pthread_mutex_lock(&a->lock);
+    uint64_t f0 = a->frames;
+    if (a->link_state != ISO_FB_HOST_DOWN && timeout_ms > 0) {
+        struct timespec ts;
+        to_timespec(now_us() + (uint64_t)timeout_ms * 1000u, &ts);
+        while (a->frames == f0 && a->link_state != ISO_FB_HOST_DOWN)
+            if (pthread_cond_timedwait(&a->cond, &a->lock, &ts) != 0)
+                break;
+    }
+    int n = (int)(a->frames - f0);
+    pthread_mutex_unlock(&a->lock);
+    return n;
 }
 
 int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms, iso_err *err)
@@ -488,32 +676,35 @@ int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms, i
         *safe_ms = -1;
     if (!a || !a->host_up)
         return iso_err_set(err, ISO_EINVAL, -1, "actuators: safe_stop needs a link");
-    a->stopped = 1;
+    uint64_t start = now_us(),
+             deadline = start + (uint64_t)(timeout_ms > 0 ? timeout_ms : 0) * 1000u;
+    struct timespec ts;
+    to_timespec(deadline, &ts);
+    pthread_mutex_lock(&a->lock);
+    a->stopped = 1; /* the sender sends no more SETPOINTS from its next period */
     /* Only what arrives from now on counts: an earlier FAULT was answered
      * by a new HELLO and streaming since. */
     a->saw_safe = 0;
-    uint64_t start = now_us(),
-             deadline = start + (uint64_t)(timeout_ms > 0 ? timeout_ms : 0) * 1000u;
-    while (!a->saw_safe) {
-        uint64_t now = now_us();
-        if (now >= deadline)
+    while (!a->saw_safe && a->link_state != ISO_FB_HOST_DOWN)
+        if (pthread_cond_timedwait(&a->cond, &a->lock, &ts) != 0)
             break;
-        if (a->host.state == ISO_FB_HOST_DOWN)
-            return iso_err_set(err, ISO_EIO, -1,
-                               "actuators: the link is down, so the MCU's safe state cannot be "
-                               "confirmed (its watchdog takes it there 100 ms after the last "
-                               "setpoints it got): %s",
-                               a->host.last_err.msg);
-        uint64_t left = (deadline - now + 999u) / 1000u;
-        iso_fb_host_poll(&a->host, left > 10 ? 10 : (int)left);
-    }
-    if (!a->saw_safe)
+    int saw = a->saw_safe, down = a->link_state == ISO_FB_HOST_DOWN;
+    uint64_t safe_us = a->safe_us, last = a->last_sent_us;
+    iso_err why = a->down;
+    pthread_mutex_unlock(&a->lock);
+    if (!saw && down)
+        return iso_err_set(err, ISO_EIO, -1,
+                           "actuators: the link is down, so the MCU's safe state cannot be "
+                           "confirmed (its watchdog takes it there 100 ms after the last "
+                           "setpoints it got): %s",
+                           why.msg);
+    if (!saw)
         return iso_err_set(err, ISO_EIO, -1,
                            "actuators: the MCU did not report its safe state within %d ms of the "
-                           "stop (link %s)",
-                           timeout_ms, a->host.state == ISO_FB_HOST_DOWN ? "down" : "up");
+                           "stop (link up)",
+                           timeout_ms);
     if (safe_ms)
-        *safe_ms = (double)(a->safe_us - (a->last_sent_us ? a->last_sent_us : start)) / 1000.0;
+        *safe_ms = (double)(safe_us - (last ? last : start)) / 1000.0;
     return ISO_OK;
 }
 
@@ -521,23 +712,32 @@ int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms, i
 /* Counters                                                                   */
 /* ------------------------------------------------------------------------ */
 
+/* The lock is not part of the handle's value: readers take it too. */
+static pthread_mutex_t *lock_of(const iso_actuators *a)
+{
+    return (pthread_mutex_t *)&a->lock;
+}
+
 void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out)
 {
+    pthread_mutex_lock(lock_of(a));
     *out = a->st;
-    if (!a->host_up)
-        return;
-    const iso_fb_host_stats *h = &a->host.stats;
-    out->link_losses = h->link_losses;
-    out->handshakes = h->handshakes;
-    out->naks = h->naks;
+    if (a->host_up) {
+        out->link_losses = a->host_st.link_losses;
+        out->handshakes = a->host_st.handshakes;
+        out->naks = a->host_st.naks;
+    }
+    pthread_mutex_unlock(lock_of(a));
 }
 
 int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out)
 {
-    if (!a->have_hello)
-        return 0;
-    *out = a->hello;
-    return 1;
+    pthread_mutex_lock(lock_of(a));
+    int have = a->have_hello;
+    if (have)
+        *out = a->hello;
+    pthread_mutex_unlock(lock_of(a));
+    return have;
 }
 
 int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
@@ -555,7 +755,13 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
                  s.rtt_max_ms, s.publish_max_ms, (unsigned long long)s.publish_over_1ms);
     if (!a->host_up || n < 0 || (size_t)n + 2 >= cap)
         return n;
+    /* the host's line from its counters as the sender last shared them */
+    static const iso_fb_host zero;
+    iso_fb_host h = zero;
+    pthread_mutex_lock(lock_of(a));
+    h.stats = a->host_st;
+    pthread_mutex_unlock(lock_of(a));
     buf[n] = ';';
     buf[n + 1] = ' ';
-    return n + 2 + iso_fb_host_format_stats(&a->host, buf + n + 2, cap - (size_t)n - 2);
+    return n + 2 + iso_fb_host_format_stats(&h, buf + n + 2, cap - (size_t)n - 2);
 }

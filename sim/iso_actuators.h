@@ -32,9 +32,16 @@
  * result is an iso_link whose close also ends the emulation (kills and reaps
  * QEMU, or joins the thread).
  *
+ * Timing: with a link, a sender thread of the sink owns the host and the
+ * link and sends SETPOINTS at 100 Hz on absolute CLOCK_MONOTONIC deadlines,
+ * always the latest published values, reading the replies in between. So
+ * the MCU's 100 ms link watchdog holds however slow the loop's ticks are (a
+ * 40k-vertex tick takes longer than 100 ms), and publish never touches I/O.
+ *
  * sim/ does not depend on config/: the controller converts a scene's
- * iso_scene_actuators into the structs below. Not thread-safe: one thread
- * (the real-time loop) per handle. */
+ * iso_scene_actuators into the structs below. Publish, poll and safe_stop
+ * from one thread (the real-time loop); stats, format_stats and mcu_hello
+ * from any. */
 #ifndef ISO_ACTUATORS_H
 #define ISO_ACTUATORS_H
 
@@ -68,7 +75,7 @@ typedef struct iso_act_channel {
 typedef enum iso_act_link_kind {
     ISO_ACT_LINK_NONE = 0,   /* compute only: publish computes, sends nothing */
     ISO_ACT_LINK_TTY = 1,    /* path, baud */
-    ISO_ACT_LINK_TCP = 2,    /* host, port; connects within 5 ms, so a reopen in publish is short */
+    ISO_ACT_LINK_TCP = 2,    /* host, port; connects within 5 ms, so a reopen fits a sender period */
     ISO_ACT_LINK_SERIAL = 3, /* path (libserialport name), baud */
     ISO_ACT_LINK_EMULATED = 4 /* emulation: ISO_ACT_EMU_* */
 } iso_act_link_kind;
@@ -104,15 +111,15 @@ typedef struct iso_act_stats {
     uint64_t ticks;           /* publish calls that computed values */
     uint64_t setpoints_sent;  /* SETPOINTS frames that went out */
     uint64_t acks;            /* SETPOINTS ACKs received */
-    uint64_t echo_mismatches; /* ACKs whose tick or values differ from what was sent */
-    uint64_t echo_unknown;    /* ACKs for a tick too old to check (or never sent) */
+    uint64_t echo_mismatches; /* ACKs whose tick or values differ from their frame's */
+    uint64_t echo_unknown;    /* ACKs for a frame too old to check (or never sent) */
     uint64_t clamps;          /* channel-ticks that were clamped, all channels */
     uint64_t clamps_ch[ISO_ACT_MAX_CHANNELS]; /* by channel */
     uint32_t link_losses, handshakes, faults, naks;
     uint32_t last_fault_reason;    /* ISO_FB_FAULT_*, 0 before any */
     uint32_t last_fault_detail_ms; /* WATCHDOG: last setpoints to safe, MCU clock */
-    /* SETPOINTS to its ACK: from before the write to the ACK's handling,
-     * so it includes the wait until the next publish/poll reads it. */
+    /* SETPOINTS to its ACK: from before the write to the ACK's handling on
+     * the sender thread, which reads replies as they arrive. */
     uint32_t rtt_count;
     double rtt_avg_ms, rtt_min_ms, rtt_max_ms, rtt_last_ms;
     double publish_max_ms;                 /* the longest publish call */
@@ -156,19 +163,20 @@ void iso_actuators_destroy(iso_actuators *a);
 ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
                                         int16_t values[ISO_ACT_MAX_CHANNELS], iso_err *err);
 
-/* One control tick: computes the values and hands them to iso_fb_host_step
- * (reopen, HELLO, SETPOINTS, drain the replies), all without waiting: writes
- * time out after 1 ms. Returns 1 if setpoints went out, 0 if not (the link
- * is down or the handshake is pending; both recover by themselves in later
- * ticks), or a negative code: ISO_ENUMERIC for non-finite positions,
- * ISO_EINVAL when the MCU lacks a channel the spec drives or after
- * safe_stop. With ISO_ACT_LINK_NONE it only computes (returns 0). */
+/* One control tick: computes the values and hands them to the sender
+ * thread, which streams them from its next period on (until a later publish
+ * replaces them); never waits for the link. Returns 1 if the link is
+ * streaming, 0 if not (the link is down or the handshake is pending; the
+ * sender recovers both by itself), or a negative code: ISO_ENUMERIC for
+ * non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
+ * lacks a channel the spec drives or after safe_stop. With
+ * ISO_ACT_LINK_NONE it only computes (returns 0). */
 ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
                                         iso_err *err);
 
-/* Handles what arrives within timeout_ms (ACKs, HEARTBEATs, ...) without
- * sending setpoints; for waiting between ticks. Returns frames handled, at
- * once (0) while the link is down: only publish brings it back. */
+/* Waits up to timeout_ms for the sender thread to handle incoming frames
+ * (ACKs, HEARTBEATs, ...); for tests and tools that watch the link. Returns
+ * the frames handled meanwhile, at once (0) while the link is down. */
 int iso_actuators_poll(iso_actuators *a, int timeout_ms);
 
 /* Stops streaming for good and waits up to timeout_ms for the MCU to report
