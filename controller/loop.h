@@ -80,7 +80,7 @@ typedef struct iso_loop_summary {
     long ply_frames, snapshots;
     int rt_active;                 /* 1: SCHED_FIFO held */
     int mem_locked;
-    char rt_note[256];             /* why not, "" when it is */
+    char rt_note[400];             /* why not, "" when it is */
     char act_line[1200];           /* the actuator link's counters, "" without one */
 } iso_loop_summary;
 
