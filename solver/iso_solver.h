@@ -81,6 +81,14 @@ void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
 ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v,
                                    iso_err *err);
 
+/* As iso_solver_field, but conjugate gradients (the adaptive scheme's
+ * reuse of a cached factor) start from the free entries of guess (3*nv;
+ * may be v itself) instead of the previous solution: the integrator
+ * extrapolates its history to the new time, which starts closer. The
+ * result meets the same tolerance either way; a direct solve ignores it. */
+ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
+                                        const double *guess, double *v, iso_err *err);
+
 /* The restoration term's settings (iso_solver_opts): μ and the τ now in use.
  * Defined in restore.c. */
 void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */

@@ -598,8 +598,28 @@ static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *e
     return iso_solver__assemble_cpu(s, x, vc, err);
 }
 
+/* The free entries of guess into X, where PCG starts. */
+static void start_from(iso_solver *s, const double *guess)
+{
+    if (!guess || !s->X || s->nf <= 0)
+        return;
+    double *X = s->X->x;
+    for (int i = 0; i < s->nv; i++) {
+        int f = s->free_of[i];
+        if (f >= 0)
+            memcpy(X + 3 * f, guess + 3 * i, 3 * sizeof(double));
+    }
+}
+
 int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v, iso_err *err)
 {
+    return iso_solver_field_from(s, x, vc, NULL, v, err);
+}
+
+int iso_solver_field_from(iso_solver *s, const double *x, const double *vc, const double *guess,
+                          double *v, iso_err *err)
+{
+    start_from(s, guess);
     double t0 = iso_clock_now();
     int rc = ISO_OK;
     if (s->nf > 0)

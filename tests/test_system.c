@@ -613,6 +613,73 @@ static void factor_reuse_matches_refactoring(void **state)
     fx_mesh_free(&fm);
 }
 
+/* iso_solver_field_from: PCG starts from the guess. Started from the exact
+ * solution (an always-refactor solver's field at the same point) it needs
+ * no iteration; started from zero it needs more than from the previous
+ * solution; every start meets the tolerance (1e-7 of the field, as above). */
+static void guess_is_where_cg_starts(void **state)
+{
+    (void)state;
+    fx_mesh fm = fx_grid(13, 7, 2.0, 1.0);
+    for (int i = 0; i < fm.nv; i++)
+        fm.x[3 * i + 2] = 0.2 * sin(2 * fm.x[3 * i] + fm.x[3 * i + 1]);
+    iso_mesh *m = fx_make(&fm);
+    unsigned char *kind = band_kinds(&fm, 0, 0.2, 1.8);
+    iso_regions r;
+    fx_regions(&r, fm.nv, kind);
+    int n = 3 * fm.nv;
+    double *vc = calloc((size_t)n, sizeof(double)), *x = malloc(sizeof(double) * (size_t)n);
+    double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
+    double *zero = calloc((size_t)n, sizeof(double));
+    assert_true(vc && x && ref && v && zero);
+    double b[3] = {0.0, 0.3, 0.1};
+    for (int i = 0; i < fm.nv; i++)
+        if (kind[i] == ISO_HANDLE)
+            fx_cross(b, fm.x + 3 * i, vc + 3 * i);
+    iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
+    iso_solver *always = NULL, *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    assert_int_equal(iso_solver_create(m, &r, &o, &always, &err), ISO_OK);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    assert_int_equal(iso_solver_create(m, &r, &o, &s, &err), ISO_OK);
+    memcpy(x, fm.x, sizeof(double) * (size_t)n);
+    assert_int_equal(iso_solver_field(s, x, vc, v, &err), ISO_OK); /* factors */
+    for (int i = 0; i < n; i++)
+        x[i] += 0.02 * v[i];
+    assert_int_equal(iso_solver_field(always, x, vc, ref, &err), ISO_OK);
+    double top = iso_test_max_abs(ref, (size_t)n);
+    /* the previous solution first: it is the one at the point before */
+    const double *starts[3] = {NULL, zero, ref};
+    long iters[3];
+    for (int k = 0; k < 3; k++) {
+        iso_solver_stats a, c;
+        iso_solver_get_stats(s, &a);
+        assert_int_equal(iso_solver_field_from(s, x, vc, starts[k], v, &err), ISO_OK);
+        iso_solver_get_stats(s, &c);
+        iters[k] = c.cg_iterations - a.cg_iterations;
+        assert_int_equal(c.factorizations, a.factorizations); /* the cached factor served */
+        assert_true(iso_test_max_abs_diff(v, ref, (size_t)n) <= 1e-7 * top);
+    }
+    printf("CG iterations from the previous solution %ld, zero %ld, the exact solution %ld\n",
+           iters[0], iters[1], iters[2]);
+    assert_true(iters[0] > 0);
+    assert_true(iters[1] > iters[0]);
+    assert_int_equal(iters[2], 0);
+    iso_solver_destroy(always);
+    iso_solver_destroy(s);
+    free(vc);
+    free(x);
+    free(ref);
+    free(v);
+    free(zero);
+    free(kind);
+    iso_regions_deinit(&r);
+    iso_mesh_destroy(m);
+    fx_mesh_free(&fm);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -623,6 +690,7 @@ int main(void)
         cmocka_unit_test(solver_matches_dense_solve),
         cmocka_unit_test(ill_posed_constraints_are_refused),
         cmocka_unit_test(factor_reuse_matches_refactoring),
+        cmocka_unit_test(guess_is_where_cg_starts),
     };
     return cmocka_run_group_tests_name("system", t, NULL, NULL);
 }
