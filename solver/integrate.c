@@ -64,15 +64,22 @@ static int place_handles(integ *g, double t, double *x, iso_err *err)
     return ISO_OK;
 }
 
-/* f = v̂(x, t); x's handle vertices are updated to time t. */
-static int eval_field(integ *g, double t, double *x, double *f, iso_err *err)
+/* f = v̂(x, t); x's handle vertices are updated to time t. With guess
+ * (may be f) an iterative solve starts there. */
+static int eval_field_from(integ *g, double t, double *x, const double *guess, double *f,
+                           iso_err *err)
 {
     int rc = place_handles(g, t, x, err);
     if (rc == ISO_OK)
-        rc = iso_solver_field(g->s, x, g->vc, f, err);
+        rc = iso_solver_field_from(g->s, x, g->vc, guess, f, err);
     if (rc == ISO_OK)
         g->evaluations++;
     return rc;
+}
+
+static int eval_field(integ *g, double t, double *x, double *f, iso_err *err)
+{
+    return eval_field_from(g, t, x, NULL, f, err);
 }
 
 /* y = x + Σ c_j d_j on free vertices; other vertices copied from x. */
@@ -155,6 +162,22 @@ static double max_free_diff(const integ *g, const double *a, const double *b)
     return m;
 }
 
+/* y = the quadratic through the history f at times t[0..2] (relative),
+ * evaluated at τ: where the field is heading, the start for the solve at
+ * the predicted point (the previous solution is one step behind). */
+static void extrapolate(const integ *g, const double t[3], double tau, double *y)
+{
+    double l[3];
+    for (int i = 0; i < 3; i++) {
+        l[i] = 1;
+        for (int j = 0; j < 3; j++)
+            if (j != i)
+                l[i] *= (tau - t[j]) / (t[i] - t[j]);
+    }
+    for (int q = 0; q < 3 * g->nv; q++)
+        y[q] = l[0] * g->f[0][q] + l[1] * g->f[1][q] + l[2] * g->f[2][q];
+}
+
 /* PEC of one ABM3 step of length h from t = tf[0]; leaves the corrected
  * positions in xc and returns Milne's estimate in *est (absolute). The
  * history is not touched. */
@@ -165,7 +188,8 @@ static int abm_predict_correct(integ *g, double h, const double *x, double *xc, 
     double tp[3] = {0, g->tf[1] - t, g->tf[2] - t};
     lagrange_weights(tp, 0, h, wp);
     combine(g, g->xp, x, 3, wp, g->f);
-    int rc = eval_field(g, t + h, g->xp, g->k[0], err);
+    extrapolate(g, tp, h, g->k[0]);
+    int rc = eval_field_from(g, t + h, g->xp, g->k[0], g->k[0], err);
     if (rc != ISO_OK)
         return rc;
     double tc[3] = {h, 0, g->tf[1] - t};
@@ -337,6 +361,7 @@ struct iso_stepper {
     iso_pose *base;    /* per handle: pose at t */
     iso_twist *tw;     /* per handle: twist held over the current tick */
     int since_restart; /* steps since the history was dropped; 0 = f_n not yet valid */
+    iso_abm_mode mode;
     iso_integrate_stats st;
 };
 
@@ -407,6 +432,38 @@ void iso_stepper_destroy(iso_stepper *st)
     free(st);
 }
 
+int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kappa, iso_err *err)
+{
+    if (mode != ISO_ABM_PECE && mode != ISO_ABM_PEC)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown ABM mode %d (PECE 0 or PEC 1)", (int)mode);
+    if (isnan(restore_kappa))
+        return iso_err_set(err, ISO_EINVAL, -1, "restore_kappa is not a number");
+    st->mode = mode;
+    st->g.restore_kappa = restore_kappa >= 0             ? restore_kappa
+                          : mode == ISO_ABM_PEC ? ISO_INTEGRATE_RESTORE_KAPPA_PEC
+                                                : ISO_INTEGRATE_RESTORE_KAPPA;
+    return ISO_OK;
+}
+
+/* The ABM3 part of a step. PECE evaluates the field at the corrected
+ * positions into the history; PEC keeps the predictor's evaluation there
+ * and only places the handles at the step's end. */
+static int abm_step(iso_stepper *st, double h, iso_err *err)
+{
+    integ *g = &st->g;
+    double est, *xc = g->xs;
+    int rc = abm_predict_correct(g, h, st->x, xc, &est, err);
+    if (rc != ISO_OK)
+        return rc;
+    st->st.max_err_estimate = fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
+    memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
+    push_history(g, st->t + h);
+    if (st->mode == ISO_ABM_PECE)
+        return eval_field(g, st->t + h, st->x, g->f[0], err);
+    memcpy(g->f[0], g->k[0], (size_t)(3 * g->nv) * sizeof(double)); /* f(x_p, t + h) */
+    return place_handles(g, st->t + h, st->x, err);
+}
+
 int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int restart,
                      iso_err *err)
 {
@@ -429,16 +486,12 @@ int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int res
         if ((rc = rk4_step(g, st->t, h, st->x, err)) != ISO_OK)
             return rc;
         st->st.rk4_steps++;
+        push_history(g, st->t + h);
+        rc = eval_field(g, st->t + h, st->x, g->f[0], err);
     } else {
-        double est, *xc = g->xs;
-        if ((rc = abm_predict_correct(g, h, st->x, xc, &est, err)) != ISO_OK)
-            return rc;
-        st->st.max_err_estimate =
-            fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
-        memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
+        rc = abm_step(st, h, err);
     }
-    push_history(g, st->t + h);
-    if ((rc = eval_field(g, st->t + h, st->x, g->f[0], err)) != ISO_OK)
+    if (rc != ISO_OK)
         return rc;
     /* The tick is done: its end becomes the next tick's base. */
     for (int k = 0; k < st->nh; k++) {

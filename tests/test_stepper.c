@@ -7,12 +7,15 @@
  * how the handle pose is formed (composed per tick vs exp(tξ) at once), a
  * rounding-level difference; (2) handle vertices sit exactly at the
  * composed pose; (3) a restart spends RK4 steps again; (4) the same input
- * gives bit-identical output; (5) a zero twist leaves the mesh at rest. */
+ * gives bit-identical output; (5) a zero twist leaves the mesh at rest;
+ * (6) PEC mode is third order at one evaluation a step; (7) its smaller
+ * stability interval is covered by its restoration clamp. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "iso_integrate.h"
+#include "iso_metrics.h"
 #include "iso_shapes.h"
 #include "testutil.h"
 
@@ -59,19 +62,27 @@ static double *rest_copy(const fixture *f)
     return x;
 }
 
-static void run_ticks(fixture *f, double *x, int ticks, double h, const iso_twist *tw,
-                      int restart_at, iso_integrate_stats *stats)
+static void run_mode(fixture *f, iso_solver *s, iso_abm_mode mode, double kappa, double *x,
+                     int ticks, double h, const iso_twist *tw, int restart_at,
+                     iso_integrate_stats *stats)
 {
     iso_err err;
     iso_err_clear(&err);
     iso_stepper *st = NULL;
-    assert_int_equal(iso_stepper_create(f->s, f->m, &f->r, x, &st, &err), ISO_OK);
+    assert_int_equal(iso_stepper_create(s, f->m, &f->r, x, &st, &err), ISO_OK);
+    assert_int_equal(iso_stepper_configure(st, mode, kappa, &err), ISO_OK);
     for (int k = 0; k < ticks; k++)
         if (iso_stepper_step(st, h, tw, k == restart_at, &err) != ISO_OK)
             fail_msg("tick %d: %s", k, err.msg);
     iso_stepper_stats(st, stats);
     assert_true(fabs(iso_stepper_time(st) - ticks * h) <= 1e-12);
     iso_stepper_destroy(st);
+}
+
+static void run_ticks(fixture *f, double *x, int ticks, double h, const iso_twist *tw,
+                      int restart_at, iso_integrate_stats *stats)
+{
+    run_mode(f, f->s, ISO_ABM_PECE, -1, x, ticks, h, tw, restart_at, stats);
 }
 
 /* (1) and (2) */
@@ -147,6 +158,75 @@ static void zero_twist_stays_at_rest(void **state)
     free(x);
 }
 
+/* (6) PEC: one evaluation per ABM step and still third order. The error
+ * against a PECE run at 16x the steps (its own error ~4000x smaller) falls
+ * by 2^3 per halving; 6..10 allows for the RK4 start and the
+ * not-yet-asymptotic first level. */
+static void pec_is_third_order_at_one_evaluation_a_step(void **state)
+{
+    fixture *f = *state;
+    int nv = iso_mesh_vertex_count(f->m);
+    double diag = iso_mesh_bbox_diagonal(f->m);
+    double *ref = rest_copy(f);
+    iso_integrate_stats st;
+    run_mode(f, f->s, ISO_ABM_PECE, -1, ref, 384, 1.0 / 384, &f->xi, -1, &st);
+    double e[3];
+    for (int k = 0; k < 3; k++) {
+        int n = 24 << k;
+        double *x = rest_copy(f);
+        run_mode(f, f->s, ISO_ABM_PEC, -1, x, n, 1.0 / n, &f->xi, -1, &st);
+        assert_int_equal(st.evaluations, 1 + 2 * 4 + (n - 2) * 1);
+        e[k] = iso_test_max_abs_diff(x, ref, 3 * (size_t)nv) / diag;
+        free(x);
+    }
+    print_message("PEC errors at 24, 48, 96 steps: %.3g %.3g %.3g, ratios %.2f %.2f\n", e[0],
+                  e[1], e[2], e[0] / e[1], e[1] / e[2]);
+    assert_true(e[0] / e[1] > 6 && e[0] / e[1] < 10);
+    assert_true(e[1] / e[2] > 6 && e[1] / e[2] < 10);
+    free(ref);
+}
+
+/* (7) PEC's stability interval (h/τ < 0.287 against PECE's 1.73) is what
+ * its κ default of 4 is for: a stiff restoration term (μ 10, τ far below a
+ * step) stays bounded with it, as PECE does at the same τ_eff, and blows up
+ * at PECE's κ = 1. (The price: at a given step PEC restores 4x slower.) */
+static void pec_needs_its_own_restoration_clamp(void **state)
+{
+    fixture *f = *state;
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.restore_mu = 10;
+    so.restore_tau = 1e-4;
+    iso_solver *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_solver_create(f->m, &f->r, &so, &s, &err), ISO_OK);
+    double strain[3];
+    double kappa[3] = {-1, 1.0, ISO_INTEGRATE_RESTORE_KAPPA_PEC};
+    iso_abm_mode mode[3] = {ISO_ABM_PEC, ISO_ABM_PEC, ISO_ABM_PECE};
+    for (int k = 0; k < 3; k++) {
+        double *x = rest_copy(f);
+        iso_stepper *st = NULL;
+        assert_int_equal(iso_stepper_create(s, f->m, &f->r, x, &st, &err), ISO_OK);
+        assert_int_equal(iso_stepper_configure(st, mode[k], kappa[k], &err), ISO_OK);
+        int rc = ISO_OK;
+        for (int t = 0; t < 40 && rc == ISO_OK; t++)
+            rc = iso_stepper_step(st, 1.0 / 40, &f->xi, 0, &err);
+        iso_metrics mt;
+        iso_metrics_compute(f->m, iso_mesh_positions(f->m), x, &mt);
+        /* a blow-up may end in a degenerate triangle: infinite strain */
+        strain[k] = rc == ISO_OK ? mt.max_edge_strain : INFINITY;
+        iso_stepper_destroy(st);
+        free(x);
+    }
+    print_message("restoration: max edge strain %.3g PEC at kappa 4, %.3g PEC at kappa 1, %.3g "
+                  "PECE at kappa 4\n",
+                  strain[0], strain[1], strain[2]);
+    assert_true(strain[0] < 1.5 * strain[2]);
+    assert_true(!(strain[1] < 1.0)); /* unbounded growth */
+    iso_solver_destroy(s);
+}
+
 static void bad_step_is_refused(void **state)
 {
     fixture *f = *state;
@@ -167,6 +247,8 @@ int main(void)
         cmocka_unit_test(constant_twist_matches_offline_integration),
         cmocka_unit_test(restart_spends_rk4_and_replays_bit_identically),
         cmocka_unit_test(zero_twist_stays_at_rest),
+        cmocka_unit_test(pec_is_third_order_at_one_evaluation_a_step),
+        cmocka_unit_test(pec_needs_its_own_restoration_clamp),
         cmocka_unit_test(bad_step_is_refused),
     };
     return cmocka_run_group_tests_name("stepper", t, setup, teardown);
