@@ -213,8 +213,9 @@ typedef struct iso_scene {
     int n_handles;
 
     iso_solver_opts solver;       /* cl_device is NULL */
-    iso_integrate_opts integrate; /* restore_kappa; the loop sets t0, t1, steps */
+    iso_integrate_opts integrate; /* restore_kappa (< 0: the ABM mode's default) */
     int steps_per_tick;           /* ABM steps per tick, default 1 */
+    int abm_mode;                 /* iso_abm_mode: `abm: pece` (default) or `pec` */
     double tick_hz;               /* > 0, default 60 */
 
     iso_scene_device devices[ISO_SCENE_MAX_DEVICES];

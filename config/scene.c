@@ -937,7 +937,8 @@ static int parse_solver(sctx *c, fnode *n)
 
 static int parse_integrator(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"steps_per_tick", "restore_kappa", NULL};
+    static const char *const keys[] = {"steps_per_tick", "restore_kappa", "abm", NULL};
+    static const char *const modes[] = {"pece", "pec", NULL}; /* iso_abm_mode order */
     int rc;
     fnode *v;
     if ((rc = want_map(c, n, "integrator", "a mapping of integrator settings")) ||
@@ -945,6 +946,8 @@ static int parse_integrator(sctx *c, fnode *n)
         return rc;
     if ((v = get(n, "steps_per_tick")) &&
         (rc = to_int(c, v, "integrator.steps_per_tick", 1, 1000, &c->s->steps_per_tick)))
+        return rc;
+    if ((v = get(n, "abm")) && (rc = to_enum(c, v, "integrator.abm", modes, &c->s->abm_mode)))
         return rc;
     if ((v = get(n, "restore_kappa"))) {
         double *k = &c->s->integrate.restore_kappa;
@@ -1407,7 +1410,9 @@ static void defaults(iso_scene *s)
 {
     iso_solver_opts_default(&s->solver);
     iso_integrate_opts_default(&s->integrate);
+    s->integrate.restore_kappa = -1; /* the ABM mode's own */
     s->steps_per_tick = 1;
+    s->abm_mode = ISO_ABM_PECE;
     s->tick_hz = 60;
     snprintf(s->display.host, sizeof s->display.host, "127.0.0.1");
     s->display.port = 8080;

@@ -43,9 +43,10 @@ static void print_summary(const iso_scene *s)
             printf(" (%d keyframes, %g s)", d->n_keys, d->keys[d->n_keys - 1].t);
         printf("\n");
     }
-    printf("  solver: omega %g, %s weighting, restore %s; tick %g Hz\n", s->solver.omega,
+    printf("  solver: omega %g, %s weighting, restore %s; tick %g Hz, ABM3 %s\n", s->solver.omega,
            s->solver.weighting == ISO_WEIGHT_AREA ? "area" : "param",
-           s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz);
+           s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz,
+           s->abm_mode == ISO_ABM_PEC ? "PEC" : "PECE");
     printf("  sinks:");
     if (s->display.enabled)
         printf(" display %s:%d", s->display.host, s->display.port);

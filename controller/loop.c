@@ -170,7 +170,11 @@ static int build_solver(iso_loop *l, iso_err *err)
     if (!l->x)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", l->nv);
     memcpy(l->x, iso_mesh_positions(sc->mesh), (size_t)l->nv * 3 * sizeof *l->x);
-    return iso_stepper_create(l->solver, sc->mesh, &sc->regions, l->x, &l->st, err);
+    rc = iso_stepper_create(l->solver, sc->mesh, &sc->regions, l->x, &l->st, err);
+    if (rc == ISO_OK)
+        rc = iso_stepper_configure(l->st, (iso_abm_mode)sc->abm_mode, sc->integrate.restore_kappa,
+                                   err);
+    return rc;
 }
 
 int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out, iso_err *err)

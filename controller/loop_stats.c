@@ -89,8 +89,9 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->latency_median, s->latency_p99, s->latency_max);
     fprintf(f, "  deadlines   %ld missed of %ld (%.2f%%), %ld skipped to catch up\n", s->misses,
             s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
-    fprintf(f, "  integrator  %d steps (%d RK4, %ld restarts), %ld field evaluations\n",
-            s->integ.steps, s->integ.rk4_steps, s->restarts, s->integ.evaluations);
+    fprintf(f, "  integrator  %d steps (%d RK4, %ld restarts, ABM3 %s), %ld field evaluations\n",
+            s->integ.steps, s->integ.rk4_steps, s->restarts,
+            sc->abm_mode == ISO_ABM_PEC ? "PEC" : "PECE", s->integ.evaluations);
     double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
     fprintf(f,
             "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms; "
@@ -161,8 +162,9 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
     num(f, "max", s->latency_max, 0);
     fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses,
             s->skipped, s->restarts);
-    fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"evaluations\": %ld,\n", s->integ.steps,
-            s->integ.rk4_steps, s->integ.evaluations);
+    fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"abm\": \"%s\", \"evaluations\": %ld,\n",
+            s->integ.steps, s->integ.rk4_steps, sc->abm_mode == ISO_ABM_PEC ? "pec" : "pece",
+            s->integ.evaluations);
     fprintf(f, " \"solver\": {\"factorizations\": %ld, \"cg_iterations\": %ld, ",
             s->solver.factorizations, s->solver.cg_iterations);
     num(f, "assembly_s", s->solver.t_assembly, 1);
