@@ -40,6 +40,8 @@ static void usage(void)
            "  --display          the live view even if the scene has none\n"
            "  --port N           live view port (0: any free port; default: the scene's)\n"
            "  --no-rt            do not ask for real-time scheduling and locked memory\n"
+           "  --abm M            pece (the paper's, two field evaluations a step) or pec\n"
+           "                     (one): the integrator mode (default: the scene's)\n"
            "  --assembly A       cpu or opencl (default: the scene's)\n"
            "  --cl-device SPEC   OpenCL device (see isoshape deform --help)\n"
            "  --record FILE      record the devices to FILE (overrides the scene)\n"
@@ -52,6 +54,7 @@ static void usage(void)
 typedef struct run_args {
     const char *scene, *out, *json, *png;
     int quiet;
+    int abm; /* iso_abm_mode, -1: the scene's */
     iso_loop_opts lo;
 } run_args;
 
@@ -77,6 +80,7 @@ static int parse(int argc, char **argv, run_args *a)
 {
     const char *cmd = "run", *v;
     iso_loop_opts_default(&a->lo);
+    a->abm = -1;
     for (int i = 1; i < argc; i++) {
         int r;
         if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
@@ -122,6 +126,17 @@ static int parse(int argc, char **argv, run_args *a)
                 return 2;
             }
             continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--abm", &v)) != 0) {
+            if (r < 0)
+                return 2;
+            if (strcmp(v, "pece") == 0 || strcmp(v, "pec") == 0) {
+                a->abm = strcmp(v, "pec") == 0 ? ISO_ABM_PEC : ISO_ABM_PECE;
+                continue;
+            }
+            iso_cli__fail(cmd, "--abm %s: use pece (two field evaluations a step, the paper's) or "
+                               "pec (one).", v);
+            return 2;
         }
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--assembly", &v)) != 0) {
             if (r < 0)
@@ -208,6 +223,8 @@ int iso_cli__run_scene(int argc, char **argv)
     iso_scene *sc = NULL;
     if (iso_cli__scene_load("run", a.scene, &sc) != 0)
         return 1;
+    if (a.abm >= 0)
+        sc->abm_mode = a.abm;
     g_stop = 0;
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);

@@ -307,6 +307,51 @@ static void screw_driver_equals_deform(void **state)
     assert_true(d <= DIAG_TOL_DEFORM * diag);
 }
 
+/* --abm pec: the same screw path at one field evaluation a step instead of
+ * two (RK4's start aside), and a result that differs from PECE's by
+ * integration error only: both are third order, so PEC lands within a few
+ * times PECE's own error (against the offline integrator at 4x the steps)
+ * of PECE. */
+static void pec_takes_half_the_evaluations(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], a[PATH_MAX], b[PATH_MAX], ja[PATH_MAX], jb[PATH_MAX];
+    static char j[8192];
+    write_scene(iso_test_tmp(scene, sizeof scene, "screw_pec.yaml"), "",
+                "{screw: {def: builtin, duration: 1.0}}", "tick_hz: 20\n");
+    iso_test_tmp(a, sizeof a, "screw_pece.off");
+    iso_test_tmp(b, sizeof b, "screw_pec.off");
+    iso_test_tmp(ja, sizeof ja, "screw_pece.json");
+    iso_test_tmp(jb, sizeof jb, "screw_pec.json");
+    assert_int_equal(iso("run '%s' --fast --quiet --abm pece --out '%s' --stats-json '%s'", scene,
+                         a, ja),
+                     0);
+    assert_int_equal(iso("run '%s' --fast --quiet --abm pec --out '%s' --stats-json '%s'", scene,
+                         b, jb),
+                     0);
+    slurp(ja, j, sizeof j);
+    long ea = (long)json_num(j, "evaluations");
+    slurp(jb, j, sizeof j);
+    long eb = (long)json_num(j, "evaluations");
+    assert_non_null(strstr(j, "\"abm\": \"pec\""));
+    double diag, d = max_diff(a, b, &diag);
+    printf("screw: %ld evaluations under PECE, %ld under PEC; results %.3g of the diagonal apart\n",
+           ea, eb, d / diag);
+    assert_int_equal(ea, 1 + 2 * 4 + 18 * 2); /* f(0), two RK4 steps (3 + f), 18 ABM */
+    assert_int_equal(eb, 1 + 2 * 4 + 18 * 1);
+    char ref[PATH_MAX];
+    iso_test_tmp(ref, sizeof ref, "screw_fine.off");
+    assert_int_equal(iso("deform --shape cactus --resolution 1 --steps 80 --restore off "
+                         "--assembly cpu --refactor always --out '%s'",
+                         ref),
+                     0);
+    double e_pece = max_diff(a, ref, &diag);
+    printf("screw: PECE's own error %.3g of the diagonal\n", e_pece / diag);
+    assert_true(d <= 4 * e_pece);
+    assert_int_equal(iso("run '%s' --abm pex", scene), 2);
+    assert_non_null(strstr(g_err, "--abm pex"));
+}
+
 static void keyframes_end_at_their_pose(void **state)
 {
     (void)state;
@@ -627,6 +672,7 @@ int main(void)
         cmocka_unit_test(each_stream_replays_deterministically_to_its_golden),
         cmocka_unit_test(loop_agrees_with_the_replay_command),
         cmocka_unit_test(screw_driver_equals_deform),
+        cmocka_unit_test(pec_takes_half_the_evaluations),
         cmocka_unit_test(keyframes_end_at_their_pose),
         cmocka_unit_test(overruns_are_counted_and_skipped),
         cmocka_unit_test(pacing_follows_speed),
