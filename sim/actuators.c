@@ -11,6 +11,7 @@
 
 #define ECHO_SLOTS 128u   /* sent frames kept for the ACK check, by frame seq */
 #define PERIOD_US 10000u  /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
+#define KEEP_ARMED_US 40000u /* HELLO again this often until the first publish */
 
 typedef struct act_channel {
     iso_act_channel spec;
@@ -339,6 +340,19 @@ static void share_host(iso_actuators *a, int frames)
     pthread_mutex_unlock(&a->lock);
 }
 
+/* Before the loop's first publish (the first tick of a 5k-vertex mesh takes
+ * longer than the MCU's 100 ms link watchdog) a HELLO every KEEP_ARMED_US:
+ * each one re-arms the MCU holding its current positions and restarts its
+ * watchdog (PROTOCOL.md), so the wait never ends in FAULT, whose brake to
+ * the safe positions would jerk an MCU that was elsewhere. */
+static void keep_armed(iso_actuators *a)
+{
+    if (a->host.state != ISO_FB_HOST_STREAMING || now_us() - a->host.last_hello_us < KEEP_ARMED_US)
+        return;
+    iso_fb_host_rehello(&a->host);
+    iso_fb_host_step(&a->host, 0, NULL, 0); /* sends the HELLO: no setpoints while handshaking */
+}
+
 /* One period's SETPOINTS: the latest values, undriven channels at the MCU's
  * safe position. Nothing before the first publish, after safe_stop, or
  * while the MCU lacks a driven channel (only the replies are read then). */
@@ -352,8 +366,11 @@ static void send_latest(iso_actuators *a)
     unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
     for (unsigned c = 0; c < n; c++)
         v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
+    int waiting = !a->have_tick && !a->stopped;
     pthread_mutex_unlock(&a->lock);
     if (!go) {
+        if (waiting)
+            keep_armed(a);
         share_host(a, iso_fb_host_poll(&a->host, 0));
         return;
     }

@@ -34,7 +34,9 @@
  *
  * Timing: with a link, a sender thread of the sink owns the host and the
  * link and sends SETPOINTS at 100 Hz on absolute CLOCK_MONOTONIC deadlines,
- * always the latest published values, reading the replies in between. So
+ * always the latest published values, reading the replies in between
+ * (before the first publish it re-sends HELLO every 40 ms instead, which
+ * keeps the MCU armed at its current positions). So
  * the MCU's 100 ms link watchdog holds however slow the loop's ticks are (a
  * 40k-vertex tick takes longer than 100 ms), and publish never touches I/O.
  *
@@ -115,7 +117,8 @@ typedef struct iso_act_stats {
     uint64_t echo_unknown;    /* ACKs for a frame too old to check (or never sent) */
     uint64_t clamps;          /* channel-ticks that were clamped, all channels */
     uint64_t clamps_ch[ISO_ACT_MAX_CHANNELS]; /* by channel */
-    uint32_t link_losses, handshakes, faults, naks;
+    uint32_t link_losses, faults, naks;
+    uint32_t handshakes; /* HELLO answers, the keep-armed ones before the first publish too */
     uint32_t last_fault_reason;    /* ISO_FB_FAULT_*, 0 before any */
     uint32_t last_fault_detail_ms; /* WATCHDOG: last setpoints to safe, MCU clock */
     /* SETPOINTS to its ACK: from before the write to the ACK's handling on

@@ -631,6 +631,45 @@ static void slow_loop_still_streams_at_100hz(void **state)
     iso_regions_deinit(&r);
 }
 
+/* The loop's first tick may come long after the sink is created (mesh,
+ * solver, a 5-evaluation RK4 start): meanwhile the MCU stays armed, with no
+ * watchdog FAULT, and streaming starts at the first publish. */
+static void waiting_for_the_first_tick_keeps_the_mcu_armed(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_EMULATED;
+    link.emulation = ISO_ACT_EMU_NATIVE;
+    iso_act_opts opts = {0, on_notice, NULL};
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    g.n_notices = 0;
+    if (iso_actuators_create(E2E, 4, NV, &r, &link, &opts, &a, &err) != ISO_OK)
+        fail_msg("create: %s", err.msg);
+    double end = now_s() + 0.6; /* six watchdog periods without a publish */
+    while (now_s() < end)
+        iso_actuators_poll(a, 20);
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    printf("  no publish for 0.6 s: faults %u, handshakes %u, heartbeats %u, MCU state %d\n",
+           (unsigned)s.faults, (unsigned)s.handshakes, (unsigned)s.heartbeats, s.mcu_state);
+    assert_int_equal(s.faults, 0);
+    assert_true(s.heartbeats > 0);
+    assert_int_equal(s.mcu_state, ISO_FB_STATE_ARMED);
+    assert_int_equal(s.setpoints_sent, 0);
+    uint32_t tick = 0;
+    publish_every(a, &tick, TARGET_X, 3.0, has_streamed);
+    iso_actuators_stats(a, &s);
+    assert_true(s.setpoints_sent > 0);
+    assert_int_equal(s.faults, 0);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+}
+
 static void native_end_to_end(void **state)
 {
     (void)state;
@@ -910,6 +949,7 @@ int main(void)
         cmocka_unit_test(bad_specs_give_clear_errors),
         cmocka_unit_test(native_end_to_end),
         cmocka_unit_test(slow_loop_still_streams_at_100hz),
+        cmocka_unit_test(waiting_for_the_first_tick_keeps_the_mcu_armed),
         cmocka_unit_test(qemu_end_to_end),
         cmocka_unit_test(auto_falls_back_to_native_and_says_why),
         cmocka_unit_test(mcu_channel_count_disagreement),
