@@ -559,11 +559,10 @@ static int has_streamed(const iso_act_stats *s)
     return s->setpoints_sent > 0;
 }
 
-static void slow_loop_still_streams_at_100hz(void **state)
+/* The E2E sink over the tiny mesh, linked to the native emulated MCU. */
+static iso_actuators *native_sink(iso_regions *r)
 {
-    (void)state;
-    iso_regions r;
-    tiny_regions(&r);
+    tiny_regions(r);
     iso_act_link_spec link;
     memset(&link, 0, sizeof link);
     link.kind = ISO_ACT_LINK_EMULATED;
@@ -573,8 +572,18 @@ static void slow_loop_still_streams_at_100hz(void **state)
     iso_err err;
     iso_err_clear(&err);
     g.n_notices = 0;
-    if (iso_actuators_create(E2E, 4, NV, &r, &link, &opts, &a, &err) != ISO_OK)
+    if (iso_actuators_create(E2E, 4, NV, r, &link, &opts, &a, &err) != ISO_OK)
         fail_msg("create: %s", err.msg);
+    return a;
+}
+
+static void slow_loop_still_streams_at_100hz(void **state)
+{
+    (void)state;
+    iso_regions r;
+    iso_actuators *a = native_sink(&r);
+    iso_err err;
+    iso_err_clear(&err);
     uint32_t tick = 0;
     publish_every(a, &tick, TARGET_X, 8.0, has_streamed);
     iso_act_stats s0, s;
@@ -638,18 +647,7 @@ static void waiting_for_the_first_tick_keeps_the_mcu_armed(void **state)
 {
     (void)state;
     iso_regions r;
-    tiny_regions(&r);
-    iso_act_link_spec link;
-    memset(&link, 0, sizeof link);
-    link.kind = ISO_ACT_LINK_EMULATED;
-    link.emulation = ISO_ACT_EMU_NATIVE;
-    iso_act_opts opts = {0, on_notice, NULL};
-    iso_actuators *a = NULL;
-    iso_err err;
-    iso_err_clear(&err);
-    g.n_notices = 0;
-    if (iso_actuators_create(E2E, 4, NV, &r, &link, &opts, &a, &err) != ISO_OK)
-        fail_msg("create: %s", err.msg);
+    iso_actuators *a = native_sink(&r);
     double end = now_s() + 0.6; /* six watchdog periods without a publish */
     while (now_s() < end)
         iso_actuators_poll(a, 20);
