@@ -378,21 +378,29 @@ static const iso_act_channel E2E[4] = {
     {3, -1, 1, 0, 0, 2, 1000},
 };
 
-/* Returns 0 when the emulation is not available here (the caller skips). */
-static int end_to_end(int mode, const char *label)
+/* The E2E sink over the tiny mesh (regions into *r), linked to an emulated
+ * MCU of the given ISO_ACT_EMU_* mode; iso_actuators_create's result. */
+static int emulated_sink(iso_regions *r, int mode, iso_actuators **a, iso_err *err)
 {
-    iso_regions r;
-    tiny_regions(&r);
+    tiny_regions(r);
     iso_act_link_spec link;
     memset(&link, 0, sizeof link);
     link.kind = ISO_ACT_LINK_EMULATED;
     link.emulation = mode;
     iso_act_opts opts = {0, on_notice, NULL};
+    iso_err_clear(err);
+    g.n_notices = 0;
+    *a = NULL;
+    return iso_actuators_create(E2E, 4, NV, r, &link, &opts, a, err);
+}
+
+/* Returns 0 when the emulation is not available here (the caller skips). */
+static int end_to_end(int mode, const char *label)
+{
+    iso_regions r;
     iso_actuators *a = NULL;
     iso_err err;
-    iso_err_clear(&err);
-    g.n_notices = 0;
-    int rc = iso_actuators_create(E2E, 4, NV, &r, &link, &opts, &a, &err);
+    int rc = emulated_sink(&r, mode, &a, &err);
     if (rc == ISO_ENOTSUP) {
         printf("SKIP %s: %s\n", label, err.msg);
         iso_regions_deinit(&r);
@@ -559,20 +567,12 @@ static int has_streamed(const iso_act_stats *s)
     return s->setpoints_sent > 0;
 }
 
-/* The E2E sink over the tiny mesh, linked to the native emulated MCU. */
+/* The E2E sink on the native emulated MCU, which is always available. */
 static iso_actuators *native_sink(iso_regions *r)
 {
-    tiny_regions(r);
-    iso_act_link_spec link;
-    memset(&link, 0, sizeof link);
-    link.kind = ISO_ACT_LINK_EMULATED;
-    link.emulation = ISO_ACT_EMU_NATIVE;
-    iso_act_opts opts = {0, on_notice, NULL};
     iso_actuators *a = NULL;
     iso_err err;
-    iso_err_clear(&err);
-    g.n_notices = 0;
-    if (iso_actuators_create(E2E, 4, NV, r, &link, &opts, &a, &err) != ISO_OK)
+    if (emulated_sink(r, ISO_ACT_EMU_NATIVE, &a, &err) != ISO_OK)
         fail_msg("create: %s", err.msg);
     return a;
 }

@@ -532,6 +532,44 @@ static void ill_posed_constraints_are_refused(void **state)
     fx_mesh_free(&grid);
 }
 
+/* A bumpy 13x7 grid, fixed at one end, its band at the other a handle
+ * turning with angular velocity (0, 0.3, 0.1): the system both reuse tests
+ * below solve along a path. */
+typedef struct bumpy {
+    fx_mesh fm;
+    iso_mesh *m;
+    unsigned char *kind;
+    iso_regions r;
+    double *vc; /* the handle velocities, 3 nv */
+} bumpy;
+
+static void bumpy_init(bumpy *b)
+{
+    b->fm = fx_grid(13, 7, 2.0, 1.0);
+    for (int i = 0; i < b->fm.nv; i++)
+        b->fm.x[3 * i + 2] = 0.2 * sin(2 * b->fm.x[3 * i] + b->fm.x[3 * i + 1]);
+    b->m = fx_make(&b->fm);
+    if (b->fm.nv <= 0 || b->fm.nv > 100000)
+        fail_msg("grid of %d vertices", b->fm.nv);
+    b->kind = band_kinds(&b->fm, 0, 0.2, 1.8);
+    fx_regions(&b->r, b->fm.nv, b->kind);
+    b->vc = calloc(3 * (size_t)b->fm.nv, sizeof(double));
+    assert_non_null(b->vc);
+    double w[3] = {0.0, 0.3, 0.1};
+    for (int i = 0; i < b->fm.nv; i++)
+        if (b->kind[i] == ISO_HANDLE)
+            fx_cross(w, b->fm.x + 3 * i, b->vc + 3 * i);
+}
+
+static void bumpy_deinit(bumpy *b)
+{
+    free(b->vc);
+    free(b->kind);
+    iso_regions_deinit(&b->r);
+    iso_mesh_destroy(b->m);
+    fx_mesh_free(&b->fm);
+}
+
 /* Adaptive refactoring (PCG preconditioned by the cached factor) against a
  * fresh factorization every evaluation, along one sequence of positions
  * that moves like an integrator's: pairs of nearby evaluations (predictor,
@@ -543,28 +581,16 @@ static void ill_posed_constraints_are_refused(void **state)
 static void factor_reuse_matches_refactoring(void **state)
 {
     (void)state;
-    fx_mesh fm = fx_grid(13, 7, 2.0, 1.0);
-    for (int i = 0; i < fm.nv; i++)
-        fm.x[3 * i + 2] = 0.2 * sin(2 * fm.x[3 * i] + fm.x[3 * i + 1]);
-    iso_mesh *m = fx_make(&fm);
-    if (fm.nv <= 0 || fm.nv > 100000)
-        fail_msg("grid of %d vertices", fm.nv);
-    unsigned char *kind = band_kinds(&fm, 0, 0.2, 1.8);
-    iso_regions r;
-    fx_regions(&r, fm.nv, kind);
-    int n = 3 * fm.nv, evals = 24;
-    double *vc = calloc((size_t)n, sizeof(double)), *x = malloc(sizeof(double) * (size_t)n);
+    bumpy bp;
+    bumpy_init(&bp);
+    int n = 3 * bp.fm.nv, evals = 24;
+    double *x = malloc(sizeof(double) * (size_t)n);
     double *v[3];
     for (int k = 0; k < 3; k++) {
         v[k] = malloc(sizeof(double) * (size_t)n * (size_t)evals);
         assert_non_null(v[k]);
     }
-    assert_non_null(vc);
     assert_non_null(x);
-    double b[3] = {0.0, 0.3, 0.1};
-    for (int i = 0; i < fm.nv; i++)
-        if (kind[i] == ISO_HANDLE)
-            fx_cross(b, fm.x + 3 * i, vc + 3 * i);
     iso_solver_stats st[3];
     for (int run = 0; run < 3; run++) {
         iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
@@ -572,12 +598,12 @@ static void factor_reuse_matches_refactoring(void **state)
         iso_solver *s = NULL;
         iso_err err;
         iso_err_clear(&err);
-        if (iso_solver_create(m, &r, &o, &s, &err) != ISO_OK)
+        if (iso_solver_create(bp.m, &bp.r, &o, &s, &err) != ISO_OK)
             fail_msg("iso_solver_create: %s", err.msg);
-        memcpy(x, fm.x, sizeof(double) * (size_t)n);
+        memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
         for (int e = 0; e < evals; e++) {
             double *ve = v[run] + (size_t)n * (size_t)e;
-            if (iso_solver_field(s, x, vc, ve, &err) != ISO_OK)
+            if (iso_solver_field(s, x, bp.vc, ve, &err) != ISO_OK)
                 fail_msg("run %d evaluation %d: %s", run, e, err.msg);
             /* The next point: the always run's field moves every run alike,
              * a small nudge after even evaluations, a growing step after odd. */
@@ -605,12 +631,8 @@ static void factor_reuse_matches_refactoring(void **state)
            st[1].factorizations, evals, st[1].cg_iterations, st[1].refactors);
     for (int k = 0; k < 3; k++)
         free(v[k]);
-    free(vc);
     free(x);
-    free(kind);
-    iso_regions_deinit(&r);
-    iso_mesh_destroy(m);
-    fx_mesh_free(&fm);
+    bumpy_deinit(&bp);
 }
 
 /* iso_solver_field_from: PCG starts from the guess. Started from the exact
@@ -620,35 +642,26 @@ static void factor_reuse_matches_refactoring(void **state)
 static void guess_is_where_cg_starts(void **state)
 {
     (void)state;
-    fx_mesh fm = fx_grid(13, 7, 2.0, 1.0);
-    for (int i = 0; i < fm.nv; i++)
-        fm.x[3 * i + 2] = 0.2 * sin(2 * fm.x[3 * i] + fm.x[3 * i + 1]);
-    iso_mesh *m = fx_make(&fm);
-    unsigned char *kind = band_kinds(&fm, 0, 0.2, 1.8);
-    iso_regions r;
-    fx_regions(&r, fm.nv, kind);
-    int n = 3 * fm.nv;
-    double *vc = calloc((size_t)n, sizeof(double)), *x = malloc(sizeof(double) * (size_t)n);
+    bumpy bp;
+    bumpy_init(&bp);
+    int n = 3 * bp.fm.nv;
+    double *x = malloc(sizeof(double) * (size_t)n);
     double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
     double *zero = calloc((size_t)n, sizeof(double));
-    assert_true(vc && x && ref && v && zero);
-    double b[3] = {0.0, 0.3, 0.1};
-    for (int i = 0; i < fm.nv; i++)
-        if (kind[i] == ISO_HANDLE)
-            fx_cross(b, fm.x + 3 * i, vc + 3 * i);
+    assert_true(x && ref && v && zero);
     iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
     iso_solver *always = NULL, *s = NULL;
     iso_err err;
     iso_err_clear(&err);
     o.refactor = ISO_REFACTOR_ALWAYS;
-    assert_int_equal(iso_solver_create(m, &r, &o, &always, &err), ISO_OK);
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
     o.refactor = ISO_REFACTOR_ADAPTIVE;
-    assert_int_equal(iso_solver_create(m, &r, &o, &s, &err), ISO_OK);
-    memcpy(x, fm.x, sizeof(double) * (size_t)n);
-    assert_int_equal(iso_solver_field(s, x, vc, v, &err), ISO_OK); /* factors */
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
+    assert_int_equal(iso_solver_field(s, x, bp.vc, v, &err), ISO_OK); /* factors */
     for (int i = 0; i < n; i++)
         x[i] += 0.02 * v[i];
-    assert_int_equal(iso_solver_field(always, x, vc, ref, &err), ISO_OK);
+    assert_int_equal(iso_solver_field(always, x, bp.vc, ref, &err), ISO_OK);
     double top = iso_test_max_abs(ref, (size_t)n);
     /* the previous solution first: it is the one at the point before */
     const double *starts[3] = {NULL, zero, ref};
@@ -656,7 +669,7 @@ static void guess_is_where_cg_starts(void **state)
     for (int k = 0; k < 3; k++) {
         iso_solver_stats a, c;
         iso_solver_get_stats(s, &a);
-        assert_int_equal(iso_solver_field_from(s, x, vc, starts[k], v, &err), ISO_OK);
+        assert_int_equal(iso_solver_field_from(s, x, bp.vc, starts[k], v, &err), ISO_OK);
         iso_solver_get_stats(s, &c);
         iters[k] = c.cg_iterations - a.cg_iterations;
         assert_int_equal(c.factorizations, a.factorizations); /* the cached factor served */
@@ -669,15 +682,11 @@ static void guess_is_where_cg_starts(void **state)
     assert_int_equal(iters[2], 0);
     iso_solver_destroy(always);
     iso_solver_destroy(s);
-    free(vc);
     free(x);
     free(ref);
     free(v);
     free(zero);
-    free(kind);
-    iso_regions_deinit(&r);
-    iso_mesh_destroy(m);
-    fx_mesh_free(&fm);
+    bumpy_deinit(&bp);
 }
 
 int main(void)
