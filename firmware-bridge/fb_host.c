@@ -293,7 +293,11 @@ int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err)
 
 int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap)
 {
-    const iso_fb_host_stats *s = &h->stats;
+    return iso_fb_host_stats_format(&h->stats, buf, cap);
+}
+
+int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap)
+{
     double avg = s->rtt_count ? (double)s->rtt_sum_us / s->rtt_count / 1000.0 : 0.0;
     double mn = s->rtt_count ? s->rtt_min_us / 1000.0 : 0.0;
     return snprintf(buf, cap,

@@ -89,7 +89,9 @@ ISO_NODISCARD int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err);
 void iso_fb_host_rehello(iso_fb_host *h);
 
 /* One line of counters, e.g. for `isoshape` to print. Returns snprintf's
- * result. */
+ * result. The _stats_ form takes a copy of the counters (a caller whose
+ * host lives on another thread). */
 int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap);
+int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap);
 
 #endif

@@ -773,12 +773,10 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
     if (!a->host_up || n < 0 || (size_t)n + 2 >= cap)
         return n;
     /* the host's line from its counters as the sender last shared them */
-    static const iso_fb_host zero;
-    iso_fb_host h = zero;
     pthread_mutex_lock(lock_of(a));
-    h.stats = a->host_st;
+    iso_fb_host_stats hs = a->host_st;
     pthread_mutex_unlock(lock_of(a));
     buf[n] = ';';
     buf[n + 1] = ' ';
-    return n + 2 + iso_fb_host_format_stats(&h, buf + n + 2, cap - (size_t)n - 2);
+    return n + 2 + iso_fb_host_stats_format(&hs, buf + n + 2, cap - (size_t)n - 2);
 }
