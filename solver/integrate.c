@@ -119,21 +119,29 @@ static int rk4_step(integ *g, double t, double h, double *x, iso_err *err)
     return ISO_OK;
 }
 
+/* The Lagrange basis polynomials through nodes t[0..2], at tau. */
+static void lagrange_basis(const double t[3], double tau, double l[3])
+{
+    for (int i = 0; i < 3; i++) {
+        l[i] = 1;
+        for (int j = 0; j < 3; j++)
+            if (j != i)
+                l[i] *= (tau - t[j]) / (t[i] - t[j]);
+    }
+}
+
 /* ∫_a^b of the Lagrange basis polynomials through nodes t[0..2], exact by
  * two-point Gauss–Legendre (the basis is quadratic). */
 static void lagrange_weights(const double t[3], double a, double b, double w[3])
 {
     double mid = 0.5 * (a + b), rad = 0.5 * (b - a), g = rad / sqrt(3.0);
     double pts[2] = {mid - g, mid + g};
-    for (int i = 0; i < 3; i++) {
-        w[i] = 0;
-        for (int q = 0; q < 2; q++) {
-            double l = 1;
-            for (int j = 0; j < 3; j++)
-                if (j != i)
-                    l *= (pts[q] - t[j]) / (t[i] - t[j]);
-            w[i] += rad * l;
-        }
+    w[0] = w[1] = w[2] = 0;
+    for (int q = 0; q < 2; q++) {
+        double l[3];
+        lagrange_basis(t, pts[q], l);
+        for (int i = 0; i < 3; i++)
+            w[i] += rad * l[i];
     }
 }
 
@@ -168,12 +176,7 @@ static double max_free_diff(const integ *g, const double *a, const double *b)
 static void extrapolate(const integ *g, const double t[3], double tau, double *y)
 {
     double l[3];
-    for (int i = 0; i < 3; i++) {
-        l[i] = 1;
-        for (int j = 0; j < 3; j++)
-            if (j != i)
-                l[i] *= (tau - t[j]) / (t[i] - t[j]);
-    }
+    lagrange_basis(t, tau, l);
     for (int q = 0; q < 3 * g->nv; q++)
         y[q] = l[0] * g->f[0][q] + l[1] * g->f[1][q] + l[2] * g->f[2][q];
 }
