@@ -46,7 +46,7 @@ static void print_summary(const iso_scene *s)
     printf("  solver: omega %g, %s weighting, restore %s; tick %g Hz, ABM3 %s\n", s->solver.omega,
            s->solver.weighting == ISO_WEIGHT_AREA ? "area" : "param",
            s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz,
-           s->abm_mode == ISO_ABM_PEC ? "PEC" : "PECE");
+           iso_abm_mode_name((iso_abm_mode)s->abm_mode));
     printf("  sinks:");
     if (s->display.enabled)
         printf(" display %s:%d", s->display.host, s->display.port);

@@ -130,10 +130,12 @@ static int parse(int argc, char **argv, run_args *a)
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--abm", &v)) != 0) {
             if (r < 0)
                 return 2;
-            if (strcmp(v, "pece") == 0 || strcmp(v, "pec") == 0) {
-                a->abm = strcmp(v, "pec") == 0 ? ISO_ABM_PEC : ISO_ABM_PECE;
+            a->abm = -1; /* the last --abm wins */
+            for (int m = ISO_ABM_PECE; m <= ISO_ABM_PEC && a->abm < 0; m++)
+                if (strcmp(v, iso_abm_mode_name((iso_abm_mode)m)) == 0)
+                    a->abm = m;
+            if (a->abm >= 0)
                 continue;
-            }
             iso_cli__fail(cmd, "--abm %s: use pece (two field evaluations a step, the paper's) or "
                                "pec (one).", v);
             return 2;

@@ -91,7 +91,7 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
     fprintf(f, "  integrator  %d steps (%d RK4, %ld restarts, ABM3 %s), %ld field evaluations\n",
             s->integ.steps, s->integ.rk4_steps, s->restarts,
-            sc->abm_mode == ISO_ABM_PEC ? "PEC" : "PECE", s->integ.evaluations);
+            iso_abm_mode_name((iso_abm_mode)sc->abm_mode), s->integ.evaluations);
     double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
     fprintf(f,
             "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms; "
@@ -163,7 +163,7 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
     fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses,
             s->skipped, s->restarts);
     fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"abm\": \"%s\", \"evaluations\": %ld,\n",
-            s->integ.steps, s->integ.rk4_steps, sc->abm_mode == ISO_ABM_PEC ? "pec" : "pece",
+            s->integ.steps, s->integ.rk4_steps, iso_abm_mode_name((iso_abm_mode)sc->abm_mode),
             s->integ.evaluations);
     fprintf(f, " \"solver\": {\"factorizations\": %ld, \"cg_iterations\": %ld, ",
             s->solver.factorizations, s->solver.cg_iterations);

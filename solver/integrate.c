@@ -435,6 +435,11 @@ void iso_stepper_destroy(iso_stepper *st)
     free(st);
 }
 
+const char *iso_abm_mode_name(iso_abm_mode mode)
+{
+    return mode == ISO_ABM_PECE ? "pece" : mode == ISO_ABM_PEC ? "pec" : "?";
+}
+
 int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kappa, iso_err *err)
 {
     if (mode != ISO_ABM_PECE && mode != ISO_ABM_PEC)

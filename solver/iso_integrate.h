@@ -86,6 +86,10 @@ typedef enum iso_abm_mode { ISO_ABM_PECE = 0, ISO_ABM_PEC = 1 } iso_abm_mode;
 
 #define ISO_INTEGRATE_RESTORE_KAPPA_PEC 4.0
 
+/* "pece" or "pec", as scenes, the command line and the JSON summary write
+ * it; "?" for anything else. */
+const char *iso_abm_mode_name(iso_abm_mode mode);
+
 /* Sets the mode and restoration's κ for the steps that follow; κ < 0 takes
  * the mode's default (ISO_INTEGRATE_RESTORE_KAPPA, _PEC), 0 uses τ as given.
  * The history stays valid across a change. ISO_EINVAL for an unknown mode. */
