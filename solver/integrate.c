@@ -468,7 +468,9 @@ static int abm_step(iso_stepper *st, double h, iso_err *err)
     push_history(g, st->t + h);
     if (st->mode == ISO_ABM_PECE)
         return eval_field(g, st->t + h, st->x, g->f[0], err);
-    memcpy(g->f[0], g->k[0], (size_t)(3 * g->nv) * sizeof(double)); /* f(x_p, t + h) */
+    double *fp = g->k[0]; /* f(x_p, t + h) becomes f_{n+1}; k[0] is scratch */
+    g->k[0] = g->f[0];
+    g->f[0] = fp;
     return place_handles(g, st->t + h, st->x, err);
 }
 
