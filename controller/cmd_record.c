@@ -1,11 +1,13 @@
 /* controller/cmd_record.c -- `isoshape record -o FILE`: opens the live
  * devices named on the command line, runs the device side of the loop at
  * a fixed tick (drain, map, TICK record, flush) and records every chunk,
- * until --duration or Ctrl-C. A device unplugged meanwhile is reported once
- * and picked up again when it comes back (libusb hotplug wakes the retry). */
+ * until --duration or Ctrl-C: the tick engine (iso_loop.h) on a scene of the
+ * device side alone. A device unplugged meanwhile is reported once and
+ * picked up again when it comes back (libusb hotplug wakes the retry). */
 #include "internal.h"
 
 #include <errno.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +15,7 @@
 #include <time.h>
 
 #include "iso_dev.h"
+#include "iso_loop.h"
 
 int iso_cli__record(int argc, char **argv);
 int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_dev_map_opts *o);
@@ -32,39 +35,65 @@ typedef struct src_spec {
     iso_dev_gpio_opts gpio;
 } src_spec;
 
-static int open_spec(const src_spec *sp, iso_dev_source **out, iso_err *err)
+/* The scene device for one source: the engine opens it, and opens it again
+ * when it comes back. --mouse is spacenavd when it runs (it owns the
+ * device), else hidapi. */
+static int scene_device(const src_spec *sp, int index, iso_scene_device *d)
 {
-    if (strcmp(sp->kind, "hid") == 0)
-        return iso_dev_hid_open(strcmp(sp->arg, "auto") == 0 ? NULL : sp->arg, out, err);
-    if (strcmp(sp->kind, "spnav") == 0)
-        return iso_dev_spnav_open(out, err);
+    memset(d, 0, sizeof *d);
+    snprintf(d->name, sizeof d->name, "%.7s%d", sp->kind, index);
+    d->baud = sp->baud;
+    if (sp->arg && strcmp(sp->kind, "tcp") == 0)
+        snprintf(d->address, sizeof d->address, "%s", sp->arg);
+    else if (sp->arg && strcmp(sp->arg, "auto") != 0)
+        snprintf(d->path, sizeof d->path, "%s", sp->arg);
+    static const struct {
+        const char *kind;
+        int backend;
+    } kinds[] = {{"hid", ISO_SCENE_DEV_HIDAPI}, {"spnav", ISO_SCENE_DEV_SPNAV},
+                 {"tty", ISO_SCENE_DEV_TTY},    {"serial", ISO_SCENE_DEV_SERIALPORT},
+                 {"tcp", ISO_SCENE_DEV_TCP},    {"gpio", ISO_SCENE_DEV_GPIOD}};
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        if (strcmp(sp->kind, kinds[k].kind) == 0)
+            d->backend = kinds[k].backend;
     if (strcmp(sp->kind, "mouse") == 0) {
-        /* spacenavd when it runs (it owns the device), else hidraw */
+        iso_dev_source *s = NULL;
         iso_err quiet;
         iso_err_clear(&quiet);
-        if (iso_dev_spnav_open(out, &quiet) == ISO_OK)
-            return ISO_OK;
-        return iso_dev_hid_open(NULL, out, err);
+        d->backend =
+            iso_dev_spnav_open(&s, &quiet) == ISO_OK ? ISO_SCENE_DEV_SPNAV : ISO_SCENE_DEV_HIDAPI;
+        iso_dev_source_close(s);
     }
-    if (strcmp(sp->kind, "tty") == 0)
-        return iso_dev_tty_open(sp->arg, sp->baud, out, err);
-    if (strcmp(sp->kind, "serial") == 0)
-        return iso_dev_serialport_open(sp->arg, sp->baud, out, err);
-    if (strcmp(sp->kind, "tcp") == 0)
-        return iso_dev_tcp_open(sp->arg, 1000, out, err);
-    return iso_dev_gpiod_open(&sp->gpio, out, err);
+    if (d->backend == ISO_SCENE_DEV_GPIOD) {
+        d->gpio = sp->gpio;
+        snprintf(d->chip, sizeof d->chip, "%s", sp->arg);
+        d->gpio.chip = d->chip;
+    }
+    return d->backend;
 }
 
-static int reopen(void *ctx, const iso_dev_info *info, iso_dev_source **out, iso_err *err)
+typedef struct record_ctx {
+    int quiet;
+    long every, late;
+    double tick_ms;
+} record_ctx;
+
+static void on_tick(void *ctx, const iso_loop_tick_info *t)
 {
-    (void)info;
-    return open_spec(ctx, out, err);
+    record_ctx *rc = ctx;
+    if (t->merged > 1 || t->dt_s > rc->tick_ms * 1.5e-3)
+        rc->late++;
+    if (!rc->quiet && rc->every > 0 && t->tick % rc->every == 0)
+        fprintf(stderr, "isoshape record: %.0f s, %ld ticks (%ld late)\n", t->t_s, t->tick,
+                rc->late);
 }
 
-static void note(void *ctx, const char *msg)
+static void on_command(void *ctx, const iso_dev_tick *out, double dt)
 {
     (void)ctx;
-    fprintf(stderr, "isoshape record: %s\n", msg);
+    (void)dt;
+    if (out->actions & (1u << ISO_DEV_ACT_RESET_POSE))
+        fprintf(stderr, "isoshape record: reset pose of handle %d\n", out->active);
 }
 
 static void usage(void)
@@ -199,75 +228,66 @@ int iso_cli__record(int argc, char **argv)
         }
     iso_err err;
     iso_err_clear(&err);
-    iso_dev_map m;
-    iso_dev_hub *h = NULL;
-    if (iso_dev_map_init(&m, &mo, &err) != ISO_OK || iso_dev_hub_create(note, NULL, &h, &err)) {
+    iso_dev_map m; /* the options' own check */
+    if (iso_dev_map_init(&m, &mo, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
         return 2;
     }
-    for (int k = 0; k < n; k++) {
-        iso_dev_source *s;
-        if (open_spec(&specs[k], &s, &err) != ISO_OK ||
-            iso_dev_hub_add(h, s, reopen, &specs[k], &err) != ISO_OK) {
-            iso_cli__fail(cmd, "%s", err.msg);
-            iso_dev_hub_destroy(h);
-            return 1;
-        }
-    }
-    if (iso_dev_hub_record_start(h, out_path, &err) != ISO_OK) {
-        iso_cli__fail(cmd, "%s", err.msg);
-        iso_dev_hub_destroy(h);
+    /* a scene of the device side alone: the sources, the mapping, the recording */
+    iso_scene *sc = calloc(1, sizeof *sc);
+    if (!sc) {
+        iso_cli__fail(cmd, "out of memory");
         return 1;
     }
-    iso_dev_usb_watch *watch = NULL;
-    iso_err werr;
-    iso_err_clear(&werr);
-    if (iso_dev_usb_watch_create(&watch, &werr) != ISO_OK)
-        watch = NULL; /* the retry interval still finds replugged devices */
+    snprintf(sc->name, sizeof sc->name, "record");
+    sc->tick_hz = 1000.0 / tick_ms;
+    sc->n_devices = n;
+    for (int k = 0; k < n; k++)
+        scene_device(&specs[k], k, &sc->devices[k]);
+    sc->n_handles = mo.n_handles;
+    for (int h = 0; h < sc->n_handles; h++) {
+        snprintf(sc->handles[h].name, sizeof sc->handles[h].name, "handle %d", h);
+        sc->handles[h].driver.kind = ISO_SCENE_DRIVE_DEVICE;
+        sc->handles[h].driver.map = mo;
+    }
+    snprintf(sc->recording, sizeof sc->recording, "%s", out_path);
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    iso_pose P[ISO_DEV_MAX_HANDLES];
-    for (unsigned k = 0; k < ISO_DEV_MAX_HANDLES; k++)
-        iso_pose_identity(&P[k]);
-    const int64_t dt = (int64_t)(tick_ms * 1e6), t0 = iso_dev_now_ns();
-    const int64_t end = duration >= 0 ? t0 + (int64_t)(duration * 1e9) : INT64_MAX;
-    int64_t next = t0 + dt;
-    long ticks = 0, late = 0;
+    record_ctx ctx = {quiet, (long)llround(1000.0 / tick_ms), 0, tick_ms};
+    iso_loop_opts lo;
+    iso_loop_opts_default(&lo);
+    lo.cmd = cmd;
+    lo.rt = 0;
+    lo.display = 0;
+    lo.duration_s = duration > 0 ? duration : duration == 0 ? 1e-12 : 0;
+    lo.stop = &g_stop;
+    lo.on_tick = on_tick;
+    lo.on_command = on_command;
+    lo.hook_ctx = &ctx;
+    iso_loop *l = NULL;
     int status = 0;
-    while (!g_stop && next <= end) {
-        struct timespec ts = {(time_t)(next / 1000000000), (long)(next % 1000000000)};
-        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR && !g_stop)
-            ;
-        if (watch && iso_dev_usb_watch_poll(watch) > 0)
-            iso_dev_hub_retry_now(h);
-        iso_dev_tick out;
-        if (iso_dev_hub_tick(h, &m, next, tick_ms * 1e-3, P, &out, &err) != ISO_OK) {
-            iso_cli__fail(cmd, "%s", err.msg);
-            status = 1;
-            break;
-        }
-        if (out.actions & (1u << ISO_DEV_ACT_RESET_POSE))
-            fprintf(stderr, "isoshape record: reset pose of handle %d\n", out.active);
-        ticks++;
-        int64_t now = iso_dev_now_ns();
-        if (now > next + dt)
-            late++;
-        if (!quiet && ticks % (long)(1000 / tick_ms) == 0)
-            fprintf(stderr, "isoshape record: %.0f s, %ld ticks (%ld late)%s%s\n",
-                    (double)(next - t0) * 1e-9, ticks, late, out.estop ? ", E-STOP" : "",
-                    out.gone ? ", a device is away" : "");
-        next += dt;
+    if (iso_loop_create(sc, &lo, &l, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        free(sc);
+        return 1;
     }
-    iso_dev_usb_watch_destroy(watch);
-    if (iso_dev_hub_record_stop(h, &err) != ISO_OK) {
+    if (iso_loop_run(l, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
         status = 1;
     }
-    iso_dev_hub_destroy(h);
-    printf("%s: %ld ticks of %g ms from %d source(s)%s\n", out_path, ticks, tick_ms, n,
-           late ? " (some ticks ran late)" : "");
+    iso_err_clear(&err);
+    if (iso_loop_shutdown(l, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        status = 1;
+    }
+    iso_loop_summary sum;
+    iso_loop_get_summary(l, &sum);
+    iso_loop_destroy(l);
+    free(sc);
+    printf("%s: %ld ticks of %g ms from %d source(s)%s\n", out_path, sum.device_ticks, tick_ms, n,
+           ctx.late ? " (some ticks ran late)" : "");
     return status;
 }

@@ -1,8 +1,8 @@
 /* controller/cmd_replay.c -- `isoshape replay FILE`: a recording through
- * the replay backend, the decoders and the mapping, tick by tick, at the
- * recorded speed, scaled, or as fast as possible. The tick commands depend on
- * the recording and the options only, never on the wall clock: the summary
- * checksum and the handles' final poses are the same at any speed.
+ * the tick engine (iso_loop.h), alone or moving a scene, at the recorded
+ * speed, scaled, or as fast as possible. The tick commands depend on the
+ * recording and the options only: the summary checksum and the handles'
+ * final poses are the same at any speed the machine keeps up with.
  * Also the mapping options shared with `isoshape record`. */
 #include "internal.h"
 
@@ -14,6 +14,7 @@
 #include <time.h>
 
 #include "iso_dev.h"
+#include "iso_loop.h"
 
 int iso_cli__replay(int argc, char **argv);
 int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_dev_map_opts *o);
@@ -147,382 +148,121 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
     return 0;
 }
 
-/* g ← exp(ξ dt) ∘ g: what the loop does to a handle each tick. */
-static void advance(iso_pose *g, const iso_twist *xi, double dt)
+/* A YAML string: quoted, with the two characters that need it escaped. */
+static void yaml_str(char *dst, size_t cap, const char *s)
 {
-    iso_pose e;
-    iso_twist_exp(xi, dt, &e);
-    iso_pose n;
-    for (int i = 0; i < 3; i++) {
-        for (int j = 0; j < 3; j++) {
-            double s = 0;
-            for (int k = 0; k < 3; k++)
-                s += e.R[3 * i + k] * g->R[3 * k + j];
-            n.R[3 * i + j] = s;
+    size_t n = 0;
+    if (cap < 3)
+        return;
+    dst[n++] = '"';
+    for (; *s && n + 3 < cap; s++) {
+        if (*s == '"' || *s == '\\')
+            dst[n++] = '\\';
+        dst[n++] = *s;
+    }
+    dst[n++] = '"';
+    dst[n] = 0;
+}
+
+typedef struct replay_args {
+    const char *path, *out;
+    double speed, tick_ms;
+    int fast, print, steps;
+    iso_cli__source src;
+    iso_dev_map_opts mo;
+} replay_args;
+
+/* A scene for the recording: its mesh (a built-in shape, or --mesh and
+ * --sel), one handle driven by the replay, C assembly (the same bits on
+ * every machine); without a mesh, the device side alone. */
+static int build_scene(const replay_args *a, iso_scene **out, iso_err *err)
+{
+    char rec[2 * ISO_CLI_PATH_MAX + 8];
+    char abs[ISO_CLI_PATH_MAX];
+    yaml_str(rec, sizeof rec, realpath(a->path, abs) ? abs : a->path);
+    double hz = 1000.0 / a->tick_ms;
+    if (!a->src.shape && !a->src.mesh) {
+        iso_scene *sc = calloc(1, sizeof *sc);
+        if (!sc)
+            return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for a scene");
+        snprintf(sc->name, sizeof sc->name, "replay");
+        snprintf(sc->path, sizeof sc->path, "%s", a->path);
+        sc->tick_hz = hz;
+        sc->n_devices = 1;
+        snprintf(sc->devices[0].name, sizeof sc->devices[0].name, "recording");
+        sc->devices[0].backend = ISO_SCENE_DEV_REPLAY;
+        snprintf(sc->devices[0].path, sizeof sc->devices[0].path, "%s", a->path);
+        sc->n_handles = a->mo.n_handles;
+        for (int h = 0; h < sc->n_handles; h++) {
+            snprintf(sc->handles[h].name, sizeof sc->handles[h].name, "handle %d", h);
+            sc->handles[h].driver.kind = ISO_SCENE_DRIVE_DEVICE;
+            sc->handles[h].driver.map = a->mo;
         }
+        *out = sc;
+        return ISO_OK;
     }
-    iso_pose_apply(&e, g->p, n.p);
-    *g = n;
-}
-
-static uint64_t fnv(uint64_t h, const void *p, size_t n)
-{
-    const unsigned char *b = p;
-    for (size_t i = 0; i < n; i++)
-        h = (h ^ b[i]) * 0x100000001b3ULL;
-    return h;
-}
-
-/* ---- a scene driven by the replayed commands ---------------------------- */
-/* Handle h's motion is piecewise screw: in tick k, from its pose G_k at the
- * tick's start, exp((t − t_k) ξ_k) G_k with the tick's constant world twist.
- * The integrator asks for it through an iso_path: the vertex output is a
- * function of the recording alone. */
-typedef struct replay_path {
-    int n, nh, cap;
-    double *t;     /* n + 1 tick boundaries, seconds from the first tick */
-    iso_twist *xi; /* n × nh */
-    iso_pose *g;   /* n × nh: pose at the start of each tick */
-} replay_path;
-
-static int path_push(replay_path *rp, double dt, const iso_dev_tick *out, const iso_pose *P)
-{
-    if (rp->n == rp->cap) {
-        int nc = rp->cap ? 2 * rp->cap : 1024;
-        double *t = realloc(rp->t, (size_t)(nc + 1) * sizeof *t);
-        if (t)
-            rp->t = t;
-        iso_twist *xi = realloc(rp->xi, (size_t)nc * (size_t)rp->nh * sizeof *xi);
-        if (xi)
-            rp->xi = xi;
-        iso_pose *g = realloc(rp->g, (size_t)nc * (size_t)rp->nh * sizeof *g);
-        if (g)
-            rp->g = g;
-        if (!t || !xi || !g)
-            return ISO_ENOMEM;
-        rp->cap = nc;
+    static char text[8 * ISO_CLI_PATH_MAX + 1024];
+    char mesh[2 * ISO_CLI_PATH_MAX + 64], sel[2 * ISO_CLI_PATH_MAX + 8];
+    if (a->src.shape) {
+        snprintf(mesh, sizeof mesh, "{shape: %s, resolution: %d}", a->src.shape, a->src.resolution);
+        snprintf(sel, sizeof sel, "builtin");
+    } else {
+        yaml_str(mesh, sizeof mesh, realpath(a->src.mesh, abs) ? abs : a->src.mesh);
+        yaml_str(sel, sizeof sel, realpath(a->src.sel, abs) ? abs : a->src.sel);
     }
-    if (rp->n == 0)
-        rp->t[0] = 0;
-    for (int h = 0; h < rp->nh; h++) {
-        rp->xi[(size_t)rp->n * (size_t)rp->nh + (size_t)h] = out->twist[h];
-        rp->g[(size_t)rp->n * (size_t)rp->nh + (size_t)h] = P[h];
-    }
-    rp->t[rp->n + 1] = rp->t[rp->n] + dt;
-    rp->n++;
+    snprintf(text, sizeof text,
+             "name: replay\n"
+             "mesh: %s\n"
+             "devices:\n  - {name: recording, kind: replay, file: %s}\n"
+             "regions:\n  sel: %s\n  handles:\n    - {name: handle, driver: {device: recording}}\n"
+             "solver: {assembly: cpu, refactor: always}\n"
+             "tick_hz: %.17g\n",
+             mesh, rec, sel, hz);
+    int rc = iso_scene_load_mem(text, strlen(text), "replay", NULL, out, err);
+    if (rc != ISO_OK)
+        return rc;
+    (*out)->handles[0].driver.map = a->mo;
+    (*out)->steps_per_tick = a->steps > 0 ? a->steps : 1;
     return ISO_OK;
 }
 
-static int path_eval(void *ctx, int h, double t, iso_pose *pose, iso_twist *tw)
+typedef struct print_ctx {
+    int64_t first;
+} print_ctx;
+
+static void print_command(void *ctx, const iso_dev_tick *out, double dt)
 {
-    const replay_path *rp = ctx;
-    memset(tw, 0, sizeof *tw);
-    iso_pose_identity(pose);
-    if (h >= rp->nh || rp->n == 0)
-        return 0; /* scene handles beyond the mapped ones hold still */
-    int lo = 0, hi = rp->n - 1;
-    while (lo < hi) { /* the last tick starting at or before t */
-        int mid = (lo + hi + 1) / 2;
-        if (rp->t[mid] <= t)
-            lo = mid;
-        else
-            hi = mid - 1;
-    }
-    size_t k = (size_t)lo * (size_t)rp->nh + (size_t)h;
-    *tw = rp->xi[k];
-    iso_pose e;
-    iso_twist_exp(&rp->xi[k], t - rp->t[lo], &e);
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            double s = 0;
-            for (int q = 0; q < 3; q++)
-                s += e.R[3 * i + q] * rp->g[k].R[3 * q + j];
-            pose->R[3 * i + j] = s;
-        }
-    iso_pose_apply(&e, rp->g[k].p, pose->p);
-    return 0;
+    print_ctx *pc = ctx;
+    (void)dt;
+    if (pc->first == INT64_MIN)
+        pc->first = out->t_ns;
+    const iso_twist *x = &out->twist[out->active];
+    printf("%.6f h%d%s%s b%08" PRIx32 " w %a %a %a v %a %a %a\n",
+           (double)(out->t_ns - pc->first) * 1e-9, out->active, out->clutch ? " clutch" : "",
+           out->estop ? " ESTOP" : "", out->buttons, x->w[0], x->w[1], x->w[2], x->v[0], x->v[1],
+           x->v[2]);
 }
 
-/* Loads the scene, integrates it along the replayed path, prints a checksum
- * of the vertices and saves them when out_path is given. */
-static int run_scene(iso_cli__problem *pp, replay_path *rp, int steps, const char *out_path)
+/* What the recording gave: ticks, records, damage, the commands' checksum,
+ * the handles' commanded poses; with a mesh, the vertices' checksum. */
+static void report(const replay_args *a, iso_loop *l, const iso_scene *sc, const char *label)
 {
-    const char *cmd = "replay";
-    iso_err err;
-    iso_err_clear(&err);
-    iso_cli__problem p = *pp;
-    double *x = NULL;
-    iso_solver *s = NULL;
-    int rc = ISO_OK;
-    if (rp->n == 0)
-        rc = iso_err_set(&err, ISO_EINVAL, -1, "the recording has no ticks to integrate");
-    int nv = iso_mesh_vertex_count(p.mesh);
-    if (rc == ISO_OK && !(x = malloc((size_t)nv * 3 * sizeof *x)))
-        rc = iso_err_set(&err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
-    iso_solver_opts so;
-    iso_solver_opts_default(&so); /* the C assembly: the same bits on every machine */
-    if (rc == ISO_OK) {
-        memcpy(x, iso_mesh_positions(p.mesh), (size_t)nv * 3 * sizeof *x);
-        rc = iso_solver_create(p.mesh, &p.reg, &so, &s, &err);
-    }
-    iso_integrate_stats st;
-    memset(&st, 0, sizeof st);
-    if (rc == ISO_OK) {
-        iso_integrate_opts io;
-        iso_integrate_opts_default(&io);
-        io.t0 = 0;
-        io.t1 = rp->t[rp->n];
-        io.steps = steps > 0 ? steps : rp->n;
-        iso_path path = {path_eval, rp};
-        rc = iso_integrate(s, p.mesh, &p.reg, &path, &io, x, &st, &err);
-    }
-    if (rc == ISO_OK) {
-        uint64_t sum = fnv(0xcbf29ce484222325ULL, x, (size_t)nv * 3 * sizeof *x);
-        printf("scene %s: %d vertices, %d steps, vertices checksum %016" PRIx64 "\n", p.label, nv,
-               st.steps, sum);
-        if (out_path)
-            rc = iso_mesh_save(p.mesh, x, out_path, ISO_MESH_FMT_AUTO, &err);
-    }
-    if (rc != ISO_OK)
-        iso_cli__fail(cmd, "%s", err.msg);
-    iso_solver_destroy(s);
-    free(x);
-    return rc == ISO_OK ? 0 : 1;
-}
-
-/* Handle h's rest centroid: device rotations turn about it, as in the
- * real-time loop (controller/loop.c), so both give the same motion. */
-static void set_centres(iso_dev_map *m, const iso_cli__problem *p)
-{
-    const double *X = iso_mesh_positions(p->mesh);
-    int nv = iso_mesh_vertex_count(p->mesh);
-    for (int h = 0; h < m->o.n_handles; h++) {
-        double c[3] = {0, 0, 0}, n = 0;
-        for (int v = 0; v < nv; v++) {
-            if (p->reg.kind[v] != ISO_HANDLE || p->reg.handle[v] != h)
-                continue;
-            for (int j = 0; j < 3; j++)
-                c[j] += X[3 * v + j];
-            n += 1;
-        }
-        for (int j = 0; j < 3 && n > 0; j++)
-            c[j] /= n;
-        iso_dev_map_set_centre(m, h, c);
-    }
-}
-
-static void sleep_until(int64_t t_ns)
-{
-    struct timespec ts = {(time_t)(t_ns / 1000000000), (long)(t_ns % 1000000000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR)
-        ;
-}
-
-static void note(void *ctx, const char *msg)
-{
-    (void)ctx;
-    fprintf(stderr, "isoshape replay: %s\n", msg);
-}
-
-static void usage(void)
-{
-    printf("usage: isoshape replay FILE [options]\n"
-           "\n"
-           "Replays a recording (devices/RECORDING.md) through the decoders and the mapping,\n"
-           "one tick at each of its TICK records, and prints a summary: ticks, a checksum of\n"
-           "every tick's handle commands, and each handle's pose after integrating them. The\n"
-           "result is the same bit for bit at any speed.\n"
-           "\n"
-           "  --speed X          X times the recorded speed (default 1)\n"
-           "  --fast             as fast as possible\n"
-           "  --tick-ms T        tick length for recordings without TICK records (default 1)\n"
-           "  --print-ticks      one line per tick: time, active handle, clutch, e-stop,\n"
-           "                     buttons, and the active handle's twist (w, v) in %%a\n"
-           "A scene moved by the replayed commands (the mapping's handle h drives the\n"
-           "scene's handle h), integrated, with a checksum of its vertices:\n"
-           "  --shape NAME       a built-in shape (bar, cylinder, bumpplane, cactus)\n"
-           "  --resolution N     the built-in shape's resolution (0: its default)\n"
-           "  --mesh M --sel S   or a mesh and its regions\n"
-           "  --steps N          integration steps (default: one per tick)\n"
-           "  --out FILE         save the deformed mesh\n"
-           "Mapping:\n" ISO_CLI_DEV_MAP_HELP);
-}
-
-int iso_cli__replay(int argc, char **argv)
-{
-    const char *cmd = "replay", *path = NULL, *v, *out_path = NULL;
-    double speed = 1, tick_ms = 1;
-    int fast = 0, print = 0, steps = 0;
-    iso_cli__source src;
-    memset(&src, 0, sizeof src);
-    iso_dev_map_opts mo;
-    iso_dev_map_opts_default(&mo);
-    for (int i = 1; i < argc; i++) {
-        int r;
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            usage();
-            return 0;
-        }
-        if (strcmp(argv[i], "--fast") == 0) {
-            fast = 1;
-            continue;
-        }
-        if (strcmp(argv[i], "--print-ticks") == 0) {
-            print = 1;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--speed", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--speed", v, &speed) != 0)
-                return 2;
-            if (!(speed > 0)) {
-                iso_cli__fail(cmd, "--speed %s must be > 0 (use --fast for no waiting).", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--tick-ms", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--tick-ms", v, &tick_ms) != 0)
-                return 2;
-            if (!(tick_ms > 0)) {
-                iso_cli__fail(cmd, "--tick-ms %s must be > 0.", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__dev_map_option(cmd, argc, argv, &i, &mo)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--shape", &src.shape)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--mesh", &src.mesh)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--sel", &src.sel)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--out", &out_path)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--resolution", &v)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--resolution", v, &src.resolution) != 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--steps", &v)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--steps", v, &steps) != 0)
-                return 2;
-            if (steps < 1) {
-                iso_cli__fail(cmd, "--steps %s must be >= 1.", v);
-                return 2;
-            }
-            continue;
-        }
-        if (argv[i][0] == '-' || path)
-            return iso_cli__unknown(cmd, argv[i]);
-        path = argv[i];
-    }
-    if (!path) {
-        iso_cli__fail(cmd, "no recording given (isoshape replay FILE).");
-        return 2;
-    }
-    int scene = src.shape || src.mesh || src.sel;
-    if (scene && !src.shape && (!src.mesh || !src.sel)) {
-        iso_cli__fail(cmd, "a scene needs --shape NAME, or both --mesh and --sel.");
-        return 2;
-    }
-    if (out_path && !scene) {
-        iso_cli__fail(cmd, "--out needs a scene (--shape, or --mesh and --sel).");
-        return 2;
-    }
-    replay_path rp = {0, mo.n_handles, 0, NULL, NULL, NULL};
-    iso_err err;
-    iso_err_clear(&err);
-    iso_dev_map m;
-    if (iso_dev_map_init(&m, &mo, &err) != ISO_OK) {
-        iso_cli__fail(cmd, "%s", err.msg);
-        return 2;
-    }
-    iso_cli__problem prob;
-    memset(&prob, 0, sizeof prob);
-    if (scene) {
-        if (iso_cli__problem_load(cmd, &src, &prob, &err) != ISO_OK) {
-            iso_cli__fail(cmd, "%s", err.msg);
-            iso_cli__problem_deinit(&prob);
-            return 1;
-        }
-        set_centres(&m, &prob);
-    }
-    iso_dev_rec_reader r;
-    if (iso_dev_rec_reader_load(&r, path, &err) != ISO_OK) {
-        iso_cli__fail(cmd, "%s", err.msg);
-        iso_cli__problem_deinit(&prob);
-        return 1;
-    }
-    iso_dev_source *s = NULL;
-    iso_dev_hub *h = NULL;
-    int rc = iso_dev_replay_open(&r, &s, &err);
-    if (rc == ISO_OK)
-        rc = iso_dev_hub_create(note, NULL, &h, &err);
-    if (rc == ISO_OK) {
-        rc = iso_dev_hub_add(h, s, NULL, NULL, &err);
-        s = NULL;
-    }
-    if (rc != ISO_OK) {
-        iso_cli__fail(cmd, "%s: %s", path, err.msg);
-        iso_dev_source_close(s);
-        iso_dev_hub_destroy(h);
-        iso_dev_rec_reader_deinit(&r);
-        iso_cli__problem_deinit(&prob);
-        return 1;
-    }
-    iso_pose P[ISO_DEV_MAX_HANDLES];
-    for (unsigned k = 0; k < ISO_DEV_MAX_HANDLES; k++)
-        iso_pose_identity(&P[k]);
-    const int64_t dt_ns = (int64_t)(tick_ms * 1e6);
-    int64_t last = INT64_MIN, first = INT64_MIN, wall0 = iso_dev_now_ns();
-    long ticks = 0, damaged_seen = 0;
-    uint64_t sum = 0xcbf29ce484222325ULL;
-    for (int64_t t; (t = iso_dev_hub_next_tick(h, dt_ns)) != INT64_MAX;) {
-        if (first == INT64_MIN)
-            first = t;
-        if (!fast)
-            sleep_until(wall0 + (int64_t)((double)(t - first) / speed));
-        double dt = last == INT64_MIN ? tick_ms * 1e-3 : (double)(t - last) * 1e-9;
-        iso_dev_tick out;
-        if (iso_dev_hub_tick(h, &m, t, dt, P, &out, &err) != ISO_OK) {
-            iso_cli__fail(cmd, "%s", err.msg);
-            break;
-        }
-        if (r.damaged > damaged_seen) {
-            fprintf(stderr, "isoshape replay: %s: %s\n", path, r.note);
-            damaged_seen = r.damaged;
-        }
-        sum = fnv(sum, &out, sizeof out);
-        if (scene && path_push(&rp, dt, &out, P) != ISO_OK) {
-            iso_cli__fail(cmd, "out of memory for %d ticks of handle motion.", rp.n);
-            break;
-        }
-        for (int k = 0; k < out.n_handles; k++)
-            advance(&P[k], &out.twist[k], dt);
-        if (print) {
-            const iso_twist *x = &out.twist[out.active];
-            printf("%.6f h%d%s%s b%08" PRIx32 " w %a %a %a v %a %a %a\n",
-                   (double)(t - first) * 1e-9, out.active, out.clutch ? " clutch" : "",
-                   out.estop ? " ESTOP" : "", out.buttons, x->w[0], x->w[1], x->w[2], x->v[0],
-                   x->v[1], x->v[2]);
-        }
-        last = t;
-        ticks++;
-    }
-    printf("%s: %ld ticks, %ld records, %ld damaged, commands checksum %016" PRIx64 "\n", path,
-           ticks, r.records, r.damaged, sum);
-    for (int k = 0; k < mo.n_handles; k++)
+    iso_loop_summary s;
+    iso_loop_get_summary(l, &s);
+    const iso_dev_rec_reader *r = iso_loop_replay_reader(l);
+    printf("%s: %ld ticks, %ld records, %ld damaged, commands checksum %016" PRIx64 "\n", a->path,
+           s.device_ticks, r ? r->records : 0, r ? r->damaged : 0, s.commands_checksum);
+    for (int k = 0; k < s.n_handles; k++) {
+        const iso_pose *P = iso_loop_commanded_pose(l, k);
         printf("handle %d: p %.17g %.17g %.17g  R %.17g %.17g %.17g %.17g %.17g %.17g %.17g "
                "%.17g %.17g\n",
-               k, P[k].p[0], P[k].p[1], P[k].p[2], P[k].R[0], P[k].R[1], P[k].R[2], P[k].R[3],
-               P[k].R[4], P[k].R[5], P[k].R[6], P[k].R[7], P[k].R[8]);
-    if (r.torn)
-        fprintf(stderr, "isoshape replay: %s: %s\n", path, r.note);
-    for (size_t k = 0; k < iso_dev_hub_sources(h); k++) {
+               k, P->p[0], P->p[1], P->p[2], P->R[0], P->R[1], P->R[2], P->R[3], P->R[4], P->R[5],
+               P->R[6], P->R[7], P->R[8]);
+    }
+    if (r && r->torn)
+        fprintf(stderr, "isoshape replay: %s: %s\n", a->path, r->note);
+    const iso_dev_hub *h = iso_loop_hub(l);
+    for (size_t k = 0; h && k < iso_dev_hub_sources(h); k++) {
         const iso_dev_counters *n = &iso_dev_hub_decoder(h, k)->n;
         if (n->short_reports || n->unknown_ids || n->bad_frames || n->garbage)
             fprintf(stderr,
@@ -530,12 +270,203 @@ int iso_cli__replay(int argc, char **argv)
                     "bad frames, %u garbage bytes\n",
                     k, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage);
     }
-    iso_dev_hub_destroy(h);
-    iso_dev_rec_reader_deinit(&r);
-    int status = scene ? run_scene(&prob, &rp, steps, out_path) : 0;
-    iso_cli__problem_deinit(&prob);
-    free(rp.t);
-    free(rp.xi);
-    free(rp.g);
+    if (sc->mesh)
+        printf("scene %s: %d vertices, %d steps, vertices checksum %016" PRIx64 "\n", label,
+               iso_mesh_vertex_count(sc->mesh), s.integ.steps, s.checksum);
+    if (s.misses > 0)
+        fprintf(stderr,
+                "isoshape replay: the machine fell behind the recording: %ld late ticks took "
+                "%ld recorded ticks more; the handles' poses are the same as at --fast, the "
+                "mesh's steps are not\n",
+                s.misses, s.skipped);
+}
+
+static void usage(void)
+{
+    printf("usage: isoshape replay FILE [options]\n"
+           "\n"
+           "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
+           "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
+           "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
+           "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
+           "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
+           "\n"
+           "  --speed X          X times the recorded speed (default 1)\n"
+           "  --fast             as fast as possible\n"
+           "  --tick-ms T        tick length for recordings without TICK records (default 1)\n"
+           "  --print-ticks      one line per tick: time, active handle, clutch, e-stop,\n"
+           "                     buttons, and the active handle's twist (w, v) in %%a\n"
+           "A scene moved by the replayed commands, as `isoshape run` moves it, with a\n"
+           "checksum of its vertices:\n"
+           "  --shape NAME       a built-in shape (bar, cylinder, bumpplane, cactus)\n"
+           "  --resolution N     the built-in shape's resolution (0: its default)\n"
+           "  --mesh M --sel S   or a mesh and its regions\n"
+           "  --steps N          ABM steps per tick (default 1)\n"
+           "  --out FILE         save the deformed mesh\n"
+           "Mapping:\n" ISO_CLI_DEV_MAP_HELP);
+}
+
+/* Returns 0 to go on, 1 after --help, 2 on a usage error. */
+static int parse(int argc, char **argv, replay_args *a)
+{
+    const char *cmd = "replay", *v;
+    for (int i = 1; i < argc; i++) {
+        int r;
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            usage();
+            return 1;
+        }
+        if (strcmp(argv[i], "--fast") == 0) {
+            a->fast = 1;
+            continue;
+        }
+        if (strcmp(argv[i], "--print-ticks") == 0) {
+            a->print = 1;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--speed", &v)) != 0) {
+            if (r < 0 || iso_cli__double(cmd, "--speed", v, &a->speed) != 0)
+                return 2;
+            if (!(a->speed > 0)) {
+                iso_cli__fail(cmd, "--speed %s must be > 0 (use --fast for no waiting).", v);
+                return 2;
+            }
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--tick-ms", &v)) != 0) {
+            if (r < 0 || iso_cli__double(cmd, "--tick-ms", v, &a->tick_ms) != 0)
+                return 2;
+            if (!(a->tick_ms > 0)) {
+                iso_cli__fail(cmd, "--tick-ms %s must be > 0.", v);
+                return 2;
+            }
+            continue;
+        }
+        if ((r = iso_cli__dev_map_option(cmd, argc, argv, &i, &a->mo)) != 0) {
+            if (r < 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--shape", &a->src.shape)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--mesh", &a->src.mesh)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--sel", &a->src.sel)) != 0 ||
+            (r = iso_cli__value(cmd, argc, argv, &i, "--out", &a->out)) != 0) {
+            if (r < 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--resolution", &v)) != 0) {
+            if (r < 0 || iso_cli__int(cmd, "--resolution", v, &a->src.resolution) != 0)
+                return 2;
+            continue;
+        }
+        if ((r = iso_cli__value(cmd, argc, argv, &i, "--steps", &v)) != 0) {
+            if (r < 0 || iso_cli__int(cmd, "--steps", v, &a->steps) != 0)
+                return 2;
+            if (a->steps < 1) {
+                iso_cli__fail(cmd, "--steps %s must be >= 1.", v);
+                return 2;
+            }
+            continue;
+        }
+        if (argv[i][0] == '-' || a->path)
+            return iso_cli__unknown(cmd, argv[i]);
+        a->path = argv[i];
+    }
+    if (!a->path) {
+        iso_cli__fail(cmd, "no recording given (isoshape replay FILE).");
+        return 2;
+    }
+    int scene = a->src.shape || a->src.mesh || a->src.sel;
+    if (scene && !a->src.shape && (!a->src.mesh || !a->src.sel)) {
+        iso_cli__fail(cmd, "a scene needs --shape NAME, or both --mesh and --sel.");
+        return 2;
+    }
+    if (a->out && !scene) {
+        iso_cli__fail(cmd, "--out needs a scene (--shape, or --mesh and --sel).");
+        return 2;
+    }
+    return 0;
+}
+
+int iso_cli__replay(int argc, char **argv)
+{
+    const char *cmd = "replay";
+    replay_args a;
+    memset(&a, 0, sizeof a);
+    a.speed = 1;
+    a.tick_ms = 1;
+    iso_dev_map_opts_default(&a.mo);
+    int r = parse(argc, argv, &a);
+    if (r != 0)
+        return r == 1 ? 0 : 2;
+    iso_err err;
+    iso_err_clear(&err);
+    iso_dev_map m; /* the options' own check, before anything is loaded */
+    if (iso_dev_map_init(&m, &a.mo, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        return 2;
+    }
+    iso_dev_rec_reader probe; /* a missing or broken file is named before a mesh loads */
+    if (iso_dev_rec_reader_load(&probe, a.path, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        return 1;
+    }
+    /* The recorded loop's period, from its first two TICK records: the
+     * first tick is then as long as it was there (as in `run` of a scene at
+     * that rate). --tick-ms serves recordings without TICK records. */
+    iso_dev_chunk c;
+    int64_t t1 = INT64_MIN;
+    while (iso_dev_rec_next(&probe, &c, NULL) == 1) {
+        if (c.type != ISO_DEV_CHUNK_TICK)
+            continue;
+        if (t1 != INT64_MIN && c.t_ns > t1) {
+            a.tick_ms = (double)(c.t_ns - t1) * 1e-6;
+            break;
+        }
+        t1 = c.t_ns;
+    }
+    iso_dev_rec_reader_deinit(&probe);
+    iso_scene *sc = NULL;
+    if (build_scene(&a, &sc, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        return 1;
+    }
+    char label[ISO_CLI_PATH_MAX + 64];
+    if (a.src.shape)
+        snprintf(label, sizeof label, "built-in %s (resolution %d)", a.src.shape, a.src.resolution);
+    else
+        snprintf(label, sizeof label, "%s", a.src.mesh ? a.src.mesh : "");
+    iso_loop_opts lo;
+    iso_loop_opts_default(&lo);
+    lo.cmd = cmd;
+    lo.fast = a.fast;
+    lo.speed = a.speed;
+    lo.rt = 0;
+    lo.display = 0;
+    print_ctx pc = {INT64_MIN};
+    if (a.print) {
+        lo.on_command = print_command;
+        lo.hook_ctx = &pc;
+    }
+    iso_loop *l = NULL;
+    int status = 0;
+    if (iso_loop_create(sc, &lo, &l, &err) != ISO_OK || iso_loop_run(l, &err) != ISO_OK) {
+        iso_cli__fail(cmd, "%s", err.msg);
+        status = 1;
+    }
+    if (l && status == 0) {
+        report(&a, l, sc, label);
+        if (a.out && iso_mesh_save(sc->mesh, iso_loop_positions(l), a.out, ISO_MESH_FMT_AUTO,
+                                   &err) != ISO_OK) {
+            iso_cli__fail(cmd, "--out: %s", err.msg);
+            status = 1;
+        }
+    }
+    iso_loop_destroy(l);
+    if (sc && sc->mesh)
+        iso_scene_destroy(sc);
+    else
+        free(sc);
     return status;
 }

@@ -11,7 +11,7 @@
 #include <unistd.h>
 
 #include "iso_snapshot.h"
-#include "loop.h"
+#include "iso_loop.h"
 
 int iso_cli__run_scene(int argc, char **argv);
 

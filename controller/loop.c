@@ -1,5 +1,6 @@
-/* controller/loop.c -- the real-time loop: build a scene's parts, then tick
- * on absolute deadlines. See loop.h for the two clocks and the overrun rule. */
+/* controller/loop.c -- the tick engine: build a scene's parts, then tick on
+ * absolute deadlines. iso_loop.h states the clocks, the commanded motion,
+ * the late-tick and sub-step rules. */
 #include "loop_internal.h"
 
 #include <errno.h>
@@ -30,20 +31,13 @@ void iso_loop_opts_default(iso_loop_opts *o)
 static int open_device(const iso_scene_device *d, iso_dev_source **out, iso_err *err)
 {
     switch (d->backend) {
-    case ISO_SCENE_DEV_HIDAPI:
-        return iso_dev_hid_open(d->path[0] ? d->path : NULL, out, err);
-    case ISO_SCENE_DEV_SPNAV:
-        return iso_dev_spnav_open(out, err);
-    case ISO_SCENE_DEV_TTY:
-        return iso_dev_tty_open(d->path, d->baud, out, err);
-    case ISO_SCENE_DEV_TCP:
-        return iso_dev_tcp_open(d->address, 1000, out, err);
-    case ISO_SCENE_DEV_SERIALPORT:
-        return iso_dev_serialport_open(d->path, d->baud, out, err);
-    case ISO_SCENE_DEV_GPIOD:
-        return iso_dev_gpiod_open(&d->gpio, out, err);
-    default:
-        return iso_err_set(err, ISO_EINVAL, -1, "device '%s': unknown kind", d->name);
+    case ISO_SCENE_DEV_HIDAPI: return iso_dev_hid_open(d->path[0] ? d->path : NULL, out, err);
+    case ISO_SCENE_DEV_SPNAV: return iso_dev_spnav_open(out, err);
+    case ISO_SCENE_DEV_TTY: return iso_dev_tty_open(d->path, d->baud, out, err);
+    case ISO_SCENE_DEV_TCP: return iso_dev_tcp_open(d->address, 1000, out, err);
+    case ISO_SCENE_DEV_SERIALPORT: return iso_dev_serialport_open(d->path, d->baud, out, err);
+    case ISO_SCENE_DEV_GPIOD: return iso_dev_gpiod_open(&d->gpio, out, err);
+    default: return iso_err_set(err, ISO_EINVAL, -1, "device '%s': unknown kind", d->name);
     }
 }
 
@@ -56,7 +50,7 @@ static int reopen_device(void *ctx, const iso_dev_info *info, iso_dev_source **o
 static void hub_note(void *ctx, const char *msg)
 {
     iso_loop *l = ctx;
-    fprintf(l->log, "%sisoshape run: %s\n", l->o.status_line ? "\r\033[K" : "", msg);
+    fprintf(l->log, "%sisoshape %s: %s\n", l->o.status_line ? "\r\033[K" : "", l->cmd, msg);
 }
 
 /* A replayed recording stands for every device it recorded; live devices
@@ -88,6 +82,8 @@ static int open_devices(iso_loop *l, iso_err *err)
             return iso_dev_hub_add(l->hub, s, NULL, NULL, err);
         }
         if ((rc = open_device(d, &s, err)) != ISO_OK) {
+            if (!sc->path[0]) /* a command's own scene: the source's error says it all */
+                return rc;
             iso_err e = *err;
             iso_err_clear(err);
             return iso_err_set(err, rc, -1, "%s: device '%s' (%s): %s", sc->path, d->name,
@@ -165,7 +161,7 @@ static int build_solver(iso_loop *l, iso_err *err)
         return rc;
     const char *notice = iso_solver_notice(l->solver);
     if (notice && notice[0])
-        fprintf(l->log, "isoshape run: %s\n", notice);
+        fprintf(l->log, "isoshape %s: %s\n", l->cmd, notice);
     l->x = malloc((size_t)l->nv * 3 * sizeof *l->x);
     if (!l->x)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", l->nv);
@@ -177,11 +173,53 @@ static int build_solver(iso_loop *l, iso_err *err)
     return rc;
 }
 
+/* Where the run ends: a scripted path's last tick is the one at its end, a
+ * duration D is round(D × tick_hz) ticks; a replay ends with its records. */
+static void plan_end(iso_loop *l)
+{
+    const iso_scene *sc = l->sc;
+    double hz = sc->tick_hz;
+    l->k_end = INT64_MAX;
+    l->t_end = INT64_MAX;
+    if (l->o.duration_s > 0) {
+        int64_t n = (int64_t)llround(l->o.duration_s * hz);
+        l->k_end = n > 0 ? n : 1;
+        l->t_end = (int64_t)llround((double)l->k_end * 1e9 / hz);
+        return;
+    }
+    if (l->hub)
+        return;
+    double end = 0;
+    for (int k = 0; k < sc->n_handles; k++) {
+        double e = iso_loop__scripted_end(&sc->handles[k].driver);
+        if (e > end)
+            end = e;
+    }
+    if (end > 0) {
+        l->k_end = (int64_t)ceil(end * hz - 1e-9);
+    } else if (l->o.max_ticks == 0) {
+        fprintf(l->log, "isoshape %s: nothing drives the handles: running 1 s of ticks\n", l->cmd);
+        l->k_end = (int64_t)llround(hz);
+    }
+    if (l->k_end < 1)
+        l->k_end = 1;
+}
+
+static int open_mesh_side(iso_loop *l, iso_err *err)
+{
+    const iso_scene *sc = l->sc;
+    l->nv = iso_mesh_vertex_count(sc->mesh);
+    l->nh = sc->n_handles;
+    l->diag = iso_mesh_bbox_diagonal(sc->mesh);
+    rest_centroids(l);
+    return build_solver(l, err);
+}
+
 int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out, iso_err *err)
 {
     *out = NULL;
-    if (!sc || !sc->mesh)
-        return iso_err_set(err, ISO_EINVAL, -1, "iso_loop_create: no scene (or a parse-only one)");
+    if (!sc || !(sc->tick_hz > 0))
+        return iso_err_set(err, ISO_EINVAL, -1, "iso_loop_create: no scene, or no tick rate");
     iso_loop *l = calloc(1, sizeof *l);
     if (!l)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the loop");
@@ -191,27 +229,37 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
     else
         iso_loop_opts_default(&l->o);
     l->log = l->o.log ? l->o.log : stderr;
+    l->cmd = l->o.cmd ? l->o.cmd : "run";
     if (!(l->o.speed > 0))
         l->o.speed = 1;
-    l->nv = iso_mesh_vertex_count(sc->mesh);
     l->period_ns = (int64_t)llround(1e9 / sc->tick_hz);
+    for (int h = 0; h < ISO_SCENE_MAX_HANDLES; h++)
+        iso_pose_identity(&l->cmd_pose[h]);
     iso_loop__stats_init(&l->stats);
-    rest_centroids(l);
-    int rc = build_solver(l, err);
+    l->nh = sc->n_handles;
+    int rc = sc->mesh ? open_mesh_side(l, err) : ISO_OK;
     if (rc == ISO_OK)
         rc = init_mapping(l, err);
     if (rc == ISO_OK)
         rc = open_devices(l, err);
-    if (rc == ISO_OK)
+    if (rc == ISO_OK && sc->mesh)
         rc = iso_loop__sinks_open(l, err);
     const char *rec = l->o.record ? l->o.record : sc->recording;
     if (rc == ISO_OK && rec[0] && l->hub && !l->replay) {
         rc = iso_dev_hub_record_start(l->hub, rec, err);
         l->recording = rc == ISO_OK;
     } else if (rc == ISO_OK && rec[0] && l->replay) {
-        fprintf(l->log, "isoshape run: not recording to %s: the devices are a replay already\n",
-                rec);
+        fprintf(l->log, "isoshape %s: not recording to %s: the devices are a replay already\n",
+                l->cmd, rec);
     }
+    if (rc == ISO_OK && l->hub && !l->replay) {
+        iso_err quiet; /* without libusb the retry interval still finds replugged devices */
+        iso_err_clear(&quiet);
+        if (iso_dev_usb_watch_create(&l->watch, &quiet) != ISO_OK)
+            l->watch = NULL;
+    }
+    if (rc == ISO_OK)
+        plan_end(l);
     if (rc != ISO_OK) {
         iso_loop_destroy(l);
         return rc;
@@ -225,12 +273,14 @@ int iso_loop_shutdown(iso_loop *l, iso_err *err)
     if (!l || l->shut)
         return ISO_OK;
     l->shut = 1;
-    int rc = iso_loop__sinks_close(l, err);
+    int rc = l->sinks ? iso_loop__sinks_close(l, err) : ISO_OK;
     if (l->hub && l->recording && !l->replay) {
-        /* what arrived after the last tick goes into the recording too */
+        /* What arrived after the last tick goes into the recording too, as
+         * data without a TICK record: it is kept, and a replay, which ends
+         * at the last TICK record, computes exactly the ticks this run did. */
         iso_dev_event ev[64];
         size_t n = 0;
-        int r1 = iso_dev_hub_drain(l->hub, l->stream_now + l->period_ns, ev, 64, &n, err);
+        int r1 = iso_dev_hub_drain(l->hub, iso_dev_now_ns(), ev, 64, &n, err);
         if (rc == ISO_OK)
             rc = r1;
     }
@@ -250,7 +300,8 @@ void iso_loop_destroy(iso_loop *l)
     iso_err e;
     iso_err_clear(&e);
     if (iso_loop_shutdown(l, &e) != ISO_OK)
-        fprintf(l->log, "isoshape run: shutdown: %s\n", e.msg);
+        fprintf(l->log, "isoshape %s: shutdown: %s\n", l->cmd, e.msg);
+    iso_dev_usb_watch_destroy(l->watch);
     iso_dev_hub_destroy(l->hub);
     if (l->replay)
         iso_dev_rec_reader_deinit(&l->reader);
@@ -263,16 +314,15 @@ void iso_loop_destroy(iso_loop *l)
 }
 
 /* ======================================================================== */
-/* One tick                                                                 */
+/* Commanded motion: device ticks and scripted paths                        */
 /* ======================================================================== */
 
-/* The device-driven handles' poses, in the mapping's order. */
-static void map_poses(const iso_loop *l, iso_pose *P)
+static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
 {
-    for (int j = 0; j < (int)ISO_DEV_MAX_HANDLES; j++)
-        iso_pose_identity(&P[j]);
-    for (int j = 0; j < l->n_dev; j++)
-        P[j] = *iso_stepper_pose(l->st, l->dev_handle[j]);
+    const unsigned char *b = p;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ b[i]) * 0x100000001b3ULL;
+    return h;
 }
 
 static int discontinuity(const iso_dev_tick *a, const iso_dev_tick *b)
@@ -285,98 +335,267 @@ static int discontinuity(const iso_dev_tick *a, const iso_dev_tick *b)
  * second (a jump in one tick would tear the mesh). */
 #define ISO_LOOP_HOMING_S 1.0
 
-static int handle_twists(iso_loop *l, const iso_dev_tick *cmd, double h, iso_twist *tw,
-                         int *restart, iso_err *err)
+/* g ← exp(dt ξ) ∘ g */
+static void advance_pose(iso_pose *g, const iso_twist *xi, double dt)
 {
-    const iso_scene *sc = l->sc;
-    memset(tw, 0, sizeof(iso_twist) * ISO_SCENE_MAX_HANDLES);
-    if (cmd->actions & (1u << ISO_DEV_ACT_RESET_POSE) && l->n_dev > 0) {
-        l->homing_left[l->dev_handle[cmd->active]] = ISO_LOOP_HOMING_S;
+    iso_pose e, n;
+    iso_twist_exp(xi, dt, &e);
+    iso_pose_compose(&e, g, &n);
+    *g = n;
+}
+
+static int toggle_recording(iso_loop *l, iso_err *err)
+{
+    const char *rec = l->o.record ? l->o.record : l->sc->recording;
+    int rc = ISO_OK;
+    if (l->recording) {
+        rc = iso_dev_hub_record_stop(l->hub, err);
+        l->recording = 0;
+        fprintf(l->log, "isoshape %s: recording stopped\n", l->cmd);
+    } else if (rec[0]) {
+        rc = iso_dev_hub_record_start(l->hub, rec, err);
+        l->recording = rc == ISO_OK;
+        fprintf(l->log, "isoshape %s: recording to %s\n", l->cmd, rec);
+    }
+    return rc;
+}
+
+/* One device tick over (t - dt, t]: drain, map with the commanded poses,
+ * advance them. tw[] receives the twist each device-driven handle was
+ * commanded with (zero under an e-stop); *restart is raised on a
+ * discontinuity. */
+static int device_tick(iso_loop *l, int64_t t, double dt, iso_twist *tw, int *restart, iso_err *err)
+{
+    iso_pose P[ISO_DEV_MAX_HANDLES];
+    for (int j = 0; j < (int)ISO_DEV_MAX_HANDLES; j++)
+        iso_pose_identity(&P[j]);
+    for (int j = 0; j < l->n_dev; j++)
+        P[j] = l->cmd_pose[l->dev_handle[j]];
+    if (l->watch && iso_dev_usb_watch_poll(l->watch) > 0)
+        iso_dev_hub_retry_now(l->hub);
+    iso_dev_tick cmd;
+    int rc = iso_dev_hub_tick(l->hub, &l->map, t, dt, P, &cmd, err);
+    if (rc != ISO_OK)
+        return rc;
+    l->cmd_sum = fnv1a(l->cmd_sum, &cmd, sizeof cmd);
+    if (l->o.on_command)
+        l->o.on_command(l->o.hook_ctx, &cmd, dt);
+    if (l->replay && l->reader.damaged > l->damaged_seen) {
+        fprintf(l->log, "isoshape %s: %s\n", l->cmd, l->reader.note);
+        l->damaged_seen = l->reader.damaged;
+    }
+    if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay &&
+        (rc = toggle_recording(l, err)) != ISO_OK)
+        return rc;
+    if (l->device_ticks > 0 && discontinuity(&cmd, &l->last))
+        *restart = 1;
+    l->device_ticks++;
+    l->last = cmd;
+    if (cmd.actions & (1u << ISO_DEV_ACT_RESET_POSE) && l->n_dev > 0) {
+        l->homing_left[l->dev_handle[cmd.active]] = ISO_LOOP_HOMING_S;
         *restart = 1;
     }
-    for (int j = 0; j < l->n_dev && j < cmd->n_handles; j++)
-        tw[l->dev_handle[j]] = cmd->twist[j];
-    for (int k = 0; k < sc->n_handles; k++) {
-        const iso_scene_driver *d = &sc->handles[k].driver;
-        const iso_pose *G = iso_stepper_pose(l->st, k);
-        int crossed = 0, rc = ISO_OK;
-        if (cmd->estop) {
-            memset(&tw[k], 0, sizeof tw[k]);
-        } else if (l->homing_left[k] > 0) {
+    for (int j = 0; j < l->n_dev && j < cmd.n_handles; j++) {
+        int k = l->dev_handle[j];
+        memset(&tw[k], 0, sizeof tw[k]);
+        if (cmd.estop)
+            continue;
+        if (l->homing_left[k] > 0) {
             iso_pose rest;
             iso_pose_identity(&rest);
             /* the constant twist that reaches rest when the glide ends */
-            double left = l->homing_left[k] > h ? l->homing_left[k] : h;
-            rc = iso_loop__twist_between(G, &rest, left, &tw[k], err);
-            l->homing_left[k] -= h;
-            if (l->homing_left[k] <= 0)
+            double left = l->homing_left[k] > dt ? l->homing_left[k] : dt;
+            if ((rc = iso_loop__twist_between(&l->cmd_pose[k], &rest, left, &tw[k], err)) != ISO_OK)
+                return rc;
+            l->homing_left[k] -= dt;
+            if (l->homing_left[k] <= 0) {
                 *restart = 1;
-        } else if (d->kind == ISO_SCENE_DRIVE_SCREW || d->kind == ISO_SCENE_DRIVE_KEYFRAMES) {
-            rc = iso_loop__scripted_twist(d, l->centroid[k], G, l->script_t, h, &tw[k], &crossed,
-                                          err);
+                l->homing_left[k] = 0;
+                l->cmd_pose[k] = rest;
+                continue;
+            }
+        } else {
+            tw[k] = cmd.twist[j];
         }
-        if (rc != ISO_OK)
-            return rc;
-        if (crossed)
-            *restart = 1;
+        advance_pose(&l->cmd_pose[k], &tw[k], dt);
     }
-    if (!cmd->estop)
-        l->script_t += h;
+    if (!cmd.estop)
+        l->script_ns += (int64_t)llround(dt * 1e9);
     return ISO_OK;
 }
 
-/* Drains the devices up to stream time t_ns, advances the mesh by dt_s and
- * publishes it. */
-static int tick(iso_loop *l, int64_t t_ns, double dt_s, iso_err *err)
+/* Scripted handles: their exact path pose at the scripted clock. */
+static int scripted_poses(iso_loop *l, double s0, int *restart, iso_err *err)
 {
-    iso_dev_tick cmd;
-    memset(&cmd, 0, sizeof cmd);
-    cmd.n_handles = l->n_dev;
-    int rc = ISO_OK;
-    if (l->hub) {
-        iso_pose P[ISO_DEV_MAX_HANDLES];
-        map_poses(l, P);
-        rc = iso_dev_hub_tick(l->hub, &l->map, t_ns, dt_s, P, &cmd, err);
+    const iso_scene *sc = l->sc;
+    double s1 = (double)l->script_ns * 1e-9;
+    for (int k = 0; k < sc->n_handles; k++) {
+        const iso_scene_driver *d = &sc->handles[k].driver;
+        if (d->kind != ISO_SCENE_DRIVE_SCREW && d->kind != ISO_SCENE_DRIVE_KEYFRAMES)
+            continue;
+        if (s1 > s0 && iso_loop__scripted_jump(d, s0, s1))
+            *restart = 1;
+        int rc = iso_loop__scripted_pose(d, l->centroid[k], s1, &l->cmd_pose[k], err);
         if (rc != ISO_OK)
             return rc;
-        if (l->replay && l->reader.damaged > l->damaged_seen) {
-            fprintf(l->log, "isoshape run: %s\n", l->reader.note);
-            l->damaged_seen = l->reader.damaged;
-        }
-        if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay) {
-            const char *rec = l->o.record ? l->o.record : l->sc->recording;
-            if (l->recording) {
-                rc = iso_dev_hub_record_stop(l->hub, err);
-                l->recording = 0;
-                fprintf(l->log, "isoshape run: recording stopped\n");
-            } else if (rec[0]) {
-                rc = iso_dev_hub_record_start(l->hub, rec, err);
-                l->recording = rc == ISO_OK;
-                fprintf(l->log, "isoshape run: recording to %s\n", rec);
-            }
-            if (rc != ISO_OK)
+    }
+    return ISO_OK;
+}
+
+/* ======================================================================== */
+/* The mesh step                                                            */
+/* ======================================================================== */
+
+/* How many sub-steps a tick of H seconds covering `periods` periods needs
+ * for twists tw (iso_loop.h states the rule). */
+static int substeps_for(iso_loop *l, const iso_twist *tw, double H, double periods, int *coarse)
+{
+    double need = 1;
+    for (int k = 0; k < l->nh; k++) {
+        const iso_pose *G = iso_stepper_pose(l->st, k);
+        double c[3], vel[3];
+        iso_pose_apply(G, l->centroid[k], c);
+        iso_twist_velocity(&tw[k], c, vel);
+        double ang =
+            sqrt(tw[k].w[0] * tw[k].w[0] + tw[k].w[1] * tw[k].w[1] + tw[k].w[2] * tw[k].w[2]) * H *
+            (180.0 / 3.14159265358979323846);
+        double dis = sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]) * H;
+        need = fmax(need, ceil(ang / ISO_LOOP_SUBSTEP_DEG - 1e-9));
+        if (l->diag > 0)
+            need = fmax(need, ceil(dis / (ISO_LOOP_SUBSTEP_DIAG * l->diag) - 1e-9));
+    }
+    double n = fmin(need, ceil(periods - 1e-6));
+    if (n < 1)
+        n = 1;
+    *coarse = n > ISO_LOOP_MAX_SUBSTEPS;
+    return n > ISO_LOOP_MAX_SUBSTEPS ? ISO_LOOP_MAX_SUBSTEPS : (int)n;
+}
+
+/* Moves the mesh's handles to their commanded poses over H seconds. When
+ * the tick was one device tick and needs one step, the handles take the
+ * commanded twists themselves (the same arithmetic as the commanded poses,
+ * bit for bit); otherwise the constant twist that reaches each pose. */
+static int mesh_step(iso_loop *l, double H, int merged, int covered, const iso_twist *dev_tw,
+                     int restart, int *steps, iso_err *err)
+{
+    const iso_scene *sc = l->sc;
+    iso_twist tw[ISO_SCENE_MAX_HANDLES];
+    memset(tw, 0, sizeof tw);
+    int direct = merged == 1, rc = ISO_OK;
+    for (int pass = 0; pass < 2; pass++) {
+        for (int k = 0; k < l->nh; k++) {
+            const iso_scene_driver *d = &sc->handles[k].driver;
+            int device = d->kind == ISO_SCENE_DRIVE_DEVICE;
+            if (direct && device)
+                tw[k] = dev_tw[k];
+            else if ((rc = iso_loop__twist_between(iso_stepper_pose(l->st, k), &l->cmd_pose[k], H,
+                                                   &tw[k], err)) != ISO_OK)
                 return rc;
         }
+        int coarse = 0;
+        int n = substeps_for(l, tw, H, covered, &coarse);
+        if (n > 1 && direct) {
+            direct = 0; /* sub-steps aim at the pose, so round-off cannot drift */
+            continue;
+        }
+        l->coarse += coarse;
+        int per = sc->steps_per_tick > 0 ? sc->steps_per_tick : 1;
+        *steps = n * per;
+        for (int i = 0; i < *steps && rc == ISO_OK; i++)
+            rc = iso_stepper_step(l->st, H / *steps, tw, i == 0 && restart, err);
+        return rc;
     }
-    int restart = l->ticks == 0 || (l->ticks > 0 && discontinuity(&cmd, &l->last));
-    iso_twist tw[ISO_SCENE_MAX_HANDLES];
-    if ((rc = handle_twists(l, &cmd, dt_s, tw, &restart, err)) != ISO_OK)
-        return rc;
-    if (restart && l->ticks > 0)
+    return rc;
+}
+
+/* One tick: the device ticks it covers (more than one only when late), the
+ * scripted poses, the mesh step, the sinks. now is the wall time it woke at
+ * (0 with `fast`). */
+static int tick(iso_loop *l, int64_t now, iso_err *err)
+{
+    int timed = now > 0;
+    int64_t t_prev = l->t_now, t = 0;
+    int merged = 0, covered = 1, restart = l->ticks == 0, rc = ISO_OK;
+    double s0 = (double)l->script_ns * 1e-9;
+    iso_twist dev_tw[ISO_SCENE_MAX_HANDLES];
+    memset(dev_tw, 0, sizeof dev_tw);
+    if (l->replay) {
+        /* every TICK record already due is one device tick of this tick */
+        for (t = iso_dev_hub_next_tick(l->hub, l->period_ns);;) {
+            rc = device_tick(l, t, (double)(t - l->t_now) * 1e-9, dev_tw, &restart, err);
+            if (rc != ISO_OK)
+                return rc;
+            l->t_now = t;
+            merged++;
+            int64_t t2 =
+                timed && l->ticks > 0 ? iso_dev_hub_next_tick(l->hub, l->period_ns) : INT64_MAX;
+            if (t2 == INT64_MAX || t2 - l->stream0 > l->t_end ||
+                l->wall0 + (int64_t)((double)(t2 - l->stream0) / l->o.speed) > now)
+                break;
+            t = t2;
+        }
+    } else {
+        /* the grid tick after the last, or the latest one already due */
+        int64_t k1 = l->k + 1;
+        while (timed && l->ticks > 0 && k1 < l->k_end &&
+               l->wall0 + (int64_t)((double)(iso_loop__grid_ns(l, k1 + 1) - l->stream0) /
+                                    l->o.speed) <=
+                   now)
+            k1++;
+        covered = (int)(k1 - l->k);
+        t = iso_loop__grid_ns(l, k1);
+        if (l->hub) {
+            if ((rc = device_tick(l, t, (double)(t - t_prev) * 1e-9, dev_tw, &restart, err)) !=
+                ISO_OK)
+                return rc;
+        } else {
+            l->script_ns += t - t_prev;
+        }
+        merged = 1; /* one device tick over the whole interval: what the recording says */
+        l->k = k1;
+        l->t_now = t;
+    }
+    if (l->replay)
+        covered = merged;
+    if (covered > 1) {
+        l->stats.misses++;
+        l->stats.skipped += covered - 1;
+    }
+    int steps = 0;
+    if (l->st) {
+        if ((rc = scripted_poses(l, s0, &restart, err)) != ISO_OK)
+            return rc;
+        if (restart && l->ticks > 0)
+            l->restarts++;
+        rc = mesh_step(l, (double)(t - t_prev) * 1e-9, merged, covered, dev_tw, restart, &steps,
+                       err);
+        if (rc != ISO_OK)
+            return rc;
+        int per = l->sc->steps_per_tick > 0 ? l->sc->steps_per_tick : 1;
+        l->substeps += steps - per;
+        if ((rc = iso_loop__sinks_publish(l, l->ticks, err)) != ISO_OK)
+            return rc;
+    } else if (restart && l->ticks > 0) {
         l->restarts++;
-    int sub = l->sc->steps_per_tick > 0 ? l->sc->steps_per_tick : 1;
-    for (int i = 0; i < sub && rc == ISO_OK; i++)
-        rc = iso_stepper_step(l->st, dt_s / sub, tw, i == 0 && restart, err);
-    if (rc != ISO_OK)
-        return rc;
-    l->last = cmd;
-    l->stream_now = t_ns;
-    return iso_loop__sinks_publish(l, l->ticks, err);
+    }
+    l->ticks++;
+    if (l->o.on_tick) {
+        iso_loop_tick_info info = {
+            l->ticks, (double)(t - l->stream0) * 1e-9, (double)(t - t_prev) * 1e-9, merged, steps,
+            restart};
+        l->o.on_tick(l->o.hook_ctx, &info);
+    }
+    return ISO_OK;
 }
 
 /* ======================================================================== */
 /* The run                                                                  */
 /* ======================================================================== */
+
+int64_t iso_loop__grid_ns(const iso_loop *l, int64_t k)
+{
+    return l->stream0 + (int64_t)llround((double)k * 1e9 / l->sc->tick_hz);
+}
 
 static int64_t now_ns(void)
 {
@@ -418,43 +637,50 @@ static void go_realtime(iso_loop *l)
                  "not permitted (%s): normal priority (grant CAP_SYS_NICE and CAP_IPC_LOCK, or "
                  "rtprio/memlock in limits.conf)",
                  why);
-        fprintf(l->log, "isoshape run: real-time scheduling %s\n", r->rt_note);
+        fprintf(l->log, "isoshape %s: real-time scheduling %s\n", l->cmd, r->rt_note);
     } else {
-        fprintf(l->log, "isoshape run: real-time: SCHED_FIFO priority %d, memory locked\n",
+        fprintf(l->log, "isoshape %s: real-time: SCHED_FIFO priority %d, memory locked\n", l->cmd,
                 sp.sched_priority);
     }
 }
 
-/* The stream time of the next tick, or INT64_MAX when the stream is over. */
+/* The stream time of the next tick, or INT64_MAX when the run is over. */
 static int64_t next_stream_tick(iso_loop *l)
 {
-    if (l->replay)
-        return iso_dev_hub_next_tick(l->hub, l->period_ns);
-    return l->stream0 + (l->ticks + 1) * l->period_ns;
-}
-
-/* With no device and no scripted motion left, there is nothing to wait for. */
-static double scripted_end(const iso_loop *l)
-{
-    double end = 0;
-    for (int k = 0; k < l->sc->n_handles; k++) {
-        double e = iso_loop__scripted_end(&l->sc->handles[k].driver);
-        if (e > end)
-            end = e;
+    if (l->replay) {
+        int64_t t = iso_dev_hub_next_tick(l->hub, l->period_ns);
+        return t != INT64_MAX && t - l->stream0 > l->t_end ? INT64_MAX : t;
     }
-    return end;
+    return l->k >= l->k_end ? INT64_MAX : iso_loop__grid_ns(l, l->k + 1);
 }
 
 static void status_line(iso_loop *l, double t_s)
 {
     double med, p99, max;
     iso_loop__stats_recent(&l->stats, &med, &p99, &max);
-    char extra[128];
-    iso_loop__sinks_status(l, extra, sizeof extra);
+    char extra[128] = "";
+    if (l->sinks)
+        iso_loop__sinks_status(l, extra, sizeof extra);
     fprintf(l->log,
-            "\r\033[Ktick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s",
-            l->ticks, t_s, med, p99, max, l->stats.misses, extra);
+            "\r\033[Ktick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s%s",
+            l->ticks, t_s, med, p99, max, l->stats.misses, l->last.estop ? "E-STOP  " : "", extra);
     fflush(l->log);
+}
+
+/* The first tick's start: a live run's is now; a replay's is the recorded
+ * loop's start, so the first tick is as long as it was there. */
+static void start_streams(iso_loop *l)
+{
+    const int live = l->hub && !l->replay;
+    l->stream0 = live ? iso_dev_now_ns() : 0;
+    if (l->replay) {
+        int64_t first = iso_dev_hub_next_tick(l->hub, l->period_ns);
+        l->stream0 = first == INT64_MAX ? 0 : first - l->period_ns;
+        if (first != INT64_MAX && l->reader.t0_ns < first && l->reader.t0_ns >= l->stream0)
+            l->stream0 = l->reader.t0_ns;
+    }
+    l->t_now = l->stream0;
+    l->k = 0;
 }
 
 int iso_loop_run(iso_loop *l, iso_err *err)
@@ -464,25 +690,11 @@ int iso_loop_run(iso_loop *l, iso_err *err)
     if (timed && l->o.rt)
         go_realtime(l);
     else if (!timed && live)
-        fprintf(l->log, "isoshape run: --fast with live devices: ticks do not wait for input\n");
-    double end_s = l->o.duration_s > 0 ? l->o.duration_s : 0;
-    if (end_s == 0 && !l->hub) {
-        end_s = scripted_end(l);
-        if (end_s == 0 && l->o.max_ticks == 0) {
-            fprintf(l->log, "isoshape run: nothing drives the handles: running 1 s of ticks\n");
-            end_s = 1;
-        }
-    }
-    l->stream0 = live ? iso_dev_now_ns() : 0;
-    if (l->replay) {
-        /* the recording's start, so the first tick is as long as it was */
-        int64_t first = iso_dev_hub_next_tick(l->hub, l->period_ns);
-        l->stream0 = first == INT64_MAX ? 0 : first - l->period_ns;
-        if (first != INT64_MAX && l->reader.t0_ns < first && l->reader.t0_ns >= l->stream0)
-            l->stream0 = l->reader.t0_ns;
-    }
-    int64_t t_prev = l->stream0;
-    int64_t anchor = now_ns(), prev_wake = anchor;
+        fprintf(l->log, "isoshape %s: --fast with live devices: ticks do not wait for input\n",
+                l->cmd);
+    start_streams(l);
+    l->wall0 = now_ns();
+    int64_t prev_wake = l->wall0;
     l->wall_start = iso_clock_now();
     double last_status = 0;
     int rc = ISO_OK;
@@ -494,41 +706,22 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         int64_t t = next_stream_tick(l);
         if (t == INT64_MAX)
             break;
-        if (end_s > 0 && (double)(t - l->stream0) * 1e-9 > end_s + 1e-9)
-            break;
-        int64_t deadline = anchor + (int64_t)((double)(t - l->stream0) / l->o.speed);
         if (timed) {
-            int64_t now = now_ns();
-            if (now > deadline && l->ticks > 0) {
-                /* the previous tick overran this deadline: skip the ones
-                 * already past, start this tick at once */
-                l->stats.misses++;
-                int64_t per = (int64_t)((double)l->period_ns / l->o.speed);
-                int64_t n = per > 0 ? (now - deadline) / per : 0;
-                l->stats.skipped += n;
-                anchor += n * per;
-                deadline += n * per;
-            }
-            sleep_until(l, deadline);
+            sleep_until(l, l->wall0 + (int64_t)((double)(t - l->stream0) / l->o.speed));
             if (l->o.stop && *l->o.stop)
                 break;
         }
         int64_t wake = now_ns();
-        double dt = (double)(t - t_prev) * 1e-9;
-        if (!(dt > 0))
-            dt = (double)l->period_ns * 1e-9;
-        if ((rc = tick(l, t, dt, err)) != ISO_OK)
+        if ((rc = tick(l, timed ? wake : 0, err)) != ISO_OK)
             break;
         int64_t done = now_ns();
-        l->ticks++;
-        t_prev = t;
         if ((rc = iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
                                       (double)(done - prev_wake) * 1e-6, err)) != ISO_OK)
             break;
         prev_wake = wake;
         double w = iso_clock_now();
         if (l->o.status_line && w - last_status > 0.25) {
-            status_line(l, (double)(t - l->stream0) * 1e-9);
+            status_line(l, (double)(l->t_now - l->stream0) * 1e-9);
             last_status = w;
         }
     }
@@ -539,7 +732,7 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         struct sched_param sp;
         memset(&sp, 0, sizeof sp);
         if (sched_setscheduler(0, SCHED_OTHER, &sp) != 0)
-            fprintf(l->log, "isoshape run: back to SCHED_OTHER: %s\n", strerror(errno));
+            fprintf(l->log, "isoshape %s: back to SCHED_OTHER: %s\n", l->cmd, strerror(errno));
     }
     return rc;
 }
@@ -548,25 +741,19 @@ int iso_loop_run(iso_loop *l, iso_err *err)
 /* Results                                                                  */
 /* ======================================================================== */
 
-static uint64_t fnv1a(const void *p, size_t n)
-{
-    const unsigned char *b = p;
-    uint64_t h = 0xcbf29ce484222325ULL;
-    for (size_t i = 0; i < n; i++)
-        h = (h ^ b[i]) * 0x100000001b3ULL;
-    return h;
-}
-
 void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
 {
     memset(s, 0, sizeof *s);
     s->ticks = l->ticks;
-    s->stream_s = (double)(l->stream_now - l->stream0) * 1e-9;
+    s->stream_s = (double)(l->t_now - l->stream0) * 1e-9;
     if (l->ticks == 0)
         s->stream_s = 0;
     double end = l->wall_end > 0 ? l->wall_end : iso_clock_now();
     s->wall_s = l->wall_start > 0 ? end - l->wall_start : 0;
-    s->period_ms = (double)l->period_ns * 1e-6;
+    s->period_ms = 1e3 / l->sc->tick_hz;
+    s->rt_active = l->rt.rt_active;
+    s->mem_locked = l->rt.mem_locked;
+    memcpy(s->rt_note, l->rt.rt_note, sizeof s->rt_note);
     const iso_loop_stats *st = &l->stats;
     s->tick_median = iso_loop__quantile(st->tick_ms, st->n, 0.5);
     s->tick_p99 = iso_loop__quantile(st->tick_ms, st->n, 0.99);
@@ -577,25 +764,43 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
     s->misses = st->misses;
     s->skipped = st->skipped;
     s->restarts = l->restarts;
-    iso_stepper_stats(l->st, &s->integ);
-    iso_solver_get_stats(l->solver, &s->solver);
-    iso_metrics_compute(l->sc->mesh, iso_mesh_positions(l->sc->mesh), l->x, &s->metrics);
-    s->checksum = fnv1a(l->x, (size_t)l->nv * 3 * sizeof *l->x);
-    s->n_handles = l->sc->n_handles;
+    s->device_ticks = l->device_ticks;
+    s->substeps = l->substeps;
+    s->coarse = l->coarse;
+    s->commands_checksum = l->cmd_sum;
+    s->n_handles = l->nh;
     for (int h = 0; h < s->n_handles; h++) {
-        const iso_pose *G = iso_stepper_pose(l->st, h);
+        const iso_pose *G = l->st ? iso_stepper_pose(l->st, h) : &l->cmd_pose[h];
         iso_pose_apply(G, l->centroid[h], s->handle_p[h]);
         memcpy(s->handle_R[h], G->R, sizeof G->R);
     }
-    s->rt_active = l->rt.rt_active;
-    s->mem_locked = l->rt.mem_locked;
-    memcpy(s->rt_note, l->rt.rt_note, sizeof s->rt_note);
+    if (!l->st)
+        return;
+    iso_stepper_stats(l->st, &s->integ);
+    iso_solver_get_stats(l->solver, &s->solver);
+    iso_metrics_compute(l->sc->mesh, iso_mesh_positions(l->sc->mesh), l->x, &s->metrics);
+    s->checksum = fnv1a(0xcbf29ce484222325ULL, l->x, (size_t)l->nv * 3 * sizeof *l->x);
     iso_loop__sinks_summary(l, s);
 }
 
 const double *iso_loop_positions(const iso_loop *l)
 {
     return l->x;
+}
+
+const iso_pose *iso_loop_commanded_pose(const iso_loop *l, int h)
+{
+    return h >= 0 && h < l->nh ? &l->cmd_pose[h] : NULL;
+}
+
+const iso_dev_hub *iso_loop_hub(const iso_loop *l)
+{
+    return l->hub;
+}
+
+const iso_dev_rec_reader *iso_loop_replay_reader(const iso_loop *l)
+{
+    return l->replay ? &l->reader : NULL;
 }
 
 const iso_mesh *iso_loop_mesh(const iso_loop *l)

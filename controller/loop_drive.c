@@ -1,15 +1,16 @@
-/* controller/loop_drive.c -- the scripted handle drivers of a scene as one
- * world twist per tick: a `.def` screw spread over its duration, and
- * keyframed poses.
+/* controller/loop_drive.c -- the scripted handle drivers of a scene as
+ * exact poses at any stream time: a `.def` screw spread over its duration,
+ * and keyframed poses.
  *
  * Keyframes: key k says "at time t_k the handle is translated by T_k and
  * rotated by the rotation vector r_k about its rest centroid c", i.e. the
  * pose y = R_k (x - c) + c + T_k. Between keys T and r are interpolated
  * linearly (before the first key from the rest pose at t = 0; after the last
- * the pose holds). The tick's twist is the one constant twist that carries
- * the handle from where it is now to the keyframed pose at the tick's end:
- * ξ = log(P(t+h) G⁻¹) / h. Aiming at the pose, not differentiating it,
- * means round-off and clamped steps never accumulate into drift. */
+ * the pose holds). The loop's tick twist is the one constant twist that
+ * carries the handle from where it is now to the path's pose at the tick's
+ * end: ξ = log(P(t+h) G⁻¹) / h. Aiming at the pose, not differentiating it,
+ * means round-off, late ticks and sub-steps never accumulate into drift.
+ * The screw's pose is exp((t/T) ξ) with ξ = log M, as `deform` has it. */
 #include "loop_internal.h"
 
 #include <string.h>
@@ -82,40 +83,41 @@ int iso_loop__twist_between(const iso_pose *G, const iso_pose *P, double h, iso_
     return ISO_OK;
 }
 
-/* A velocity jump at time T needs a restart in the tick [t, t + h] when it
- * lies inside it or at its start; one at its end belongs to the next tick
- * (which then starts on it). ε absorbs the round-off of summed tick lengths. */
-static int jump_within(double T, double t, double h)
+/* A velocity jump at T belongs to the tick over [s0, s1) that contains it
+ * or starts on it; one at its end belongs to the next tick (which then
+ * starts on it). ε absorbs the round-off of the seconds. */
+static int jump_within(double T, double s0, double s1)
 {
-    double eps = 1e-9 * h;
-    return T > t - eps && T < t + h - eps;
+    double eps = 1e-9 * (s1 - s0);
+    return T > s0 - eps && T < s1 - eps;
 }
 
-int iso_loop__scripted_twist(const iso_scene_driver *d, const double c[3], const iso_pose *G,
-                             double t, double h, iso_twist *xi, int *crossed, iso_err *err)
+int iso_loop__scripted_jump(const iso_scene_driver *d, double s0, double s1)
 {
-    memset(xi, 0, sizeof *xi);
-    *crossed = 0;
+    if (d->kind == ISO_SCENE_DRIVE_SCREW)
+        return jump_within(d->duration, s0, s1);
+    if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES)
+        for (int i = 0; i < d->n_keys; i++)
+            if (jump_within(d->keys[i].t, s0, s1))
+                return 1;
+    return 0;
+}
+
+int iso_loop__scripted_pose(const iso_scene_driver *d, const double c[3], double s, iso_pose *P,
+                            iso_err *err)
+{
+    iso_pose_identity(P);
     if (d->kind == ISO_SCENE_DRIVE_SCREW) {
-        /* exp(1·ξ) = M, spread evenly over [0, duration] */
-        double T = d->duration;
-        double a = t < T ? t : T, b = t + h < T ? t + h : T;
-        double f = (b - a) / (T * h);
-        for (int j = 0; j < 3; j++) {
-            xi->w[j] = d->twist.w[j] * f;
-            xi->v[j] = d->twist.v[j] * f;
-        }
-        *crossed = jump_within(T, t, h);
+        /* exp(1·ξ) = M, spread evenly over [0, duration]: exp((s/T) ξ) */
+        double f = s < d->duration ? s / d->duration : 1.0;
+        iso_twist_exp(&d->twist, f, P);
         return ISO_OK;
     }
     if (d->kind == ISO_SCENE_DRIVE_KEYFRAMES) {
-        for (int i = 0; i < d->n_keys; i++)
-            if (jump_within(d->keys[i].t, t, h))
-                *crossed = 1;
-        iso_pose P;
-        key_pose(d, c, t + h, &P);
-        return iso_loop__twist_between(G, &P, h, xi, err);
+        key_pose(d, c, s, P);
+        return ISO_OK;
     }
+    (void)err;
     return ISO_OK;
 }
 

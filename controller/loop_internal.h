@@ -3,12 +3,31 @@
 #ifndef ISO_LOOP_INTERNAL_H
 #define ISO_LOOP_INTERNAL_H
 
-#include "loop.h"
+#include "iso_loop.h"
 
 #include "iso_dev.h"
 #include "iso_display.h"
 #include "iso_integrate.h"
 #include "iso_snapshot.h"
+
+/* ---- statistics (controller/loop_stats.c) --------------------------------- */
+/* Per-tick samples kept whole (a 10-minute run at 60 Hz is 36 000 of each). */
+typedef struct iso_loop_stats {
+    double *tick_ms, *lat_ms;
+    long n, cap;
+    long misses, skipped;
+    double recent[256]; /* the last 256 tick times, for the live view */
+    int n_recent, head;
+} iso_loop_stats;
+
+void iso_loop__stats_init(iso_loop_stats *s);
+void iso_loop__stats_deinit(iso_loop_stats *s);
+ISO_NODISCARD int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms,
+                                      iso_err *err);
+/* q-quantile (0..1, nearest rank) of n values; sorts a copy. NAN for n = 0. */
+double iso_loop__quantile(const double *v, long n, double q);
+/* median, p99, max of the recent window. */
+void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, double *max);
 
 struct iso_loop_sinks; /* loop_sinks.c */
 
@@ -16,45 +35,62 @@ struct iso_loop {
     const iso_scene *sc;
     iso_loop_opts o;
     FILE *log;
+    const char *cmd; /* "run", "record", "replay": names notices */
 
-    /* the method */
+    /* the method (NULL without a mesh) */
     iso_solver *solver;
     iso_stepper *st;
-    double *x;              /* current positions, 3*nv */
+    double *x; /* current positions, 3*nv */
     int nv;
+    double diag;                               /* the rest mesh's bounding-box diagonal */
     double centroid[ISO_SCENE_MAX_HANDLES][3]; /* handles' rest centroids */
+    int nh; /* handles: the scene's, or the mapping's without a mesh */
 
     /* devices */
     iso_dev_hub *hub;
     iso_dev_rec_reader reader; /* the replayed recording */
-    int replay;             /* 1: the devices are one replayed recording */
+    int replay;                /* 1: the devices are one replayed recording */
     long damaged_seen;
+    iso_dev_usb_watch *watch; /* libusb hotplug wakes the hub's retry; NULL without */
     iso_dev_map map;
-    int dev_handle[ISO_SCENE_MAX_HANDLES]; /* map twist j drives scene handle dev_handle[j] */
+    int dev_handle[ISO_SCENE_MAX_HANDLES]; /* map twist j drives handle dev_handle[j] */
     int n_dev;
-    iso_dev_tick last;      /* the previous tick's command */
+    iso_dev_tick last; /* the previous device tick's command */
     int recording;
 
-    /* time */
-    int64_t stream0, stream_now; /* ns */
-    int64_t period_ns;
-    double script_t;        /* scripted drivers' clock: stream time outside an e-stop */
+    /* commanded motion */
+    iso_pose cmd_pose[ISO_SCENE_MAX_HANDLES];  /* rest to commanded, per handle */
     double homing_left[ISO_SCENE_MAX_HANDLES]; /* > 0: returning to rest (reset_pose) */
-    long ticks, restarts;
+
+    /* time */
+    int64_t stream0, t_now; /* ns: tick 0's stream time; the last computed tick's */
+    int64_t k;              /* grid index of the last tick (live and scripted) */
+    int64_t k_end;          /* the last grid index to run; INT64_MAX: open-ended */
+    int64_t t_end;          /* replay: the last stream time to run; INT64_MAX: all */
+    int64_t period_ns;      /* the nominal period, rounded (fallback replay ticks) */
+    int64_t script_ns;      /* scripted drivers' clock: stream time outside an e-stop */
+    int64_t wall0;          /* wall time of stream0 */
+    long ticks, device_ticks, restarts, substeps, coarse;
+    uint64_t cmd_sum;
     double wall_start, wall_end;
 
     iso_loop_stats stats;
-    iso_loop_summary rt;    /* rt_active, mem_locked, rt_note */
+    iso_loop_summary rt; /* rt_active, mem_locked, rt_note */
     struct iso_loop_sinks *sinks;
     int shut;
 };
 
-/* loop_drive.c: the twist of a scripted driver over [t, t + h] for a handle
- * whose rest centroid is c and whose pose is G now. *crossed is set when the
- * interval crosses a keyframe or the screw's end (a velocity jump). */
-ISO_NODISCARD int iso_loop__scripted_twist(const iso_scene_driver *d, const double c[3],
-                                           const iso_pose *G, double t, double h, iso_twist *xi,
-                                           int *crossed, iso_err *err);
+/* loop.c: the stream time of grid tick k: stream0 + k / tick_hz, rounded
+ * to the nanosecond once (never accumulated). */
+int64_t iso_loop__grid_ns(const iso_loop *l, int64_t k);
+
+/* loop_drive.c: a scripted driver's exact pose at path time s (seconds,
+ * e-stops excluded) for a handle whose rest centroid is c. */
+ISO_NODISCARD int iso_loop__scripted_pose(const iso_scene_driver *d, const double c[3], double s,
+                                          iso_pose *P, iso_err *err);
+/* 1 when the driver's velocity jumps (a keyframe, the screw's end) in
+ * [s0, s1): the tick over it restarts the Adams history. */
+int iso_loop__scripted_jump(const iso_scene_driver *d, double s0, double s1);
 /* The constant twist that takes pose G to pose P in time h > 0. */
 ISO_NODISCARD int iso_loop__twist_between(const iso_pose *G, const iso_pose *P, double h,
                                           iso_twist *xi, iso_err *err);

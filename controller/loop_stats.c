@@ -1,7 +1,7 @@
 /* controller/loop_stats.c -- tick statistics of the real-time loop, and the
  * summary it prints and writes as JSON. Samples are kept whole rather than
  * in a histogram: quantiles are exact, and a long run costs 16 bytes a tick. */
-#include "loop.h"
+#include "loop_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

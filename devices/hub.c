@@ -35,6 +35,7 @@ struct iso_dev_hub {
     iso_dev_rec_writer rec;
     int64_t last_tick;
     int ticked;
+    long tick_records; /* replay: TICK records drained so far */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
 };
@@ -167,8 +168,10 @@ int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
 /* Records and decodes one chunk into the hub's event buffer. */
 static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
 {
-    if (c->type == ISO_DEV_CHUNK_TICK)
+    if (c->type == ISO_DEV_CHUNK_TICK) {
+        h->tick_records++;
         return ISO_OK;
+    }
     if (c->source >= h->n)
         return ISO_OK;
     if (h->recording) {
@@ -317,6 +320,10 @@ int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns)
     int64_t t = iso_dev_replay_next_tick(h->mux);
     if (t != INT64_MAX)
         return t;
+    /* A recording with TICK records ends at its last one: what the recorded
+     * loop read after its last tick was kept, but never ticked there. */
+    if (h->tick_records > 0)
+        return INT64_MAX;
     int64_t next = iso_dev_replay_peek(h->mux);
     if (next == INT64_MAX)
         return INT64_MAX;

@@ -445,8 +445,11 @@ ISO_NODISCARD int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_even
 ISO_NODISCARD int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
                                    const iso_pose *poses, iso_dev_tick *out, iso_err *err);
 /* Replay: when the next tick is. The recording's next TICK record if it
- * has one; else last + fallback_dt_ns (the first record's time for the
- * first tick); INT64_MAX when every record has been drained. */
+ * has one; INT64_MAX after the last TICK record of a recording that has
+ * them (records after it are input the recorded loop never ticked); for a
+ * recording without TICK records, last + fallback_dt_ns (the first
+ * record's time for the first tick), INT64_MAX when every record has been
+ * drained. */
 int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns);
 /* Replay: 1 once every record has been drained. */
 int iso_dev_hub_replay_done(iso_dev_hub *h);

@@ -368,18 +368,6 @@ struct iso_stepper {
     iso_integrate_stats st;
 };
 
-/* g = a ∘ b: first b, then a. */
-static void pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g)
-{
-    for (int i = 0; i < 3; i++) {
-        for (int j = 0; j < 3; j++)
-            g->R[3 * i + j] = a->R[3 * i] * b->R[j] + a->R[3 * i + 1] * b->R[3 + j] +
-                              a->R[3 * i + 2] * b->R[6 + j];
-        g->p[i] = a->R[3 * i] * b->p[0] + a->R[3 * i + 1] * b->p[1] + a->R[3 * i + 2] * b->p[2] +
-                  a->p[i];
-    }
-}
-
 /* The tick's path: exp((t − t_n) ξ) ∘ pose(t_n), constant world twist ξ. */
 static int tick_path_eval(void *ctx, int handle, double t, iso_pose *pose, iso_twist *twist)
 {
@@ -388,7 +376,7 @@ static int tick_path_eval(void *ctx, int handle, double t, iso_pose *pose, iso_t
         return ISO_EINVAL;
     iso_pose e;
     iso_twist_exp(&st->tw[handle], t - st->t, &e);
-    pose_compose(&e, &st->base[handle], pose);
+    iso_pose_compose(&e, &st->base[handle], pose);
     *twist = st->tw[handle];
     return ISO_OK;
 }

@@ -23,6 +23,8 @@ typedef struct iso_twist {
 void iso_pose_identity(iso_pose *g);
 /* y = R x + p */
 void iso_pose_apply(const iso_pose *g, const double x[3], double y[3]);
+/* g = a ∘ b: first b, then a (g may alias neither). */
+void iso_pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g);
 /* Velocity at point y: v + w × y. */
 void iso_twist_velocity(const iso_twist *xi, const double y[3], double vel[3]);
 

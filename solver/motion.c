@@ -10,6 +10,17 @@ void iso_pose_identity(iso_pose *g)
     g->R[0] = g->R[4] = g->R[8] = 1.0;
 }
 
+void iso_pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g)
+{
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++)
+            g->R[3 * i + j] = a->R[3 * i] * b->R[j] + a->R[3 * i + 1] * b->R[3 + j] +
+                              a->R[3 * i + 2] * b->R[6 + j];
+        g->p[i] =
+            a->R[3 * i] * b->p[0] + a->R[3 * i + 1] * b->p[1] + a->R[3 * i + 2] * b->p[2] + a->p[i];
+    }
+}
+
 void iso_pose_apply(const iso_pose *g, const double x[3], double y[3])
 {
     for (int i = 0; i < 3; i++)
@@ -26,9 +37,15 @@ void iso_twist_velocity(const iso_twist *xi, const double y[3], double vel[3])
 /* Cross-product matrix [w]x, row-major: [w]x y = w × y. */
 static void cross_matrix(const double w[3], double W[9])
 {
-    W[0] = 0;     W[1] = -w[2]; W[2] = w[1];
-    W[3] = w[2];  W[4] = 0;     W[5] = -w[0];
-    W[6] = -w[1]; W[7] = w[0];  W[8] = 0;
+    W[0] = 0;
+    W[1] = -w[2];
+    W[2] = w[1];
+    W[3] = w[2];
+    W[4] = 0;
+    W[5] = -w[0];
+    W[6] = -w[1];
+    W[7] = w[0];
+    W[8] = 0;
 }
 
 static void mat3_mul(const double A[9], const double B[9], double C[9])

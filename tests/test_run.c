@@ -9,18 +9,15 @@
  *   picks for another CPU can move the bits (round-off, ~1e-13 here); any
  *   change of logic moves vertices by 1e-5 or more. Rewrite the goldens
  *   with ISO_UPDATE_GOLDEN=1 after a deliberate change, and say why.
- * - Independent checks of the loop: the same recording through `isoshape
- *   replay --shape` (iso_integrate on a path built from the tick commands,
- *   not the stepper) lands within 1e-3 of the diagonal — the two differ only
- *   in which side of a tick boundary the handle twist is sampled at a step's
- *   end, a first-order difference in the twist's jumps; a wrong rotation
- *   centre gave 0.57. A screw driver equals `isoshape deform --steps N` to
- *   1e-12 (same integrator, constant twist; measured 4e-15). Keyframes end
- *   at their pose.
- * - Time: overruns are counted and skipped, latency does not pile up, and
- *   pacing follows --speed.
- * - SIGTERM mid-run with a live device (a pseudo-terminal) exits 0 and
- *   leaves a whole recording.
+ * - One engine: the same recording through `run` of its scene and through
+ *   `isoshape replay --shape` gives the same bytes. A screw driver equals
+ *   `isoshape deform --steps N` to 1e-12 (same integrator; measured 3e-15).
+ *   Keyframes end at their pose.
+ * - Time: late ticks cover every deadline already due (ticks + skipped =
+ *   the path's periods), latency does not pile up, pacing follows --speed.
+ * - SIGTERM mid-run with a live device (a pseudo-terminal) exits 0, leaves
+ *   a whole recording, and replaying it reproduces the run's mesh bit for
+ *   bit. (tests/test_loop.c drives the engine in-process.)
  * - A headless Chromium opens the live view while a replay runs and receives
  *   frames (screenshot kept as tests/tmp/run_live.png in the build folder).
  * - Bad scenes and options give errors that name what is wrong. */
@@ -47,11 +44,11 @@ static char g_bin[PATH_MAX];
 static char g_out[1 << 16], g_err[1 << 16];
 
 #define DIAG_TOL_GOLDEN 1e-7
-#define DIAG_TOL_REPLAY 1e-3
 #define DIAG_TOL_DEFORM 1e-12
 
-static const char *const streams[] = {"sm_twist",   "clutch_buttons", "unplug_replug", "serial_pose",
-                                      "gpio_estop", "torn",           "sm_session"};
+static const char *const streams[] = {"sm_twist",    "clutch_buttons", "unplug_replug",
+                                      "serial_pose", "gpio_estop",     "torn",
+                                      "sm_session"};
 
 /* ---- helpers ---------------------------------------------------------------- */
 
@@ -125,7 +122,8 @@ static double max_diff(const char *a, const char *b, double *diag)
     iso_mesh *ma = load(a), *mb = load(b);
     int nv = iso_mesh_vertex_count(ma);
     assert_int_equal(nv, iso_mesh_vertex_count(mb));
-    double d = iso_test_max_abs_diff(iso_mesh_positions(ma), iso_mesh_positions(mb), (size_t)nv * 3);
+    double d =
+        iso_test_max_abs_diff(iso_mesh_positions(ma), iso_mesh_positions(mb), (size_t)nv * 3);
     *diag = bbox_diag(ma);
     iso_mesh_destroy(ma);
     iso_mesh_destroy(mb);
@@ -181,8 +179,9 @@ static void write_golden(const char *stream, const char *json, const char *off)
     iso_mesh *m = load(off);
     FILE *f = fopen(path, "w");
     assert_non_null(f);
-    fprintf(f, "# isoshape run: built-in cactus (resolution 1) driven by %s.isorec, C assembly.\n"
-               "# Written by tests/test_run.c with ISO_UPDATE_GOLDEN=1.\n",
+    fprintf(f,
+            "# isoshape run: built-in cactus (resolution 1) driven by %s.isorec, C assembly.\n"
+            "# Written by tests/test_run.c with ISO_UPDATE_GOLDEN=1.\n",
             stream);
     fprintf(f, "ticks %.0f\nmetric_err %.17g\n", json_num(json, "ticks"),
             json_num(json, "metric_err"));
@@ -213,8 +212,8 @@ static void check_golden(const char *stream, const char *json, const char *off)
         if (sscanf(line, "metric_err %lf", &a) == 1)
             assert_true(fabs(json_num(json, "metric_err") - a) <= 1e-6 * a + 1e-300);
         if (sscanf(line, "v %d %lf %lf %lf", &v, &a, &b, &c) == 4) {
-            worst = fmax(worst, fmax(fabs(x[3 * v] - a), fmax(fabs(x[3 * v + 1] - b),
-                                                              fabs(x[3 * v + 2] - c))));
+            worst = fmax(worst, fmax(fabs(x[3 * v] - a),
+                                     fmax(fabs(x[3 * v + 1] - b), fabs(x[3 * v + 2] - c))));
             checked++;
         }
     }
@@ -266,6 +265,8 @@ static void each_stream_replays_deterministically_to_its_golden(void **state)
 
 /* ---- independent checks ---------------------------------------------------------- */
 
+/* One engine: a recording through `run` of its scene and through `replay
+ * --shape` is the same computation, so the same bits. */
 static void loop_agrees_with_the_replay_command(void **state)
 {
     (void)state;
@@ -279,13 +280,14 @@ static void loop_agrees_with_the_replay_command(void **state)
         snprintf(name, sizeof name, "cross_%s_replay.off", which[i]);
         iso_test_tmp(b, sizeof b, name);
         assert_int_equal(iso("run '%s' --fast --quiet --out '%s'", scene, a), 0);
-        assert_int_equal(iso("replay --fast '%s/%s.isorec' --shape cactus --resolution 1 --out '%s'",
-                             ISO_TEST_STREAMS, which[i], b),
-                         0);
+        assert_int_equal(
+            iso("replay --fast '%s/%s.isorec' --shape cactus --resolution 1 --out '%s'",
+                ISO_TEST_STREAMS, which[i], b),
+            0);
         double diag, d = max_diff(a, b, &diag);
-        printf("%-12s loop vs replay command: %.3g of the diagonal\n", which[i], d / diag);
-        assert_true(d <= DIAG_TOL_REPLAY * diag);
-        assert_true(d > 0 || i == 1); /* they are different code, not a copy */
+        printf("%-12s run vs replay command: %.3g of the diagonal, same bytes %d\n", which[i],
+               d / diag, same_bytes(a, b));
+        assert_true(same_bytes(a, b));
     }
 }
 
@@ -323,12 +325,10 @@ static void pec_takes_half_the_evaluations(void **state)
     iso_test_tmp(b, sizeof b, "screw_pec.off");
     iso_test_tmp(ja, sizeof ja, "screw_pece.json");
     iso_test_tmp(jb, sizeof jb, "screw_pec.json");
-    assert_int_equal(iso("run '%s' --fast --quiet --abm pece --out '%s' --stats-json '%s'", scene,
-                         a, ja),
-                     0);
-    assert_int_equal(iso("run '%s' --fast --quiet --abm pec --out '%s' --stats-json '%s'", scene,
-                         b, jb),
-                     0);
+    assert_int_equal(
+        iso("run '%s' --fast --quiet --abm pece --out '%s' --stats-json '%s'", scene, a, ja), 0);
+    assert_int_equal(
+        iso("run '%s' --fast --quiet --abm pec --out '%s' --stats-json '%s'", scene, b, jb), 0);
     slurp(ja, j, sizeof j);
     long ea = (long)json_num(j, "evaluations");
     slurp(jb, j, sizeof j);
@@ -380,34 +380,37 @@ static void keyframes_end_at_their_pose(void **state)
 
 /* ---- time ------------------------------------------------------------------------ */
 
+/* 1 kHz ticks on a mesh that needs ~10 ms a tick: every tick is late. A
+ * late tick covers every deadline already due (no motion lost, no pile-up):
+ * the ticks and the deadlines they skipped add up to the 100 of the path,
+ * and the handle still ends at the path's end (keyframes_end_at_their_pose
+ * checks the pose itself). */
 static void overruns_are_counted_and_skipped(void **state)
 {
     (void)state;
     char scene[PATH_MAX], json[PATH_MAX];
     static char j[8192];
-    /* 1 kHz ticks on a mesh that needs ~10 ms a tick: every deadline is missed */
     write_scene(iso_test_tmp(scene, sizeof scene, "overrun.yaml"), "",
                 "{screw: {def: builtin, duration: 0.1}}", "tick_hz: 1000\n");
     iso_test_tmp(json, sizeof json, "overrun.json");
     assert_int_equal(iso("run '%s' --no-rt --quiet --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
     double ticks = json_num(j, "ticks"), misses = json_num(j, "misses");
-    double skipped = json_num(j, "skipped"), tmax = json_num(j, "max");
+    double skipped = json_num(j, "skipped"), stream = json_num(j, "stream_s");
     double wall = json_num(j, "wall_s");
-    printf("overrun: %.0f ticks, %.0f misses, %.0f skipped, wall %.2f s\n", ticks, misses, skipped,
-           wall);
-    assert_int_equal((long)ticks, 100); /* stream time is kept: every tick runs */
-    assert_true(misses >= 90);
-    assert_true(skipped >= ticks); /* each overrun of ~10 periods skips them */
+    printf("overrun: %.0f ticks, %.0f misses, %.0f skipped, stream %.6f s, wall %.2f s\n", ticks,
+           misses, skipped, stream, wall);
+    assert_true(ticks < 100);
+    assert_true(misses >= 1);
+    assert_int_equal((long)(ticks + skipped), 100); /* every period covered, once */
+    assert_true(fabs(stream - 0.1) < 1e-12);        /* the path's end, exactly */
     /* no pile-up: a tick starts at once after an overrun, so the wait from one
-     * drain to the next publish is at most two tick times (max is from the
-     * latency object, the last "max" key) */
+     * wake to the next publish is at most two tick times */
     const char *lat = strstr(j, "\"latency_ms\"");
     assert_non_null(lat);
     double lat_max = json_num(lat, "max");
     const char *tk = strstr(j, "\"tick_ms\"");
     double tick_max = json_num(tk, "max");
-    (void)tmax;
     assert_true(lat_max <= 2 * tick_max + 5);
 }
 
@@ -418,9 +421,8 @@ static void pacing_follows_speed(void **state)
     static char j[8192];
     write_scene(iso_test_tmp(scene, sizeof scene, "paced.yaml"), "", "none", "tick_hz: 20\n");
     iso_test_tmp(json, sizeof json, "paced.json");
-    assert_int_equal(iso("run '%s' --no-rt --quiet --duration 1 --speed 2 --stats-json '%s'",
-                         scene, json),
-                     0);
+    assert_int_equal(
+        iso("run '%s' --no-rt --quiet --duration 1 --speed 2 --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
     double wall = json_num(j, "wall_s"), stream = json_num(j, "stream_s");
     printf("paced: %.3f s of stream in %.3f s wall at speed 2\n", stream, wall);
@@ -484,8 +486,7 @@ static void sigterm_closes_the_recording_whole(void **state)
         int null = open("/dev/null", O_WRONLY);
         dup2(null, 1);
         dup2(null, 2);
-        execl(g_bin, g_bin, "run", scene, "--no-rt", "--record", rec, "--out", out,
-              (char *)NULL);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--record", rec, "--out", out, (char *)NULL);
         _exit(127);
     }
     /* Wait for the loop's first TICK record: start-up (mesh, solver, and
@@ -533,8 +534,17 @@ static void sigterm_closes_the_recording_whole(void **state)
      * 570-vertex mesh takes ~90 ms there, so most are skipped). */
     assert_true(ticks - ticks0 >= 3);
     assert_int_equal(bytes, 20 * 8);
+    /* The run stopped on a whole tick and its recording ends with that tick:
+     * replaying it computes the same ticks and the same mesh, bit for bit. */
+    char again[PATH_MAX], rscene[PATH_MAX], rdev[PATH_MAX + 100];
+    snprintf(rdev, sizeof rdev, "devices:\n  - {name: link, kind: replay, file: %s}\n", rec);
+    write_scene(iso_test_tmp(rscene, sizeof rscene, "live_replay.yaml"), rdev, "{device: link}",
+                "tick_hz: 50\n");
+    iso_test_tmp(again, sizeof again, "live_again.off");
+    assert_int_equal(iso("run '%s' --fast --quiet --out '%s'", rscene, again), 0);
+    printf("replay of the interrupted session: same bytes %d\n", same_bytes(out, again));
+    assert_true(same_bytes(out, again));
 }
-
 
 /* ---- the live view in a real browser ------------------------------------------------ */
 
@@ -566,7 +576,8 @@ static void chromium_watches_a_replay_run(void **state)
         skip();
     }
     char scene[PATH_MAX], log[PATH_MAX], json[PATH_MAX], dev[PATH_MAX + 100];
-    snprintf(dev, sizeof dev, "devices:\n  - {name: dev, kind: replay, file: %s/sm_session.isorec}\n",
+    snprintf(dev, sizeof dev,
+             "devices:\n  - {name: dev, kind: replay, file: %s/sm_session.isorec}\n",
              ISO_TEST_STREAMS);
     write_scene(iso_test_tmp(scene, sizeof scene, "live_view.yaml"), dev, "{device: dev}",
                 "sinks:\n  display: {host: 127.0.0.1}\n");
@@ -579,8 +590,8 @@ static void chromium_watches_a_replay_run(void **state)
         int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
         dup2(fd, 1);
         dup2(fd, 2);
-        execl(g_bin, g_bin, "run", scene, "--no-rt", "--port", "0", "--speed", "0.5", "--stats-json",
-              json, (char *)NULL);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--port", "0", "--speed", "0.5",
+              "--stats-json", json, (char *)NULL);
         _exit(127);
     }
     int port = wait_for_port(log);
@@ -627,8 +638,9 @@ static void chromium_watches_a_replay_run(void **state)
     long tick = atol(tk + strlen("data-tick=\""));
     slurp(json, j, sizeof j);
     double sent = json_num(j, "frames_sent");
-    print_message("chromium: %d frames received, last tick %ld; the loop sent %.0f; screenshot %s\n",
-                  frames, tick, sent, shot);
+    print_message(
+        "chromium: %d frames received, last tick %ld; the loop sent %.0f; screenshot %s\n", frames,
+        tick, sent, shot);
     assert_true(frames >= 2); /* updates arrived while the replay ran */
     assert_true(tick > 0);
     assert_true(sent >= 2);

@@ -1,0 +1,174 @@
+/* controller/iso_loop.h -- the tick engine: what `isoshape run`, `record`
+ * and `replay` run, and what a program or a test drives in-process.
+ *
+ * One iso_loop owns everything a scene needs while it runs: the solver and
+ * the per-tick stepper, the device hub and its mapping (or the replay of a
+ * recording), the scripted handle paths, and the sinks (live display, PNG
+ * snapshots, PLY frames, actuators over the firmware bridge, a recording).
+ * A scene without a mesh (sc->mesh NULL: `record`, or `replay` without a
+ * shape) runs the device side alone: the hub, the mapping, the recording
+ * and the commanded handle poses.
+ *
+ * Time. Two clocks:
+ *   stream time  where the mesh lives. Tick k of a live or scripted scene
+ *                is at exactly stream0 + k / tick_hz (an integer tick
+ *                count, rounded to the nanosecond once, never accumulated);
+ *                a replay's ticks are its recording's TICK records.
+ *   wall time    CLOCK_MONOTONIC: the deadline of stream time t is
+ *                wall0 + (t - stream0) / speed, slept to with
+ *                clock_nanosleep(TIMER_ABSTIME). `fast` never waits.
+ * A scripted path ends on the tick at its end: ceil(T * tick_hz) ticks; a
+ * `duration` D runs round(D * tick_hz) ticks.
+ *
+ * Commanded motion is never lost nor invented. Each handle has a commanded
+ * pose: a device-driven handle's is the product of exp(dt ξ) over the
+ * device ticks (the twist ξ the mapping gives for each, held over it), a
+ * scripted handle's is its path's exact pose at the tick's stream time.
+ * Each tick moves the mesh's handles from where they are to their
+ * commanded poses. When a tick is late (a long tick, a stalled machine) the
+ * next one covers every deadline that has passed: a live scene's tick jumps
+ * to the latest grid time already due (one device tick over the whole
+ * interval, as the recording then says); a replay in real time takes every
+ * TICK record already due as one mesh step, composing their commands one
+ * by one, so the handles reach the same poses as a `fast` replay (to
+ * round-off). The first tick is never merged.
+ *
+ * Sub-steps. A mesh step is split into steps_per_tick ABM steps (the
+ * scene's integrator.steps_per_tick), times n, where n = 1 for a tick of one
+ * period and, for a longer tick, the smaller of the periods it covers and
+ * the motion's need: every sub-step turns a handle by at most
+ * ISO_LOOP_SUBSTEP_DEG degrees and moves its centroid by at most
+ * ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal. So a late tick costs
+ * what its motion needs (a still handle: one step), and no sub-step is
+ * longer than an on-time tick. n is capped at ISO_LOOP_MAX_SUBSTEPS so a
+ * slow mesh cannot spiral; a tick that hits the cap is counted as coarse
+ * (its handles still reach their commanded poses).
+ *
+ * Stopping. *stop (a signal handler's flag) is read at tick boundaries and
+ * during the wait for a deadline: a run always ends on a whole tick, and a
+ * live recording's last TICK record is the last tick computed (input that
+ * arrives after it is recorded, but a replay ends at that TICK record), so
+ * replaying an interrupted session reproduces it bit for bit.
+ *
+ * Not thread-safe; the display and the actuators have threads of their own
+ * behind their APIs. */
+#ifndef ISO_LOOP_H
+#define ISO_LOOP_H
+
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "iso_dev.h"
+#include "iso_err.h"
+#include "iso_metrics.h"
+#include "iso_scene.h"
+
+typedef struct iso_loop iso_loop; /* opaque */
+
+#define ISO_LOOP_SUBSTEP_DEG 1.0    /* rotation per sub-step of a late tick, at most */
+#define ISO_LOOP_SUBSTEP_DIAG 0.005 /* centroid travel per sub-step, of the diagonal */
+#define ISO_LOOP_MAX_SUBSTEPS 32
+
+/* What a tick did, for iso_loop_opts.on_tick. */
+typedef struct iso_loop_tick_info {
+    long tick;    /* computed ticks so far, this one included */
+    double t_s;   /* its stream time, seconds from the start */
+    double dt_s;  /* the stream time it covered */
+    int merged;   /* device ticks (replayed TICK records) it covered: 1 on time */
+    int substeps; /* ABM steps it took */
+    int restart;  /* 1: the Adams history was restarted */
+} iso_loop_tick_info;
+
+typedef struct iso_loop_opts {
+    int fast;                    /* 1: no waiting, as fast as possible on stream time */
+    double speed;                /* wall pacing: stream seconds per wall second (1) */
+    double duration_s;           /* stop after this much stream time; 0: when the stream ends */
+    long max_ticks;              /* stop after this many ticks; 0: no limit */
+    int rt;                      /* 1: ask for SCHED_FIFO and locked memory (real-time mode only) */
+    int display;                 /* -1: as the scene says, 0: off, 1: on */
+    int port;                    /* display port override; -1: the scene's; 0: any free port */
+    int status_line;             /* 1: a live status line on `log` (a terminal) */
+    int assembly;                /* -1: the scene's, else iso_assembly */
+    const char *cl_device;       /* OpenCL device spec or NULL */
+    const char *record;          /* record the devices here (overrides the scene), or NULL */
+    volatile sig_atomic_t *stop; /* set by a signal handler: stop after this tick */
+    FILE *log;                   /* notices and the status line; NULL = stderr */
+    const char *cmd;             /* the command's name in notices ("run") */
+    /* Optional hooks, called on the loop's thread (NULL: none). on_tick
+     * after each tick is published; on_command for every device tick
+     * (every TICK record of a replay), with the mapping's command. */
+    void (*on_tick)(void *ctx, const iso_loop_tick_info *t);
+    void (*on_command)(void *ctx, const iso_dev_tick *cmd, double dt_s);
+    void *hook_ctx;
+} iso_loop_opts;
+
+void iso_loop_opts_default(iso_loop_opts *o);
+
+/* Tick figures, all in milliseconds except counts. */
+typedef struct iso_loop_summary {
+    long ticks;
+    double stream_s, wall_s;                         /* stream time covered; wall time of the run */
+    double period_ms;                                /* the nominal tick period */
+    double tick_median, tick_p99, tick_max;          /* compute: wake to published */
+    double latency_median, latency_p99, latency_max; /* deadline (input due) to published */
+    long misses;                /* ticks that started after a later deadline had passed */
+    long skipped;               /* deadlines a late tick covered beyond its own */
+    long restarts;              /* restarts of the Adams history */
+    long device_ticks;          /* mapping ticks (TICK records written or replayed) */
+    long substeps;              /* ABM steps beyond one a tick */
+    long coarse;                /* late ticks that hit ISO_LOOP_MAX_SUBSTEPS */
+    uint64_t commands_checksum; /* FNV-1a of every device tick's command */
+    iso_integrate_stats integ;
+    iso_solver_stats solver;
+    iso_metrics metrics; /* final positions against the rest pose */
+    uint64_t checksum;   /* FNV-1a of the final positions' bytes (0 without a mesh) */
+    double handle_p[ISO_SCENE_MAX_HANDLES][3]; /* final handle centroids (without a mesh:
+                                                  the commanded poses' translations) */
+    double handle_R[ISO_SCENE_MAX_HANDLES][9];
+    int n_handles;
+    long frames_sent; /* display frames written to a browser */
+    long ply_frames, snapshots;
+    int rt_active; /* 1: SCHED_FIFO held */
+    int mem_locked;
+    char rt_note[400];   /* why not, "" when it is */
+    char act_line[1200]; /* the actuator link's counters, "" without one */
+} iso_loop_summary;
+
+/* Builds the loop for scene sc (which must outlive it): solver, stepper,
+ * devices, sinks. Errors name the part that failed. */
+ISO_NODISCARD int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
+                                  iso_err *err);
+void iso_loop_destroy(iso_loop *l); /* closes the recording whole; NULL is a no-op */
+
+/* Runs until the stream or duration ends, max_ticks, or *stop. Returns
+ * ISO_OK, or the error that stopped it (the mesh stays at its last good
+ * tick). */
+ISO_NODISCARD int iso_loop_run(iso_loop *l, iso_err *err);
+
+/* Brings the sinks to rest: closes the recording, sends the actuators to
+ * their safe state. Safe to call twice; destroy calls it. */
+ISO_NODISCARD int iso_loop_shutdown(iso_loop *l, iso_err *err);
+
+/* The figures so far; the metrics and checksum are of the current mesh. */
+void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s);
+/* The current positions (3*nv) and the mesh. */
+const double *iso_loop_positions(const iso_loop *l);
+const iso_mesh *iso_loop_mesh(const iso_loop *l);
+
+/* Writes the summary as JSON to path; ISO_EIO naming the path on failure. */
+ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,
+                                      const char *path, iso_err *err);
+/* Prints the summary for people. */
+void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f);
+
+/* Handle h's commanded pose (rest to current): where its device commands
+ * or its scripted path have put it; the mesh's handle reaches it at the end
+ * of each tick. NULL for h out of range. */
+const iso_pose *iso_loop_commanded_pose(const iso_loop *l, int h);
+/* The device hub (NULL without devices) and, for a replay, its recording's
+ * reader (records, damage, tear); NULL otherwise. Read-only. */
+const iso_dev_hub *iso_loop_hub(const iso_loop *l);
+const iso_dev_rec_reader *iso_loop_replay_reader(const iso_loop *l);
+
+#endif
