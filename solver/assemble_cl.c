@@ -793,6 +793,11 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     if ((crc = clEnqueueWriteBuffer(cl->q, cl->x, CL_FALSE, 0, bytes, x, 0, NULL, NULL)) ||
         (crc = clEnqueueWriteBuffer(cl->q, cl->vc, CL_FALSE, 0, bytes, vc, 0, NULL, NULL)))
         return cl_fail(err, "uploading positions", crc);
+    /* τ may change between evaluations (iso_solver_set_restore_tau: the
+     * integrators clamp it to κ h per step); the kernel reads it from here. */
+    cl_double tau = s->o.restore_tau;
+    if ((crc = clSetKernelArg(cl->k[K_RESTORE], 4, sizeof tau, &tau)) != CL_SUCCESS)
+        return cl_fail(err, "setting the restoration time constant", crc);
     if ((crc = run_kernel(cl, K_FIT, cl->n_fit)) || (crc = run_kernel(cl, K_PAIR, cl->n_pair)) ||
         (crc = run_kernel(cl, K_RESTORE, cl->n_rest)) ||
         (crc = run_kernel(cl, K_BLOCKS, cl->n_blocks)) || (crc = run_kernel(cl, K_RHS, cl->nf)))
