@@ -288,7 +288,7 @@ static int ws_read_frame(int fd, unsigned char **payload, size_t *len)
 {
     unsigned char h[2];
     read_exact(fd, h, 2);
-    assert_true(h[0] & 0x80); /* civetweb sends whole messages */
+    assert_true(h[0] & 0x80); /* the server sends whole messages */
     assert_false(h[1] & 0x80);
     uint64_t n = h[1] & 0x7f;
     if (n == 126) {
@@ -315,7 +315,7 @@ static void start_display(const scene *s, iso_display **d)
 {
     iso_err err;
     iso_err_clear(&err);
-    iso_display_opts o = {NULL, 0, s->mesh, &s->regions, NULL};
+    iso_display_opts o = {.mesh = s->mesh, .regions = &s->regions};
     int rc = iso_display_create(&o, d, &err);
     if (rc == ISO_ENOTSUP) {
         print_message("skipped: %s\n", err.msg);
@@ -411,7 +411,7 @@ static void server_serves_page_and_streams_frames(void **state)
     iso_display_destroy(d);
 
     /* A missing three.js is a sentence naming the file and the package. */
-    iso_display_opts bad = {NULL, 0, s.mesh, NULL, "/nonexistent/three.min.js"};
+    iso_display_opts bad = {.mesh = s.mesh, .three_js = "/nonexistent/three.min.js"};
     iso_err_clear(&err);
     assert_int_equal(iso_display_create(&bad, &d, &err), ISO_EIO);
     assert_null(d);
