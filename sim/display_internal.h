@@ -79,6 +79,7 @@ struct iso_display {
     int server_started;
     iso_display__conn *conns;  /* ISO_DISPLAY_MAX_CONNS */
     unsigned long counted_seq; /* newest frame counted in frames_sent */
+    unsigned long accepted;    /* connections accepted so far */
 };
 
 /* Opens the listening socket for opts (display_server.c). */

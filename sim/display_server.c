@@ -47,9 +47,10 @@ typedef enum viewer_stage { V_HANDSHAKE, V_TOPOLOGY, V_FRAMES } viewer_stage;
 struct iso_display__conn {
     int fd;
     conn_state state;
-    long long since;    /* ms: accepted, or the current message queued */
-    long long deadline; /* ms: when this connection is given up */
-    char local[64];     /* the address it arrived on, as a Host header spells it */
+    long long since;      /* ms: accepted, or the current message queued */
+    unsigned long serial; /* order of acceptance: the oldest request yields its slot */
+    long long deadline;   /* ms: when this connection is given up */
+    char local[64];       /* the address it arrived on, as a Host header spells it */
 
     char req[ISO_DISPLAY_MAX_REQUEST + 1];
     size_t req_len;
@@ -635,7 +636,7 @@ static iso_display__conn *slot_for_newcomer(iso_display *d)
         if (c->state == C_FREE)
             return c;
         if ((c->state == C_REQUEST || c->state == C_LINGER) &&
-            (!oldest || c->since < oldest->since))
+            (!oldest || c->serial < oldest->serial))
             oldest = c;
     }
     if (oldest)
@@ -666,6 +667,7 @@ static void accept_all(iso_display *d, long long now)
         memset(c, 0, sizeof *c);
         c->fd = fd;
         c->state = C_REQUEST;
+        c->serial = ++d->accepted;
         c->since = now;
         c->deadline = now + ISO_DISPLAY_REQUEST_TIMEOUT_MS;
         sl = sizeof ss;
