@@ -77,9 +77,10 @@ struct iso_display {
     /* The server thread's own; no one else touches these. */
     pthread_t server;
     int server_started;
-    iso_display__conn *conns;  /* ISO_DISPLAY_MAX_CONNS */
-    unsigned long counted_seq; /* newest frame counted in frames_sent */
-    unsigned long accepted;    /* connections accepted so far */
+    iso_display__conn *conns;      /* ISO_DISPLAY_MAX_CONNS */
+    unsigned long counted_seq;     /* newest frame counted in frames_sent */
+    unsigned long accepted;        /* connections accepted so far */
+    long long accept_paused_until; /* ms: out of descriptors, accept later */
 };
 
 /* Opens the listening socket for opts (display_server.c). */

@@ -383,6 +383,8 @@ static int authority_is_ours(const iso_display *d, const iso_display__conn *c, c
     } else if (!port_optional && d->port != 80) {
         return 0;
     }
+    if (hn == 0)
+        return 0;
     const char *names[] = {"localhost", "127.0.0.1", "[::1]", d->host_name, c->local};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
         if (token_eq(a, hn, names[i]))
@@ -650,8 +652,13 @@ static void accept_all(iso_display *d, long long now)
         struct sockaddr_storage ss;
         socklen_t sl = sizeof ss;
         int fd = accept(d->listen_fd, (struct sockaddr *)&ss, &sl);
-        if (fd < 0)
-            return; /* EAGAIN, or a connection that died in the queue */
+        if (fd < 0) {
+            /* Out of descriptors: the listener stays readable, so rest a
+             * while rather than spin; EAGAIN and the rest end this round. */
+            if (errno == EMFILE || errno == ENFILE || errno == ENOBUFS || errno == ENOMEM)
+                d->accept_paused_until = now + 100;
+            return;
+        }
         set_nonblocking(fd);
         iso_display__conn *c = slot_for_newcomer(d);
         if (!c) {
@@ -735,10 +742,10 @@ void *iso_display__serve(void *arg)
     int slot_of[2 + ISO_DISPLAY_MAX_CONNS];
     while (!atomic_load(&d->stopping)) {
         long long now = now_ms();
-        int n = 0, timeout = ISO_DISPLAY_POLL_MS;
+        int n = 0, timeout = now < d->accept_paused_until ? 100 : ISO_DISPLAY_POLL_MS;
         pf[n].fd = d->wake[0];
         pf[n++].events = POLLIN;
-        pf[n].fd = d->listen_fd;
+        pf[n].fd = now < d->accept_paused_until ? -1 : d->listen_fd; /* -1: poll skips it */
         pf[n++].events = POLLIN;
         for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
             iso_display__conn *c = &d->conns[i];
@@ -760,11 +767,11 @@ void *iso_display__serve(void *arg)
         now = now_ms();
         if (pf[0].revents)
             drain_wake(d);
-        if (pf[1].revents & POLLIN)
-            accept_all(d, now);
-        for (int k = 2; k < n; k++)
+        for (int k = 2; k < n; k++) /* before accepting, which may reuse a slot and fd */
             if (pf[k].revents && d->conns[slot_of[k]].fd == pf[k].fd)
                 service(d, &d->conns[slot_of[k]], pf[k].revents, now);
+        if (pf[1].revents & POLLIN)
+            accept_all(d, now);
         for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
             iso_display__conn *c = &d->conns[i];
             if (c->state == C_VIEWER && !pending(c) && c->stage == V_FRAMES)
