@@ -20,6 +20,12 @@
 #ifdef ISO_WITH_LIBPNG
 #include <png.h>
 #endif
+#if defined(__has_include)
+#if __has_include(<valgrind/valgrind.h>)
+#include <valgrind/valgrind.h>
+#define ISO_HAVE_VALGRIND_H 1
+#endif
+#endif
 
 #include "iso_display.h"
 #include "iso_mesh.h"
@@ -1051,6 +1057,17 @@ static int count_fds(void)
     return n;
 }
 
+static int under_memory_checker(void)
+{
+#ifdef __SANITIZE_ADDRESS__
+    return 1;
+#elif defined(ISO_HAVE_VALGRIND_H)
+    return RUNNING_ON_VALGRIND;
+#else
+    return 0;
+#endif
+}
+
 static void connect_close_cycles_leave_nothing_behind(void **state)
 {
     (void)state;
@@ -1088,7 +1105,12 @@ static void connect_close_cycles_leave_nothing_behind(void **state)
     assert_int_equal(iso_display_clients(d), 0);
     assert_int_equal(fds, fds0);
     assert_int_equal(threads, threads0);
-    assert_true(rss - rss0 < 2048);
+    /* ASan and valgrind hold freed blocks back (quarantine, freelist), so
+     * there RSS grows by design; their leak checks stand in for the bound. */
+    if (under_memory_checker())
+        print_message("(RSS bound not checked under ASan or valgrind)\n");
+    else
+        assert_true(rss - rss0 < 2048);
     iso_display_destroy(d);
     scene_deinit(&s);
 }
