@@ -817,6 +817,12 @@ static void huge_client_frame_closes_without_allocating(void **state)
     assert_int_equal(ws_read_frame(fd, &msg, &len), 1); /* the topology */
     free(msg);
     assert_int_equal(wait_clients(d, 1), 1);
+    /* A small masked frame is read and ignored: the viewer stays. */
+    static const unsigned char hello[] = {0x81,    0x85,    1,       2,       3,      4,
+                                          'h' ^ 1, 'e' ^ 2, 'l' ^ 3, 'l' ^ 4, 'o' ^ 1};
+    assert_int_equal(send(fd, hello, sizeof hello, MSG_NOSIGNAL), (ssize_t)sizeof hello);
+    sleep_ms(50);
+    assert_int_equal(iso_display_clients(d), 1);
     /* VmSize too: a malloc'd but untouched 1 GiB would not show in VmRSS
      * here, but would under the loop's mlockall(). */
     long before = vm_rss_kb(), vm_before = proc_status("VmSize:");
