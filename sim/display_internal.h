@@ -1,8 +1,95 @@
-/* sim/display_internal.h -- private to sim/: the page's text. */
+/* sim/display_internal.h -- private to sim/: the page's text, the display's
+ * state shared by its API (display.c) and its server (display_server.c),
+ * and the WebSocket pieces (display_ws.c). */
 #ifndef ISO_DISPLAY_INTERNAL_H
 #define ISO_DISPLAY_INTERNAL_H
 
+#include "iso_display.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stddef.h>
+#include <stdint.h>
+
 extern const char iso_display__page_html[];
 extern const char iso_display__app_js[];
+
+/* ---- WebSocket (display_ws.c) --------------------------------------------- */
+
+/* Close statuses (RFC 6455 section 7.4.1) the parser returns. */
+#define ISO_DISPLAY_WS_NORMAL 1000
+#define ISO_DISPLAY_WS_PROTOCOL_ERROR 1002
+#define ISO_DISPLAY_WS_TOO_BIG 1009
+
+/* Writes the Sec-WebSocket-Accept value for a 24-character key into out.
+ * Returns 0, or -1 when the key does not have 24 characters. */
+int iso_display__ws_accept(const char *key, size_t key_len, char out[29]);
+
+/* Writes an unmasked, final frame header for a payload of len bytes; returns
+ * its length (2, 4 or 10). */
+size_t iso_display__ws_header(unsigned char h[10], int opcode, size_t len);
+
+/* What a browser sends, parsed a byte at a time and thrown away. */
+typedef struct iso_display__ws_rx {
+    unsigned char hdr[14];
+    unsigned hdr_len;
+    uint64_t skip; /* payload bytes of the current frame still to discard */
+    long frames;   /* frame headers seen */
+} iso_display__ws_rx;
+
+/* Feeds n bytes. Returns 0 to go on, or the status to close with:
+ * ISO_DISPLAY_WS_NORMAL (the browser sent a close frame),
+ * ISO_DISPLAY_WS_PROTOCOL_ERROR (unmasked frame, reserved bits, a long or
+ * fragmented control frame) or ISO_DISPLAY_WS_TOO_BIG (a payload announced
+ * above ISO_DISPLAY_MAX_CLIENT_FRAME). */
+int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n);
+
+/* ---- the display's state -------------------------------------------------- */
+
+typedef struct iso_display__conn iso_display__conn; /* display_server.c */
+
+struct iso_display {
+    /* Fixed at create. */
+    const iso_mesh *mesh;
+    int nv, port;
+    int listen_fd;
+    char host_name[64];  /* the bound address as a Host header spells it: [::1] */
+    char *three, *orbit; /* file contents; orbit may be NULL */
+    size_t three_len, orbit_len;
+    char *topology; /* the JSON sent on connect */
+    size_t topology_len;
+    size_t frame_len;
+    int wake[2]; /* pipe: publish and destroy wake the server */
+
+    /* The latest frame: publish writes it under frame_lock; the server copies
+     * it out under the same lock. Nobody holds the lock for anything else. */
+    pthread_mutex_t frame_lock;
+    unsigned char *latest;
+    unsigned long latest_seq; /* under frame_lock; 0 = nothing yet */
+    atomic_ulong published;   /* latest_seq, readable without the lock */
+    atomic_int wake_pending;  /* a byte is in the pipe: publish need not write */
+    atomic_int stopping;
+
+    /* Read by the status line without any lock; written by the server. */
+    atomic_int viewers;
+    atomic_long frames_sent;
+
+    /* The server thread's own; no one else touches these. */
+    pthread_t server;
+    int server_started;
+    iso_display__conn *conns;      /* ISO_DISPLAY_MAX_CONNS */
+    unsigned long counted_seq;     /* newest frame counted in frames_sent */
+    unsigned long accepted;        /* connections accepted so far */
+    long long accept_paused_until; /* ms: out of descriptors, accept later */
+};
+
+/* Opens the listening socket for opts (display_server.c). */
+int iso_display__listen(iso_display *d, const iso_display_opts *opts, iso_err *err);
+
+/* The server thread's body (display_server.c). */
+void *iso_display__serve(void *arg);
+
+/* Frees what the server thread left (connections, the listener). */
+void iso_display__server_free(iso_display *d);
 
 #endif

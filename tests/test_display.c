@@ -4,6 +4,7 @@
 #include "testutil.h"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <math.h>
 #include <netinet/in.h>
 #include <pthread.h>
@@ -18,6 +19,12 @@
 
 #ifdef ISO_WITH_LIBPNG
 #include <png.h>
+#endif
+#if defined(__has_include)
+#if __has_include(<valgrind/valgrind.h>)
+#include <valgrind/valgrind.h>
+#define ISO_HAVE_VALGRIND_H 1
+#endif
 #endif
 
 #include "iso_display.h"
@@ -288,7 +295,7 @@ static int ws_read_frame(int fd, unsigned char **payload, size_t *len)
 {
     unsigned char h[2];
     read_exact(fd, h, 2);
-    assert_true(h[0] & 0x80); /* civetweb sends whole messages */
+    assert_true(h[0] & 0x80); /* the server sends whole messages */
     assert_false(h[1] & 0x80);
     uint64_t n = h[1] & 0x7f;
     if (n == 126) {
@@ -315,7 +322,7 @@ static void start_display(const scene *s, iso_display **d)
 {
     iso_err err;
     iso_err_clear(&err);
-    iso_display_opts o = {NULL, 0, s->mesh, &s->regions, NULL};
+    iso_display_opts o = {.mesh = s->mesh, .regions = &s->regions};
     int rc = iso_display_create(&o, d, &err);
     if (rc == ISO_ENOTSUP) {
         print_message("skipped: %s\n", err.msg);
@@ -411,7 +418,7 @@ static void server_serves_page_and_streams_frames(void **state)
     iso_display_destroy(d);
 
     /* A missing three.js is a sentence naming the file and the package. */
-    iso_display_opts bad = {NULL, 0, s.mesh, NULL, "/nonexistent/three.min.js"};
+    iso_display_opts bad = {.mesh = s.mesh, .three_js = "/nonexistent/three.min.js"};
     iso_err_clear(&err);
     assert_int_equal(iso_display_create(&bad, &d, &err), ISO_EIO);
     assert_null(d);
@@ -453,11 +460,668 @@ static void stalled_browser_never_blocks_publish(void **state)
     clock_gettime(CLOCK_MONOTONIC, &t1);
     double ms = (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) / 1e6;
     print_message("stalled browser: destroy took %.0f ms\n", ms);
+    assert_true(ms < 1000); /* never waits on the browser */
     close(fd);
     scene_deinit(&s);
 }
 
-/* ---- (d) a real browser ------------------------------------------------- */
+/* ---- (d) what a browser, or a hostile page, may do ------------------------ */
+
+static double ms_since(const struct timespec *t0)
+{
+    struct timespec t1;
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    return (double)(t1.tv_sec - t0->tv_sec) * 1e3 + (double)(t1.tv_nsec - t0->tv_nsec) / 1e6;
+}
+
+/* Connects to the loopback of `family` (AF_INET or AF_INET6); -1 if not. */
+static int connect_family(int family, int port, int rcvbuf)
+{
+    int fd = socket(family, SOCK_STREAM, 0);
+    if (fd < 0)
+        return -1;
+    struct timeval tv = {5, 0};
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    if (rcvbuf)
+        setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    struct sockaddr_storage ss;
+    memset(&ss, 0, sizeof ss);
+    socklen_t sl;
+    if (family == AF_INET6) {
+        struct sockaddr_in6 *a = (struct sockaddr_in6 *)&ss;
+        a->sin6_family = AF_INET6;
+        a->sin6_port = htons((unsigned short)port);
+        a->sin6_addr = in6addr_loopback;
+        sl = sizeof *a;
+    } else {
+        struct sockaddr_in *a = (struct sockaddr_in *)&ss;
+        a->sin_family = AF_INET;
+        a->sin_port = htons((unsigned short)port);
+        a->sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        sl = sizeof *a;
+    }
+    if (connect(fd, (struct sockaddr *)&ss, sl) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* Sends a whole request and reads the answer to the server's close. */
+static char *http_raw(int family, int port, const char *req, size_t *len)
+{
+    int fd = connect_family(family, port, 0);
+    assert_true(fd >= 0);
+    send_all(fd, req);
+    char *b = read_to_end(fd, len);
+    close(fd);
+    return b;
+}
+
+/* GET / with the given Host header value; returns the status code. */
+static int get_with_host(int port, const char *host)
+{
+    char req[512];
+    snprintf(req, sizeof req, "GET / HTTP/1.1\r\nHost: %s\r\nConnection: close\r\n\r\n", host);
+    size_t len;
+    char *b = http_raw(AF_INET, port, req, &len);
+    int status = len > 12 ? atoi(b + 9) : -1;
+    free(b);
+    return status;
+}
+
+/* Reads a response's status line and headers (to the empty line). */
+static int read_head(int fd, char *buf, size_t cap)
+{
+    size_t n = 0;
+    while (n < cap - 1 && !(n >= 4 && memcmp(buf + n - 4, "\r\n\r\n", 4) == 0)) {
+        ssize_t r = read(fd, buf + n, 1);
+        if (r <= 0)
+            break;
+        n++;
+    }
+    buf[n] = 0;
+    return n > 12 ? atoi(buf + 9) : -1;
+}
+
+/* Opens /ws with `extra` headers (each ending in \r\n); returns the fd and
+ * stores the answer's status. */
+static int ws_open(int family, int port, const char *host, const char *extra, int rcvbuf,
+                   int *status)
+{
+    int fd = connect_family(family, port, rcvbuf);
+    assert_true(fd >= 0);
+    char req[1024];
+    snprintf(req, sizeof req,
+             "GET /ws HTTP/1.1\r\nHost: %s\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n%s\r\n",
+             host, extra);
+    send_all(fd, req);
+    char head[2048];
+    *status = read_head(fd, head, sizeof head);
+    return fd;
+}
+
+static int ws_status(int port, const char *extra)
+{
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int status;
+    int fd = ws_open(AF_INET, port, host, extra, 0, &status);
+    close(fd);
+    return status;
+}
+
+/* A number from /proc/self/status: VmRSS: in kB, Threads: a count. */
+static long proc_status(const char *key)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    assert_non_null(f);
+    char line[256];
+    long v = -1;
+    while (fgets(line, sizeof line, f))
+        if (strncmp(line, key, strlen(key)) == 0)
+            v = atol(line + strlen(key));
+    fclose(f);
+    assert_true(v >= 0);
+    return v;
+}
+
+static long vm_rss_kb(void)
+{
+    return proc_status("VmRSS:");
+}
+
+static int wait_clients(iso_display *d, int want)
+{
+    for (int w = 0; w < 500 && iso_display_clients(d) != want; w++)
+        sleep_ms(10);
+    return iso_display_clients(d);
+}
+
+/* (a) A viewer that never reads is dropped after ISO_DISPLAY_STALL_MS; the
+ * loop's calls never wait on it, and the viewer that reads keeps up. */
+typedef struct reader {
+    int fd;
+    long frames;      /* binary frames received */
+    double last_tick; /* the newest tick in them */
+    int failed;
+} reader;
+
+/* Reads frames until the socket ends; no cmocka asserts off the main thread. */
+static void *reader_main(void *arg)
+{
+    reader *r = arg;
+    for (;;) {
+        unsigned char h[10];
+        if (read(r->fd, h, 2) != 2)
+            break;
+        uint64_t n = h[1] & 0x7f;
+        size_t ext = n == 126 ? 2 : n == 127 ? 8 : 0;
+        size_t got = 0;
+        while (got < ext) {
+            ssize_t k = read(r->fd, h + 2 + got, ext - got);
+            if (k <= 0)
+                return NULL;
+            got += (size_t)k;
+        }
+        if (ext) {
+            n = 0;
+            for (size_t i = 0; i < ext; i++)
+                n = n << 8 | h[2 + i];
+        }
+        unsigned char buf[65536], first[16];
+        uint64_t left = n;
+        size_t at = 0;
+        while (left) {
+            ssize_t k = read(r->fd, buf, left < sizeof buf ? (size_t)left : sizeof buf);
+            if (k <= 0)
+                return NULL;
+            for (ssize_t i = 0; i < k && at < sizeof first; i++)
+                first[at++] = buf[i];
+            left -= (uint64_t)k;
+        }
+        if ((h[0] & 0x0f) == 2 && at == sizeof first) {
+            double t;
+            memcpy(&t, first + 8, 8);
+            if (t <= r->last_tick)
+                r->failed = 1;
+            r->last_tick = t;
+            r->frames++;
+        }
+    }
+    return NULL;
+}
+
+static void slow_viewer_is_dropped_and_others_keep_up(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "cylinder", 64); /* ~100 KB frames: a stuck socket fills fast */
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int st;
+    reader good = {ws_open(AF_INET, port, host, "", 0, &st), 0, -1, 0};
+    assert_int_equal(st, 101);
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, reader_main, &good), 0);
+    int bad = ws_open(AF_INET, port, host, "", 4096, &st); /* and never reads again */
+    assert_int_equal(st, 101);
+    assert_int_equal(wait_clients(d, 2), 2);
+    struct timespec t_bad, t0;
+    clock_gettime(CLOCK_MONOTONIC, &t_bad);
+
+    const int tick_ms = 20;
+    double worst_publish = 0, worst_clients = 0, dropped_ms = -1;
+    long ticks = 0, after_drop = 0;
+    for (long tick = 0; tick < 600 && after_drop < 50; tick++, ticks++) { /* <= 12 s */
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        assert_int_equal(iso_display_publish(d, tick, s.shape.x, NULL, NULL), ISO_OK);
+        double ms = ms_since(&t0);
+        worst_publish = ms > worst_publish ? ms : worst_publish;
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        int n = iso_display_clients(d);
+        (void)iso_display_frames_sent(d);
+        ms = ms_since(&t0);
+        worst_clients = ms > worst_clients ? ms : worst_clients;
+        if (n < 2 && dropped_ms < 0)
+            dropped_ms = ms_since(&t_bad);
+        after_drop += dropped_ms >= 0;
+        sleep_ms(tick_ms);
+    }
+    sleep_ms(200); /* the last frames in flight */
+    int clients_left = iso_display_clients(d);
+    shutdown(good.fd, SHUT_RDWR);
+    pthread_join(th, NULL);
+    print_message("slow viewer: %ld ticks at %d ms; slowest publish %.3f ms, slowest "
+                  "clients/frames_sent %.3f ms\n",
+                  ticks, tick_ms, worst_publish, worst_clients);
+    print_message("slow viewer: dropped %.0f ms after connecting (stall limit %d ms); the "
+                  "reading viewer got %ld of %ld frames, newest tick %.0f\n",
+                  dropped_ms, ISO_DISPLAY_STALL_MS, good.frames, ticks, good.last_tick);
+    assert_true(dropped_ms >= ISO_DISPLAY_STALL_MS - 50); /* not before its time */
+    assert_true(dropped_ms < ISO_DISPLAY_STALL_MS + 6000);
+    assert_int_equal(clients_left, 1); /* the reading one stays */
+    assert_true(worst_publish < 50);
+    assert_true(worst_clients < 50);
+    assert_false(good.failed);             /* ticks only ever increase */
+    assert_true(good.frames >= ticks / 3); /* about the tick rate, on a loaded machine */
+    assert_true(good.last_tick >= (double)(ticks - 10));
+    close(good.fd);
+    close(bad);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* (b) Only the view's own page may open the stream; only its own names may
+ * be asked for (DNS rebinding sends the attacker's). */
+static void foreign_origin_and_host_are_refused(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "bar", 4);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    char h[128];
+    snprintf(h, sizeof h, "evil.example:%d", port);
+    assert_int_equal(get_with_host(port, h), 403);
+    snprintf(h, sizeof h, "127.0.0.1.nip.io:%d", port);
+    assert_int_equal(get_with_host(port, h), 403);
+    snprintf(h, sizeof h, "127.0.0.1:%d", port + 1);
+    assert_int_equal(get_with_host(port, h), 403);
+    assert_int_equal(get_with_host(port, ""), 403);
+    snprintf(h, sizeof h, "localhost:%d", port);
+    assert_int_equal(get_with_host(port, h), 200);
+    snprintf(h, sizeof h, "127.0.0.1:%d", port);
+    assert_int_equal(get_with_host(port, h), 200);
+
+    char o[160];
+    assert_int_equal(ws_status(port, "Origin: http://evil.example\r\n"), 403);
+    snprintf(o, sizeof o, "Origin: http://evil.example:%d\r\n", port);
+    assert_int_equal(ws_status(port, o), 403);
+    snprintf(o, sizeof o, "Origin: http://127.0.0.1:%d\r\n", port + 1);
+    assert_int_equal(ws_status(port, o), 403);
+    snprintf(o, sizeof o, "Origin: https://127.0.0.1:%d\r\n", port);
+    assert_int_equal(ws_status(port, o), 403);
+    assert_int_equal(ws_status(port, "Origin: null\r\n"), 403);
+    snprintf(o, sizeof o, "Origin: http://127.0.0.1:%d\r\n", port);
+    assert_int_equal(ws_status(port, o), 101);
+    snprintf(o, sizeof o, "Origin: http://localhost:%d\r\n", port);
+    assert_int_equal(ws_status(port, o), 101);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* (c) GET and HEAD only; HEAD has the headers of GET and no body. */
+static void only_get_and_head_are_served(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "bar", 4);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    static const char *const refused[] = {
+        "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 3\r\n\r\na=1",
+        "PUT /app.js HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\n\r\n",
+        "DELETE / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+        "OPTIONS * HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n",
+    };
+    size_t len;
+    for (size_t i = 0; i < sizeof refused / sizeof refused[0]; i++) {
+        char *b = http_raw(AF_INET, port, refused[i], &len);
+        if (!strstr(b, "HTTP/1.1 405") || !strstr(b, "Allow: GET, HEAD"))
+            fail_msg("%.20s...: answered %.80s", refused[i], b);
+        free(b);
+    }
+    char *get = http_raw(AF_INET, port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", &len);
+    char *body = strstr(get, "\r\n\r\n");
+    assert_non_null(body);
+    size_t get_body = len - (size_t)(body + 4 - get);
+    assert_true(get_body > 100);
+    char *head = http_raw(AF_INET, port, "HEAD / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", &len);
+    assert_non_null(strstr(head, "HTTP/1.1 200"));
+    char *end = strstr(head, "\r\n\r\n");
+    assert_non_null(end);
+    assert_int_equal(len, (size_t)(end + 4 - head)); /* nothing after the headers */
+    char cl[64];
+    snprintf(cl, sizeof cl, "Content-Length: %zu\r\n", get_body);
+    assert_non_null(strstr(head, cl));
+    print_message("HEAD /: %zu bytes of headers, Content-Length %zu, no body\n", len, get_body);
+    free(get);
+    free(head);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* (d) A frame header announcing 1 GiB costs nothing and ends the connection. */
+static void huge_client_frame_closes_without_allocating(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "bar", 4);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int st;
+    int fd = ws_open(AF_INET, port, host, "", 0, &st);
+    assert_int_equal(st, 101);
+    unsigned char *msg;
+    size_t len;
+    assert_int_equal(ws_read_frame(fd, &msg, &len), 1); /* the topology */
+    free(msg);
+    assert_int_equal(wait_clients(d, 1), 1);
+    /* A small masked frame is read and ignored: the viewer stays. */
+    static const unsigned char hello[] = {0x81,    0x85,    1,       2,       3,      4,
+                                          'h' ^ 1, 'e' ^ 2, 'l' ^ 3, 'l' ^ 4, 'o' ^ 1};
+    assert_int_equal(send(fd, hello, sizeof hello, MSG_NOSIGNAL), (ssize_t)sizeof hello);
+    sleep_ms(50);
+    assert_int_equal(iso_display_clients(d), 1);
+    /* VmSize too: a malloc'd but untouched 1 GiB would not show in VmRSS
+     * here, but would under the loop's mlockall(). */
+    long before = vm_rss_kb(), vm_before = proc_status("VmSize:");
+    unsigned char frame[14 + 4096];
+    memset(frame, 'x', sizeof frame);
+    frame[0] = 0x82;
+    frame[1] = 0x80 | 127;
+    const uint64_t gib = (uint64_t)1 << 30;
+    for (int i = 0; i < 8; i++)
+        frame[2 + i] = (unsigned char)(gib >> (56 - 8 * i));
+    size_t off = 0;
+    while (off < sizeof frame) {
+        ssize_t w = send(fd, frame + off, sizeof frame - off, MSG_NOSIGNAL);
+        if (w <= 0)
+            break; /* the server may already have closed */
+        off += (size_t)w;
+    }
+    /* The server answers with a close frame (1009) and ends the connection. */
+    unsigned char buf[256];
+    size_t got = 0;
+    struct timespec t0;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    for (;;) {
+        ssize_t r = read(fd, buf + got, sizeof buf - got);
+        if (r <= 0)
+            break;
+        got += (size_t)r;
+        if (got == sizeof buf)
+            got = 0;
+    }
+    double ms = ms_since(&t0);
+    long after = vm_rss_kb(), vm_after = proc_status("VmSize:");
+    print_message("1 GiB frame header: connection ended after %.0f ms; RSS %ld -> %ld kB, "
+                  "VmSize %ld -> %ld kB\n",
+                  ms, before, after, vm_before, vm_after);
+    assert_true(ms < 4000); /* ended by the server, not by our 5 s read timeout */
+    assert_true(got >= 4 && buf[0] == 0x88 && buf[2] == 0x03 && buf[3] == 0xf1); /* 1009 */
+    assert_true(after - before < 4096);
+    assert_true(vm_after - vm_before < 4096);
+    assert_int_equal(wait_clients(d, 0), 0);
+    close(fd);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* (e) ISO_DISPLAY_MAX_VIEWERS viewers fit; one more is refused at once; the
+ * page still loads, also while half-sent requests hold connections. */
+static void viewers_beyond_the_limit_are_refused_and_the_page_loads(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "bar", 4);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int fds[ISO_DISPLAY_MAX_VIEWERS], st;
+    for (int i = 0; i < ISO_DISPLAY_MAX_VIEWERS; i++) {
+        fds[i] = ws_open(AF_INET, port, host, "", 0, &st);
+        assert_int_equal(st, 101);
+    }
+    assert_int_equal(wait_clients(d, ISO_DISPLAY_MAX_VIEWERS), ISO_DISPLAY_MAX_VIEWERS);
+    struct timespec t0;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int extra = ws_open(AF_INET, port, host, "", 0, &st);
+    double refused_ms = ms_since(&t0);
+    assert_int_equal(st, 503);
+    close(extra);
+
+    /* Half-sent requests, more than there are slots left: the newest
+     * connection takes the place of the oldest such request. */
+    enum { HALF = ISO_DISPLAY_MAX_CONNS };
+    int half[HALF];
+    for (int i = 0; i < HALF; i++) {
+        half[i] = connect_family(AF_INET, port, 0);
+        assert_true(half[i] >= 0);
+        send_all(half[i], "GET / HTTP/1.1\r\nHost: 12");
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    size_t len;
+    char *page = http_get(port, "/", &len);
+    double page_ms = ms_since(&t0);
+    assert_non_null(strstr(page, "HTTP/1.1 200"));
+    free(page);
+    assert_int_equal(iso_display_clients(d), ISO_DISPLAY_MAX_VIEWERS);
+    /* The oldest half-sent requests gave their slots up; the newest is closed
+     * by the request timeout, not before. */
+    char c;
+    assert_true(read(half[0], &c, 1) <= 0);
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    struct timeval tv = {ISO_DISPLAY_REQUEST_TIMEOUT_MS / 1000 + 5, 0};
+    setsockopt(half[HALF - 1], SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    ssize_t r = read(half[HALF - 1], &c, 1);
+    double timeout_ms = ms_since(&t0);
+    print_message("%d viewers: the next refused (503) in %.1f ms; page with %d half-sent "
+                  "requests open in %.1f ms; a half-sent request closed after %.0f ms\n",
+                  ISO_DISPLAY_MAX_VIEWERS, refused_ms, HALF, page_ms, timeout_ms);
+    assert_true(refused_ms < 2000);
+    assert_true(r <= 0);
+    assert_true(timeout_ms > ISO_DISPLAY_REQUEST_TIMEOUT_MS / 2);
+    assert_true(timeout_ms < ISO_DISPLAY_REQUEST_TIMEOUT_MS + 3000);
+    for (int i = 0; i < HALF; i++)
+        close(half[i]);
+    for (int i = 0; i < ISO_DISPLAY_MAX_VIEWERS; i++)
+        close(fds[i]);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* (f) The IPv6 loopback, as "::1" and "[::1]", and "::" with allow_remote. */
+typedef struct notices {
+    int n;
+    char last[512];
+} notices;
+
+static void keep_notice(void *ctx, const char *line)
+{
+    notices *n = ctx;
+    n->n++;
+    snprintf(n->last, sizeof n->last, "%s", line);
+}
+
+static int ipv6_loopback_works(void)
+{
+    int fd = socket(AF_INET6, SOCK_STREAM, 0);
+    if (fd < 0)
+        return 0;
+    struct sockaddr_in6 a;
+    memset(&a, 0, sizeof a);
+    a.sin6_family = AF_INET6;
+    a.sin6_addr = in6addr_loopback;
+    int ok = bind(fd, (struct sockaddr *)&a, sizeof a) == 0;
+    close(fd);
+    return ok;
+}
+
+static void ipv6_loopback_serves(void **state)
+{
+    (void)state;
+    if (!ipv6_loopback_works()) {
+        print_message("skipped: this machine has no IPv6 loopback (::1)\n");
+        skip();
+    }
+    scene s;
+    scene_init(&s, "bar", 4);
+    const char *hosts[] = {"::1", "[::1]", "::"};
+    for (int k = 0; k < 3; k++) {
+        notices nt = {0, ""};
+        iso_display_opts o = {.host = hosts[k],
+                              .mesh = s.mesh,
+                              .regions = &s.regions,
+                              .allow_remote = k == 2,
+                              .notice = keep_notice,
+                              .notice_ctx = &nt};
+        iso_display *d = NULL;
+        iso_err err;
+        iso_err_clear(&err);
+        if (iso_display_create(&o, &d, &err) != ISO_OK)
+            fail_msg("%s: %s", hosts[k], err.msg);
+        int port = iso_display_port(d);
+        char req[256];
+        snprintf(req, sizeof req, "GET / HTTP/1.1\r\nHost: [::1]:%d\r\n\r\n", port);
+        size_t len;
+        char *b = http_raw(AF_INET6, port, req, &len);
+        assert_non_null(strstr(b, "HTTP/1.1 200"));
+        free(b);
+        char host[64], origin[96];
+        snprintf(host, sizeof host, "[::1]:%d", port);
+        snprintf(origin, sizeof origin, "Origin: http://[::1]:%d\r\n", port);
+        int st;
+        int fd = ws_open(AF_INET6, port, host, origin, 0, &st);
+        assert_int_equal(st, 101);
+        close(fd);
+        assert_int_equal(nt.n, k == 2); /* "::" reaches other machines: a warning */
+        if (k == 2)
+            print_message("\"::\" with allow_remote: %s\n", nt.last);
+        iso_display_destroy(d);
+    }
+    iso_display_opts o = {.host = "::", .mesh = s.mesh};
+    iso_display *d = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_display_create(&o, &d, &err), ISO_EINVAL);
+    assert_null(d);
+    assert_non_null(strstr(err.msg, "allow_remote"));
+    scene_deinit(&s);
+}
+
+/* (g) Binding beyond loopback is refused without allow_remote, warned of
+ * with it. */
+static void remote_bind_needs_allow_remote(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "bar", 4);
+    notices nt = {0, ""};
+    iso_display_opts o = {
+        .host = "0.0.0.0", .mesh = s.mesh, .notice = keep_notice, .notice_ctx = &nt};
+    iso_display *d = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_display_create(&o, &d, &err), ISO_EINVAL);
+    assert_null(d);
+    print_message("0.0.0.0 without allow_remote: %s\n", err.msg);
+    assert_non_null(strstr(err.msg, "0.0.0.0"));
+    assert_non_null(strstr(err.msg, "sinks.display.allow_remote"));
+    assert_int_equal(nt.n, 0);
+
+    o.allow_remote = 1;
+    iso_err_clear(&err);
+    if (iso_display_create(&o, &d, &err) != ISO_OK)
+        fail_msg("%s", err.msg);
+    assert_int_equal(nt.n, 1);
+    assert_non_null(strstr(nt.last, "warning"));
+    assert_non_null(strstr(nt.last, "0.0.0.0"));
+    int port = iso_display_port(d);
+    char h[64];
+    snprintf(h, sizeof h, "127.0.0.1:%d", port); /* the address it arrived on */
+    assert_int_equal(get_with_host(port, h), 200);
+    snprintf(h, sizeof h, "rebound.example:%d", port);
+    assert_int_equal(get_with_host(port, h), 403);
+    iso_display_destroy(d);
+
+    o.host = "example.com"; /* names other than localhost are not looked up */
+    iso_err_clear(&err);
+    assert_int_equal(iso_display_create(&o, &d, &err), ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "example.com"));
+    scene_deinit(&s);
+}
+
+/* Connect/close cycles leave memory, threads and descriptors where they were. */
+static int count_fds(void)
+{
+    int n = 0;
+    for (int fd = 0; fd < 4096; fd++)
+        n += fcntl(fd, F_GETFD) != -1;
+    return n;
+}
+
+static int under_memory_checker(void)
+{
+#ifdef __SANITIZE_ADDRESS__
+    return 1;
+#elif defined(ISO_HAVE_VALGRIND_H)
+    return RUNNING_ON_VALGRIND;
+#else
+    return 0;
+#endif
+}
+
+static void connect_close_cycles_leave_nothing_behind(void **state)
+{
+    (void)state;
+    scene s;
+    scene_init(&s, "cylinder", 24);
+    iso_display *d = NULL;
+    start_display(&s, &d);
+    int port = iso_display_port(d);
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    assert_int_equal(iso_display_publish(d, 1, s.shape.x, NULL, NULL), ISO_OK);
+    long rss0 = vm_rss_kb(), threads0 = proc_status("Threads:");
+    int fds0 = count_fds();
+    const int cycles = 1500;
+    for (int i = 0; i < cycles; i++) {
+        int st;
+        int fd = ws_open(AF_INET, port, host, "", 0, &st);
+        assert_int_equal(st, 101);
+        if (i % 3 == 0) { /* some read their topology first, some leave at once */
+            unsigned char *msg;
+            size_t len;
+            assert_int_equal(ws_read_frame(fd, &msg, &len), 1);
+            free(msg);
+        }
+        close(fd);
+    }
+    int fds = count_fds();
+    for (int w = 0; w < 300 && (fds != fds0 || iso_display_clients(d)); w++) {
+        sleep_ms(10);
+        fds = count_fds();
+    }
+    long rss = vm_rss_kb(), threads = proc_status("Threads:");
+    print_message("%d connect/close cycles: RSS %ld -> %ld kB, threads %ld -> %ld, fds %d -> %d\n",
+                  cycles, rss0, rss, threads0, threads, fds0, fds);
+    assert_int_equal(iso_display_clients(d), 0);
+    assert_int_equal(fds, fds0);
+    assert_int_equal(threads, threads0);
+    /* ASan and valgrind hold freed blocks back (quarantine, freelist), so
+     * there RSS grows by design; their leak checks stand in for the bound. */
+    if (under_memory_checker())
+        print_message("(RSS bound not checked under ASan or valgrind)\n");
+    else
+        assert_true(rss - rss0 < 2048);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
+/* ---- (e) a real browser ------------------------------------------------- */
 
 typedef struct publisher {
     iso_display *d;
@@ -597,6 +1261,14 @@ int main(void)
         cmocka_unit_test(ply_frames_round_trip_exactly),
         cmocka_unit_test(server_serves_page_and_streams_frames),
         cmocka_unit_test(stalled_browser_never_blocks_publish),
+        cmocka_unit_test(slow_viewer_is_dropped_and_others_keep_up),
+        cmocka_unit_test(foreign_origin_and_host_are_refused),
+        cmocka_unit_test(only_get_and_head_are_served),
+        cmocka_unit_test(huge_client_frame_closes_without_allocating),
+        cmocka_unit_test(viewers_beyond_the_limit_are_refused_and_the_page_loads),
+        cmocka_unit_test(ipv6_loopback_serves),
+        cmocka_unit_test(remote_bind_needs_allow_remote),
+        cmocka_unit_test(connect_close_cycles_leave_nothing_behind),
         cmocka_unit_test(chromium_renders_live_page),
     };
     return cmocka_run_group_tests_name("display", t, NULL, NULL);
