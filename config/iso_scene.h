@@ -148,6 +148,7 @@ typedef struct iso_scene_display {
     int enabled;
     char host[ISO_SCENE_NAME_MAX]; /* default 127.0.0.1 */
     int port;                      /* default 8080 */
+    int allow_remote;              /* 1: a host beyond loopback may be bound (with a warning) */
     long snapshot_ticks[ISO_SCENE_MAX_SNAPSHOTS]; /* PNG snapshots at these ticks */
     int n_snapshots;
     char snapshot_dir[ISO_SCENE_PATH_MAX];

@@ -1140,11 +1140,12 @@ static int parse_devices(sctx *c, fnode *n)
 
 static int parse_display(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"host", "port", "snapshot_ticks", "snapshot_dir", NULL};
+    static const char *const keys[] = {"host",         "port",         "allow_remote",
+                                       "snapshot_ticks", "snapshot_dir", NULL};
     iso_scene_display *d = &c->s->display;
     int rc;
     fnode *v;
-    if ((rc = want_map(c, n, "sinks.display", "a mapping (host, port, snapshot_ticks, snapshot_dir)")) ||
+    if ((rc = want_map(c, n, "sinks.display", "a mapping (host, port, allow_remote, snapshot_ticks, snapshot_dir)")) ||
         (rc = check_keys(c, n, "sinks.display", keys)))
         return rc;
     d->enabled = 1;
@@ -1152,6 +1153,9 @@ static int parse_display(sctx *c, fnode *n)
         (rc = to_string(c, v, "sinks.display.host", d->host, sizeof d->host)))
         return rc;
     if ((v = get(n, "port")) && (rc = to_int(c, v, "sinks.display.port", 1, 65535, &d->port)))
+        return rc;
+    if ((v = get(n, "allow_remote")) &&
+        (rc = to_bool(c, v, "sinks.display.allow_remote", &d->allow_remote)))
         return rc;
     if ((v = get(n, "snapshot_dir"))) {
         char name[ISO_SCENE_PATH_MAX];

@@ -22,6 +22,12 @@ struct iso_loop_sinks {
     long frames_sent; /* kept when the display closes */
 };
 
+static void display_notice(void *ctx, const char *line)
+{
+    iso_loop *l = ctx;
+    fprintf(l->log, "isoshape %s: live view: %s\n", l->cmd, line);
+}
+
 static int open_display(iso_loop *l, iso_err *err)
 {
     const iso_scene_display *d = &l->sc->display;
@@ -34,6 +40,9 @@ static int open_display(iso_loop *l, iso_err *err)
     o.port = l->o.port >= 0 ? l->o.port : (d->port ? d->port : 8080);
     o.mesh = l->sc->mesh;
     o.regions = &l->sc->regions;
+    o.allow_remote = d->allow_remote;
+    o.notice = display_notice;
+    o.notice_ctx = l;
     int rc = iso_display_create(&o, &l->sinks->display, err);
     if (rc == ISO_EIO && o.port != 0 && l->o.port < 0) {
         /* the scene's port is taken (another run, another server): any free
@@ -50,8 +59,10 @@ static int open_display(iso_loop *l, iso_err *err)
     }
     if (rc != ISO_OK)
         return rc;
-    fprintf(l->log, "isoshape run: live view on http://%s:%d/\n", o.host ? o.host : "127.0.0.1",
-            iso_display_port(l->sinks->display));
+    const char *host = o.host ? o.host : "127.0.0.1";
+    int v6 = strchr(host, ':') != NULL && host[0] != '[';
+    fprintf(l->log, "isoshape %s: live view on http://%s%s%s:%d/\n", l->cmd, v6 ? "[" : "", host,
+            v6 ? "]" : "", iso_display_port(l->sinks->display));
     return ISO_OK;
 }
 
@@ -75,11 +86,15 @@ static int open_actuators(iso_loop *l, iso_err *err)
     iso_act_channel ch[ISO_ACT_MAX_CHANNELS];
     for (int i = 0; i < a->n_ch; i++) {
         const iso_scene_channel *c = &a->ch[i];
-        ch[i] = (iso_act_channel){c->channel, c->vertex,
+        ch[i] = (iso_act_channel){c->channel,
+                                  c->vertex,
                                   c->region == ISO_SCENE_REGION_FIXED  ? ISO_ACT_REGION_FIXED
                                   : c->region == ISO_SCENE_REGION_NONE ? ISO_ACT_REGION_NONE
                                                                        : c->region,
-                                  c->axis, c->min, c->max, c->scale};
+                                  c->axis,
+                                  c->min,
+                                  c->max,
+                                  c->scale};
     }
     iso_act_link_spec link;
     memset(&link, 0, sizeof link);
@@ -179,8 +194,8 @@ static int close_actuators(struct iso_loop_sinks *k, iso_err *err)
     double safe_ms = 0;
     int rc = iso_actuators_safe_stop(k->act, ISO_LOOP_SAFE_STOP_MS, &safe_ms, err);
     if (rc == ISO_OK)
-        snprintf(k->act_stop, sizeof k->act_stop, "safe state reported %.0f ms after the last setpoints",
-                 safe_ms);
+        snprintf(k->act_stop, sizeof k->act_stop,
+                 "safe state reported %.0f ms after the last setpoints", safe_ms);
     else
         snprintf(k->act_stop, sizeof k->act_stop, "safe state NOT confirmed: %s", err->msg);
     iso_actuators_format_stats(k->act, k->act_line, sizeof k->act_line);
