@@ -5,13 +5,14 @@
  * second Ctrl-C kills at once. */
 #include "internal.h"
 
+#include <errno.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
 
-#include "iso_snapshot.h"
 #include "iso_loop.h"
+#include "iso_snapshot.h"
 
 int iso_cli__run_scene(int argc, char **argv);
 
@@ -19,7 +20,7 @@ int iso_cli__run_scene(int argc, char **argv);
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig)
 {
-    g_stop = 1;
+    g_stop = sig;
     signal(sig, SIG_DFL); /* a second one ends the process */
 }
 
@@ -48,7 +49,12 @@ static void usage(void)
            "  --out FILE         write the final mesh (OFF, OBJ or PLY by extension)\n"
            "  --png FILE         write a picture of the final mesh, coloured by distortion\n"
            "  --stats-json FILE  write the summary as JSON\n"
-           "  --quiet            no status line and no summary\n");
+           "  --quiet            no status line and no summary\n"
+           "\n"
+           "  Output files are written whole or not at all (a temporary name, then a\n"
+           "  rename), and their folders are checked before the run starts. Exit status:\n"
+           "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
+           "  the run (after a clean shutdown: files written, actuators safe).\n");
 }
 
 typedef struct run_args {
@@ -136,8 +142,10 @@ static int parse(int argc, char **argv, run_args *a)
                     a->abm = m;
             if (a->abm >= 0)
                 continue;
-            iso_cli__fail(cmd, "--abm %s: use pece (two field evaluations a step, the paper's) or "
-                               "pec (one).", v);
+            iso_cli__fail(cmd,
+                          "--abm %s: use pece (two field evaluations a step, the paper's) or "
+                          "pec (one).",
+                          v);
             return 2;
         }
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--assembly", &v)) != 0) {
@@ -167,10 +175,54 @@ static int parse(int argc, char **argv, run_args *a)
         a->scene = argv[i];
     }
     if (!a->scene) {
-        iso_cli__fail(cmd, "missing SCENE (usage: isoshape run SCENE; scenes are in config/scenes).");
+        iso_cli__fail(cmd,
+                      "missing SCENE (usage: isoshape run SCENE; scenes are in config/scenes).");
         return 2;
     }
     a->lo.status_line = !a->quiet && isatty(STDERR_FILENO);
+    return 0;
+}
+
+/* An output's folder must exist and be writable before a long run starts. */
+static int check_output(const char *opt, const char *path)
+{
+    char dir[ISO_CLI_PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (slash == dir)
+        dir[1] = 0;
+    else if (slash)
+        *slash = 0;
+    else
+        snprintf(dir, sizeof dir, ".");
+    if (access(dir, W_OK) != 0) {
+        iso_cli__fail("run", "%s %s: cannot write in %s: %s", opt, path, dir, strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+/* The temporary name beside path, extension kept (the format follows it). */
+static void temp_name(const char *path, char *tmp, size_t cap)
+{
+    const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
+    if (!dot || (slash && dot < slash))
+        dot = path + strlen(path);
+    snprintf(tmp, cap, "%.*s.part-%ld%s", (int)(dot - path), path, (long)getpid(), dot);
+}
+
+/* Renames tmp to path after a good write; removes it after a bad one. */
+static int commit(const char *opt, const char *tmp, const char *path, int ok)
+{
+    if (!ok) {
+        unlink(tmp);
+        return 1;
+    }
+    if (rename(tmp, path) != 0) {
+        iso_cli__fail("run", "%s %s: %s", opt, path, strerror(errno));
+        unlink(tmp);
+        return 1;
+    }
     return 0;
 }
 
@@ -187,30 +239,37 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     iso_loop_get_summary(l, &s);
     if (!a->quiet)
         iso_loop_print_summary(&s, sc, stdout);
+    char tmp[ISO_CLI_PATH_MAX + 64];
     if (a->out) {
         iso_err_clear(&err);
-        if (iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), a->out, ISO_MESH_FMT_AUTO,
-                          &err) != ISO_OK) {
-            iso_cli__fail("run", "--out: %s", err.msg);
+        temp_name(a->out, tmp, sizeof tmp);
+        int ok = iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), tmp, ISO_MESH_FMT_AUTO,
+                               &err) == ISO_OK;
+        if (!ok)
+            iso_cli__fail("run", "--out %s: %s", a->out, err.msg);
+        if (commit("--out", tmp, a->out, ok))
             status = 1;
-        }
     }
     if (a->png) {
         iso_err_clear(&err);
-        if (iso_snapshot_png(iso_loop_mesh(l), iso_loop_positions(l), &sc->regions, a->png, 960,
-                             720, NULL, &err) != ISO_OK) {
-            iso_cli__fail("run", "--png: %s", err.msg);
+        temp_name(a->png, tmp, sizeof tmp);
+        int ok = iso_snapshot_png(iso_loop_mesh(l), iso_loop_positions(l), &sc->regions, tmp, 960,
+                                  720, NULL, &err) == ISO_OK;
+        if (!ok)
+            iso_cli__fail("run", "--png %s: %s", a->png, err.msg);
+        if (commit("--png", tmp, a->png, ok))
             status = 1;
-        } else if (!a->quiet) {
+        else if (!a->quiet)
             printf("  picture     %s\n", a->png);
-        }
     }
     if (a->json) {
         iso_err_clear(&err);
-        if (iso_loop_write_json(&s, sc, a->json, &err) != ISO_OK) {
-            iso_cli__fail("run", "%s", err.msg);
+        temp_name(a->json, tmp, sizeof tmp);
+        int ok = iso_loop_write_json(&s, sc, tmp, &err) == ISO_OK;
+        if (!ok)
+            iso_cli__fail("run", "--stats-json %s: %s", a->json, err.msg);
+        if (commit("--stats-json", tmp, a->json, ok))
             status = 1;
-        }
     }
     return status;
 }
@@ -222,6 +281,9 @@ int iso_cli__run_scene(int argc, char **argv)
     int r = parse(argc, argv, &a);
     if (r != 0)
         return r == 1 ? 0 : 2;
+    if ((a.out && check_output("--out", a.out)) || (a.png && check_output("--png", a.png)) ||
+        (a.json && check_output("--stats-json", a.json)))
+        return 1;
     iso_scene *sc = NULL;
     if (iso_cli__scene_load("run", a.scene, &sc) != 0)
         return 1;
@@ -247,10 +309,12 @@ int iso_cli__run_scene(int argc, char **argv)
         iso_cli__fail("run", "%s", err.msg);
         status = 1;
     }
-    if (g_stop)
-        fprintf(stderr, "isoshape run: stopped by a signal; shutting down cleanly\n");
+    int sig = g_stop;
+    if (sig)
+        fprintf(stderr, "isoshape run: stopped by %s; shutting down cleanly\n",
+                sig == SIGINT ? "SIGINT" : "SIGTERM");
     status = finish(l, sc, &a, status);
     iso_loop_destroy(l);
     iso_scene_destroy(sc);
-    return status;
+    return status == 0 && sig ? 128 + sig : status;
 }

@@ -4,10 +4,18 @@
  *   isoshape field    one field solve at the rest pose
  *   isoshape metrics  distortion between two meshes
  *   isoshape bench    the four benchmark problems, timed against this machine's limits
- *   isoshape run      a scene in real time (controller/loop.h)
- *   isoshape --version */
+ *   isoshape run      a scene in real time (controller/iso_loop.h)
+ *   isoshape --version
+ *
+ * Exits: 0 done, 1 failed, 2 a usage error; a run stopped by SIGINT or
+ * SIGTERM exits 128 + the signal (130, 143) after shutting down cleanly.
+ * SIGPIPE is ignored: a write to a closed pipe (isoshape ... | head) is
+ * one error on stderr and exit status 1, the same with or without the
+ * display's sockets. */
 #include "internal.h"
 
+#include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -39,10 +47,30 @@ int iso_cli__record(int argc, char **argv);
 int iso_cli__replay(int argc, char **argv);
 int iso_cli__inspect(int argc, char **argv);
 int iso_cli__devices(int argc, char **argv);
-int iso_cli__check(int argc, char **argv); /* controller/cmd_check.c */
-int iso_cli__run_scene(int argc, char **argv);   /* controller/cmd_run.c */
+int iso_cli__check(int argc, char **argv);     /* controller/cmd_check.c */
+int iso_cli__run_scene(int argc, char **argv); /* controller/cmd_run.c */
+
+/* The subcommand's status, then stdout's: output lost to a closed pipe or
+ * a full disk is an error, said once. */
+static int finish(int status)
+{
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        int e = errno;
+        fprintf(stderr, "isoshape: standard output: %s\n", strerror(e ? e : EIO));
+        return status ? status : 1;
+    }
+    return status;
+}
+
+static int dispatch(int argc, char **argv);
 
 int main(int argc, char **argv)
+{
+    signal(SIGPIPE, SIG_IGN); /* EPIPE from write() instead of a silent death */
+    return finish(dispatch(argc, argv));
+}
+
+static int dispatch(int argc, char **argv)
 {
     iso_cli__tune_blas(argv);
     if (argc < 2) {
