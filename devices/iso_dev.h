@@ -94,6 +94,9 @@ struct iso_dev_source {
     iso_dev_info info;
     int multiplexed; /* 1: chunks carry their own source index (replay) */
     void *impl;      /* the backend's private struct */
+    /* For people, not recorded: what else says which device this is (a HID
+     * product name, the socket spacenavd answered on); "" if nothing. */
+    char detail[ISO_DEV_NAME_MAX];
 };
 
 int iso_dev_source_fd(iso_dev_source *s);
@@ -140,7 +143,12 @@ ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_de
 /* hidapi (hidraw): path as hidapi enumerates it ("/dev/hidraw3"), or NULL
  * for the first known 3D mouse. */
 ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
-/* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. */
+/* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. The
+ * socket is found as libspnav finds it: $SPNAV_SOCKET, then `socket =` in
+ * /etc/spnavrc, then /var/run/spnav.sock (the first that accepts; it goes
+ * into detail). When the daemon closes the connection (stopped, killed,
+ * restarted) read reports the source gone, so the hub emits GONE and
+ * retries; libspnav itself would only see "no events". */
 ISO_NODISCARD int iso_dev_spnav_open(iso_dev_source **out, iso_err *err);
 /* libserialport: a real serial adapter by name ("/dev/ttyUSB0"). */
 ISO_NODISCARD int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out,
