@@ -141,7 +141,18 @@ typedef struct iso_scene_device {
     uint16_t vid, pid;
     iso_dev_gpio_opts gpio;        /* GPIOD; gpio.chip points at `chip` */
     char chip[ISO_SCENE_NAME_MAX];
+    /* TTY, TCP, SERIALPORT, REPLAY: a twist stream's stale time in ms (key
+     * `stale_ms`): this long without a twist sample and its twist is zero
+     * (iso_dev_map_set_stale). Other kinds hold the default, unused. */
+    int stale_ms;
 } iso_scene_device;
+#define ISO_SCENE_STALE_MS_DEFAULT 100 /* = ISO_DEV_STALE_DEFAULT_NS */
+#define ISO_SCENE_STALE_MS_MIN 1       /* = ISO_DEV_STALE_MIN_NS */
+#define ISO_SCENE_STALE_MS_MAX 10000   /* = ISO_DEV_STALE_MAX_NS */
+_Static_assert(ISO_SCENE_STALE_MS_DEFAULT * 1000000LL == ISO_DEV_STALE_DEFAULT_NS &&
+                   ISO_SCENE_STALE_MS_MIN * 1000000LL == ISO_DEV_STALE_MIN_NS &&
+                   ISO_SCENE_STALE_MS_MAX * 1000000LL == ISO_DEV_STALE_MAX_NS,
+               "the scene's stale_ms range is the devices layer's");
 
 /* ---- sinks ----------------------------------------------------------------- */
 typedef struct iso_scene_display {

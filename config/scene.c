@@ -992,17 +992,17 @@ static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
 {
     static const char *const all[] = {"name", "kind", "path", "address", "port", "baud", "vid",
                                       "pid", "chip", "clutch_line", "estop_line", "pulse_line",
-                                      "active_low", "debounce_us", "file", NULL};
+                                      "active_low", "debounce_us", "file", "stale_ms", NULL};
     static const char *const per[][12] = {
         {NULL},
         {"name", "kind", "path", "vid", "pid", NULL},
         {"name", "kind", NULL},
-        {"name", "kind", "path", "baud", NULL},
-        {"name", "kind", "address", NULL},
-        {"name", "kind", "port", "baud", NULL},
+        {"name", "kind", "path", "baud", "stale_ms", NULL},
+        {"name", "kind", "address", "stale_ms", NULL},
+        {"name", "kind", "port", "baud", "stale_ms", NULL},
         {"name", "kind", "chip", "clutch_line", "estop_line", "pulse_line", "active_low",
          "debounce_us", NULL},
-        {"name", "kind", "file", NULL},
+        {"name", "kind", "file", "stale_ms", NULL},
     };
     int rc;
     char sub[KEY_MAX];
@@ -1019,11 +1019,24 @@ static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
                       &d->backend)))
         return rc;
     d->backend += 1;
+    fnode *v;
+    /* Only a stream of twist samples can go stale; a 3D mouse reports the
+     * state of its cap, and one held still may send nothing new. */
+    if ((v = get(n, "stale_ms")) &&
+        (d->backend == ISO_SCENE_DEV_HIDAPI || d->backend == ISO_SCENE_DEV_SPNAV ||
+         d->backend == ISO_SCENE_DEV_GPIOD))
+        return fail(c, v, ISO_EPARSE, join(sub, sizeof sub, key, "stale_ms"),
+                    "only twist streams time out (kinds tty, tcp, serialport, replay); a %s device "
+                    "reports a state and is not timed out",
+                    backend_names[d->backend]);
     /* Keys that belong to another kind are errors too: a tty's "address"
      * would otherwise be silently ignored. */
     if ((rc = check_keys(c, n, key, per[d->backend])))
         return rc;
-    fnode *v;
+    d->stale_ms = ISO_SCENE_STALE_MS_DEFAULT;
+    if (v && (rc = to_int(c, v, join(sub, sizeof sub, key, "stale_ms"), ISO_SCENE_STALE_MS_MIN,
+                          ISO_SCENE_STALE_MS_MAX, &d->stale_ms)))
+        return rc;
     long l;
     switch (d->backend) {
     case ISO_SCENE_DEV_HIDAPI:

@@ -65,6 +65,7 @@ int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
     if (hid_init() != 0)
         return iso_err_set(err, ISO_EIO, -1, "hidapi: cannot initialise");
     char found[ISO_DEV_NAME_MAX] = "";
+    char product[ISO_DEV_NAME_MAX] = "";
     uint16_t vid = 0, pid = 0;
     struct hid_device_info *all = hid_enumerate(0, 0);
     for (struct hid_device_info *d = all; d; d = d->next) {
@@ -74,6 +75,10 @@ int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
             snprintf(found, sizeof found, "%s", d->path);
             vid = d->vendor_id;
             pid = d->product_id;
+            /* %ls fails on a name the C locale cannot spell: keep none. */
+            if (!d->product_string ||
+                snprintf(product, sizeof product, "%ls", d->product_string) < 0)
+                product[0] = '\0';
             break;
         }
     }
@@ -104,6 +109,7 @@ int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
     s->info.vid = vid;
     s->info.pid = pid;
     snprintf(s->info.name, sizeof s->info.name, "%s", p);
+    memcpy(s->detail, product, sizeof s->detail);
     read_descriptor(&s->info);
     *out = s;
     return ISO_OK;

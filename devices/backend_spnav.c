@@ -2,9 +2,18 @@
  * the usual way Linux users run one. libspnav hands out events, not bytes,
  * so this backend encodes them (RECORDING.md: 'M' and 'B' records) and the
  * spnav decoder reads them back: recordings and replays stay byte-based.
- * libspnav keeps one connection per process: open one spnav source. */
+ * libspnav keeps one connection per process: open one spnav source.
+ *
+ * libspnav (1.0 and 1.1) does not notice a daemon that goes away: its read
+ * of 0 bytes at EOF looks like "no event", and spnav_fd() stays valid. So
+ * this backend watches the socket itself (a peek for EOF before each event)
+ * and reports the source gone; the hub then retries as for an unplugged
+ * HID device. */
 #include "internal.h"
 
+#include <ctype.h>
+#include <errno.h>
+#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,19 +24,76 @@
 #ifdef ISO_DEV_WITH_SPNAV
 #include <spnav.h>
 
-/* spacenavd's socket (SOCK_NAME in spacenavd and libspnav) accepts a connection. */
-static int daemon_listens(void)
+#define SPNAV_DEFAULT_SOCKET "/var/run/spnav.sock"
+
+/* 1 if something accepts a connection on the unix socket at path. */
+static int listens_at(const char *path)
 {
+    struct sockaddr_un a;
+    if (!path || !path[0] || strlen(path) >= sizeof a.sun_path)
+        return 0;
     int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
     if (fd < 0)
         return 0;
-    struct sockaddr_un a;
     memset(&a, 0, sizeof a);
     a.sun_family = AF_UNIX;
-    snprintf(a.sun_path, sizeof a.sun_path, "%s", "/var/run/spnav.sock");
+    memcpy(a.sun_path, path, strlen(path) + 1);
     int ok = connect(fd, (struct sockaddr *)&a, sizeof a) == 0;
     close(fd);
     return ok;
+}
+
+/* The `socket = PATH` line of /etc/spnavrc, the daemon's own setting. */
+static int spnavrc_socket(char *buf, size_t cap)
+{
+    FILE *f = fopen("/etc/spnavrc", "r");
+    if (!f)
+        return 0;
+    char line[512];
+    int found = 0;
+    while (!found && fgets(line, sizeof line, f)) {
+        char *p = line;
+        while (isspace((unsigned char)*p))
+            p++;
+        if (strncmp(p, "socket", 6) != 0 || !(p = strchr(p, '=')))
+            continue;
+        p++;
+        while (isspace((unsigned char)*p))
+            p++;
+        size_t n = strlen(p);
+        while (n && isspace((unsigned char)p[n - 1]))
+            p[--n] = '\0';
+        if (n && n < cap) {
+            memcpy(buf, p, n + 1);
+            found = 1;
+        }
+    }
+    fclose(f);
+    return found;
+}
+
+/* The socket libspnav will connect to, found the way it looks (SPNAV_SOCKET,
+ * then `socket =` in /etc/spnavrc, then the default), each candidate taken
+ * only if a daemon accepts on it. Returns 1 and that path, or 0 and the
+ * first candidate (for the message). */
+static int daemon_socket(char path[ISO_DEV_NAME_MAX])
+{
+    char cand[3][ISO_DEV_NAME_MAX];
+    int n = 0;
+    const char *env = getenv("SPNAV_SOCKET");
+    if (env && env[0] && strlen(env) < ISO_DEV_NAME_MAX)
+        memcpy(cand[n++], env, strlen(env) + 1);
+    if (spnavrc_socket(cand[n], sizeof cand[n]))
+        n++;
+    memcpy(cand[n++], SPNAV_DEFAULT_SOCKET, sizeof SPNAV_DEFAULT_SOCKET);
+    for (int i = 0; i < n; i++) {
+        if (listens_at(cand[i])) {
+            memcpy(path, cand[i], ISO_DEV_NAME_MAX);
+            return 1;
+        }
+    }
+    memcpy(path, cand[0], ISO_DEV_NAME_MAX);
+    return 0;
 }
 
 static int spnav_fd_of(iso_dev_source *s)
@@ -46,12 +112,46 @@ static void put16(uint8_t *p, int v)
     p[1] = (uint8_t)(((unsigned)v >> 8) & 0xff);
 }
 
+/* Is there input on the daemon's socket, and is it data or the end?
+ * Returns 1 data, 0 nothing now, -1 the daemon closed or the socket failed
+ * (why says which). The peek leaves the bytes for libspnav to read. */
+static int socket_state(int fd, const char **why)
+{
+    if (fd < 0) {
+        *why = "the connection was closed";
+        return -1;
+    }
+    struct pollfd p = {fd, POLLIN, 0};
+    if (poll(&p, 1, 0) <= 0)
+        return 0;
+    if (p.revents & POLLNVAL) {
+        *why = "the connection was closed";
+        return -1;
+    }
+    char b;
+    ssize_t k = recv(fd, &b, 1, MSG_PEEK | MSG_DONTWAIT);
+    if (k > 0)
+        return 1;
+    if (k == 0) {
+        *why = "the daemon closed the connection (stopped or restarted?)";
+        return -1;
+    }
+    if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)
+        return 0;
+    *why = strerror(errno);
+    return -1;
+}
+
 static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
 {
     (void)until;
     out->len = 0;
+    const char *why = NULL;
     spnav_event ev;
     while ((unsigned)out->len + 15u <= ISO_DEV_CHUNK_MAX) {
+        int st = socket_state(spnav_fd(), &why);
+        if (st <= 0)
+            break;
         int type = spnav_poll_event(&ev);
         if (type == 0)
             break;
@@ -71,13 +171,14 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
             out->len += 3;
         }
     }
+    /* Events that came before the end are handed out first; the end is
+     * still there at the next read. */
     if (out->len) {
         out->t_ns = iso_dev_now_ns();
         return 1;
     }
-    if (spnav_fd() < 0)
-        return iso_err_set(err, ISO_EIO, -1, "spacenavd: the connection was lost");
-    (void)s;
+    if (why)
+        return iso_err_set(err, ISO_EIO, -1, "spacenavd at %s: %s", s->detail, why);
     return 0;
 }
 
@@ -95,10 +196,13 @@ int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
     *out = NULL;
     /* Ask the socket first: libspnav 1.0 leaks a little on every failed
      * spnav_open, and a loop retrying an absent daemon would pile it up. */
-    if (!daemon_listens() || spnav_open() == -1) {
+    char path[ISO_DEV_NAME_MAX];
+    if (!daemon_socket(path) || spnav_open() == -1) {
         return iso_err_set(err, ISO_EIO, -1,
-                           "spacenavd is not running (no socket to connect to): start it, or "
-                           "read the 3D mouse through hidapi");
+                           "spacenavd is not running (nothing accepts on %s; SPNAV_SOCKET or "
+                           "/etc/spnavrc choose another socket): start it, or read the 3D mouse "
+                           "through hidapi",
+                           path);
     }
     iso_dev_source *s = calloc(1, sizeof *s);
     if (!s) {
@@ -108,13 +212,15 @@ int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
     s->ops = &spnav_ops;
     s->info.kind = ISO_DEV_KIND_SPNAV;
     snprintf(s->info.name, sizeof s->info.name, "spacenavd");
+    snprintf(s->detail, sizeof s->detail, "%s", path);
     *out = s;
     return ISO_OK;
 }
 
 int iso_dev__spnav_running(void)
 {
-    return daemon_listens();
+    char path[ISO_DEV_NAME_MAX];
+    return daemon_socket(path);
 }
 
 #else

@@ -203,6 +203,7 @@ static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
         iso_fb_sample s;
         if (iso_fb_sample_unpack(&s, v.payload, v.len) != 0) {
             d->n.bad_frames++;
+            d->n.bad_payloads++;
             continue;
         }
         d->n.reports++;
@@ -217,6 +218,28 @@ static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
     return n;
 }
 #endif
+
+void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out)
+{
+    memset(out, 0, sizeof *out);
+#ifdef ISO_DEV_HAVE_FB
+    if (d->kind != ISO_DEV_KIND_SERIAL)
+        return;
+    const iso_fb_counters *n = &((const iso_fb_parser *)(const void *)d->fb)->n;
+    out->too_long = n->too_long;
+    out->bad_cobs = n->bad_cobs;
+    out->too_short = n->too_short;
+    out->bad_crc = n->bad_crc;
+    out->bad_version = n->bad_version;
+    out->bad_length = n->bad_length;
+    out->unknown_type = n->unknown_type;
+    out->duplicate = n->duplicate;
+    out->out_of_order = n->out_of_order;
+    out->seq_gaps = n->seq_gaps;
+#else
+    (void)d;
+#endif
+}
 
 /* ---- GPIO edges and their debounce ------------------------------------- */
 /* libgpiod v1 has no debounce of its own. An edge that comes at least the
@@ -298,8 +321,13 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
         for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++)
             d->gpio[r].have = 0;
 #ifdef ISO_DEV_HAVE_FB
-        if (d->kind == ISO_DEV_KIND_SERIAL)
-            iso_fb_parser_init((iso_fb_parser *)(void *)d->fb);
+        if (d->kind == ISO_DEV_KIND_SERIAL) {
+            /* A new link: no half frame, no sequence; the counts go on. */
+            iso_fb_parser *fb = (iso_fb_parser *)(void *)d->fb;
+            iso_fb_counters keep = fb->n;
+            iso_fb_parser_init(fb);
+            fb->n = keep;
+        }
 #endif
         emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
         return n;

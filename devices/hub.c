@@ -21,6 +21,11 @@ typedef struct hub_src {
     void *reopen_ctx;
     int64_t next_try;
     iso_dev_decoder dec;
+    char detail[ISO_DEV_NAME_MAX]; /* the source's detail when it was last opened */
+    uint8_t present;               /* 0 while gone */
+    uint8_t stale;                 /* its twist counted zero in the last tick */
+    int64_t quiet_from;            /* stream time of the last twist before it went stale */
+    uint32_t events, gone, back, stale_count;
 } hub_src;
 
 struct iso_dev_hub {
@@ -88,6 +93,7 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
         }
         for (size_t i = 0; i < r->n_sources; i++) {
             h->src[i].info = r->infos[i];
+            h->src[i].present = 1;
             int rc = iso_dev_decoder_init(&h->src[i].dec, &r->infos[i], (uint8_t)i, err);
             if (rc != ISO_OK) {
                 iso_dev_source_close(s);
@@ -114,6 +120,8 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
         return rc;
     }
     x->s = s;
+    x->present = 1;
+    memcpy(x->detail, s->detail, sizeof x->detail);
     x->reopen = reopen;
     x->reopen_ctx = reopen_ctx;
     h->n++;
@@ -132,6 +140,58 @@ const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i)
 {
     return i < h->n ? &h->src[i].dec : NULL;
 }
+int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stats *out)
+{
+    memset(out, 0, sizeof *out);
+    if (i >= h->n)
+        return ISO_EINVAL;
+    const hub_src *x = &h->src[i];
+    out->dec = x->dec.n;
+    iso_dev_decoder_drops(&x->dec, &out->drops);
+    out->events = x->events;
+    out->gone = x->gone;
+    out->back = x->back;
+    out->stale = x->stale_count;
+    out->present = x->present;
+    out->is_stale = x->stale;
+    return ISO_OK;
+}
+
+/* "hid /dev/hidraw3 (256f:c635 SpaceMouse Compact)", "spnav spacenavd
+ * (socket /var/run/spnav.sock)", "serial /dev/ttyACM0 (115200 8N1)". */
+int iso_dev_hub_describe(const iso_dev_hub *h, size_t i, char *buf, size_t cap)
+{
+    if (i >= h->n) {
+        if (cap)
+            buf[0] = '\0';
+        return ISO_EINVAL;
+    }
+    const hub_src *x = &h->src[i];
+    const iso_dev_info *f = &x->info;
+    char more[3][ISO_DEV_NAME_MAX + 16];
+    int n = 0;
+    if (f->vid || f->pid)
+        snprintf(more[n++], sizeof more[0], "%04x:%04x%s%s", f->vid, f->pid,
+                 x->detail[0] && f->kind == ISO_DEV_KIND_HID ? " " : "",
+                 f->kind == ISO_DEV_KIND_HID ? x->detail : "");
+    else if (x->detail[0] && f->kind == ISO_DEV_KIND_HID)
+        snprintf(more[n++], sizeof more[0], "%s", x->detail);
+    if (f->kind == ISO_DEV_KIND_SPNAV && x->detail[0])
+        snprintf(more[n++], sizeof more[0], "socket %s", x->detail);
+    if (f->baud)
+        snprintf(more[n++], sizeof more[0], "%u %u%c%u", f->baud, f->data_bits,
+                 f->parity ? f->parity : 'N', f->stop_bits);
+    else if (f->kind == ISO_DEV_KIND_GPIO)
+        snprintf(more[n++], sizeof more[0], "debounce %u us", f->debounce_us);
+    if (h->mux && n < 3)
+        snprintf(more[n++], sizeof more[0], "replayed");
+    int len = snprintf(buf, cap, "%s %s", iso_dev_kind_name(f->kind), f->name);
+    for (int k = 0; k < n && len >= 0 && (size_t)len < cap; k++)
+        len += snprintf(buf + len, cap - (size_t)len, "%s%s%s", k ? ", " : " (", more[k],
+                        k == n - 1 ? ")" : "");
+    return ISO_OK;
+}
+
 void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns)
 {
     h->retry_ns = retry_ns;
@@ -179,7 +239,17 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
         if (rc != ISO_OK)
             return rc;
     }
-    h->nev += iso_dev_decode(&h->src[c->source].dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
+    hub_src *x = &h->src[c->source];
+    if (c->type == ISO_DEV_CHUNK_GONE) {
+        x->gone++;
+        x->present = 0;
+    } else if (c->type == ISO_DEV_CHUNK_BACK) {
+        x->back++;
+        x->present = 1;
+    }
+    size_t k = iso_dev_decode(&x->dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
+    x->events += (uint32_t)k;
+    h->nev += k;
     return ISO_OK;
 }
 
@@ -211,6 +281,7 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
             x->s = NULL;
             return ISO_OK;
         }
+        memcpy(x->detail, x->s->detail, sizeof x->detail);
         say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
         int rc = mark(h, i, ISO_DEV_CHUNK_BACK, now, err);
         if (rc != ISO_OK)
@@ -288,11 +359,38 @@ int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev, size_t 
     return rc;
 }
 
+/* One message when a source's twist stream goes quiet past its stale time
+ * and one when samples resume (not when it went away: GONE said so). The
+ * map decides on stream time, so the messages come in the same ticks when
+ * the recording is replayed. */
+static void watch_stale(iso_dev_hub *h, const iso_dev_map *m, const iso_dev_tick *out)
+{
+    for (size_t i = 0; i < h->n; i++) {
+        hub_src *x = &h->src[i];
+        uint32_t bit = (uint32_t)1 << i;
+        int stale = (out->stale & bit) != 0;
+        const char *kind = iso_dev_kind_name(x->info.kind);
+        if (stale && !x->stale) {
+            x->stale_count++;
+            x->quiet_from = m->src[i].t_twist;
+            say(h,
+                "%s %s: no twist sample for more than %g ms: its twist is zero until samples "
+                "resume",
+                kind, x->info.name, (double)m->stale_ns[i] / 1e6);
+        } else if (!stale && x->stale && !(out->gone & bit) && m->src[i].has_twist) {
+            say(h, "%s %s: twist samples resumed after %.0f ms without", kind, x->info.name,
+                (double)(m->src[i].t_twist - x->quiet_from) / 1e6);
+        }
+        x->stale = (uint8_t)stale;
+    }
+}
+
 int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
                      const iso_pose *poses, iso_dev_tick *out, iso_err *err)
 {
     int rc = drain_all(h, now_ns, err);
     iso_dev_map_tick(m, h->ev, h->nev, now_ns, dt_s, poses, out);
+    watch_stale(h, m, out);
     h->nev = 0;
     h->last_tick = now_ns;
     h->ticked = 1;

@@ -94,6 +94,9 @@ struct iso_dev_source {
     iso_dev_info info;
     int multiplexed; /* 1: chunks carry their own source index (replay) */
     void *impl;      /* the backend's private struct */
+    /* For people, not recorded: what else says which device this is (a HID
+     * product name, the socket spacenavd answered on); "" if nothing. */
+    char detail[ISO_DEV_NAME_MAX];
 };
 
 int iso_dev_source_fd(iso_dev_source *s);
@@ -140,7 +143,12 @@ ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_de
 /* hidapi (hidraw): path as hidapi enumerates it ("/dev/hidraw3"), or NULL
  * for the first known 3D mouse. */
 ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
-/* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. */
+/* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. The
+ * socket is found as libspnav finds it: $SPNAV_SOCKET, then `socket =` in
+ * /etc/spnavrc, then /var/run/spnav.sock (the first that accepts; it goes
+ * into detail). When the daemon closes the connection (stopped, killed,
+ * restarted) read reports the source gone, so the hub emits GONE and
+ * retries; libspnav itself would only see "no events". */
 ISO_NODISCARD int iso_dev_spnav_open(iso_dev_source **out, iso_err *err);
 /* libserialport: a real serial adapter by name ("/dev/ttyUSB0"). */
 ISO_NODISCARD int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out,
@@ -221,7 +229,17 @@ typedef struct iso_dev_counters {
     uint32_t bad_frames;    /* serial: COBS, CRC, length, version, sequence drops */
     uint32_t garbage;       /* bytes skipped outside any frame or pair */
     uint32_t bounces;       /* GPIO edges the debounce did not take at once */
+    uint32_t bad_payloads;  /* serial: HANDLE_SAMPLE frames whose payload does not unpack
+                               (counted in bad_frames too) */
 } iso_dev_counters;
+
+/* Serial: the frames the firmware bridge's parser dropped, by reason
+ * (firmware-bridge/PROTOCOL.md, "Receiver"), kept across reconnects. */
+typedef struct iso_dev_frame_drops {
+    uint32_t too_long, bad_cobs, too_short, bad_crc, bad_version, bad_length, unknown_type;
+    uint32_t duplicate, out_of_order;
+    uint32_t seq_gaps; /* frames missing between accepted ones (those are accepted) */
+} iso_dev_frame_drops;
 
 typedef struct iso_dev_gpio_line {
     uint8_t accepted, raw, have; /* debounced level, last edge's level, seen */
@@ -248,6 +266,8 @@ ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *i
  * ISO_DEV_EVENTS_PER_CHUNK is always enough). */
 #define ISO_DEV_EVENTS_PER_CHUNK 130u
 size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev, size_t cap);
+/* The serial parser's drops by reason; all zero for other kinds. */
+void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out);
 /* Time passes without a chunk: confirms GPIO levels that have been stable
  * for the debounce time. Returns the events written. */
 size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now_ns, iso_dev_event *ev, size_t cap);
@@ -305,14 +325,33 @@ typedef struct iso_dev_tick {
     uint32_t buttons;                     /* OR of every source's buttons */
     uint32_t actions;                     /* bit ISO_DEV_ACT_*: pressed during this tick */
     uint32_t gone;                        /* bit per source that is unplugged */
+    uint32_t stale;                       /* bit per source whose twist stream went quiet */
 } iso_dev_tick;
 
 typedef struct iso_dev_map_src { /* what one source last said */
     int16_t axes[6];
     uint32_t buttons;
     uint8_t has_pose, has_twist;
+    uint8_t stale;   /* 1: its twist is older than the stale time and counts as zero */
+    int64_t t_twist; /* stream time of its last twist sample */
     double v[6];
 } iso_dev_map_src;
+
+/* Twist streams (ISO_DEV_EV_TWIST: the serial/TCP bridge's HANDLE_SAMPLE
+ * twists) are velocity commands: a sender that goes quiet with the link
+ * still open must not leave its last twist driving the handle. Past the
+ * stale time since a source's last twist sample (measured on the ticks'
+ * now_ns, the stream time, never the wall clock, so a replay reproduces
+ * it) that source's twist counts as zero until the next sample. 100 ms is
+ * the firmware's own link watchdog and a usual robot-base command timeout.
+ * Pose streams hold their last pose (a pose is a target, not a rate). 3D
+ * mice (HID axes, spacenavd) are not timed out: their report is the state
+ * of the cap, and one held still at a deflection may send nothing new
+ * (spacenavd has a repeat option for exactly that); they return to rest
+ * with a report of zeros, and a lost mouse or daemon is GONE instead. */
+#define ISO_DEV_STALE_DEFAULT_NS 100000000LL
+#define ISO_DEV_STALE_MIN_NS 1000000LL     /* 1 ms */
+#define ISO_DEV_STALE_MAX_NS 10000000000LL /* 10 s */
 
 typedef struct iso_dev_map {
     iso_dev_map_opts o;
@@ -320,12 +359,19 @@ typedef struct iso_dev_map {
     uint8_t clutch, estop;
     uint32_t gone;
     iso_dev_map_src src[ISO_DEV_MAX_SOURCES];
+    int64_t stale_ns[ISO_DEV_MAX_SOURCES]; /* per source; ISO_DEV_STALE_DEFAULT_NS */
     /* Each handle's centre in rest coordinates (0 unless set): the point
      * device rotations turn about, carried along by the handle's pose. */
     double centre[ISO_DEV_MAX_HANDLES][3];
 } iso_dev_map;
 
 ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
+/* Sets source `source`'s stale time for twist streams (see above), in
+ * stream nanoseconds. ISO_EINVAL with a sentence for a source index past
+ * ISO_DEV_MAX_SOURCES or a time outside [ISO_DEV_STALE_MIN_NS,
+ * ISO_DEV_STALE_MAX_NS]. Set it after iso_dev_map_init (which sets every
+ * source to the default). */
+ISO_NODISCARD int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns, iso_err *err);
 /* Sets handle h's centre (rest coordinates): a twist of the device then
  * turns the handle about R c + p, where it is now, instead of about p. */
 void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);
@@ -430,6 +476,30 @@ ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reo
 size_t iso_dev_hub_sources(const iso_dev_hub *h);
 const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i);
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
+
+/* What the loop's summary and --stats-json report per source: counted
+ * since the source was added, across reconnects. */
+typedef struct iso_dev_source_stats {
+    iso_dev_counters dec;      /* the decoder's: chunks, reports, short, unknown, bad frames ... */
+    iso_dev_frame_drops drops; /* serial: bad frames by reason; zero for other kinds */
+    uint32_t events;           /* decoded events handed on to the mapping */
+    uint32_t gone, back;       /* times it went away, times it was opened again */
+    uint32_t stale;            /* times its twist stream went quiet past its stale time */
+    uint8_t present;           /* 1: open now (a replay: as recorded at this point) */
+    uint8_t is_stale;          /* 1: its twist counted zero in the last tick */
+} iso_dev_source_stats;
+/* Fills *out for source i. ISO_EINVAL (and *out zeroed) if i is not a
+ * source. The stale counts are kept by iso_dev_hub_tick. */
+int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stats *out);
+/* One line for people (the loop's start-up line), no newline: kind, name,
+ * then in parentheses what else identifies it, e.g.
+ *   hid /dev/hidraw3 (256f:c635 SpaceMouse Compact)
+ *   spnav spacenavd (socket /var/run/spnav.sock)
+ *   serial /dev/ttyACM0 (115200 8N1)         serial tcp:127.0.0.1:5760
+ *   gpio gpiochip0 (debounce 2000 us)        ... (replayed) for a replay.
+ * Truncated to cap (NUL-terminated when cap > 0). ISO_EINVAL and "" if i
+ * is not a source. */
+int iso_dev_hub_describe(const iso_dev_hub *h, size_t i, char *buf, size_t cap);
 void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns); /* default 500 ms */
 void iso_dev_hub_retry_now(iso_dev_hub *h);                   /* hotplug arrival */
 /* Records every chunk from now on (header: the current sources). */
@@ -441,7 +511,9 @@ ISO_NODISCARD int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err);
  * rest wait for the next call). Only a recording write error fails. */
 ISO_NODISCARD int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev, size_t cap,
                                     size_t *n, iso_err *err);
-/* drain + iso_dev_map_tick + a TICK record: what the real-time loop calls. */
+/* drain + iso_dev_map_tick + a TICK record: what the real-time loop calls.
+ * Also says (notify) when a source's twist stream goes stale and when it
+ * resumes, and counts it (iso_dev_hub_source_stats): use one map with it. */
 ISO_NODISCARD int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
                                    const iso_pose *poses, iso_dev_tick *out, iso_err *err);
 /* Replay: when the next tick is. The recording's next TICK record if it

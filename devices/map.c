@@ -60,6 +60,22 @@ int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err)
             return iso_err_set(err, ISO_EINVAL, -1, "device mapping: button %d action %d unknown",
                                b, o->button_action[b]);
     m->o = *o;
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
+        m->stale_ns[i] = ISO_DEV_STALE_DEFAULT_NS;
+    return ISO_OK;
+}
+
+int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns, iso_err *err)
+{
+    if (source < 0 || source >= (int)ISO_DEV_MAX_SOURCES)
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: source %d (must be 0 to %u)",
+                           source, ISO_DEV_MAX_SOURCES - 1);
+    if (stale_ns < ISO_DEV_STALE_MIN_NS || stale_ns > ISO_DEV_STALE_MAX_NS)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "device mapping: source %d stale time %.3f ms (must be %g to %g ms)",
+                           source, (double)stale_ns / 1e6, ISO_DEV_STALE_MIN_NS / 1e6,
+                           ISO_DEV_STALE_MAX_NS / 1e6);
+    m->stale_ns[source] = stale_ns;
     return ISO_OK;
 }
 
@@ -240,6 +256,7 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             memcpy(s->v, e->v, sizeof s->v);
             s->has_twist = 1;
             s->has_pose = 0;
+            s->t_twist = e->t_ns;
             break;
         case ISO_DEV_EV_GPIO:
             if (e->line == ISO_DEV_GPIO_ESTOP) {
@@ -258,6 +275,13 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
         case ISO_DEV_EV_BACK: m->gone &= ~bit; break;
         default: break;
         }
+    }
+    /* Strictly past the stale time: a sample exactly stale_ns old still counts. */
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
+        iso_dev_map_src *s = &m->src[i];
+        s->stale = s->has_twist && now_ns - s->t_twist > m->stale_ns[i];
+        if (s->stale)
+            out->stale |= (uint32_t)1 << i;
     }
     uint32_t buttons = 0;
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
@@ -278,7 +302,7 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         iso_twist x;
         const iso_dev_map_src *s = &m->src[i];
-        if (m->gone & ((uint32_t)1 << i))
+        if ((m->gone & ((uint32_t)1 << i)) || s->stale)
             continue;
         if (s->has_pose) {
             twist_toward(&m->o, s->v, g, dt_s, &x);

@@ -126,7 +126,7 @@ static void test_round_trip(void **state)
     int rc = load_text("rt.yaml",
                        "name: rt\n" BASE "devices:\n"
                        "  - {name: m, kind: tcp, address: 'localhost:4000'}\n"
-                       "  - {name: t, kind: tty, path: /dev/ttyUSB0, baud: 9600}\n"
+                       "  - {name: t, kind: tty, path: /dev/ttyUSB0, baud: 9600, stale_ms: 250}\n"
                        "regions:\n"
                        "  fixed: {beyond: {point: [0, 0, 1], normal: [0, 0, -1]}}\n"
                        "  handles:\n"
@@ -160,6 +160,8 @@ static void test_round_trip(void **state)
     assert_int_equal(s->n_devices, 2);
     assert_string_equal(s->devices[0].address, "localhost:4000");
     assert_int_equal(s->devices[1].baud, 9600);
+    assert_int_equal(s->devices[0].stale_ms, ISO_SCENE_STALE_MS_DEFAULT);
+    assert_int_equal(s->devices[1].stale_ms, 250);
     assert_int_equal(s->n_handles, 2);
     const iso_scene_driver *d = &s->handles[0].driver;
     assert_int_equal(d->kind, ISO_SCENE_DRIVE_DEVICE);
@@ -252,6 +254,23 @@ static void test_errors(void **state)
     expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EPARSE, "devices[0].address", "unknown key", NULL);
+    /* A twist stream's stale time: its range, and only on stream kinds. */
+    expect_error(BASE "devices: [{name: b, kind: tcp, address: 'h:1', stale_ms: 0}]\n"
+                      "regions:\n  sel: builtin\n" HANDLES,
+                 ISO_EINVAL, "bad.yaml:2:", "devices[0].stale_ms",
+                 "expected an integer in [1, 10000], found 0", NULL);
+    expect_error(BASE "devices:\n  - {name: b, kind: serialport, port: /dev/ttyS0,\n"
+                      "     stale_ms: 20000}\nregions:\n  sel: builtin\n" HANDLES,
+                 ISO_EINVAL, "bad.yaml:4:16:", "devices[0].stale_ms", "found 20000", NULL);
+    expect_error(BASE "devices: [{name: b, kind: tty, path: /dev/x, stale_ms: soon}]\n"
+                      "regions:\n  sel: builtin\n" HANDLES,
+                 ISO_EPARSE, "devices[0].stale_ms", "expected an integer, found 'soon'", NULL);
+    expect_error(BASE "devices: [{name: m, kind: spnav, stale_ms: 100}]\n"
+                      "regions:\n  sel: builtin\n" HANDLES,
+                 ISO_EPARSE, "bad.yaml:2:", "devices[0].stale_ms",
+                 "only twist streams time out (kinds tty, tcp, serialport, replay); a spnav "
+                 "device reports a state",
+                 NULL);
     /* An empty file. */
     expect_error("", ISO_EPARSE, "bad.yaml:1:1:", "empty", NULL);
 }

@@ -21,6 +21,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if (!s || s->n_handles < 1 || s->n_handles > ISO_SCENE_MAX_HANDLES || !(s->tick_hz > 0) ||
             !(s->solver.omega > 0 && s->solver.omega <= 1))
             abort();
+        for (int i = 0; i < s->n_devices; i++)
+            if (s->devices[i].stale_ms < ISO_SCENE_STALE_MS_MIN ||
+                s->devices[i].stale_ms > ISO_SCENE_STALE_MS_MAX)
+                abort();
         for (int h = 0; h < s->n_handles; h++) {
             const iso_scene_driver *d = &s->handles[h].driver;
             if (d->kind == ISO_SCENE_DRIVE_DEVICE && (d->device < 0 || d->device >= s->n_devices))

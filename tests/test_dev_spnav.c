@@ -1,0 +1,257 @@
+/* tests/test_dev_spnav.c -- the spacenavd backend through the real libspnav,
+ * against a small spacenavd stand-in on a unix socket in a temporary folder
+ * ($SPNAV_SOCKET points at it): events flow; the stand-in is killed and the
+ * hub says GONE once, at once; it is started again and the next retry
+ * brings the source BACK, events flowing again. */
+#define _DEFAULT_SOURCE /* mkdtemp, usleep */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+#include <errno.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "iso_dev.h"
+#include "testutil.h"
+
+#define MS 1000000LL
+
+/* ---- a spacenavd stand-in ------------------------------------------------ */
+/* What libspnav (1.0/1.1) expects of the daemon on its unix socket, as its
+ * protocol is documented (spacenavd's proto.h) and as libspnav behaves:
+ * the client first writes one native 32-bit word, 0x7faa5500 | version
+ * (REQ_TAG | REQ_CHANGE_PROTO); the daemon answers with the version it
+ * grants, in the same form (v1 here). Events then come as eight native
+ * int32: type (0 motion, 1 press, 2 release), then for motion x y z rx ry rz
+ * and the period in ms. A client that closes without asking (a probe
+ * whether anyone listens) is dropped. */
+enum { SPNAV_PROTO_REQ = 0x7faa5500, SPNAV_UEV_MOTION = 0 };
+
+static void standin_serve(int ls, int32_t tx)
+{
+    signal(SIGPIPE, SIG_IGN);
+    for (;;) {
+        int c = accept(ls, NULL, NULL);
+        if (c < 0)
+            continue;
+        struct pollfd p = {c, POLLIN, 0};
+        int32_t w = 0;
+        if (poll(&p, 1, 1000) != 1 || read(c, &w, sizeof w) != (ssize_t)sizeof w ||
+            ((uint32_t)w & 0xffffff00u) != SPNAV_PROTO_REQ) {
+            close(c);
+            continue;
+        }
+        w = SPNAV_PROTO_REQ | 1;
+        if (write(c, &w, sizeof w) != (ssize_t)sizeof w) {
+            close(c);
+            continue;
+        }
+        for (;;) { /* a deflected puck: motion events every 5 ms */
+            const int32_t ev[8] = {SPNAV_UEV_MOTION, tx, 0, 0, 0, 0, 0, 5};
+            if (write(c, ev, sizeof ev) != (ssize_t)sizeof ev)
+                break;
+            usleep(5000);
+        }
+        close(c);
+    }
+}
+
+/* Binds and listens here, then serves in a child: the socket accepts before
+ * this returns, so there is no race with the first connect. */
+static pid_t standin_start(const char *path, int32_t tx)
+{
+    int ls = socket(AF_UNIX, SOCK_STREAM, 0);
+    assert_true(ls >= 0);
+    struct sockaddr_un a;
+    memset(&a, 0, sizeof a);
+    a.sun_family = AF_UNIX;
+    assert_true(strlen(path) < sizeof a.sun_path);
+    memcpy(a.sun_path, path, strlen(path) + 1);
+    unlink(path);
+    assert_int_equal(bind(ls, (struct sockaddr *)&a, sizeof a), 0);
+    assert_int_equal(listen(ls, 8), 0);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        standin_serve(ls, tx);
+        _exit(0);
+    }
+    close(ls);
+    return pid;
+}
+
+static void standin_kill(pid_t pid)
+{
+    kill(pid, SIGKILL);
+    while (waitpid(pid, NULL, 0) < 0 && errno == EINTR)
+        ;
+}
+
+/* ---- the hub around it --------------------------------------------------- */
+
+typedef struct notes {
+    char msg[8][600];
+    int n;
+} notes;
+
+static void note(void *ctx, const char *msg)
+{
+    notes *w = ctx;
+    if (w->n < 8)
+        snprintf(w->msg[w->n], sizeof w->msg[0], "%s", msg);
+    w->n++;
+}
+
+static int reopen_spnav(void *ctx, const iso_dev_info *info, iso_dev_source **out, iso_err *err)
+{
+    (void)ctx;
+    (void)info;
+    return iso_dev_spnav_open(out, err);
+}
+
+typedef struct rig {
+    iso_dev_hub *h;
+    iso_dev_map m;
+    iso_pose P[ISO_DEV_MAX_HANDLES];
+    iso_dev_tick out;
+} rig;
+
+/* Ticks every 5 ms of wall time until done(out) or limit_ms passed; returns
+ * the milliseconds it took, or -1. */
+static double tick_until(rig *r, int (*done)(const iso_dev_tick *), double limit_ms)
+{
+    int64_t t0 = iso_dev_now_ns();
+    for (;;) {
+        iso_err err;
+        iso_err_clear(&err);
+        int64_t now = iso_dev_now_ns();
+        assert_int_equal(iso_dev_hub_tick(r->h, &r->m, now, 5e-3, r->P, &r->out, &err), ISO_OK);
+        if (done(&r->out))
+            return (double)(now - t0) / 1e6;
+        if (now - t0 > (int64_t)(limit_ms * 1e6))
+            return -1;
+        usleep(5000);
+    }
+}
+
+static int moving(const iso_dev_tick *t)
+{
+    return !(t->gone & 1) && t->twist[0].v[0] > 0;
+}
+static int gone(const iso_dev_tick *t)
+{
+    return (t->gone & 1) && t->twist[0].v[0] == 0;
+}
+static int never(const iso_dev_tick *t)
+{
+    (void)t;
+    return 0;
+}
+
+static void daemon_killed_and_restarted(void **state)
+{
+    (void)state;
+    if (!strstr(iso_dev_backends(), "spnav"))
+        skip(); /* libspnav was not built in (libspnav-dev missing) */
+    char dir[] = "/tmp/iso_spnav_XXXXXX", path[64];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/spnav.sock", dir);
+    assert_int_equal(setenv("SPNAV_SOCKET", path, 1), 0);
+
+    pid_t pid = standin_start(path, 175);
+    iso_dev_source *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_spnav_open(&s, &err), ISO_OK);
+    assert_string_equal(s->detail, path); /* SPNAV_SOCKET was honoured */
+    static rig r;
+    static notes w;
+    memset(&w, 0, sizeof w);
+    assert_int_equal(iso_dev_hub_create(note, &w, &r.h, &err), ISO_OK);
+    const int64_t retry = 100 * MS;
+    iso_dev_hub_set_retry(r.h, retry);
+    assert_int_equal(iso_dev_hub_add(r.h, s, reopen_spnav, NULL, &err), ISO_OK);
+    iso_dev_map_opts o;
+    iso_dev_map_opts_default(&o);
+    assert_int_equal(iso_dev_map_init(&r.m, &o, &err), ISO_OK);
+    for (unsigned i = 0; i < ISO_DEV_MAX_HANDLES; i++)
+        iso_pose_identity(&r.P[i]);
+
+    double first = tick_until(&r, moving, 2000);
+    assert_true(first >= 0);
+    /* half deflection past the 5 % dead zone: 0.1 m/s * 0.45 / 0.95 */
+    assert_true(r.out.twist[0].v[0] > 0.04 && r.out.twist[0].v[0] < 0.05);
+    assert_int_equal(w.n, 0);
+
+    standin_kill(pid);
+    double gone_ms = tick_until(&r, gone, 2000);
+    assert_true(gone_ms >= 0);
+    assert_true(gone_ms * MS < (double)retry); /* the end of the connection, not a timeout */
+    assert_int_equal(w.n, 1);
+    assert_non_null(strstr(w.msg[0], "spnav spacenavd went away"));
+    assert_non_null(strstr(w.msg[0], path));
+    assert_non_null(strstr(w.msg[0], "its handles hold still"));
+
+    /* several retries with nobody listening: still gone, nothing more said */
+    tick_until(&r, never, 350);
+    assert_true(gone(&r.out));
+    assert_int_equal(w.n, 1);
+
+    pid = standin_start(path, 175);
+    double back_ms = tick_until(&r, moving, 2000);
+    assert_true(back_ms >= 0);
+    assert_true(back_ms * MS < (double)retry + 400 * MS); /* the next retry, with slack */
+    assert_int_equal(w.n, 2);
+    assert_string_equal(w.msg[1], "spnav spacenavd is back");
+    printf("spnav: moving %.0f ms after open; GONE %.1f ms after the kill; moving again %.0f "
+           "ms after the restart (retry every %lld ms)\n",
+           first, gone_ms, back_ms, (long long)(retry / MS));
+
+    iso_dev_hub_destroy(r.h);
+    standin_kill(pid);
+    unlink(path);
+    rmdir(dir);
+    unsetenv("SPNAV_SOCKET");
+}
+
+/* Nothing listens where SPNAV_SOCKET points (and at the default): an error
+ * that names the socket. */
+static void no_daemon_names_the_socket(void **state)
+{
+    (void)state;
+    if (!strstr(iso_dev_backends(), "spnav"))
+        skip();
+    assert_int_equal(setenv("SPNAV_SOCKET", "/tmp/iso-no-such-dir/spnav.sock", 1), 0);
+    iso_dev_source *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    int rc = iso_dev_spnav_open(&s, &err);
+    if (rc == ISO_OK) { /* a real spacenavd answers on the default socket */
+        iso_dev_source_close(s);
+    } else {
+        assert_int_equal(rc, ISO_EIO);
+        assert_null(s);
+        assert_non_null(strstr(err.msg, "spacenavd is not running"));
+        assert_non_null(strstr(err.msg, "/tmp/iso-no-such-dir/spnav.sock"));
+    }
+    unsetenv("SPNAV_SOCKET");
+}
+
+int main(void)
+{
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(daemon_killed_and_restarted),
+        cmocka_unit_test(no_daemon_names_the_socket),
+    };
+    return cmocka_run_group_tests_name("dev_spnav", t, NULL, NULL);
+}
