@@ -9,8 +9,8 @@
 #include "iso_actuators.h"
 #include "iso_fb_host.h"
 
-#define ECHO_SLOTS 128u   /* sent frames kept for the ACK check, by frame seq */
-#define PERIOD_US 10000u  /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
+#define ECHO_SLOTS 128u      /* sent frames kept for the ACK check, by frame seq */
+#define PERIOD_US 10000u     /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
 #define KEEP_ARMED_US 40000u /* HELLO again this often until the first publish */
 
 typedef struct act_channel {
@@ -230,14 +230,32 @@ static void tell_limit_disagreement(iso_actuators *a)
     }
 }
 
-static void on_hello(void *ctx, const iso_fb_hello *h)
+/* The HELLO as unpacked fills only its n_channels entries; the rest of
+ * ch[] is whatever the caller's stack held. Keep a copy with those zeroed
+ * and compare only the filled ones, so nothing uninitialised is ever read
+ * (valgrind caught the whole-array memcmp). */
+static void copy_hello(iso_fb_hello *dst, const iso_fb_hello *h)
+{
+    memset(dst, 0, sizeof *dst);
+    dst->proto_version = h->proto_version;
+    dst->fw_version = h->fw_version;
+    dst->flags = h->flags;
+    dst->uptime_ms = h->uptime_ms;
+    dst->n_channels = h->n_channels <= ISO_FB_MAX_CHANNELS ? h->n_channels : ISO_FB_MAX_CHANNELS;
+    memcpy(dst->ch, h->ch, dst->n_channels * sizeof h->ch[0]);
+}
+
+static void on_hello(void *ctx, const iso_fb_hello *h_in)
 {
     iso_actuators *a = ctx;
-    if (h->flags & ISO_FB_HELLO_BOOT)
+    if (h_in->flags & ISO_FB_HELLO_BOOT)
         return; /* the unasked one; the answer follows our HELLO */
+    iso_fb_hello hh;
+    copy_hello(&hh, h_in);
+    const iso_fb_hello *h = &hh;
     pthread_mutex_lock(&a->lock);
     int changed = !a->have_hello || a->hello.n_channels != h->n_channels ||
-                  memcmp(a->hello.ch, h->ch, sizeof h->ch) != 0;
+                  memcmp(a->hello.ch, h->ch, h->n_channels * sizeof h->ch[0]) != 0;
     a->hello = *h;
     a->have_hello = 1;
     a->st.mcu_channels = h->n_channels;
