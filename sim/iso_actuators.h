@@ -50,7 +50,7 @@
  *    loop_timeout_ms - 5 ms after the last alive() or publish(), so the MCU
  *    is safe within loop_timeout_ms + 100 ms of the loop's last progress.
  *    A slow tick is live as long as it calls alive() as it goes;
- * *  - no e-stop: iso_actuators_estop(a, 1) or the safety opts' estop_probe. The
+ *  - no e-stop: iso_actuators_estop(a, 1) or the safety opts' estop_probe. The
  *    sender stops at its next cycle (<= 10 ms), but that does not set the
  *    time to safe: protocol v1 has no "go safe" request (PROTOCOL.md), no
  *    host frame makes the MCU brake at once (a bad or out-of-range frame is
@@ -69,7 +69,9 @@
  * Loss. A transport error, or no valid frame for link_timeout_ms, is a lost
  * link: one notice at once, then the sink reopens the link every 50 ms (an
  * emulated link relaunches QEMU, or restarts the native MCU thread, when it
- * died) and shakes hands again; another notice when it is armed again. An
+ * died) and shakes hands again; another notice when it is armed again.
+ * While a hold stands (e-stop, loop stall, stop) a lost link is not
+ * reopened: a reopen ends in HELLO, which would arm the MCU. An
  * MCU silent for 500 ms (no heartbeat) gets a notice before it counts as
  * lost. Every time the MCU reports its safe state after streaming stopped
  * (FAULT, a heartbeat that is not armed, HELLO(BOOT) after a restart), the

@@ -364,7 +364,13 @@ static int run_ticks(iso_actuators *a, uint32_t *tick, int ms, void (*x_of)(uint
                 next = now + 0.01;
         }
         int wait = (int)ceil((next - now_s()) * 1000); /* sleep, never spin */
-        iso_actuators_poll(a, wait < 0 ? 0 : wait > 10 ? 10 : wait);
+        wait = wait < 0 ? 0 : wait > 10 ? 10 : wait;
+        if (iso_actuators_poll(a, wait) == 0 && wait > 0) {
+            /* poll returns at once while the link is down: a SCHED_FIFO
+             * spin here would starve the sender (under valgrind, always) */
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+        }
         iso_actuators_stats(a, &s);
         if (log && s.heartbeats != seen_hb && s.mcu_state == ISO_FB_STATE_ARMED && log->n < 256) {
             seen_hb = s.heartbeats;
