@@ -544,7 +544,10 @@ static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *er
 static int qemu_reopen(emu_link *e, iso_err *err)
 {
     int pid = atomic_load(&e->qemu);
-    if (e->lfd < 0 && e->sock >= 0 && !e->sock_dead && pid > 0 && waitpid(pid, NULL, WNOHANG) == 0)
+    int alive = pid > 0 && waitpid(pid, NULL, WNOHANG) == 0;
+    if (pid > 0 && !alive)
+        atomic_store(&e->qemu, -1); /* reaped: never signal that pid again */
+    if (e->lfd < 0 && e->sock >= 0 && !e->sock_dead && alive)
         return ISO_OK;
     if (e->lfd < 0) {
         qemu_reap(e);

@@ -276,10 +276,12 @@ ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
 
 /* One control tick: computes the values and hands them to the sender
  * thread, which streams them from its next period on (until a later publish
- * replaces them); never waits for the link. Returns 1 if the link is
- * streaming, 0 if not (the link is down or the handshake is pending; the
- * sender recovers both by itself), or a negative code: ISO_ENUMERIC for
- * non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
+ * replaces them); never waits for the link. Once iso_actuators_alive() was
+ * called, a publish also counts as the loop's progress. Returns 1 if the
+ * link is streaming, 0 if not (the link is down, the handshake is pending,
+ * or a hold stands: e-stop, loop stall, or a stall just ended, which this
+ * publish may clear; the sender recovers by itself), or a negative code:
+ * ISO_ENUMERIC for non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
  * lacks a channel the spec drives or after safe_stop. With
  * ISO_ACT_LINK_NONE it only computes (returns 0). */
 ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
