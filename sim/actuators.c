@@ -1,17 +1,33 @@
 /* sim/actuators.c -- see iso_actuators.h. */
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#include "act_internal.h"
 #include "iso_actuators.h"
 #include "iso_fb_host.h"
 
-#define ECHO_SLOTS 128u   /* sent frames kept for the ACK check, by frame seq */
-#define PERIOD_US 10000u  /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
+#define ECHO_SLOTS 128u      /* sent frames kept for the ACK check, by frame seq */
+#define PERIOD_US 10000u     /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
 #define KEEP_ARMED_US 40000u /* HELLO again this often until the first publish */
+/* The loop watchdog stops setpoints this much before loop_timeout_ms: the
+ * MCU brakes 100 ms after the last SETPOINTS *arrives* and checks every
+ * 1 ms, and a frame takes ~2 ms on a 115200 baud UART. So the safe state
+ * comes within loop_timeout_ms + 100 ms of the loop's last progress. */
+#define STOP_GUARD_US 5000u
+#define LOOP_TIMEOUT_MIN_MS 250 /* the default's floor: max(250, 5 ticks) */
+#define SILENT_US 500000u       /* no frame this long: say so (5 heartbeats) */
+#define REOPEN_MS 50            /* after a loss; an emulation restart never blocks */
+#define STILL_LOST_US 2000000u  /* repeat the loss notice this often */
+
+/* Lock-free means lock-free: alive() and estop() run inside the loop and
+ * from an e-stop handler, which must never wait on the sender. */
+_Static_assert(ATOMIC_LLONG_LOCK_FREE == 2, "64-bit atomics are lock-free");
+_Static_assert(ATOMIC_INT_LOCK_FREE == 2, "int atomics are lock-free");
 
 typedef struct act_channel {
     iso_act_channel spec;
@@ -65,7 +81,35 @@ struct iso_actuators {
     uint64_t frames;           /* frames the sender handled, for poll */
     iso_fb_host_stats host_st; /* the host's counters after the last step */
     iso_err down;              /* why the link last went down */
+    uint64_t last_publish_us;  /* when the latest publish began */
     iso_act_stats st;
+
+    /* ---- lock-free, any thread ---- */
+    atomic_ullong progress_us; /* the loop's last alive()/publish(); 0: watchdog not armed */
+    atomic_ullong alive_calls;
+    atomic_int estop_req;   /* iso_actuators_estop() */
+    atomic_ullong estop_us; /* when it was pressed */
+    atomic_int state;       /* ISO_ACT_STATE_* */
+    atomic_uint holds;      /* ISO_ACT_HOLD_* */
+
+    /* ---- the sender thread's alone ---- */
+    uint64_t loop_timeout_us; /* 0: no loop watchdog */
+    int loop_timeout_ms;
+    iso_act_estop_fn estop_probe;
+    void *estop_ctx;
+    unsigned hold;           /* what holds holds */
+    uint64_t fresh_after_us; /* a publish from this time on re-arms after a hold */
+    int prev_host_state, ever_streamed;
+    int lost; /* lost and not streaming again yet */
+    uint64_t lost_us, lost_told_us;
+    uint32_t reopens_seen;
+    int silent;
+    uint64_t silent_from_us;
+    int mcu_safe;   /* the MCU's last word: safe or idle (1), armed (0) */
+    int await_safe; /* streaming stopped: the next safe report confirms it */
+    uint64_t break_us;
+    int break_cause;
+    const char *break_what;
 };
 
 static uint64_t now_us(void)
@@ -230,14 +274,92 @@ static void tell_limit_disagreement(iso_actuators *a)
     }
 }
 
-static void on_hello(void *ctx, const iso_fb_hello *h)
+/* The HELLO as unpacked fills only its n_channels entries; the rest of
+ * ch[] is whatever the caller's stack held. Keep a copy with those zeroed
+ * and compare only the filled ones, so nothing uninitialised is ever read
+ * (valgrind caught the whole-array memcmp). */
+static void copy_hello(iso_fb_hello *dst, const iso_fb_hello *h)
+{
+    memset(dst, 0, sizeof *dst);
+    dst->proto_version = h->proto_version;
+    dst->fw_version = h->fw_version;
+    dst->flags = h->flags;
+    dst->uptime_ms = h->uptime_ms;
+    dst->n_channels = h->n_channels <= ISO_FB_MAX_CHANNELS ? h->n_channels : ISO_FB_MAX_CHANNELS;
+    memcpy(dst->ch, h->ch, dst->n_channels * sizeof h->ch[0]);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Safety: what stopped the streaming, and the MCU's word that it is safe     */
+/* ------------------------------------------------------------------------ */
+
+/* Streaming stopped at t0 because of `what`; the MCU's next safe report
+ * confirms it (a later cause replaces an unconfirmed one). Sender thread. */
+static void begin_break(iso_actuators *a, uint64_t t0, int cause, const char *what)
+{
+    a->await_safe = 1;
+    a->break_us = t0;
+    a->break_cause = cause;
+    a->break_what = what;
+}
+
+/* The MCU says it is in its safe state (FAULT, a heartbeat that is not
+ * armed, HELLO(BOOT)). Counts the transition, and confirms a break. On the
+ * sender thread, from the host's callbacks. */
+static void note_safe(iso_actuators *a, const char *how)
+{
+    int fresh = !a->mcu_safe;
+    a->mcu_safe = 1;
+    int confirm = a->await_safe;
+    double ms = 0;
+    if (confirm) {
+        uint64_t now = now_us();
+        a->await_safe = 0;
+        ms = now > a->break_us ? (double)(now - a->break_us) / 1000.0 : 0.0;
+    }
+    if (!fresh && !confirm)
+        return;
+    pthread_mutex_lock(&a->lock);
+    a->st.safe_confirms += (uint32_t)fresh;
+    if (confirm) {
+        a->st.last_safe_ms = ms;
+        a->st.last_safe_cause = a->break_cause;
+    }
+    pthread_mutex_unlock(&a->lock);
+    char line[256];
+    if (confirm)
+        snprintf(line, sizeof line,
+                 "actuators: the MCU reports its safe state (%s) %.1f ms after %s", how, ms,
+                 a->break_what);
+    else if (a->hold == 0 && !a->lost && strstr(how, "BOOT"))
+        snprintf(line, sizeof line,
+                 "actuators: the MCU restarted (%s): it is idle at its safe positions; re-arming",
+                 how);
+    else if (a->hold == 0 && !a->lost)
+        snprintf(
+            line, sizeof line,
+            "actuators: the MCU went to its safe state by itself (%s): no setpoints reached it "
+            "in time; re-arming",
+            how);
+    else
+        return;
+    say(a, line);
+}
+
+static void on_hello(void *ctx, const iso_fb_hello *h_in)
 {
     iso_actuators *a = ctx;
-    if (h->flags & ISO_FB_HELLO_BOOT)
+    if (h_in->flags & ISO_FB_HELLO_BOOT) {
+        note_safe(a, "HELLO(BOOT)");
         return; /* the unasked one; the answer follows our HELLO */
+    }
+    a->mcu_safe = 0; /* the answer arms it */
+    iso_fb_hello hh;
+    copy_hello(&hh, h_in);
+    const iso_fb_hello *h = &hh;
     pthread_mutex_lock(&a->lock);
     int changed = !a->have_hello || a->hello.n_channels != h->n_channels ||
-                  memcmp(a->hello.ch, h->ch, sizeof h->ch) != 0;
+                  memcmp(a->hello.ch, h->ch, h->n_channels * sizeof h->ch[0]) != 0;
     a->hello = *h;
     a->have_hello = 1;
     a->st.mcu_channels = h->n_channels;
@@ -293,6 +415,13 @@ static void on_fault(void *ctx, const iso_fb_fault *f)
         a->safe_us = now_us();
     }
     pthread_mutex_unlock(&a->lock);
+    char how[96];
+    if (f->reason == ISO_FB_FAULT_WATCHDOG)
+        snprintf(how, sizeof how, "FAULT watchdog, %u ms after the last setpoints",
+                 (unsigned)f->detail);
+    else
+        snprintf(how, sizeof how, "FAULT reason %u", (unsigned)f->reason);
+    note_safe(a, how);
 }
 
 static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
@@ -309,6 +438,10 @@ static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
         a->safe_us = now_us();
     }
     pthread_mutex_unlock(&a->lock);
+    if (hb->state == ISO_FB_STATE_ARMED)
+        a->mcu_safe = 0;
+    else
+        note_safe(a, hb->state == ISO_FB_STATE_IDLE ? "heartbeat: idle" : "heartbeat: safe");
 }
 
 /* ------------------------------------------------------------------------ */
@@ -326,10 +459,92 @@ static void remember(iso_actuators *a, uint16_t seq, uint32_t tick, const int16_
     memcpy(s->value, v, n * sizeof *v);
 }
 
+/* Loss, reopen, re-arm and silence, each said once as it happens. */
+static void watch_link(iso_actuators *a)
+{
+    uint64_t now = now_us();
+    int hs = a->host.state, was = a->prev_host_state;
+    char line[640];
+    if (hs == ISO_FB_HOST_DOWN && was != ISO_FB_HOST_DOWN) {
+        a->lost = 1;
+        a->lost_us = a->lost_told_us = now;
+        a->silent = 0;
+        a->mcu_safe = 0; /* unknown until it speaks again */
+        if (!a->hold)
+            begin_break(a, now, 0, "the link was lost");
+        snprintf(line, sizeof line,
+                 "actuators: LINK LOST to the MCU: %.300s. No setpoints reach it; its own watchdog "
+                 "brakes it to its safe state 100 ms after the last ones. Reopening every %d ms%s",
+                 a->host.last_err.msg, REOPEN_MS,
+                 a->hold                    ? " once setpoints may flow again"
+                 : iso_act__emu_is(a->link) ? " (restarting the emulation if it died)"
+                                            : "");
+        say(a, line);
+    } else if (hs == ISO_FB_HOST_DOWN && now - a->lost_told_us >= STILL_LOST_US) {
+        a->lost_told_us = now;
+        snprintf(line, sizeof line, "actuators: link still lost after %.1f s: %.300s",
+                 (double)(now - a->lost_us) / 1e6, a->host.last_err.msg);
+        say(a, line);
+    }
+    if (a->host.stats.reopens != a->reopens_seen) {
+        a->reopens_seen = a->host.stats.reopens;
+        unsigned r = iso_act__emu_restarts(a->link);
+        snprintf(line, sizeof line,
+                 "actuators: link reopened %.0f ms after the loss%s; shaking hands",
+                 (double)(now - a->lost_us) / 1000.0, r ? " (the emulation was restarted)" : "");
+        say(a, line);
+    }
+    if (hs == ISO_FB_HOST_STREAMING) {
+        a->ever_streamed = 1;
+        if (a->lost) {
+            a->lost = 0;
+            snprintf(line, sizeof line,
+                     "actuators: MCU armed again %.0f ms after the link was lost",
+                     (double)(now - a->lost_us) / 1000.0);
+            say(a, line);
+        }
+    }
+    if (hs != ISO_FB_HOST_DOWN && !a->silent && now > a->host.last_rx_us + SILENT_US) {
+        a->silent = 1;
+        a->silent_from_us = a->host.last_rx_us;
+        pthread_mutex_lock(&a->lock);
+        a->st.silences++;
+        pthread_mutex_unlock(&a->lock);
+        snprintf(line, sizeof line,
+                 "actuators: the MCU has been silent for %u ms (no heartbeat, no ack)%s; the link "
+                 "counts as lost after %d ms",
+                 SILENT_US / 1000u, a->hold ? "" : "; setpoints continue",
+                 a->host.opts.link_timeout_ms);
+        say(a, line);
+    } else if (a->silent && a->host.last_rx_us > a->silent_from_us) {
+        a->silent = 0;
+        snprintf(line, sizeof line, "actuators: the MCU answers again after %.0f ms of silence",
+                 (double)(a->host.last_rx_us - a->silent_from_us) / 1000.0);
+        say(a, line);
+    }
+    a->prev_host_state = hs;
+}
+
+static int sink_state(const iso_actuators *a)
+{
+    int hs = a->host.state;
+    if (hs == ISO_FB_HOST_DOWN)
+        return ISO_ACT_STATE_LOST;
+    if (a->hold)
+        return a->mcu_safe ? ISO_ACT_STATE_SAFE : ISO_ACT_STATE_STOPPING;
+    if (a->silent)
+        return ISO_ACT_STATE_SILENT;
+    if (hs == ISO_FB_HOST_STREAMING)
+        return ISO_ACT_STATE_ARMED;
+    return a->ever_streamed ? ISO_ACT_STATE_RECONNECTING : ISO_ACT_STATE_CONNECTING;
+}
+
 /* What the host did, for the other threads: its state, its counters, and
  * why the link went down. Wakes safe_stop and poll. */
 static void share_host(iso_actuators *a, int frames)
 {
+    watch_link(a);
+    atomic_store(&a->state, sink_state(a));
     pthread_mutex_lock(&a->lock);
     a->link_state = a->host.state;
     a->host_st = a->host.stats;
@@ -353,24 +568,102 @@ static void keep_armed(iso_actuators *a)
     iso_fb_host_step(&a->host, 0, NULL, 0); /* sends the HELLO: no setpoints while handshaking */
 }
 
+static void count_event(iso_actuators *a, uint32_t *counter)
+{
+    pthread_mutex_lock(&a->lock);
+    (*counter)++;
+    pthread_mutex_unlock(&a->lock);
+}
+
+/* The e-stop (the call or the probe), the loop watchdog and safe_stop, as
+ * hold bits, each edge said once; returns the bits. A hold that ends leaves
+ * ISO_ACT_HOLD_TICK until a publish that began after its end, which re-arms
+ * with HELLO: the MCU never chases values computed before the hold. */
+static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64_t last_pub_us)
+{
+    unsigned h = a->hold;
+    char line[320];
+    int req = atomic_load(&a->estop_req) != 0;
+    int es = req || (a->estop_probe && a->estop_probe(a->estop_ctx) != 0);
+    if (es && !(h & ISO_ACT_HOLD_ESTOP)) {
+        uint64_t t0 = req ? atomic_load(&a->estop_us) : now;
+        if (t0 == 0 || t0 > now)
+            t0 = now;
+        h |= ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_TICK;
+        count_event(a, &a->st.estops);
+        begin_break(a, t0, ISO_ACT_HOLD_ESTOP, "the e-stop");
+        snprintf(line, sizeof line,
+                 "actuators: E-STOP%s: setpoints stopped %.1f ms after it; the MCU's link watchdog "
+                 "brakes it to its safe state 100 ms after the last setpoints it got (protocol v1 "
+                 "has no faster request)",
+                 req ? "" : " (probe)", (double)(now - t0) / 1000.0);
+        say(a, line);
+    } else if (!es && (h & ISO_ACT_HOLD_ESTOP)) {
+        h &= ~(unsigned)ISO_ACT_HOLD_ESTOP;
+        a->fresh_after_us = now;
+        say(a, "actuators: e-stop released: setpoints resume with the loop's next tick (HELLO "
+               "re-arms the MCU where it stands)");
+    }
+    uint64_t p = atomic_load(&a->progress_us);
+    if (a->loop_timeout_us && p) {
+        int stalled = now > p && now - p + STOP_GUARD_US > a->loop_timeout_us;
+        if (stalled && !(h & ISO_ACT_HOLD_LOOP)) {
+            h |= ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_TICK;
+            count_event(a, &a->st.loop_stalls);
+            begin_break(a, p, ISO_ACT_HOLD_LOOP, "the loop's last progress");
+            snprintf(line, sizeof line,
+                     "actuators: LOOP STALLED: no progress for %.0f ms (limit %d ms): setpoints "
+                     "stopped; the MCU's watchdog brakes it to its safe state within 100 ms",
+                     (double)(now - p) / 1000.0, a->loop_timeout_ms);
+            say(a, line);
+        } else if (!stalled && (h & ISO_ACT_HOLD_LOOP)) {
+            h &= ~(unsigned)ISO_ACT_HOLD_LOOP;
+            if (p > a->fresh_after_us)
+                a->fresh_after_us = p;
+            say(a, "actuators: the loop progresses again: setpoints resume with its next tick");
+        }
+    }
+    if (stopped && !(h & ISO_ACT_HOLD_STOP)) {
+        h |= ISO_ACT_HOLD_STOP;
+        begin_break(a, now, ISO_ACT_HOLD_STOP, "the stop");
+    }
+    if ((h & ISO_ACT_HOLD_TICK) &&
+        !(h & (ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_STOP)) &&
+        last_pub_us >= a->fresh_after_us) {
+        h &= ~(unsigned)ISO_ACT_HOLD_TICK;
+        iso_fb_host_rehello(&a->host);
+        say(a, "actuators: re-arming the MCU (HELLO) for the loop's new tick");
+    }
+    a->hold = h;
+    atomic_store(&a->holds, h);
+    return h;
+}
+
 /* One period's SETPOINTS: the latest values, undriven channels at the MCU's
- * safe position. Nothing before the first publish, after safe_stop, or
- * while the MCU lacks a driven channel (only the replies are read then). */
+ * safe position. Nothing before the first publish, while a hold stands
+ * (e-stop, loop stall, safe_stop), or while the MCU lacks a driven channel
+ * (only the replies are read then). */
 static void send_latest(iso_actuators *a)
 {
     int16_t vals[ISO_ACT_MAX_CHANNELS], v[ISO_ACT_MAX_CHANNELS];
     pthread_mutex_lock(&a->lock);
-    int go = a->have_tick && !a->stopped && !a->mismatch;
+    int have_tick = a->have_tick, stopped = a->stopped, mismatch = a->mismatch;
+    uint64_t last_pub = a->last_publish_us;
     uint32_t tick = a->tick;
     memcpy(vals, a->values, sizeof vals);
     unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
     for (unsigned c = 0; c < n; c++)
         v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
-    int waiting = !a->have_tick && !a->stopped;
     pthread_mutex_unlock(&a->lock);
-    if (!go) {
-        if (waiting)
+    /* the holds are read right before the write, so the guard holds */
+    unsigned hold = update_holds(a, now_us(), stopped, last_pub);
+    if (!have_tick || hold || mismatch) {
+        if (!have_tick && !hold) {
+            /* before the first tick: bring the link up, keep the MCU armed */
+            if (a->host.state != ISO_FB_HOST_STREAMING)
+                iso_fb_host_step(&a->host, 0, NULL, 0); /* reopen or HELLO; never SETPOINTS */
             keep_armed(a);
+        }
         share_host(a, iso_fb_host_poll(&a->host, 0));
         return;
     }
@@ -466,6 +759,35 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
                          const iso_act_link_spec *link, const iso_act_opts *opts,
                          iso_actuators **out, iso_err *err)
 {
+    return iso_actuators_create_v2(ch, n_ch, nv, regions, link, opts, NULL, out, err);
+}
+
+/* Reads the safety options into a (defaults for NULL or zero fields). */
+static int take_safety(iso_actuators *a, const iso_act_safety_opts *so, iso_err *err)
+{
+    int tick_ms = so && so->tick_period_ms > 0 ? so->tick_period_ms : 0;
+    int t = so ? so->loop_timeout_ms : 0;
+    if (t > 0 && t < (int)(PERIOD_US / 1000u))
+        return iso_err_set(
+            err, ISO_EINVAL, -1,
+            "actuators: loop_timeout_ms %d is shorter than the sender's %u ms period "
+            "(0 = the default, < 0 = no loop watchdog)",
+            t, PERIOD_US / 1000u);
+    if (t == 0)
+        t = 5 * tick_ms > LOOP_TIMEOUT_MIN_MS ? 5 * tick_ms : LOOP_TIMEOUT_MIN_MS;
+    a->loop_timeout_ms = t;
+    a->loop_timeout_us = t > 0 ? (uint64_t)t * 1000u : 0;
+    if (so) {
+        a->estop_probe = so->estop_probe;
+        a->estop_ctx = so->estop_ctx;
+    }
+    return ISO_OK;
+}
+
+int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const iso_regions *regions,
+                            const iso_act_link_spec *link, const iso_act_opts *opts,
+                            const iso_act_safety_opts *safety, iso_actuators **out, iso_err *err)
+{
     if (out)
         *out = NULL;
     if (!out || !ch || n_ch < 1 || n_ch > ISO_ACT_MAX_CHANNELS || nv < 1)
@@ -485,11 +807,19 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
     pthread_condattr_destroy(&ca);
     a->nv = nv;
     a->st.mcu_state = -1;
+    a->st.last_safe_ms = -1;
+    a->mcu_safe = 1; /* an MCU boots idle: its first words are no news */
+    atomic_init(&a->progress_us, 0);
+    atomic_init(&a->alive_calls, 0);
+    atomic_init(&a->estop_req, 0);
+    atomic_init(&a->estop_us, 0);
+    atomic_init(&a->state, ISO_ACT_STATE_OFF);
+    atomic_init(&a->holds, 0);
     if (opts) {
         a->notice = opts->notice;
         a->notice_ctx = opts->notice_ctx;
     }
-    int rc = ISO_OK;
+    int rc = take_safety(a, safety, err);
     for (int i = 0; i < n_ch && rc == ISO_OK; i++) {
         if ((rc = check_channel(&ch[i], i, nv, regions, err)) != ISO_OK)
             break;
@@ -515,12 +845,14 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
             iso_fb_host_callbacks cb = {NULL, on_ack, on_fault, on_hello, on_heartbeat, a};
             iso_fb_host_opts ho = {0};
             ho.write_timeout_ms = 1; /* never hold a period */
+            ho.reopen_ms = REOPEN_MS;
             ho.link_timeout_ms = opts && opts->link_timeout_ms > 0     ? opts->link_timeout_ms
                                  : link->kind == ISO_ACT_LINK_EMULATED ? 3000
                                                                        : 1000;
             rc = iso_fb_host_init(&a->host, a->link, &ho, &cb, err);
             a->host_up = rc == ISO_OK;
-            a->link_state = a->host.state;
+            a->link_state = a->prev_host_state = a->host.state;
+            atomic_store(&a->state, ISO_ACT_STATE_CONNECTING);
         }
         if (rc == ISO_OK) {
             if (pthread_create(&a->sender, NULL, sender_main, a) == 0)
@@ -650,6 +982,9 @@ int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_
         memcpy(a->values, v, sizeof v);
         a->tick = tick;
         a->have_tick = 1;
+        a->last_publish_us = t0;
+        if (atomic_load_explicit(&a->progress_us, memory_order_relaxed))
+            atomic_store_explicit(&a->progress_us, t0, memory_order_relaxed);
         double ms = (double)(now_us() - t0) / 1000.0;
         if (ms > a->st.publish_max_ms)
             a->st.publish_max_ms = ms;
@@ -666,7 +1001,9 @@ int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_
                            "actuators: the MCU has %d channels but the spec drives channel %d; "
                            "nothing sent",
                            mcu_n, a->top - 1);
-    return state == ISO_FB_HOST_STREAMING;
+    int st = atomic_load(&a->state);
+    return state == ISO_FB_HOST_STREAMING && atomic_load(&a->holds) == 0 &&
+           (st == ISO_ACT_STATE_ARMED || st == ISO_ACT_STATE_SILENT);
 }
 
 int iso_actuators_poll(iso_actuators *a, int timeout_ms)
@@ -743,8 +1080,11 @@ void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out)
         out->link_losses = a->host_st.link_losses;
         out->handshakes = a->host_st.handshakes;
         out->naks = a->host_st.naks;
+        out->reopens = a->host_st.reopens;
     }
     pthread_mutex_unlock(lock_of(a));
+    out->emu_restarts = iso_act__emu_restarts(a->link);
+    out->alive_calls = atomic_load(&((iso_actuators *)a)->alive_calls);
 }
 
 int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out)
@@ -761,15 +1101,21 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
 {
     iso_act_stats s;
     iso_actuators_stats(a, &s);
-    int n =
-        snprintf(buf, cap,
-                 "actuators: %llu ticks, %llu setpoints sent, %llu acked, %llu echo mismatches "
-                 "(%llu unchecked), %llu clamps, rtt avg %.3f ms (max %.3f), publish max %.2f ms "
-                 "(%llu over 1 ms)",
-                 (unsigned long long)s.ticks, (unsigned long long)s.setpoints_sent,
-                 (unsigned long long)s.acks, (unsigned long long)s.echo_mismatches,
-                 (unsigned long long)s.echo_unknown, (unsigned long long)s.clamps, s.rtt_avg_ms,
-                 s.rtt_max_ms, s.publish_max_ms, (unsigned long long)s.publish_over_1ms);
+    /* the safety counts come before the link's line, which a short buffer
+     * cuts first */
+    int n = snprintf(
+        buf, cap,
+        "actuators: %llu ticks, %llu setpoints sent, %llu acked, %llu echo mismatches (%llu "
+        "unchecked), %llu clamps, rtt avg %.3f ms (max %.3f), publish max %.2f ms (%llu over 1 "
+        "ms); link %s, losses %u, reopens %u, emulation restarts %u, loop stalls %u, e-stops %u, "
+        "silences %u, safe states confirmed %u",
+        (unsigned long long)s.ticks, (unsigned long long)s.setpoints_sent,
+        (unsigned long long)s.acks, (unsigned long long)s.echo_mismatches,
+        (unsigned long long)s.echo_unknown, (unsigned long long)s.clamps, s.rtt_avg_ms,
+        s.rtt_max_ms, s.publish_max_ms, (unsigned long long)s.publish_over_1ms,
+        iso_actuators_link_state(a), (unsigned)s.link_losses, (unsigned)s.reopens, s.emu_restarts,
+        (unsigned)s.loop_stalls, (unsigned)s.estops, (unsigned)s.silences,
+        (unsigned)s.safe_confirms);
     if (!a->host_up || n < 0 || (size_t)n + 2 >= cap)
         return n;
     /* the host's line from its counters as the sender last shared them */
@@ -779,4 +1125,69 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
     buf[n] = ';';
     buf[n + 1] = ' ';
     return n + 2 + iso_fb_host_stats_format(&hs, buf + n + 2, cap - (size_t)n - 2);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Safety calls from any thread                                               */
+/* ------------------------------------------------------------------------ */
+
+void iso_actuators_alive(iso_actuators *a)
+{
+    if (!a)
+        return;
+    atomic_store_explicit(&a->progress_us, now_us(), memory_order_relaxed);
+    atomic_fetch_add_explicit(&a->alive_calls, 1, memory_order_relaxed);
+}
+
+void iso_actuators_estop(iso_actuators *a, int on)
+{
+    if (!a)
+        return;
+    if (!on) {
+        atomic_store(&a->estop_req, 0);
+        return;
+    }
+    if (atomic_load(&a->estop_req))
+        return;                           /* the edge counts, not the level */
+    atomic_store(&a->estop_us, now_us()); /* before the flag: the sender reads both */
+    atomic_store(&a->estop_req, 1);
+}
+
+int iso_actuators_state(const iso_actuators *a, unsigned *holds)
+{
+    iso_actuators *m = (iso_actuators *)a; /* atomic loads take non-const pointers */
+    if (holds)
+        *holds = m ? atomic_load(&m->holds) : 0;
+    return m ? atomic_load(&m->state) : ISO_ACT_STATE_OFF;
+}
+
+const char *iso_actuators_link_state(const iso_actuators *a)
+{
+    unsigned h;
+    int s = iso_actuators_state(a, &h);
+    switch (s) {
+    case ISO_ACT_STATE_CONNECTING: return "connecting";
+    case ISO_ACT_STATE_ARMED: return "armed";
+    case ISO_ACT_STATE_SILENT: return "silent";
+    case ISO_ACT_STATE_STOPPING:
+        return h & ISO_ACT_HOLD_ESTOP  ? "stopping (e-stop)"
+               : h & ISO_ACT_HOLD_LOOP ? "stopping (loop stalled)"
+               : h & ISO_ACT_HOLD_STOP ? "stopping (stopped)"
+                                       : "stopping";
+    case ISO_ACT_STATE_SAFE:
+        return h & ISO_ACT_HOLD_ESTOP  ? "safe (e-stop)"
+               : h & ISO_ACT_HOLD_LOOP ? "safe (loop stalled)"
+               : h & ISO_ACT_HOLD_STOP ? "safe (stopped)"
+                                       : "safe (waiting for a tick)";
+    case ISO_ACT_STATE_LOST: return "lost";
+    case ISO_ACT_STATE_RECONNECTING: return "reconnecting";
+    }
+    return "off";
+}
+
+int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err)
+{
+    if (!a || !a->link)
+        return iso_err_set(err, ISO_EINVAL, -1, "actuators: no emulated MCU to signal");
+    return iso_act__emu_signal(a->link, sig, err);
 }

@@ -24,24 +24,35 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "act_internal.h"
 #include "fb_test_config.h" /* ISO_FB_FIRMWARE_ELF, ISO_FB_QEMU_PATH: where the build put them */
 #include "iso_actuators.h"
 
 #define QEMU_CONNECT_MS 5000 /* QEMU connects its UART at start-up; loaded CI is slow */
 
+/* Threads: the link's owner (the sink's sender) reads, writes and reopens;
+ * iso_act__emu_signal may come from any thread, so what it touches (the
+ * QEMU pid, the native thread's flags) is atomic. */
 typedef struct emu_link {
     iso_link base;
     int mode; /* ISO_ACT_EMU_QEMU or ISO_ACT_EMU_NATIVE */
     char what[64];
+    atomic_uint restarts; /* relaunches after the emulation died */
     /* QEMU: its UART0 is a TCP connection it made to us */
-    pid_t qemu;
+    atomic_int qemu; /* pid, -1 when none */
     int sock;
+    int sock_dead; /* the stream ended (QEMU died): reopen relaunches */
+    int lfd;       /* listening for a relaunched QEMU's UART, else -1 */
+    uint64_t launched_us;
+    char qemu_path[PATH_MAX], elf[PATH_MAX];
     /* native: the MCU logic on the pty master, the host on a tty link */
     iso_link *tty;
     int master, slave_keep;
     pthread_t thread;
     int thread_started;
     atomic_int stop;
+    atomic_int killed;      /* SIGKILL drill: the thread ends and closes the master */
+    atomic_int paused;      /* SIGSTOP drill */
     atomic_uint tx_dropped; /* bytes the host did not take in time */
     iso_fb_mcu mcu;         /* touched only by the thread once it runs */
     struct timespec t0;
@@ -79,6 +90,8 @@ static int ms_left(uint64_t deadline)
 
 static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
+    if (e->sock < 0 || e->sock_dead)
+        return iso_err_set(err, ISO_EIO, -1, "%s: no UART stream (QEMU restarting)", e->what);
     struct pollfd p = {e->sock, POLLIN, 0};
     int r = poll(&p, 1, timeout_ms < 0 ? 0 : timeout_ms);
     if (r < 0 && errno != EINTR)
@@ -90,12 +103,15 @@ static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_
         return (int)n;
     if (n < 0 && (errno == EAGAIN || errno == EINTR))
         return 0;
+    e->sock_dead = 1;
     return iso_err_set(err, ISO_EIO, -1, "%s: QEMU closed its UART (%s)", e->what,
                        n == 0 ? "end of stream" : strerror(errno));
 }
 
 static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
+    if (e->sock < 0 || e->sock_dead)
+        return iso_err_set(err, ISO_EIO, -1, "%s: no UART stream (QEMU restarting)", e->what);
     uint64_t deadline = now_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     size_t done = 0;
     while (done < n) {
@@ -104,8 +120,10 @@ static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms,
             done += (size_t)w;
             continue;
         }
-        if (w < 0 && errno != EAGAIN && errno != EINTR)
+        if (w < 0 && errno != EAGAIN && errno != EINTR) {
+            e->sock_dead = 1;
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", e->what, strerror(errno));
+        }
         int left = ms_left(deadline);
         struct pollfd p = {e->sock, POLLOUT, 0};
         if (left == 0 || poll(&p, 1, left) == 0)
@@ -141,41 +159,47 @@ static int emu_poll_fd(iso_link *l)
     return e->mode == ISO_ACT_EMU_NATIVE ? iso_link_poll_fd(e->tty) : e->sock;
 }
 
-/* The stream itself never breaks while the emulation lives, so a "loss"
- * (no frame for link_timeout_ms, e.g. QEMU descheduled on a loaded machine)
- * is answered by handshaking again on the same stream. */
+static int qemu_reopen(emu_link *e, iso_err *err);
+static int native_reopen(emu_link *e, iso_err *err);
+
+/* While the emulation lives the stream never breaks, so a "loss" (no frame
+ * for link_timeout_ms: QEMU stopped or descheduled) is answered by
+ * handshaking again on the same stream. When it died, reopen restarts it. */
 static int emu_reopen(iso_link *l, iso_err *err)
 {
     emu_link *e = (emu_link *)l;
-    if (e->mode == ISO_ACT_EMU_QEMU) {
-        if (e->qemu <= 0 || waitpid(e->qemu, NULL, WNOHANG) != 0) {
-            e->qemu = -1;
-            return iso_err_set(err, ISO_EIO, -1, "%s: QEMU has exited", e->what);
-        }
-        return e->sock >= 0 ? ISO_OK : iso_err_set(err, ISO_EIO, -1, "%s: no UART stream", e->what);
-    }
-    return atomic_load(&e->stop) ? iso_err_set(err, ISO_EIO, -1, "%s: stopped", e->what) : ISO_OK;
+    if (atomic_load(&e->stop))
+        return iso_err_set(err, ISO_EIO, -1, "%s: stopped", e->what);
+    return e->mode == ISO_ACT_EMU_QEMU ? qemu_reopen(e, err) : native_reopen(e, err);
 }
+
+/* Kills and reaps QEMU if there is one, and closes its stream. */
+static void qemu_reap(emu_link *e)
+{
+    int pid = atomic_exchange(&e->qemu, -1);
+    if (pid > 0) {
+        kill(pid, SIGKILL);
+        kill(pid, SIGCONT); /* a stopped QEMU dies only once it runs */
+        while (waitpid(pid, NULL, 0) < 0 && errno == EINTR) {
+        }
+    }
+    if (e->sock >= 0)
+        close(e->sock);
+    e->sock = -1;
+    e->sock_dead = 0;
+    if (e->lfd >= 0)
+        close(e->lfd);
+    e->lfd = -1;
+}
+
+static void native_end(emu_link *e);
 
 static void emu_close(iso_link *l)
 {
     emu_link *e = (emu_link *)l;
-    if (e->qemu > 0) {
-        kill(e->qemu, SIGKILL);
-        while (waitpid(e->qemu, NULL, 0) < 0 && errno == EINTR) {
-        }
-    }
-    if (e->thread_started) {
-        atomic_store(&e->stop, 1);
-        pthread_join(e->thread, NULL);
-    }
-    iso_link_close(e->tty);
-    if (e->sock >= 0)
-        close(e->sock);
-    if (e->master >= 0)
-        close(e->master);
-    if (e->slave_keep >= 0)
-        close(e->slave_keep);
+    qemu_reap(e);
+    atomic_store(&e->stop, 1);
+    native_end(e);
     free(e);
 }
 
@@ -189,8 +213,8 @@ static emu_link *emu_new(int mode)
         return NULL;
     e->base.ops = &emu_ops;
     e->mode = mode;
-    e->qemu = -1;
-    e->sock = e->master = e->slave_keep = -1;
+    atomic_init(&e->qemu, -1);
+    e->sock = e->lfd = e->master = e->slave_keep = -1;
     snprintf(e->what, sizeof e->what, "emulated MCU (%s)",
              mode == ISO_ACT_EMU_QEMU ? "QEMU" : "native");
     return e;
@@ -254,7 +278,12 @@ static void *mcu_thread(void *arg)
     try_realtime();
     uint32_t last = mcu_ms(e);
     uint8_t buf[256];
-    while (!atomic_load(&e->stop)) {
+    while (!atomic_load(&e->stop) && !atomic_load(&e->killed)) {
+        if (atomic_load(&e->paused)) { /* a stopped process: no clock, no I/O */
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+            continue;
+        }
         struct pollfd p = {e->master, POLLIN, 0};
         int r = poll(&p, 1, 1);
         if (r > 0 && (p.revents & POLLIN)) {
@@ -272,7 +301,28 @@ static void *mcu_thread(void *arg)
             iso_fb_mcu_tick(&e->mcu, now);
         }
     }
+    if (atomic_load(&e->killed)) { /* as a dying process closes its UART */
+        close(e->master);
+        e->master = -1;
+    }
     return NULL;
+}
+
+/* Joins the MCU thread and closes the pty and the host's tty link. */
+static void native_end(emu_link *e)
+{
+    if (e->thread_started) {
+        atomic_store(&e->stop, 1);
+        pthread_join(e->thread, NULL);
+        e->thread_started = 0;
+    }
+    iso_link_close(e->tty);
+    e->tty = NULL;
+    if (e->master >= 0)
+        close(e->master);
+    if (e->slave_keep >= 0)
+        close(e->slave_keep);
+    e->master = e->slave_keep = -1;
 }
 
 static int native_open(emu_link *e, iso_err *err)
@@ -302,6 +352,24 @@ static int native_open(emu_link *e, iso_err *err)
                            strerror(pe));
     e->thread_started = 1;
     return ISO_OK;
+}
+
+/* A killed MCU thread is restarted as a rebooted MCU: fresh pty, fresh
+ * state (IDLE at the safe positions, HELLO(BOOT)). */
+static int native_reopen(emu_link *e, iso_err *err)
+{
+    if (!atomic_load(&e->killed))
+        return ISO_OK;
+    native_end(e);
+    atomic_store(&e->stop, 0);
+    atomic_store(&e->killed, 0);
+    atomic_store(&e->paused, 0);
+    int rc = native_open(e, err);
+    if (rc == ISO_OK)
+        atomic_fetch_add(&e->restarts, 1);
+    else
+        atomic_store(&e->killed, 1); /* try again at the next reopen */
+    return rc;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -374,9 +442,12 @@ static int find_elf(char *out, size_t cap, char *why, size_t why_cap)
     return 0;
 }
 
-static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *err)
+/* Listens on a loopback port and starts QEMU with its UART0 connecting
+ * there; qemu_accept() takes the connection. */
+static int qemu_launch(emu_link *e, iso_err *err)
 {
-    int lfd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const char *qemu = e->qemu_path, *elf = e->elf;
+    int lfd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
     struct sockaddr_in a;
     memset(&a, 0, sizeof a);
     a.sin_family = AF_INET;
@@ -414,31 +485,118 @@ static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *er
         close(lfd);
         return iso_err_set(err, ISO_EIO, -1, "%s: fork: %s", e->what, strerror(errno));
     }
-    e->qemu = pid;
-    uint64_t deadline = now_us() + QEMU_CONNECT_MS * 1000u;
-    while (e->sock < 0) {
-        int status;
-        if (waitpid(pid, &status, WNOHANG) == pid) {
-            e->qemu = -1;
-            close(lfd);
-            return iso_err_set(err, ISO_EIO, -1, "%s: %s exited (%s %d) before connecting its UART",
-                               e->what, qemu, WIFEXITED(status) ? "status" : "signal",
-                               WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
-        }
-        int left = ms_left(deadline);
-        if (left == 0) {
-            close(lfd);
-            return iso_err_set(err, ISO_EIO, -1, "%s: %s did not connect its UART within %d ms",
-                               e->what, qemu, QEMU_CONNECT_MS);
-        }
-        struct pollfd p = {lfd, POLLIN, 0};
-        if (poll(&p, 1, left < 50 ? left : 50) > 0)
-            e->sock = accept4(lfd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
-    }
-    close(lfd);
-    int one = 1;
-    setsockopt(e->sock, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    atomic_store(&e->qemu, pid);
+    e->lfd = lfd;
+    e->launched_us = now_us();
     return ISO_OK;
+}
+
+/* Waits up to wait_ms for the launched QEMU's UART. Returns ISO_OK when it
+ * connected, 1 while it may still, or ISO_EIO when QEMU exited or took
+ * longer than QEMU_CONNECT_MS (it is then reaped: the next launch starts
+ * clean). */
+static int qemu_accept(emu_link *e, int wait_ms, iso_err *err)
+{
+    int pid = atomic_load(&e->qemu), status = 0;
+    if (pid <= 0 || waitpid(pid, &status, WNOHANG) == pid) {
+        if (pid > 0)
+            atomic_store(&e->qemu, -1);
+        qemu_reap(e);
+        if (pid <= 0)
+            return iso_err_set(err, ISO_EIO, -1, "%s: QEMU is gone", e->what);
+        return iso_err_set(err, ISO_EIO, -1, "%s: %s exited (%s %d) before connecting its UART",
+                           e->what, e->qemu_path, WIFEXITED(status) ? "status" : "signal",
+                           WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
+    }
+    struct pollfd p = {e->lfd, POLLIN, 0};
+    if (poll(&p, 1, wait_ms) > 0) {
+        e->sock = accept4(e->lfd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
+        if (e->sock >= 0) {
+            close(e->lfd);
+            e->lfd = -1;
+            e->sock_dead = 0;
+            int one = 1;
+            setsockopt(e->sock, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+            return ISO_OK;
+        }
+    }
+    if (now_us() - e->launched_us > QEMU_CONNECT_MS * 1000u) {
+        qemu_reap(e);
+        return iso_err_set(err, ISO_EIO, -1, "%s: %s did not connect its UART within %d ms",
+                           e->what, e->qemu_path, QEMU_CONNECT_MS);
+    }
+    return 1;
+}
+
+static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *err)
+{
+    snprintf(e->qemu_path, sizeof e->qemu_path, "%s", qemu);
+    snprintf(e->elf, sizeof e->elf, "%s", elf);
+    int rc = qemu_launch(e, err);
+    while (rc == ISO_OK && (rc = qemu_accept(e, 50, err)) == 1) {
+    }
+    return rc;
+}
+
+/* A QEMU that died (its stream ended, or it exited) is relaunched without
+ * waiting: this reopen starts it, the next ones (every reopen_ms) take its
+ * UART once it connects. A stopped QEMU is alive: same stream. */
+static int qemu_reopen(emu_link *e, iso_err *err)
+{
+    int pid = atomic_load(&e->qemu);
+    int alive = pid > 0 && waitpid(pid, NULL, WNOHANG) == 0;
+    if (pid > 0 && !alive)
+        atomic_store(&e->qemu, -1); /* reaped: never signal that pid again */
+    if (e->lfd < 0 && e->sock >= 0 && !e->sock_dead && alive)
+        return ISO_OK;
+    if (e->lfd < 0) {
+        qemu_reap(e);
+        int rc = qemu_launch(e, err);
+        if (rc != ISO_OK)
+            return rc;
+        atomic_fetch_add(&e->restarts, 1);
+    }
+    int rc = qemu_accept(e, 0, err);
+    if (rc == 1)
+        return iso_err_set(err, ISO_EIO, -1, "%s: relaunched (pid %d), waiting for its UART",
+                           e->what, atomic_load(&e->qemu));
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* For the sink                                                               */
+/* ------------------------------------------------------------------------ */
+
+int iso_act__emu_is(const iso_link *l)
+{
+    return l && l->ops == &emu_ops;
+}
+
+unsigned iso_act__emu_restarts(const iso_link *l)
+{
+    return iso_act__emu_is(l) ? atomic_load(&((emu_link *)l)->restarts) : 0;
+}
+
+int iso_act__emu_signal(iso_link *l, int sig, iso_err *err)
+{
+    if (!iso_act__emu_is(l))
+        return iso_err_set(err, ISO_EINVAL, -1, "emulated MCU: the link is not an emulation");
+    emu_link *e = (emu_link *)l;
+    if (e->mode == ISO_ACT_EMU_QEMU) {
+        int pid = atomic_load(&e->qemu);
+        if (pid <= 0 || kill(pid, sig) != 0)
+            return iso_err_set(err, ISO_EIO, -1, "%s: cannot signal QEMU (pid %d): %s", e->what,
+                               pid, pid <= 0 ? "not running" : strerror(errno));
+        return ISO_OK;
+    }
+    switch (sig) {
+    case SIGKILL: atomic_store(&e->killed, 1); return ISO_OK;
+    case SIGSTOP: atomic_store(&e->paused, 1); return ISO_OK;
+    case SIGCONT: atomic_store(&e->paused, 0); return ISO_OK;
+    }
+    return iso_err_set(err, ISO_EINVAL, -1,
+                       "%s: signal %d is not emulated (SIGKILL, SIGSTOP, SIGCONT are)", e->what,
+                       sig);
 }
 
 /* ------------------------------------------------------------------------ */

@@ -40,10 +40,50 @@
  * the MCU's 100 ms link watchdog holds however slow the loop's ticks are (a
  * 40k-vertex tick takes longer than 100 ms), and publish never touches I/O.
  *
+ * Safety (issue #14). The sender streams only while three things hold; when
+ * one fails it stops sending SETPOINTS, so the MCU's own link watchdog
+ * brakes it to its safe state 100 ms (+ one 1 ms MCU tick) after the last
+ * SETPOINTS it got, and the sink says so in one notice line:
+ *  - the loop makes progress: once the loop has called iso_actuators_alive()
+ *    (the loop watchdog is armed by that first call; a loop that never
+ *    calls it is not guarded), no SETPOINTS go out later than
+ *    loop_timeout_ms - 5 ms after the last alive() or publish(), so the MCU
+ *    is safe within loop_timeout_ms + 100 ms of the loop's last progress.
+ *    A slow tick is live as long as it calls alive() as it goes;
+ *  - no e-stop: iso_actuators_estop(a, 1) or the safety opts' estop_probe. The
+ *    sender stops at its next cycle (<= 10 ms), but that does not set the
+ *    time to safe: protocol v1 has no "go safe" request (PROTOCOL.md), no
+ *    host frame makes the MCU brake at once (a bad or out-of-range frame is
+ *    NAKed or clamped, never FAULTed), so the brake comes from the link
+ *    watchdog, 100-102 ms after the last SETPOINTS, i.e. at most ~102 ms
+ *    after the e-stop edge (measured: see tests/test_actuators.c). A
+ *    20 ms bound needs a protocol v2 SAFE request (one round trip);
+ *  - the link is up (see "Loss" below).
+ * The loop watchdog's bound and the e-stop probe are iso_act_safety_opts
+ * (iso_actuators_create_v2).
+ * Re-arming: when a loop stall or an e-stop ends, setpoints resume with the
+ * first publish() that follows its end, never with values from before it:
+ * the sink sends HELLO (the MCU arms holding where it stands, after a brake
+ * its safe positions; PROTOCOL.md step 2) and then streams that tick.
+ *
+ * Loss. A transport error, or no valid frame for link_timeout_ms, is a lost
+ * link: one notice at once, then the sink reopens the link every 50 ms (an
+ * emulated link relaunches QEMU, or restarts the native MCU thread, when it
+ * died) and shakes hands again; another notice when it is armed again.
+ * While a hold stands (e-stop, loop stall, stop) a lost link is not
+ * reopened: a reopen ends in HELLO, which would arm the MCU. An
+ * MCU silent for 500 ms (no heartbeat) gets a notice before it counts as
+ * lost. Every time the MCU reports its safe state after streaming stopped
+ * (FAULT, a heartbeat that is not armed, HELLO(BOOT) after a restart), the
+ * sink counts a confirmation and says how long it took.
+ *
+ * Link state for a status line: iso_actuators_state() and
+ * iso_actuators_link_state(), lock-free, any thread.
+ *
  * sim/ does not depend on config/: the controller converts a scene's
  * iso_scene_actuators into the structs below. Publish, poll and safe_stop
- * from one thread (the real-time loop); stats, format_stats and mcu_hello
- * from any. */
+ * from one thread (the real-time loop); stats, format_stats, mcu_hello,
+ * alive, estop, state and link_state from any (the last four lock-free). */
 #ifndef ISO_ACTUATORS_H
 #define ISO_ACTUATORS_H
 
@@ -75,10 +115,10 @@ typedef struct iso_act_channel {
 
 /* ---- the link ------------------------------------------------------------ */
 typedef enum iso_act_link_kind {
-    ISO_ACT_LINK_NONE = 0,   /* compute only: publish computes, sends nothing */
-    ISO_ACT_LINK_TTY = 1,    /* path, baud */
-    ISO_ACT_LINK_TCP = 2,    /* host, port; connects within 5 ms, so a reopen fits a sender period */
-    ISO_ACT_LINK_SERIAL = 3, /* path (libserialport name), baud */
+    ISO_ACT_LINK_NONE = 0, /* compute only: publish computes, sends nothing */
+    ISO_ACT_LINK_TTY = 1,  /* path, baud */
+    ISO_ACT_LINK_TCP = 2,  /* host, port; connects within 5 ms, so a reopen fits a sender period */
+    ISO_ACT_LINK_SERIAL = 3,  /* path (libserialport name), baud */
     ISO_ACT_LINK_EMULATED = 4 /* emulation: ISO_ACT_EMU_* */
 } iso_act_link_kind;
 
@@ -99,14 +139,57 @@ typedef struct iso_act_link_spec {
 
 /* Called with one line (no newline) for things the user should know: which
  * emulation runs and why, a channel-count or limit disagreement with the
- * MCU. NULL in the options prints the line to stderr. */
+ * MCU, and every safety event (loop stall, e-stop, link lost, back, MCU
+ * silent, safe state confirmed). Called from the creating thread during
+ * create and from the sink's sender thread after that, once per event,
+ * never with the sink's lock held: it must be thread-safe (fprintf is).
+ * A slow callback only delays setpoints, which fails safe. NULL in the
+ * options prints the line to stderr. */
 typedef void (*iso_act_notice_fn)(void *ctx, const char *line);
+
+/* Reads an e-stop line: returns nonzero while the e-stop is pressed. Called
+ * by the sender thread every cycle (10 ms), independently of the loop, so
+ * it must be quick and thread-safe (e.g. a GPIO read or an atomic load). */
+typedef int (*iso_act_estop_fn)(void *ctx);
 
 typedef struct iso_act_opts {
     int link_timeout_ms;      /* no valid frame this long -> link lost; 0 = 1000 (3000 emulated) */
     iso_act_notice_fn notice; /* NULL = stderr */
     void *notice_ctx;
 } iso_act_opts;
+
+/* The safety options of iso_actuators_create_v2 (issue #14). A struct of
+ * its own, not fields added to iso_act_opts: callers initialise that one
+ * positionally, which -Wextra -Werror would turn into a build break. Zero
+ * means the default everywhere; NULL is all defaults. */
+typedef struct iso_act_safety_opts {
+    int tick_period_ms;           /* the loop's nominal tick period; 0 = not given */
+    int loop_timeout_ms;          /* no alive()/publish() this long -> stop streaming;
+                                   * 0 = max(250, 5 * tick_period_ms); < 0 = no loop watchdog;
+                                   * 1..9 is ISO_EINVAL (below the sender's 10 ms period) */
+    iso_act_estop_fn estop_probe; /* NULL = only iso_actuators_estop() */
+    void *estop_ctx;
+} iso_act_safety_opts;
+
+/* ---- state ------------------------------------------------------------ */
+typedef enum iso_act_state {
+    ISO_ACT_STATE_OFF = 0,         /* no link (ISO_ACT_LINK_NONE) */
+    ISO_ACT_STATE_CONNECTING = 1,  /* first handshake pending */
+    ISO_ACT_STATE_ARMED = 2,       /* streaming (or keeping the MCU armed before the first tick) */
+    ISO_ACT_STATE_SILENT = 3,      /* streaming, but nothing heard from the MCU for 500 ms */
+    ISO_ACT_STATE_STOPPING = 4,    /* setpoints withheld (see holds); MCU not yet reported safe */
+    ISO_ACT_STATE_SAFE = 5,        /* setpoints withheld and the MCU reported its safe state */
+    ISO_ACT_STATE_LOST = 6,        /* link lost; reopening / restarting the emulation */
+    ISO_ACT_STATE_RECONNECTING = 7 /* link back, handshaking again (after a loss or a FAULT) */
+} iso_act_state;
+
+/* Why setpoints are withheld (bits of iso_actuators_state()'s *holds). */
+enum {
+    ISO_ACT_HOLD_ESTOP = 1u, /* e-stop pressed (call or probe) */
+    ISO_ACT_HOLD_LOOP = 2u,  /* the loop watchdog tripped */
+    ISO_ACT_HOLD_STOP = 4u,  /* iso_actuators_safe_stop() */
+    ISO_ACT_HOLD_TICK = 8u   /* a stall or e-stop ended: waiting for the next publish to re-arm */
+};
 
 /* ---- counters ------------------------------------------------------------ */
 typedef struct iso_act_stats {
@@ -132,6 +215,19 @@ typedef struct iso_act_stats {
     uint32_t mcu_uptime_ms;                /* last HEARTBEAT's */
     int16_t mcu_pos[ISO_ACT_MAX_CHANNELS]; /* last HEARTBEAT's positions */
     uint32_t heartbeats;
+    /* ---- added for issue #14 ---- */
+    uint32_t reopens;       /* the link reopened after a loss (the host's count) */
+    uint32_t emu_restarts;  /* emulated link: QEMU relaunched / native MCU thread restarted */
+    uint32_t loop_stalls;   /* the loop watchdog tripped */
+    uint32_t estops;        /* e-stop presses seen by the sender */
+    uint32_t silences;      /* the MCU went quiet for 500 ms */
+    uint32_t safe_confirms; /* safe-state reports after streaming stopped */
+    uint64_t alive_calls;   /* iso_actuators_alive() calls */
+    /* From what stopped the streaming (the e-stop call, the loop's last
+     * progress, the loss or silence, the stop) to the MCU's report of its
+     * safe state, host clock; -1 before any. */
+    double last_safe_ms;
+    int last_safe_cause; /* ISO_ACT_HOLD_ESTOP/LOOP/STOP, or 0 for a loss or silence */
 } iso_act_stats;
 
 typedef struct iso_actuators iso_actuators; /* opaque */
@@ -159,6 +255,18 @@ ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, /* i
  * iso_actuators_safe_stop() first for a clean stop. NULL is a no-op. */
 void iso_actuators_destroy(iso_actuators *a);
 
+/* iso_actuators_create with the safety options; create() is this with
+ * safety = NULL (loop watchdog at 250 ms once alive() is first called, no
+ * e-stop probe). Errors as create's, plus ISO_EINVAL for a loop_timeout_ms
+ * of 1..9. */
+ISO_NODISCARD int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, /* in */
+                                          int nv, const iso_regions *regions,  /* in */
+                                          const iso_act_link_spec *link,       /* in */
+                                          const iso_act_opts *opts,            /* in */
+                                          const iso_act_safety_opts *safety,   /* in */
+                                          iso_actuators **out,                 /* out */
+                                          iso_err *err);                       /* out */
+
 /* Computes the channel values for positions x (3*nv, xyz interleaved) into
  * values[ch] for every configured channel (others are left alone), counting
  * clamps. ISO_ENUMERIC, naming the channel, when a coordinate is not finite.
@@ -168,10 +276,12 @@ ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
 
 /* One control tick: computes the values and hands them to the sender
  * thread, which streams them from its next period on (until a later publish
- * replaces them); never waits for the link. Returns 1 if the link is
- * streaming, 0 if not (the link is down or the handshake is pending; the
- * sender recovers both by itself), or a negative code: ISO_ENUMERIC for
- * non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
+ * replaces them); never waits for the link. Once iso_actuators_alive() was
+ * called, a publish also counts as the loop's progress. Returns 1 if the
+ * link is streaming, 0 if not (the link is down, the handshake is pending,
+ * or a hold stands: e-stop, loop stall, or a stall just ended, which this
+ * publish may clear; the sender recovers by itself), or a negative code:
+ * ISO_ENUMERIC for non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
  * lacks a channel the spec drives or after safe_stop. With
  * ISO_ACT_LINK_NONE it only computes (returns 0). */
 ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
@@ -199,9 +309,41 @@ void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
  * Returns 1 when there is one, else 0. */
 int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);
 
-/* One line of counters: this sink's, then the link's
- * (iso_fb_host_format_stats). Returns snprintf's result. */
+/* One line of counters: this sink's (with the safety counts: link losses,
+ * reopens, emulation restarts, loop stalls, e-stops, safe states confirmed),
+ * then the link's (iso_fb_host_format_stats). Returns snprintf's result. */
 int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
+
+/* ---- safety (issue #14); all lock-free, any thread, NULL a is a no-op ---- */
+
+/* The loop reports progress: at every tick and from inside long ticks as
+ * the solver advances (every iteration, or at least every loop_timeout/2).
+ * One clock read and two relaxed atomic stores. The first call arms the
+ * loop watchdog; publish() also counts as progress after that. */
+void iso_actuators_alive(iso_actuators *a);
+
+/* Presses (on != 0) or releases the e-stop. The sender stops streaming at
+ * its next cycle; see "Safety" above for the time to the safe state. After
+ * a release, streaming resumes with the next publish(). */
+void iso_actuators_estop(iso_actuators *a, int on);
+
+/* The sink's state (ISO_ACT_STATE_*) and, if holds is not NULL, why
+ * setpoints are withheld (ISO_ACT_HOLD_* bits). Updated by the sender every
+ * cycle. */
+int iso_actuators_state(const iso_actuators *a, unsigned *holds);
+
+/* The same as one constant word or two for a status line: "armed",
+ * "connecting", "silent", "stopping (e-stop)", "safe (e-stop)",
+ * "safe (loop stalled)", "safe (stopped)", "safe (waiting for a tick)",
+ * "lost", "reconnecting", "off". Never NULL. */
+const char *iso_actuators_link_state(const iso_actuators *a);
+
+/* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
+ * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
+ * ends the MCU thread and closes its end of the pty (as a dying process
+ * closes its UART), SIGSTOP pauses its clock and I/O, SIGCONT resumes.
+ * ISO_EINVAL without an emulated link or for another signal (native). */
+ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
 
 /* ---- emulated firmware (emu_firmware.c) ---------------------------------- */
 typedef struct iso_act_emu_info {
@@ -222,7 +364,10 @@ void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * saying why in info->line. The returned link owns the emulation:
  * iso_link_close() kills and reaps QEMU or stops and joins the thread.
  * Its reopen is a no-op while the emulation lives (the host's loss recovery
- * then shakes hands again on the same stream). info may be NULL. The native
+ * then shakes hands again on the same stream); when the emulation died it
+ * restarts it: QEMU is relaunched without blocking (each reopen checks
+ * whether the new one has connected its UART; 5 s to do so), the native
+ * MCU thread is restarted on a fresh pty. info may be NULL. The native
  * MCU thread asks for SCHED_FIFO (lowest priority) and goes on without it
  * where that is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
  * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */

@@ -13,6 +13,8 @@
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
+#include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,32 +28,58 @@
 
 #define NV 6
 
+#define MAX_NOTICES 64
+
+/* Notices come from the sink's sender thread: under a lock. */
 static struct {
-    char notices[8][800];
+    pthread_mutex_t lock;
+    char notices[MAX_NOTICES][800];
+    double notice_t[MAX_NOTICES];
     int n_notices;
-} g;
-
-static void on_notice(void *ctx, const char *line)
-{
-    (void)ctx;
-    if (g.n_notices < 8)
-        snprintf(g.notices[g.n_notices++], sizeof g.notices[0], "%s", line);
-    printf("  notice: %s\n", line);
-}
-
-static int noticed(const char *needle)
-{
-    for (int i = 0; i < g.n_notices; i++)
-        if (strstr(g.notices[i], needle))
-            return 1;
-    return 0;
-}
+    atomic_int estop_line; /* the e-stop probe's "GPIO" */
+} g = {.lock = PTHREAD_MUTEX_INITIALIZER};
 
 static double now_s(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void on_notice(void *ctx, const char *line)
+{
+    (void)ctx;
+    pthread_mutex_lock(&g.lock);
+    if (g.n_notices < MAX_NOTICES) {
+        g.notice_t[g.n_notices] = now_s();
+        snprintf(g.notices[g.n_notices++], sizeof g.notices[0], "%s", line);
+    }
+    pthread_mutex_unlock(&g.lock);
+    printf("  notice: %s\n", line);
+}
+
+/* When the first notice holding needle came, or -1. */
+static double noticed_at(const char *needle)
+{
+    double t = -1;
+    pthread_mutex_lock(&g.lock);
+    for (int i = 0; i < g.n_notices && t < 0; i++)
+        if (strstr(g.notices[i], needle))
+            t = g.notice_t[i];
+    pthread_mutex_unlock(&g.lock);
+    return t;
+}
+
+static int noticed(const char *needle)
+{
+    return noticed_at(needle) >= 0;
+}
+
+static void forget_notices(void)
+{
+    pthread_mutex_lock(&g.lock);
+    g.n_notices = 0;
+    pthread_mutex_unlock(&g.lock);
 }
 
 /* 0,1 fixed; 2,3 handle 0; 4 handle 1; 5 free. */
@@ -336,7 +364,13 @@ static int run_ticks(iso_actuators *a, uint32_t *tick, int ms, void (*x_of)(uint
                 next = now + 0.01;
         }
         int wait = (int)ceil((next - now_s()) * 1000); /* sleep, never spin */
-        iso_actuators_poll(a, wait < 0 ? 0 : wait > 10 ? 10 : wait);
+        wait = wait < 0 ? 0 : wait > 10 ? 10 : wait;
+        if (iso_actuators_poll(a, wait) == 0 && wait > 0) {
+            /* poll returns at once while the link is down: a SCHED_FIFO
+             * spin here would starve the sender (under valgrind, always) */
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+        }
         iso_actuators_stats(a, &s);
         if (log && s.heartbeats != seen_hb && s.mcu_state == ISO_FB_STATE_ARMED && log->n < 256) {
             seen_hb = s.heartbeats;
@@ -389,9 +423,30 @@ static int emulated_sink(iso_regions *r, int mode, iso_actuators **a, iso_err *e
     link.emulation = mode;
     iso_act_opts opts = {0, on_notice, NULL};
     iso_err_clear(err);
-    g.n_notices = 0;
+    forget_notices();
     *a = NULL;
     return iso_actuators_create(E2E, 4, NV, r, &link, &opts, a, err);
+}
+
+/* The same with safety options (iso_actuators_create_v2). */
+static int safety_sink(iso_regions *r, int mode, const iso_act_safety_opts *so, iso_actuators **a,
+                       iso_err *err)
+{
+    tiny_regions(r);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_EMULATED;
+    link.emulation = mode;
+    iso_act_opts opts = {0, on_notice, NULL};
+    iso_err_clear(err);
+    forget_notices();
+    *a = NULL;
+    int rc = iso_actuators_create_v2(E2E, 4, NV, r, &link, &opts, so, a, err);
+    if (rc != ISO_OK && rc != ISO_ENOTSUP)
+        fail_msg("create: %s", err->msg);
+    if (rc == ISO_ENOTSUP)
+        iso_regions_deinit(r);
+    return rc;
 }
 
 /* Returns 0 when the emulation is not available here (the caller skips). */
@@ -431,7 +486,8 @@ static int end_to_end(int mode, const char *label)
         assert_int_equal(h.ch[c].max_rate, cfg.ch[c].max_rate);
         assert_int_equal(h.ch[c].safe, cfg.ch[c].safe);
     }
-    assert_int_equal(g.n_notices, 1); /* counts and limits agree: nothing to say */
+    /* counts and limits agree: nothing to say about them */
+    assert_false(noticed("the spec drives") || noticed("the MCU's limits"));
 
     /* convergence at the rate limit: 600 at 500/s is the slowest, 1.2 s */
     run_ticks(a, &tick, 4000, NULL, &log, at_target);
@@ -599,23 +655,24 @@ static void slow_loop_still_streams_at_100hz(void **state)
     iso_actuators_stats(a, &s);
     uint64_t sent = s.setpoints_sent - s0.setpoints_sent;
     double hz = (double)sent / secs;
-    printf("  slow loop: %u publishes in %.2f s, %llu setpoints sent (%.1f Hz), %llu acked, rtt avg "
-           "%.3f ms (max %.3f), publish max %.3f ms; faults %u, handshakes %u, naks %u; MCU at %d "
-           "%d %d %d\n",
-           (unsigned)(tick - tick0), secs, (unsigned long long)sent, hz,
-           (unsigned long long)(s.acks - s0.acks), s.rtt_avg_ms, s.rtt_max_ms, s.publish_max_ms,
-           (unsigned)s.faults, (unsigned)s.handshakes, (unsigned)s.naks, s.mcu_pos[0],
-           s.mcu_pos[1], s.mcu_pos[2], s.mcu_pos[3]);
-    assert_true(tick - tick0 <= 15);           /* the loop really was slow */
-    assert_int_equal(s.faults, 0);             /* the watchdog never tripped */
-    assert_int_equal(s.handshakes, 1);         /* no re-handshake after the first */
+    printf(
+        "  slow loop: %u publishes in %.2f s, %llu setpoints sent (%.1f Hz), %llu acked, rtt avg "
+        "%.3f ms (max %.3f), publish max %.3f ms; faults %u, handshakes %u, naks %u; MCU at %d "
+        "%d %d %d\n",
+        (unsigned)(tick - tick0), secs, (unsigned long long)sent, hz,
+        (unsigned long long)(s.acks - s0.acks), s.rtt_avg_ms, s.rtt_max_ms, s.publish_max_ms,
+        (unsigned)s.faults, (unsigned)s.handshakes, (unsigned)s.naks, s.mcu_pos[0], s.mcu_pos[1],
+        s.mcu_pos[2], s.mcu_pos[3]);
+    assert_true(tick - tick0 <= 15);   /* the loop really was slow */
+    assert_int_equal(s.faults, 0);     /* the watchdog never tripped */
+    assert_int_equal(s.handshakes, 1); /* no re-handshake after the first */
     assert_int_equal(s.naks, 0);
     assert_int_equal(s.link_losses, 0);
-    assert_true(sent >= 150);                  /* ~100 Hz, not one per publish */
+    assert_true(sent >= 150); /* ~100 Hz, not one per publish */
     assert_true(s.acks - s0.acks >= sent * 8 / 10);
     assert_int_equal(s.echo_mismatches, 0);
     assert_int_equal(s.echo_unknown, 0);
-    assert_true(s.publish_max_ms < 5.0);       /* publish never waits for the link */
+    assert_true(s.publish_max_ms < 5.0); /* publish never waits for the link */
     for (int c = 0; c < 4; c++)
         assert_int_equal(s.mcu_pos[c], TARGET[c]);
 
@@ -726,7 +783,7 @@ static void mcu_channel_count_disagreement(void **state)
     two[0].max = 5; /* beyond the MCU's 1000 milli-units: a notice */
     iso_actuators *a = NULL;
     iso_err_clear(&err);
-    g.n_notices = 0;
+    forget_notices();
     assert_int_equal(iso_actuators_create(two, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
     run_ticks(a, &tick, 8000, NULL, NULL, streaming);
     run_ticks(a, &tick, 300, NULL, NULL, NULL);
@@ -747,7 +804,7 @@ static void mcu_channel_count_disagreement(void **state)
     iso_act_channel five[2] = {E2E[0], E2E[1]};
     five[1].channel = 5;
     a = NULL;
-    g.n_notices = 0;
+    forget_notices();
     assert_int_equal(iso_actuators_create(five, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
     int rc = 0;
     double end = now_s() + 8;
@@ -889,7 +946,7 @@ static void scene_runs_hardware_free(void **state)
     link.emulation = s->actuators.emulation;
     iso_act_opts opts = {0, on_notice, NULL};
     iso_actuators *a = NULL;
-    g.n_notices = 0;
+    forget_notices();
     int nv = iso_mesh_vertex_count(s->mesh);
     iso_err_clear(&err);
     if (iso_actuators_create(ch, s->actuators.n_ch, nv, &s->regions, &link, &opts, &a, &err))
@@ -917,10 +974,482 @@ static void scene_runs_hardware_free(void **state)
     assert_true(st.setpoints_sent >= 20 && st.setpoints_sent <= 80); /* 100 Hz for 0.5 s */
     assert_true(st.acks >= 10);
     assert_int_equal(st.echo_mismatches, 0);
-    assert_int_equal(g.n_notices, 1); /* 4 channels, as the firmware has */
+    assert_false(noticed("the spec drives")); /* 4 channels, as the firmware has */
     assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
     iso_actuators_destroy(a);
     iso_scene_destroy(s);
+}
+
+/* ---- safety (issue #14): loop watchdog, e-stop, MCU loss ------------------ */
+
+static iso_act_stats stats_of(iso_actuators *a)
+{
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    return s;
+}
+
+static void sleep_ms(double ms)
+{
+    struct timespec ts = {(time_t)(ms / 1000), (long)(fmod(ms, 1000.0) * 1e6)};
+    nanosleep(&ts, NULL);
+}
+
+/* 100 Hz ticks (publish counts as progress once alive() was called) until
+ * done or ms. */
+static int armed_and_acked(iso_actuators *a, const hb_log *log)
+{
+    (void)log;
+    iso_act_stats s = stats_of(a);
+    return iso_actuators_state(a, NULL) == ISO_ACT_STATE_ARMED &&
+           s.mcu_state == ISO_FB_STATE_ARMED && s.acks > 0;
+}
+
+/* The sink armed and streaming on mode's MCU, the loop watchdog armed. */
+static void start_streaming(iso_actuators *a, uint32_t *tick, const char *label)
+{
+    iso_actuators_alive(a);
+    run_ticks(a, tick, 10000, NULL, NULL, streaming);
+    run_ticks(a, tick, 400, NULL, NULL, NULL);
+    if (strcmp(iso_actuators_link_state(a), "armed") != 0) {
+        char line[2048];
+        iso_actuators_format_stats(a, line, sizeof line);
+        fail_msg("%s: not armed after the start: %s; %s", label, iso_actuators_link_state(a), line);
+    }
+}
+
+/* A loop that stops reporting progress for 1 s: the sink stops setpoints
+ * once loop_timeout_ms (250 ms here, the default for a 10 ms tick) has
+ * passed, the MCU's watchdog brakes it, and the sink confirms the safe
+ * state; when the loop ticks again it re-arms with HELLO and streams. Then
+ * a slow but live tick (1.2 s, progress every 50 ms) does not trip it.
+ * Returns 0 when the emulation is absent (the caller skips). */
+static int loop_stall_brakes_then_rearms(int mode, const char *label)
+{
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_act_safety_opts so = {10, 0, NULL, NULL}; /* 10 ms ticks: max(250, 50) = 250 ms */
+    if (safety_sink(&r, mode, &so, &a, &err) == ISO_ENOTSUP) {
+        printf("SKIP %s: %s\n", label, err.msg);
+        return 0;
+    }
+    uint32_t tick = 0;
+    start_streaming(a, &tick, label);
+    iso_act_stats s0 = stats_of(a);
+
+    /* the loop freezes: no alive(), no publish() for 1 s */
+    double t_last = now_s();
+    iso_actuators_alive(a);
+    double t_stall = -1, t_safe = -1;
+    uint64_t sent_at_stall = 0;
+    while (now_s() < t_last + 1.0) {
+        iso_actuators_poll(a, 1); /* reading the sink is not progress */
+        iso_act_stats s = stats_of(a);
+        if (t_stall < 0 && s.loop_stalls > s0.loop_stalls) {
+            t_stall = now_s();
+            sent_at_stall = s.setpoints_sent;
+        }
+        if (t_safe < 0 && t_stall > 0 && s.last_safe_cause == ISO_ACT_HOLD_LOOP &&
+            s.last_safe_ms >= 0)
+            t_safe = now_s();
+    }
+    iso_act_stats s1 = stats_of(a);
+    const char *st = iso_actuators_link_state(a);
+    double stall_ms = (t_stall - t_last) * 1000, safe_ms = (t_safe - t_last) * 1000;
+    printf(
+        "%s: loop stalled: detected %.1f ms after its last progress, MCU safe %.1f ms after it "
+        "(sink: %.1f ms; bound: timeout 250 + watchdog 100 = 350 ms: %s), MCU FAULT detail %u ms; "
+        "state '%s'\n",
+        label, stall_ms, safe_ms, s1.last_safe_ms, safe_ms <= 350.0 ? "met" : "MISSED",
+        (unsigned)s1.last_fault_detail_ms, st);
+    assert_int_equal(s1.loop_stalls, s0.loop_stalls + 1);
+    assert_true(t_stall > 0 && t_safe > 0);
+    assert_true(stall_ms >= 244.0);         /* not before the timeout less the 5 ms guard */
+    assert_true(stall_ms <= 250.0 + 200.0); /* generous: loaded CI */
+    assert_true(s1.last_safe_ms <= 350.0 + 150.0);
+    assert_true(safe_ms <= 350.0 + 200.0);
+    assert_int_equal(s1.setpoints_sent, sent_at_stall); /* nothing after the stall */
+    assert_int_equal(s1.last_safe_cause, ISO_ACT_HOLD_LOOP);
+    assert_true(noticed("LOOP STALLED"));
+    assert_string_equal(st, "safe (loop stalled)");
+    assert_int_equal(s1.mcu_state, ISO_FB_STATE_SAFE);
+    unsigned holds = 0;
+    assert_int_equal(iso_actuators_state(a, &holds), ISO_ACT_STATE_SAFE);
+    assert_true(holds & ISO_ACT_HOLD_LOOP);
+
+    /* the loop ticks again: HELLO, then its fresh values stream */
+    double t_resume = now_s();
+    run_ticks(a, &tick, 5000, NULL, NULL, armed_and_acked);
+    iso_act_stats s2 = stats_of(a);
+    printf("%s: the loop resumed: armed and acked again after %.1f ms (handshakes %u -> %u)\n",
+           label, (now_s() - t_resume) * 1000, (unsigned)s0.handshakes, (unsigned)s2.handshakes);
+    assert_true(armed_and_acked(a, NULL));
+    assert_true(s2.handshakes > s0.handshakes);
+    assert_true(s2.setpoints_sent > sent_at_stall);
+    assert_true(noticed("re-arming the MCU"));
+
+    /* a slow but live tick: 1.2 s with progress every 50 ms, no publish */
+    iso_act_stats s3 = stats_of(a);
+    double end = now_s() + 1.2;
+    while (now_s() < end) {
+        iso_actuators_alive(a);
+        sleep_ms(50);
+    }
+    iso_act_stats s4 = stats_of(a);
+    printf("%s: a 1.2 s tick reporting progress: %llu setpoints meanwhile, loop stalls %u\n", label,
+           (unsigned long long)(s4.setpoints_sent - s3.setpoints_sent), (unsigned)s4.loop_stalls);
+    assert_int_equal(s4.loop_stalls, s3.loop_stalls);
+    assert_true(s4.setpoints_sent - s3.setpoints_sent >= 60); /* 100 Hz went on */
+    assert_true(s4.alive_calls > s3.alive_calls);
+    assert_int_equal(s4.echo_mismatches, 0);
+
+    char line[2048];
+    iso_actuators_format_stats(a, line, sizeof line);
+    printf("%s\n", line);
+    assert_non_null(strstr(line, "loop stalls 1"));
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+    return 1;
+}
+
+static void native_loop_stall_brakes_then_rearms(void **state)
+{
+    (void)state;
+    assert_int_equal(loop_stall_brakes_then_rearms(ISO_ACT_EMU_NATIVE, "native"), 1);
+}
+
+static void qemu_loop_stall_brakes_then_rearms(void **state)
+{
+    (void)state;
+    if (!loop_stall_brakes_then_rearms(ISO_ACT_EMU_QEMU, "qemu"))
+        skip();
+}
+
+/* The e-stop presser: another thread, as an e-stop handler would be. */
+typedef struct presser {
+    iso_actuators *a;
+    int probe; /* press through the probe's line instead of the call */
+    double t_press, t_safe;
+    uint64_t sent_20ms, sent_end; /* setpoints_sent 20 ms after the press, and at the end */
+} presser;
+
+static void *press_estop(void *arg)
+{
+    presser *p = arg;
+    sleep_ms(50); /* the loop is well into its stuck tick */
+    p->t_press = now_s();
+    if (p->probe)
+        atomic_store(&g.estop_line, 1);
+    else
+        iso_actuators_estop(p->a, 1);
+    p->t_safe = -1;
+    while (now_s() < p->t_press + 1.0) {
+        iso_act_stats s = stats_of(p->a);
+        if (!p->sent_20ms && now_s() >= p->t_press + 0.020)
+            p->sent_20ms = s.setpoints_sent;
+        if (p->t_safe < 0 && s.last_safe_cause == ISO_ACT_HOLD_ESTOP && s.last_safe_ms >= 0)
+            p->t_safe = now_s();
+        if (p->t_safe > 0 && p->sent_20ms)
+            break;
+        sleep_ms(0.5);
+    }
+    sleep_ms(100);
+    p->sent_end = stats_of(p->a).setpoints_sent;
+    return NULL;
+}
+
+static int read_estop_line(void *ctx)
+{
+    (void)ctx;
+    return atomic_load(&g.estop_line);
+}
+
+/* An e-stop pressed while the loop's tick is stuck (0.6 s, under the 2 s
+ * loop watchdog, so only the e-stop acts): setpoints stop within the
+ * sender's 10 ms cycle and the MCU reports its safe state; protocol v1
+ * gets it there through its 100 ms link watchdog, not within 20 ms (see
+ * iso_actuators.h). A loop that ticks again does not re-arm while the
+ * e-stop is held; after the release it does. */
+static int estop_while_stuck(int mode, int probe, const char *label)
+{
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    atomic_store(&g.estop_line, 0);
+    iso_act_safety_opts so = {10, 2000, probe ? read_estop_line : NULL, NULL};
+    if (safety_sink(&r, mode, &so, &a, &err) == ISO_ENOTSUP) {
+        printf("SKIP %s: %s\n", label, err.msg);
+        return 0;
+    }
+    uint32_t tick = 0;
+    start_streaming(a, &tick, label);
+    iso_act_stats s0 = stats_of(a);
+
+    presser p;
+    memset(&p, 0, sizeof p);
+    p.a = a;
+    p.probe = probe;
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, press_estop, &p), 0);
+    iso_actuators_alive(a);
+    sleep_ms(600); /* the stuck tick */
+    pthread_join(th, NULL);
+    iso_act_stats s1 = stats_of(a);
+    double ms = (p.t_safe - p.t_press) * 1000;
+    printf("%s: e-stop%s during a stuck tick: MCU safe %.1f ms after the press (sink: %.1f ms; "
+           "the 20 ms goal is %s by %.1f ms: protocol v1 brakes only by its 100 ms link "
+           "watchdog), MCU FAULT detail %u ms; setpoints after press+20 ms: %llu; state '%s'\n",
+           label, probe ? " (probe)" : "", ms, s1.last_safe_ms, ms <= 20 ? "met" : "missed",
+           ms - 20.0, (unsigned)s1.last_fault_detail_ms,
+           (unsigned long long)(p.sent_end - p.sent_20ms), iso_actuators_link_state(a));
+    assert_true(p.t_safe > 0);
+    assert_int_equal(s1.estops, s0.estops + 1);
+    assert_int_equal(s1.last_safe_cause, ISO_ACT_HOLD_ESTOP);
+    assert_int_equal(p.sent_end, p.sent_20ms);     /* stopped within the sender's cycle */
+    assert_true(s1.last_safe_ms <= 102.0 + 150.0); /* watchdog + frame; generous: loaded CI */
+    assert_true(ms <= 102.0 + 200.0);
+    assert_string_equal(iso_actuators_link_state(a), "safe (e-stop)");
+    assert_true(noticed("E-STOP"));
+    assert_int_equal(s1.loop_stalls, s0.loop_stalls); /* the e-stop acted, not the watchdog */
+
+    /* the loop ticks again with the e-stop held: nothing is sent */
+    run_ticks(a, &tick, 300, NULL, NULL, NULL);
+    iso_act_stats s2 = stats_of(a);
+    assert_int_equal(s2.setpoints_sent, s1.setpoints_sent);
+    assert_string_equal(iso_actuators_link_state(a), "safe (e-stop)");
+
+    /* released: the next tick re-arms */
+    double t_rel = now_s();
+    if (probe)
+        atomic_store(&g.estop_line, 0);
+    else
+        iso_actuators_estop(a, 0);
+    run_ticks(a, &tick, 5000, NULL, NULL, armed_and_acked);
+    printf("%s: released: armed and acked again after %.1f ms\n", label, (now_s() - t_rel) * 1000);
+    assert_true(armed_and_acked(a, NULL));
+    assert_true(stats_of(a).setpoints_sent > s2.setpoints_sent);
+    assert_true(noticed("e-stop released"));
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+    return 1;
+}
+
+static void native_estop_while_stuck(void **state)
+{
+    (void)state;
+    assert_int_equal(estop_while_stuck(ISO_ACT_EMU_NATIVE, 0, "native"), 1);
+}
+
+static void native_estop_probe_while_stuck(void **state)
+{
+    (void)state;
+    assert_int_equal(estop_while_stuck(ISO_ACT_EMU_NATIVE, 1, "native"), 1);
+}
+
+static void qemu_estop_while_stuck(void **state)
+{
+    (void)state;
+    if (!estop_while_stuck(ISO_ACT_EMU_QEMU, 0, "qemu"))
+        skip();
+}
+
+/* The MCU dies (SIGKILL to QEMU, or the native MCU thread killed) while the
+ * loop ticks on: one LINK LOST notice at once, the emulation restarted, the
+ * handshake again, streaming again; the counters say so. Returns 0 when
+ * the emulation is absent. */
+static int killed_mcu_is_loud_and_restarts(int mode, const char *label)
+{
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_act_safety_opts so = {10, 0, NULL, NULL};
+    if (safety_sink(&r, mode, &so, &a, &err) == ISO_ENOTSUP) {
+        printf("SKIP %s: %s\n", label, err.msg);
+        return 0;
+    }
+    uint32_t tick = 0;
+    start_streaming(a, &tick, label);
+    iso_act_stats s0 = stats_of(a);
+    double t_kill = now_s();
+    assert_int_equal(iso_actuators_emu_signal(a, SIGKILL, &err), ISO_OK);
+    int saw_lost = 0;
+    double end = t_kill + 20.0;
+    while (now_s() < end) {
+        run_ticks(a, &tick, 20, NULL, NULL, NULL);
+        saw_lost |= strcmp(iso_actuators_link_state(a), "lost") == 0;
+        iso_act_stats s = stats_of(a);
+        if (s.emu_restarts > s0.emu_restarts && s.acks > s0.acks + 20 && armed_and_acked(a, NULL))
+            break;
+    }
+    iso_act_stats s1 = stats_of(a);
+    double t_lost = noticed_at("LINK LOST"), t_back = noticed_at("MCU armed again");
+    printf("%s: killed: LINK LOST said %.1f ms after the kill, armed again after %.1f ms; losses "
+           "%u, reopens %u, emulation restarts %u, safe states confirmed %u (last %.1f ms after "
+           "the loss)\n",
+           label, (t_lost - t_kill) * 1000, (t_back - t_kill) * 1000, (unsigned)s1.link_losses,
+           (unsigned)s1.reopens, s1.emu_restarts, (unsigned)s1.safe_confirms, s1.last_safe_ms);
+    assert_true(t_lost > 0);
+    assert_true(t_lost - t_kill < (mode == ISO_ACT_EMU_QEMU ? 1.0 : 3.0));
+    assert_true(saw_lost);
+    assert_true(t_back > t_lost);
+    assert_true(s1.link_losses >= s0.link_losses + 1);
+    assert_true(s1.reopens >= s0.reopens + 1);
+    assert_true(s1.emu_restarts >= s0.emu_restarts + 1);
+    assert_true(s1.safe_confirms > s0.safe_confirms); /* the new MCU booted idle */
+    assert_true(armed_and_acked(a, NULL));
+    assert_int_equal(s1.echo_mismatches, 0);
+    char line[2048];
+    iso_actuators_format_stats(a, line, sizeof line);
+    printf("%s\n", line);
+    assert_non_null(strstr(line, "emulation restarts 1"));
+    double safe_ms = -1;
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, &safe_ms, &err), ISO_OK);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+    return 1;
+}
+
+static void qemu_killed_is_loud_and_restarts(void **state)
+{
+    (void)state;
+    if (!killed_mcu_is_loud_and_restarts(ISO_ACT_EMU_QEMU, "qemu"))
+        skip();
+}
+
+static void native_killed_is_loud_and_restarts(void **state)
+{
+    (void)state;
+    assert_int_equal(killed_mcu_is_loud_and_restarts(ISO_ACT_EMU_NATIVE, "native"), 1);
+}
+
+/* QEMU stopped for 1 s (SIGSTOP, then SIGCONT) while the loop ticks on:
+ * the silence is said at 500 ms, the MCU's clock jumps on resume so its
+ * watchdog brakes it and it refuses the setpoints queued meanwhile (stale:
+ * NAK not armed); the sink says so, shakes hands again and streams. */
+static void qemu_stopped_1s_is_loud_and_recovers(void **state)
+{
+    (void)state;
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_act_safety_opts so = {10, 0, NULL, NULL};
+    if (safety_sink(&r, ISO_ACT_EMU_QEMU, &so, &a, &err) == ISO_ENOTSUP) {
+        printf("SKIP qemu: %s\n", err.msg);
+        skip();
+    }
+    uint32_t tick = 0;
+    start_streaming(a, &tick, "qemu");
+    iso_act_stats s0 = stats_of(a);
+    assert_int_equal(iso_actuators_emu_signal(a, SIGSTOP, &err), ISO_OK);
+    double t_stop = now_s();
+    int saw_silent = 0;
+    while (now_s() < t_stop + 1.0) {
+        run_ticks(a, &tick, 20, NULL, NULL, NULL);
+        saw_silent |= strcmp(iso_actuators_link_state(a), "silent") == 0;
+    }
+    assert_int_equal(iso_actuators_emu_signal(a, SIGCONT, &err), ISO_OK);
+    double t_cont = now_s();
+    while (now_s() < t_cont + 10.0) {
+        run_ticks(a, &tick, 20, NULL, NULL, NULL);
+        iso_act_stats s = stats_of(a);
+        if (s.acks > s0.acks + 20 && armed_and_acked(a, NULL) && noticed("answers again"))
+            break;
+    }
+    iso_act_stats s1 = stats_of(a);
+    double t_silent = noticed_at("silent for"), t_again = noticed_at("answers again");
+    printf("qemu: stopped 1 s: silence said %.1f ms after the stop, 'answers again' %.1f ms after "
+           "the SIGCONT, streaming again %.1f ms after it; faults %u, naks %u (stale setpoints "
+           "refused), handshakes %u -> %u, losses %u, safe states confirmed %u\n",
+           (t_silent - t_stop) * 1000, (t_again - t_cont) * 1000, (now_s() - t_cont) * 1000,
+           (unsigned)(s1.faults - s0.faults), (unsigned)(s1.naks - s0.naks),
+           (unsigned)s0.handshakes, (unsigned)s1.handshakes, (unsigned)s1.link_losses,
+           (unsigned)s1.safe_confirms);
+    assert_true(saw_silent);
+    assert_true(t_silent > 0 && t_silent - t_stop < 1.0);
+    assert_true(t_again > 0);
+    assert_true(s1.silences >= s0.silences + 1);
+    assert_true(armed_and_acked(a, NULL));
+    assert_true(s1.acks > s0.acks + 20);
+    assert_int_equal(s1.echo_mismatches, 0);
+    if (s1.faults > s0.faults) /* the usual case: the MCU's clock jumped */
+        assert_true(s1.handshakes > s0.handshakes);
+    assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
+}
+
+static void safety_opts_are_checked(void **state)
+{
+    (void)state;
+    iso_regions r;
+    tiny_regions(&r);
+    iso_act_link_spec link;
+    memset(&link, 0, sizeof link);
+    link.kind = ISO_ACT_LINK_NONE;
+    iso_act_safety_opts so = {10, 5, NULL, NULL};
+    iso_actuators *a = (iso_actuators *)&g;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_actuators_create_v2(E2E, 4, NV, &r, &link, NULL, &so, &a, &err),
+                     ISO_EINVAL);
+    assert_null(a);
+    printf("  %s\n", err.msg);
+    assert_non_null(strstr(err.msg, "loop_timeout_ms 5 is shorter than the sender's 10 ms"));
+    /* no link: the calls are harmless, the state says off */
+    so.loop_timeout_ms = -1;
+    assert_int_equal(iso_actuators_create_v2(E2E, 4, NV, &r, &link, NULL, &so, &a, &err), ISO_OK);
+    iso_actuators_alive(a);
+    iso_actuators_estop(a, 1);
+    iso_actuators_estop(a, 0);
+    assert_string_equal(iso_actuators_link_state(a), "off");
+    assert_int_equal(iso_actuators_state(a, NULL), ISO_ACT_STATE_OFF);
+    assert_int_equal(iso_actuators_emu_signal(a, SIGKILL, &err), ISO_EINVAL);
+    iso_actuators_destroy(a);
+    iso_actuators_alive(NULL);
+    iso_actuators_estop(NULL, 1);
+    assert_string_equal(iso_actuators_link_state(NULL), "off");
+    iso_regions_deinit(&r);
+}
+
+/* A short session of every safety path on the native MCU, for valgrind
+ * (ctest test_actuators_memcheck runs only this under memcheck): asserts
+ * only what holds however slow the machine is. */
+static void memcheck_session(void **state)
+{
+    (void)state;
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    iso_act_safety_opts so = {10, 0, read_estop_line, NULL};
+    atomic_store(&g.estop_line, 0);
+    assert_int_equal(safety_sink(&r, ISO_ACT_EMU_NATIVE, &so, &a, &err), ISO_OK);
+    uint32_t tick = 0;
+    iso_actuators_alive(a);
+    run_ticks(a, &tick, 20000, NULL, NULL, streaming);
+    iso_actuators_estop(a, 1);
+    sleep_ms(300);
+    iso_actuators_estop(a, 0);
+    run_ticks(a, &tick, 300, NULL, NULL, NULL);
+    sleep_ms(400); /* a loop stall */
+    run_ticks(a, &tick, 300, NULL, NULL, NULL);
+    assert_int_equal(iso_actuators_emu_signal(a, SIGKILL, &err), ISO_OK);
+    double end = now_s() + 30;
+    while (now_s() < end && stats_of(a).emu_restarts == 0)
+        run_ticks(a, &tick, 50, NULL, NULL, NULL);
+    run_ticks(a, &tick, 500, NULL, NULL, NULL);
+    char line[2048];
+    iso_actuators_format_stats(a, line, sizeof line);
+    printf("memcheck session: %s\n", line);
+    assert_true(stats_of(a).estops == 1);
+    assert_true(stats_of(a).emu_restarts >= 1);
+    double safe_ms;
+    if (iso_actuators_safe_stop(a, 2000, &safe_ms, &err) != ISO_OK) /* slow under valgrind */
+        printf("memcheck session: %s\n", err.msg);
+    iso_actuators_destroy(a);
+    iso_regions_deinit(&r);
 }
 
 /* The real-time loop runs at real-time priority where it may (so does the
@@ -937,8 +1466,12 @@ static void try_realtime(void)
            rc == 0 ? "SCHED_FIFO" : "normal priority (SCHED_FIFO not permitted)");
 }
 
-int main(void)
+/* `test_actuators NAME` runs the tests whose name matches NAME (cmocka's
+ * filter; the memcheck ctest runs memcheck_session alone). */
+int main(int argc, char **argv)
 {
+    if (argc > 1)
+        cmocka_set_test_filter(argv[1]);
     try_realtime();
     const struct CMUnitTest t[] = {
         cmocka_unit_test(values_equal_closed_form_and_clamps_are_counted),
@@ -953,6 +1486,16 @@ int main(void)
         cmocka_unit_test(mcu_channel_count_disagreement),
         cmocka_unit_test(scene_link_emulated_forms_and_errors),
         cmocka_unit_test(scene_runs_hardware_free),
+        cmocka_unit_test(safety_opts_are_checked),
+        cmocka_unit_test(native_loop_stall_brakes_then_rearms),
+        cmocka_unit_test(qemu_loop_stall_brakes_then_rearms),
+        cmocka_unit_test(native_estop_while_stuck),
+        cmocka_unit_test(native_estop_probe_while_stuck),
+        cmocka_unit_test(qemu_estop_while_stuck),
+        cmocka_unit_test(native_killed_is_loud_and_restarts),
+        cmocka_unit_test(qemu_killed_is_loud_and_restarts),
+        cmocka_unit_test(qemu_stopped_1s_is_loud_and_recovers),
+        cmocka_unit_test(memcheck_session),
     };
     return cmocka_run_group_tests_name("actuators", t, NULL, NULL);
 }
