@@ -126,6 +126,26 @@ static int init_mapping(iso_loop *l, iso_err *err)
     return rc;
 }
 
+/* Each twist stream's staleness bound (a replay's applies to every source
+ * it recorded), then one line per device: what it is and where. */
+static int devices_ready(iso_loop *l, iso_err *err)
+{
+    const iso_scene *sc = l->sc;
+    size_t n = iso_dev_hub_sources(l->hub);
+    for (size_t i = 0; i < n; i++) {
+        const iso_scene_device *d = &sc->devices[l->replay ? 0 : i];
+        if (d->stale_ms > 0) {
+            int rc = iso_dev_map_set_stale(&l->map, (int)i, (int64_t)d->stale_ms * 1000000, err);
+            if (rc != ISO_OK)
+                return rc;
+        }
+        char desc[192];
+        iso_dev_hub_describe(l->hub, i, desc, sizeof desc);
+        fprintf(l->log, "isoshape %s: device %zu: %s\n", l->cmd, i, desc);
+    }
+    return ISO_OK;
+}
+
 /* ======================================================================== */
 /* Create / destroy                                                         */
 /* ======================================================================== */
@@ -242,6 +262,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         rc = init_mapping(l, err);
     if (rc == ISO_OK)
         rc = open_devices(l, err);
+    if (rc == ISO_OK && l->hub)
+        rc = devices_ready(l, err);
     if (rc == ISO_OK && sc->mesh)
         rc = iso_loop__sinks_open(l, err);
     const char *rec = l->o.record ? l->o.record : sc->recording;
@@ -387,6 +409,8 @@ static int device_tick(iso_loop *l, int64_t t, double dt, iso_twist *tw, int *re
     if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay &&
         (rc = toggle_recording(l, err)) != ISO_OK)
         return rc;
+    if (cmd.estop != l->last.estop || l->device_ticks == 0)
+        iso_loop__sinks_estop(l, cmd.estop); /* at once, before the mesh step */
     if (l->device_ticks > 0 && discontinuity(&cmd, &l->last))
         *restart = 1;
     l->device_ticks++;
@@ -501,8 +525,10 @@ static int mesh_step(iso_loop *l, double H, int merged, int covered, const iso_t
         l->coarse += coarse;
         int per = sc->steps_per_tick > 0 ? sc->steps_per_tick : 1;
         *steps = n * per;
-        for (int i = 0; i < *steps && rc == ISO_OK; i++)
+        for (int i = 0; i < *steps && rc == ISO_OK; i++) {
+            iso_loop__sinks_alive(l); /* progress for the actuators' loop watchdog */
             rc = iso_stepper_step(l->st, H / *steps, tw, i == 0 && restart, err);
+        }
         return rc;
     }
     return rc;
@@ -654,16 +680,41 @@ static int64_t next_stream_tick(iso_loop *l)
     return l->k >= l->k_end ? INT64_MAX : iso_loop__grid_ns(l, l->k + 1);
 }
 
-static void status_line(iso_loop *l, double t_s)
+/* The devices' part of the status line: events per second each, the
+ * active handle, clutch and e-stop. */
+static void devices_status(iso_loop *l, double dt, char *buf, size_t cap)
+{
+    buf[0] = 0;
+    if (!l->hub)
+        return;
+    size_t n = iso_dev_hub_sources(l->hub), used = 0;
+    for (size_t i = 0; i < n && i < ISO_DEV_MAX_SOURCES && used + 24 < cap; i++) {
+        iso_dev_source_stats st;
+        if (iso_dev_hub_source_stats(l->hub, i, &st) != ISO_OK)
+            continue;
+        double rate = dt > 0 ? (double)(st.events - l->status_events[i]) / dt : 0;
+        l->status_events[i] = st.events;
+        used += (size_t)snprintf(buf + used, cap - used, "dev%zu %.0f/s%s  ", i, rate,
+                                 !st.present   ? " GONE"
+                                 : st.is_stale ? " STALE"
+                                               : "");
+    }
+    if (used + 40 < cap)
+        snprintf(buf + used, cap - used, "handle %d%s%s  ", l->last.active,
+                 l->last.clutch ? " clutch" : "", l->last.estop ? "  E-STOP" : "");
+}
+
+static void status_line(iso_loop *l, double t_s, double dt)
 {
     double med, p99, max;
     iso_loop__stats_recent(&l->stats, &med, &p99, &max);
-    char extra[128] = "";
+    char extra[160] = "", dev[256];
     if (l->sinks)
         iso_loop__sinks_status(l, extra, sizeof extra);
+    devices_status(l, dt, dev, sizeof dev);
     fprintf(l->log,
             "\r\033[Ktick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s%s",
-            l->ticks, t_s, med, p99, max, l->stats.misses, l->last.estop ? "E-STOP  " : "", extra);
+            l->ticks, t_s, med, p99, max, l->stats.misses, dev, extra);
     fflush(l->log);
 }
 
@@ -712,6 +763,7 @@ int iso_loop_run(iso_loop *l, iso_err *err)
                 break;
         }
         int64_t wake = now_ns();
+        iso_loop__sinks_alive(l);
         if ((rc = tick(l, timed ? wake : 0, err)) != ISO_OK)
             break;
         int64_t done = now_ns();
@@ -721,7 +773,8 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         prev_wake = wake;
         double w = iso_clock_now();
         if (l->o.status_line && w - last_status > 0.25) {
-            status_line(l, (double)(l->t_now - l->stream0) * 1e-9);
+            status_line(l, (double)(l->t_now - l->stream0) * 1e-9,
+                        last_status > 0 ? w - last_status : 0);
             last_status = w;
         }
     }
@@ -773,6 +826,13 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
         const iso_pose *G = l->st ? iso_stepper_pose(l->st, h) : &l->cmd_pose[h];
         iso_pose_apply(G, l->centroid[h], s->handle_p[h]);
         memcpy(s->handle_R[h], G->R, sizeof G->R);
+    }
+    size_t nd = l->hub ? iso_dev_hub_sources(l->hub) : 0;
+    s->n_devices = (int)nd;
+    for (size_t i = 0; i < nd; i++) {
+        if (iso_dev_hub_source_stats(l->hub, i, &s->device[i]) != ISO_OK)
+            memset(&s->device[i], 0, sizeof s->device[i]);
+        iso_dev_hub_describe(l->hub, i, s->device_desc[i], sizeof s->device_desc[i]);
     }
     if (!l->st)
         return;

@@ -72,6 +72,7 @@ struct iso_loop {
     int64_t wall0;          /* wall time of stream0 */
     long ticks, device_ticks, restarts, substeps, coarse;
     uint64_t cmd_sum;
+    uint32_t status_events[ISO_DEV_MAX_SOURCES]; /* events at the last status line */
     double wall_start, wall_end;
 
     iso_loop_stats stats;
@@ -104,6 +105,10 @@ ISO_NODISCARD int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err);
 /* Stops them: the actuators to their safe state. Idempotent. */
 ISO_NODISCARD int iso_loop__sinks_close(iso_loop *l, iso_err *err);
 void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s);
+/* The loop's progress, for the actuators' loop watchdog (lock-free; every
+ * tick and every ABM step), and the devices' e-stop, passed on at once. */
+void iso_loop__sinks_alive(iso_loop *l);
+void iso_loop__sinks_estop(iso_loop *l, int on);
 /* A one-line note for the status line (display clients), "" if nothing. */
 void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap);
 

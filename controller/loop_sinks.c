@@ -6,6 +6,7 @@
 #include "loop_internal.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -109,8 +110,14 @@ static int open_actuators(iso_loop *l, iso_err *err)
     link.baud = a->baud;
     link.emulation = a->emulation;
     iso_act_opts o = {0, act_notice, l};
-    return iso_actuators_create(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &l->sinks->act,
-                                err);
+    /* The loop watchdog: no progress for max(250 ms, 5 periods) and the
+     * sender stops streaming, so the MCU's own watchdog brakes it. The loop
+     * reports progress every tick and every ABM step (iso_loop.h). */
+    iso_act_safety_opts so;
+    memset(&so, 0, sizeof so);
+    so.tick_period_ms = (int)ceil(1000.0 / l->sc->tick_hz);
+    return iso_actuators_create_v2(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &so,
+                                   &l->sinks->act, err);
 }
 
 int iso_loop__sinks_open(iso_loop *l, iso_err *err)
@@ -235,6 +242,18 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
         snprintf(s->act_line, sizeof s->act_line, "%s; %s", k->act_line, k->act_stop);
 }
 
+void iso_loop__sinks_alive(iso_loop *l)
+{
+    if (l->sinks && l->sinks->act)
+        iso_actuators_alive(l->sinks->act);
+}
+
+void iso_loop__sinks_estop(iso_loop *l, int on)
+{
+    if (l->sinks && l->sinks->act)
+        iso_actuators_estop(l->sinks->act, on);
+}
+
 void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
 {
     const struct iso_loop_sinks *k = l->sinks;
@@ -245,7 +264,7 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
         iso_act_stats st;
         iso_actuators_stats(k->act, &st);
         size_t n = strlen(buf);
-        snprintf(buf + n, cap - n, "%sactuators %llu acks", n ? "  " : "",
-                 (unsigned long long)st.acks);
+        snprintf(buf + n, cap - n, "%sactuators %s, %llu acks", n ? "  " : "",
+                 iso_actuators_link_state(k->act), (unsigned long long)st.acks);
     }
 }

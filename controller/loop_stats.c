@@ -98,17 +98,25 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             "%ld factorizations, %ld CG iterations\n",
             1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
             1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations);
-    fprintf(f,
-            "  distortion  metricErr %.6g, areaErr %.6g, angleErr %.6g, max edge strain %.4g\n",
+    fprintf(f, "  distortion  metricErr %.6g, areaErr %.6g, angleErr %.6g, max edge strain %.4g\n",
             s->metrics.metric_err, s->metrics.area_err, s->metrics.angle_err,
             s->metrics.max_edge_strain);
     for (int h = 0; h < s->n_handles; h++)
         fprintf(f, "  handle %d    '%s' at %.6g %.6g %.6g\n", h, sc->handles[h].name,
                 s->handle_p[h][0], s->handle_p[h][1], s->handle_p[h][2]);
+    for (int i = 0; i < s->n_devices; i++) {
+        const iso_dev_source_stats *d = &s->device[i];
+        fprintf(f,
+                "  device %d    %s: %u events, %u bad frames, %u garbage bytes, gone %u, back %u, "
+                "stale %u\n",
+                i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->gone,
+                d->back, d->stale);
+    }
     if (sc->display.enabled || s->frames_sent)
         fprintf(f, "  display     %ld frames sent\n", s->frames_sent);
     if (s->ply_frames || s->snapshots)
-        fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames, s->snapshots);
+        fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames,
+                s->snapshots);
     if (s->act_line[0])
         fprintf(f, "  actuators   %s\n", s->act_line);
     fprintf(f, "  realtime    %s\n",
@@ -160,8 +168,8 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
     num(f, "median", s->latency_median, 1);
     num(f, "p99", s->latency_p99, 1);
     num(f, "max", s->latency_max, 0);
-    fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses,
-            s->skipped, s->restarts);
+    fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses, s->skipped,
+            s->restarts);
     fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"abm\": \"%s\", \"evaluations\": %ld,\n",
             s->integ.steps, s->integ.rk4_steps, iso_abm_mode_name((iso_abm_mode)sc->abm_mode),
             s->integ.evaluations);
@@ -183,8 +191,28 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
         fprintf(f, ", \"p\": [%.17g, %.17g, %.17g]}", s->handle_p[h][0], s->handle_p[h][1],
                 s->handle_p[h][2]);
     }
-    fprintf(f, "],\n \"frames_sent\": %ld, \"ply_frames\": %ld, \"snapshots\": %ld, ",
-            s->frames_sent, s->ply_frames, s->snapshots);
+    fprintf(f, "],\n \"devices\": [");
+    for (int i = 0; i < s->n_devices; i++) {
+        const iso_dev_source_stats *d = &s->device[i];
+        const iso_dev_frame_drops *x = &d->drops;
+        fprintf(f, "%s{\"device\": ", i ? ", " : "");
+        json_string(f, s->device_desc[i]);
+        fprintf(f,
+                ", \"events\": %u, \"reports\": %u, \"bad_frames\": %u, \"garbage\": %u, "
+                "\"short_reports\": %u, \"unknown_ids\": %u, \"bad_payloads\": %u, "
+                "\"drops\": {\"too_long\": %u, \"bad_cobs\": %u, \"too_short\": %u, "
+                "\"bad_crc\": %u, \"bad_version\": %u, \"bad_length\": %u, "
+                "\"unknown_type\": %u, \"duplicate\": %u, \"out_of_order\": %u, "
+                "\"seq_gaps\": %u}, \"gone\": %u, \"back\": %u, \"stale\": %u}",
+                d->events, d->dec.reports, d->dec.bad_frames, d->dec.garbage, d->dec.short_reports,
+                d->dec.unknown_ids, d->dec.bad_payloads, x->too_long, x->bad_cobs, x->too_short,
+                x->bad_crc, x->bad_version, x->bad_length, x->unknown_type, x->duplicate,
+                x->out_of_order, x->seq_gaps, d->gone, d->back, d->stale);
+    }
+    fprintf(f, "],\n \"late_ticks\": {\"substeps\": %ld, \"coarse\": %ld}, ", s->substeps,
+            s->coarse);
+    fprintf(f, "\"frames_sent\": %ld, \"ply_frames\": %ld, \"snapshots\": %ld, ", s->frames_sent,
+            s->ply_frames, s->snapshots);
     fprintf(f, "\"realtime\": %s, \"memory_locked\": %s, ", s->rt_active ? "true" : "false",
             s->mem_locked ? "true" : "false");
     fprintf(f, "\"actuators\": ");
