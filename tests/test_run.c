@@ -425,8 +425,12 @@ static void pacing_follows_speed(void **state)
         iso("run '%s' --no-rt --quiet --duration 1 --speed 2 --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
     double wall = json_num(j, "wall_s"), stream = json_num(j, "stream_s");
-    printf("paced: %.3f s of stream in %.3f s wall at speed 2\n", stream, wall);
-    assert_int_equal((long)json_num(j, "ticks"), 20);
+    double ticks = json_num(j, "ticks"), skipped = json_num(j, "skipped");
+    printf("paced: %.3f s of stream in %.3f s wall at speed 2, %.0f ticks, %.0f skipped\n", stream,
+           wall, ticks, skipped);
+    /* every period is covered once: by its own tick, or by a late tick that
+     * took it along (a slow sanitizer build merges some) */
+    assert_int_equal((long)(ticks + skipped), 20);
     assert_true(fabs(stream - 1.0) < 1e-6);
     assert_true(wall >= 0.45); /* it waited for its deadlines (19 periods of 25 ms) */
 }
