@@ -4,6 +4,7 @@
 #include "internal.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 
 #include "iso_scene.h"
 
@@ -32,4 +33,20 @@ int iso_cli__scene_load(const char *cmd, const char *path, iso_scene **out)
     if ((*out)->mesh_src.note[0])
         fprintf(stderr, "isoshape %s: %s\n", cmd, (*out)->mesh_src.note);
     return 0;
+}
+
+iso_scene *iso_cli__device_scene(const char *name, double hz, const iso_dev_map_opts *m)
+{
+    iso_scene *sc = calloc(1, sizeof *sc);
+    if (!sc)
+        return NULL;
+    snprintf(sc->name, sizeof sc->name, "%s", name);
+    sc->tick_hz = hz;
+    sc->n_handles = m->n_handles;
+    for (int h = 0; h < sc->n_handles; h++) {
+        snprintf(sc->handles[h].name, sizeof sc->handles[h].name, "handle %d", h);
+        sc->handles[h].driver.kind = ISO_SCENE_DRIVE_DEVICE;
+        sc->handles[h].driver.map = *m;
+    }
+    return sc;
 }

@@ -234,22 +234,14 @@ int iso_cli__record(int argc, char **argv)
         return 2;
     }
     /* a scene of the device side alone: the sources, the mapping, the recording */
-    iso_scene *sc = calloc(1, sizeof *sc);
+    iso_scene *sc = iso_cli__device_scene("record", 1000.0 / tick_ms, &mo);
     if (!sc) {
         iso_cli__fail(cmd, "out of memory");
         return 1;
     }
-    snprintf(sc->name, sizeof sc->name, "record");
-    sc->tick_hz = 1000.0 / tick_ms;
     sc->n_devices = n;
     for (int k = 0; k < n; k++)
         scene_device(&specs[k], k, &sc->devices[k]);
-    sc->n_handles = mo.n_handles;
-    for (int h = 0; h < sc->n_handles; h++) {
-        snprintf(sc->handles[h].name, sizeof sc->handles[h].name, "handle %d", h);
-        sc->handles[h].driver.kind = ISO_SCENE_DRIVE_DEVICE;
-        sc->handles[h].driver.map = mo;
-    }
     snprintf(sc->recording, sizeof sc->recording, "%s", out_path);
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);

@@ -182,22 +182,14 @@ static int build_scene(const replay_args *a, iso_scene **out, iso_err *err)
     yaml_str(rec, sizeof rec, realpath(a->path, abs) ? abs : a->path);
     double hz = 1000.0 / a->tick_ms;
     if (!a->src.shape && !a->src.mesh) {
-        iso_scene *sc = calloc(1, sizeof *sc);
+        iso_scene *sc = iso_cli__device_scene("replay", hz, &a->mo);
         if (!sc)
             return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for a scene");
-        snprintf(sc->name, sizeof sc->name, "replay");
         snprintf(sc->path, sizeof sc->path, "%s", a->path);
-        sc->tick_hz = hz;
         sc->n_devices = 1;
         snprintf(sc->devices[0].name, sizeof sc->devices[0].name, "recording");
         sc->devices[0].backend = ISO_SCENE_DEV_REPLAY;
         snprintf(sc->devices[0].path, sizeof sc->devices[0].path, "%s", a->path);
-        sc->n_handles = a->mo.n_handles;
-        for (int h = 0; h < sc->n_handles; h++) {
-            snprintf(sc->handles[h].name, sizeof sc->handles[h].name, "handle %d", h);
-            sc->handles[h].driver.kind = ISO_SCENE_DRIVE_DEVICE;
-            sc->handles[h].driver.map = a->mo;
-        }
         *out = sc;
         return ISO_OK;
     }

@@ -211,10 +211,24 @@ static void temp_name(const char *path, char *tmp, size_t cap)
     snprintf(tmp, cap, "%.*s.part-%ld%s", (int)(dot - path), path, (long)getpid(), dot);
 }
 
-/* Renames tmp to path after a good write; removes it after a bad one. */
-static int commit(const char *opt, const char *tmp, const char *path, int ok)
+enum { OUT_MESH, OUT_PNG, OUT_JSON };
+
+/* Writes one output to a temporary name beside it, then renames it: a
+ * failure never leaves a truncated file. Returns 0, or 1 after saying why. */
+static int write_output(int what, const char *opt, const char *path, iso_loop *l,
+                        const iso_scene *sc, const iso_loop_summary *s)
 {
-    if (!ok) {
+    char tmp[ISO_CLI_PATH_MAX + 64];
+    iso_err err;
+    iso_err_clear(&err);
+    temp_name(path, tmp, sizeof tmp);
+    int rc = what == OUT_MESH  ? iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), tmp,
+                                               ISO_MESH_FMT_AUTO, &err)
+             : what == OUT_PNG ? iso_snapshot_png(iso_loop_mesh(l), iso_loop_positions(l),
+                                                  &sc->regions, tmp, 960, 720, NULL, &err)
+                               : iso_loop_write_json(s, sc, tmp, &err);
+    if (rc != ISO_OK) {
+        iso_cli__fail("run", "%s %s: %s", opt, path, err.msg);
         unlink(tmp);
         return 1;
     }
@@ -239,38 +253,16 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     iso_loop_get_summary(l, &s);
     if (!a->quiet)
         iso_loop_print_summary(&s, sc, stdout);
-    char tmp[ISO_CLI_PATH_MAX + 64];
-    if (a->out) {
-        iso_err_clear(&err);
-        temp_name(a->out, tmp, sizeof tmp);
-        int ok = iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), tmp, ISO_MESH_FMT_AUTO,
-                               &err) == ISO_OK;
-        if (!ok)
-            iso_cli__fail("run", "--out %s: %s", a->out, err.msg);
-        if (commit("--out", tmp, a->out, ok))
-            status = 1;
-    }
+    if (a->out && write_output(OUT_MESH, "--out", a->out, l, sc, &s))
+        status = 1;
     if (a->png) {
-        iso_err_clear(&err);
-        temp_name(a->png, tmp, sizeof tmp);
-        int ok = iso_snapshot_png(iso_loop_mesh(l), iso_loop_positions(l), &sc->regions, tmp, 960,
-                                  720, NULL, &err) == ISO_OK;
-        if (!ok)
-            iso_cli__fail("run", "--png %s: %s", a->png, err.msg);
-        if (commit("--png", tmp, a->png, ok))
+        if (write_output(OUT_PNG, "--png", a->png, l, sc, &s))
             status = 1;
         else if (!a->quiet)
             printf("  picture     %s\n", a->png);
     }
-    if (a->json) {
-        iso_err_clear(&err);
-        temp_name(a->json, tmp, sizeof tmp);
-        int ok = iso_loop_write_json(&s, sc, tmp, &err) == ISO_OK;
-        if (!ok)
-            iso_cli__fail("run", "--stats-json %s: %s", a->json, err.msg);
-        if (commit("--stats-json", tmp, a->json, ok))
-            status = 1;
-    }
+    if (a->json && write_output(OUT_JSON, "--stats-json", a->json, l, sc, &s))
+        status = 1;
     return status;
 }
 

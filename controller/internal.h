@@ -6,6 +6,7 @@
 
 #include <stddef.h>
 
+#include "iso_dev.h"
 #include "iso_err.h"
 #include "iso_integrate.h"
 #include "iso_mesh.h"
@@ -185,5 +186,10 @@ struct iso_scene;
  * prints the fallback notice, or the error as "isoshape <cmd>: ...".
  * Returns 0 with *out set, or 1. */
 int iso_cli__scene_load(const char *cmd, const char *path, struct iso_scene **out);
+/* A scene of the device side alone (no mesh), for `record` and `replay`:
+ * mo->n_handles handles driven through the map options mo, ticking at hz.
+ * The caller adds the devices and frees it with free(). NULL when out of
+ * memory. */
+struct iso_scene *iso_cli__device_scene(const char *name, double hz, const iso_dev_map_opts *mo);
 
 #endif

@@ -382,12 +382,14 @@ static int toggle_recording(iso_loop *l, iso_err *err)
     return rc;
 }
 
-/* One device tick over (t - dt, t]: drain, map with the commanded poses,
- * advance them. tw[] receives the twist each device-driven handle was
+/* One device tick over (l->t_now, t]: drain, map with the commanded poses,
+ * advance them, and move l->t_now to t. tw[] receives the twist each device-driven handle was
  * commanded with (zero under an e-stop); *restart is raised on a
  * discontinuity. */
-static int device_tick(iso_loop *l, int64_t t, double dt, iso_twist *tw, int *restart, iso_err *err)
+static int device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, iso_err *err)
 {
+    const int64_t dt_ns = t - l->t_now;
+    const double dt = (double)dt_ns * 1e-9;
     iso_pose P[ISO_DEV_MAX_HANDLES];
     for (int j = 0; j < (int)ISO_DEV_MAX_HANDLES; j++)
         iso_pose_identity(&P[j]);
@@ -444,7 +446,8 @@ static int device_tick(iso_loop *l, int64_t t, double dt, iso_twist *tw, int *re
         advance_pose(&l->cmd_pose[k], &tw[k], dt);
     }
     if (!cmd.estop)
-        l->script_ns += (int64_t)llround(dt * 1e9);
+        l->script_ns += dt_ns;
+    l->t_now = t;
     return ISO_OK;
 }
 
@@ -499,37 +502,42 @@ static int substeps_for(iso_loop *l, const iso_twist *tw, double H, double perio
  * the tick was one device tick and needs one step, the handles take the
  * commanded twists themselves (the same arithmetic as the commanded poses,
  * bit for bit); otherwise the constant twist that reaches each pose. */
+/* The twists that take each handle from where the stepper has it to its
+ * commanded pose in H seconds; with `direct`, device-driven handles take
+ * the commanded twists themselves. */
+static int aim_twists(iso_loop *l, int direct, const iso_twist *dev_tw, double H, iso_twist *tw,
+                      iso_err *err)
+{
+    for (int k = 0; k < l->nh; k++) {
+        if (direct && l->sc->handles[k].driver.kind == ISO_SCENE_DRIVE_DEVICE) {
+            tw[k] = dev_tw[k];
+            continue;
+        }
+        int rc =
+            iso_loop__twist_between(iso_stepper_pose(l->st, k), &l->cmd_pose[k], H, &tw[k], err);
+        if (rc != ISO_OK)
+            return rc;
+    }
+    return ISO_OK;
+}
+
 static int mesh_step(iso_loop *l, double H, int merged, int covered, const iso_twist *dev_tw,
                      int restart, int *steps, iso_err *err)
 {
-    const iso_scene *sc = l->sc;
     iso_twist tw[ISO_SCENE_MAX_HANDLES];
     memset(tw, 0, sizeof tw);
-    int direct = merged == 1, rc = ISO_OK;
-    for (int pass = 0; pass < 2; pass++) {
-        for (int k = 0; k < l->nh; k++) {
-            const iso_scene_driver *d = &sc->handles[k].driver;
-            int device = d->kind == ISO_SCENE_DRIVE_DEVICE;
-            if (direct && device)
-                tw[k] = dev_tw[k];
-            else if ((rc = iso_loop__twist_between(iso_stepper_pose(l->st, k), &l->cmd_pose[k], H,
-                                                   &tw[k], err)) != ISO_OK)
-                return rc;
-        }
-        int coarse = 0;
-        int n = substeps_for(l, tw, H, covered, &coarse);
-        if (n > 1 && direct) {
-            direct = 0; /* sub-steps aim at the pose, so round-off cannot drift */
-            continue;
-        }
-        l->coarse += coarse;
-        int per = sc->steps_per_tick > 0 ? sc->steps_per_tick : 1;
-        *steps = n * per;
-        for (int i = 0; i < *steps && rc == ISO_OK; i++) {
-            iso_loop__sinks_alive(l); /* progress for the actuators' loop watchdog */
-            rc = iso_stepper_step(l->st, H / *steps, tw, i == 0 && restart, err);
-        }
+    int coarse = 0, direct = merged == 1;
+    int rc = aim_twists(l, direct, dev_tw, H, tw, err);
+    int n = rc == ISO_OK ? substeps_for(l, tw, H, covered, &coarse) : 1;
+    if (rc == ISO_OK && n > 1 && direct) /* sub-steps aim at the pose: no round-off drift */
+        rc = aim_twists(l, 0, dev_tw, H, tw, err);
+    if (rc != ISO_OK)
         return rc;
+    l->coarse += coarse;
+    *steps = n * (l->sc->steps_per_tick > 0 ? l->sc->steps_per_tick : 1);
+    for (int i = 0; i < *steps && rc == ISO_OK; i++) {
+        iso_loop__sinks_alive(l); /* progress for the actuators' loop watchdog */
+        rc = iso_stepper_step(l->st, H / *steps, tw, i == 0 && restart, err);
     }
     return rc;
 }
@@ -548,10 +556,8 @@ static int tick(iso_loop *l, int64_t now, iso_err *err)
     if (l->replay) {
         /* every TICK record already due is one device tick of this tick */
         for (t = iso_dev_hub_next_tick(l->hub, l->period_ns);;) {
-            rc = device_tick(l, t, (double)(t - l->t_now) * 1e-9, dev_tw, &restart, err);
-            if (rc != ISO_OK)
+            if ((rc = device_tick(l, t, dev_tw, &restart, err)) != ISO_OK)
                 return rc;
-            l->t_now = t;
             merged++;
             int64_t t2 =
                 timed && l->ticks > 0 ? iso_dev_hub_next_tick(l->hub, l->period_ns) : INT64_MAX;
@@ -571,8 +577,7 @@ static int tick(iso_loop *l, int64_t now, iso_err *err)
         covered = (int)(k1 - l->k);
         t = iso_loop__grid_ns(l, k1);
         if (l->hub) {
-            if ((rc = device_tick(l, t, (double)(t - t_prev) * 1e-9, dev_tw, &restart, err)) !=
-                ISO_OK)
+            if ((rc = device_tick(l, t, dev_tw, &restart, err)) != ISO_OK)
                 return rc;
         } else {
             l->script_ns += t - t_prev;

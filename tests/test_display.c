@@ -333,6 +333,18 @@ static void start_display(const scene *s, iso_display **d)
     assert_true(iso_display_port(*d) > 0);
 }
 
+/* A view of a built-in shape on a free loopback port; host gets
+ * "127.0.0.1:PORT", what a browser sends. Returns the port. */
+static int open_view(scene *s, const char *shape, int res, iso_display **d, char host[64])
+{
+    scene_init(s, shape, res);
+    *d = NULL;
+    start_display(s, d);
+    int port = iso_display_port(*d);
+    snprintf(host, 64, "127.0.0.1:%d", port);
+    return port;
+}
+
 static void server_serves_page_and_streams_frames(void **state)
 {
     (void)state;
@@ -657,12 +669,10 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
 {
     (void)state;
     scene s;
-    scene_init(&s, "cylinder", 64); /* ~100 KB frames: a stuck socket fills fast */
-    iso_display *d = NULL;
-    start_display(&s, &d);
-    int port = iso_display_port(d);
+    iso_display *d;
     char host[64];
-    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int port =
+        open_view(&s, "cylinder", 64, &d, host); /* ~100 KB frames: a stuck socket fills fast */
     int st;
     reader good = {ws_open(AF_INET, port, host, "", 0, &st), 0, -1, 0};
     assert_int_equal(st, 101);
@@ -803,12 +813,9 @@ static void huge_client_frame_closes_without_allocating(void **state)
 {
     (void)state;
     scene s;
-    scene_init(&s, "bar", 4);
-    iso_display *d = NULL;
-    start_display(&s, &d);
-    int port = iso_display_port(d);
+    iso_display *d;
     char host[64];
-    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int port = open_view(&s, "bar", 4, &d, host);
     int st;
     int fd = ws_open(AF_INET, port, host, "", 0, &st);
     assert_int_equal(st, 101);
@@ -874,12 +881,9 @@ static void viewers_beyond_the_limit_are_refused_and_the_page_loads(void **state
 {
     (void)state;
     scene s;
-    scene_init(&s, "bar", 4);
-    iso_display *d = NULL;
-    start_display(&s, &d);
-    int port = iso_display_port(d);
+    iso_display *d;
     char host[64];
-    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int port = open_view(&s, "bar", 4, &d, host);
     int fds[ISO_DISPLAY_MAX_VIEWERS], st;
     for (int i = 0; i < ISO_DISPLAY_MAX_VIEWERS; i++) {
         fds[i] = ws_open(AF_INET, port, host, "", 0, &st);
@@ -1078,12 +1082,9 @@ static void connect_close_cycles_leave_nothing_behind(void **state)
 {
     (void)state;
     scene s;
-    scene_init(&s, "cylinder", 24);
-    iso_display *d = NULL;
-    start_display(&s, &d);
-    int port = iso_display_port(d);
+    iso_display *d;
     char host[64];
-    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int port = open_view(&s, "cylinder", 24, &d, host);
     assert_int_equal(iso_display_publish(d, 1, s.shape.x, NULL, NULL), ISO_OK);
     long rss0 = vm_rss_kb(), threads0 = proc_status("Threads:");
     int fds0 = count_fds();
