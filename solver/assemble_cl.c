@@ -349,23 +349,6 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
     return f;
 }
 
-/* Is el[i + 1] the mirror of the pair el[i] (Tj, Ti)? */
-static int is_mirror(const element *a, const element *b)
-{
-    if (b->kind != 2)
-        return 0;
-    int opp_a = -1; /* Ti's corner that is not in Tj */
-    for (int l = 0; l < 3; l++)
-        if (a->jmap[0] != l && a->jmap[1] != l && a->jmap[2] != l)
-            opp_a = a->v[l];
-    if (b->v[3] != opp_a)
-        return 0;
-    for (int k = 0; k < 3; k++)
-        if (b->v[k] != a->v[a->jmap[k]])
-            return 0;
-    return 1;
-}
-
 /* Records where a record's blocks and right-hand-side triples go. The
  * record's local vertex x is element e's local vertex map[x] (nl of them);
  * the record sits at offset `rec`. */
@@ -496,20 +479,14 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         /* Record order (a, b, p, q): the shared edge in Ti's order, Ti's
          * third corner, Tj's third corner; so the kernel's indices are
          * constants. map: record local -> e's local. */
-        int map[4], n = 0;
-        for (int l = 0; l < 3; l++)
-            if (e->jmap[0] == l || e->jmap[1] == l || e->jmap[2] == l)
-                map[n++] = l;
-        for (int l = 0; l < 3; l++)
-            if (e->jmap[0] != l && e->jmap[1] != l && e->jmap[2] != l)
-                map[2] = l;
-        map[3] = 3;
+        int map[4];
+        iso_solver__edge_layout(e, map);
         int *w = p->pair_work + 8 * cl->n_pair;
         for (int l = 0; l < 4; l++)
             w[l] = e->v[map[l]];
         w[4] = fit_item(cl, p, tri, e->tri, i);
         w[5] = -1;
-        if (i + 1 < nel && is_mirror(e, &s->el[i + 1])) {
+        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
             w[5] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
             i++;
         }

@@ -122,6 +122,70 @@ static int cached_element_matrix(iso_solver *s, const element *e, const double *
     return 0;
 }
 
+static int report_degenerate(iso_solver *s, int t, iso_err *err)
+{
+    return iso_err_set(err, ISO_ENUMERIC, -1,
+                       "%s: triangle %d has degenerated during the deformation (its "
+                       "rigid fit is singular)",
+                       iso_mesh_origin(s->m), t);
+}
+
+/* N scale of triangle t (iso_elem_n_scale) at positions x. */
+static double n_scale_of(const iso_solver *s, int t, const double *x)
+{
+    if (s->o.weighting != ISO_WEIGHT_AREA)
+        return 1.0 / 24.0;
+    const int *tri = iso_mesh_triangles(s->m) + 3 * t;
+    double xt[9];
+    for (int k = 0; k < 3; k++)
+        memcpy(xt + 3 * k, x + 3 * tri[k], 3 * sizeof(double));
+    return iso_elem_n_scale(xt, ISO_WEIGHT_AREA);
+}
+
+/* ω (Q2(Ti, Tj) + Q2(Tj, Ti)) of pair element e and, when `mirror` is not
+ * NULL, its mirror, as one 12x12 block in e's local order: both ordered
+ * pairs of an edge share their four vertices, so one block and one scatter
+ * serve both. −1 (and *bad_tri) when a fit is singular. */
+static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const double *x,
+                          double *Q, int *bad_tri)
+{
+    int map[4];
+    iso_solver__edge_layout(e, map);
+    const iso_elem_fit *fi = cached_fit(s, e->tri, x), *fj = NULL;
+    if (!fi) {
+        *bad_tri = e->tri;
+        return -1;
+    }
+    if (mirror && !(fj = cached_fit(s, mirror->tri, x))) {
+        *bad_tri = mirror->tri;
+        return -1;
+    }
+    double xl[12], Ql[144];
+    for (int l = 0; l < 4; l++)
+        memcpy(xl + 3 * l, x + 3 * e->v[map[l]], 3 * sizeof(double));
+    memset(Ql, 0, sizeof Ql);
+    /* each ordered pair's N is its target's */
+    int tj = mirror ? mirror->tri : -1;
+    double w2 = s->o.omega, sj;
+    if (mirror) {
+        sj = n_scale_of(s, tj, x);
+    } else {
+        double xj[9];
+        memcpy(xj, xl, 6 * sizeof(double));
+        memcpy(xj + 6, xl + 9, 3 * sizeof(double));
+        sj = iso_elem_n_scale(xj, s->o.weighting);
+    }
+    double si = mirror ? n_scale_of(s, e->tri, x) : 0.0;
+    iso_elem_edge_from_fits(fi, fj, xl, w2 * sj, w2 * si, Ql);
+    for (int i = 0; i < 12; i++)
+        for (int j = i; j < 12; j++) {
+            double v = Ql[12 * i + j];
+            int ei = 3 * map[i / 3] + i % 3, ej = 3 * map[j / 3] + j % 3;
+            Q[12 * ei + ej] = Q[12 * ej + ei] = v;
+        }
+    return 0;
+}
+
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
     int rc = ensure_fit_cache(s, err);
@@ -136,7 +200,7 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
     memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
     memset(rhs, 0, (size_t)n3 * sizeof(double));
     double Q[144];
-    double w1 = 1.0 - s->o.omega, w2 = s->o.omega;
+    double w1 = 1.0 - s->o.omega;
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
         if (e->kind == 3) {
@@ -144,12 +208,19 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
             scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
             continue;
         }
+        if (e->kind == 2) {
+            const element *mirror = NULL;
+            if (i + 1 < s->nel && iso_solver__is_mirror(e, &s->el[i + 1]))
+                mirror = &s->el[++i];
+            int bad;
+            if (edge_matrix_q2(s, e, mirror, x, Q, &bad) != 0)
+                return report_degenerate(s, bad, err);
+            scatter(s, e, Q, 1.0, vc, Ax, rhs);
+            continue;
+        }
         if (cached_element_matrix(s, e, x, Q) != 0)
-            return iso_err_set(err, ISO_ENUMERIC, -1,
-                               "%s: triangle %d has degenerated during the deformation (its "
-                               "rigid fit is singular)",
-                               iso_mesh_origin(s->m), e->tri);
-        scatter(s, e, Q, e->kind == 1 ? w1 : w2, vc, Ax, rhs);
+            return report_degenerate(s, e->tri, err);
+        scatter(s, e, Q, w1, vc, Ax, rhs);
     }
     return ISO_OK;
 }

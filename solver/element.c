@@ -230,6 +230,8 @@ int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
     double w00 = I00 * I00 + I10 * I10 + I20 * I20, w01 = I10 * I11 + I20 * I21,
            w02 = I20 * I22, w11 = I11 * I11 + I21 * I21, w12 = I21 * I22, w22 = I22 * I22;
     double W[9] = {w00, w01, w02, w01, w11, w12, w02, w12, w22};
+    f->W[0] = w00, f->W[1] = w01, f->W[2] = w02, f->W[3] = w11, f->W[4] = w12, f->W[5] = w22;
+    f->inv_s = 1.0 / s;
     double *R = f->R;
     memset(R, 0, 27 * sizeof(double));
     for (int l = 0; l < 3; l++) {
@@ -345,6 +347,123 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
                         sigma * blk[3 * i + j];
         }
     }
+}
+
+/* ===== one interior edge, both ordered pairs ===========================
+ *
+ * iso_elem_q2_from_fit's block (l, m) is
+ *     (c_lᵀ J c_m) I + [w_l]× B_m + ([w_m]× B_l)ᵀ + B_lᵀ T B_m,   B_l = W [r_l]×.
+ * With B_lᵀ = −[r_l]× W and G = W T W, the last term is −[r_l]× G [r_m]×;
+ * splitting it evenly between the block and its transpose gives
+ *     block(l, m) = (c_lᵀ J c_m) I + Z_lm + Z_mlᵀ,
+ *     Z_lm = P_l [r_m]×,   P_l = [w_l]× W − ½ [r_l]× G,
+ * with r of the target's own corner (not in the source's fit) taken as 0.
+ * Four 3x3 P and twelve Z (each row a cross product) replace the forty
+ * 3x3 products of the general form, and only the upper triangle is
+ * written: no per-block branches on which local vertex is which, since the
+ * layout (a, b, p, q) fixes it. The OpenCL kernel pair_edges does the same
+ * arithmetic in the same order. */
+
+/* C = [a]× M for a full 3x3 M: column j is a × M[:, j]. */
+static inline void cross_left(const double a[3], const double M[9], double C[9])
+{
+    for (int j = 0; j < 3; j++) {
+        C[j] = a[1] * M[6 + j] - a[2] * M[3 + j];
+        C[3 + j] = a[2] * M[j] - a[0] * M[6 + j];
+        C[6 + j] = a[0] * M[3 + j] - a[1] * M[j];
+    }
+}
+
+/* C = M [r]× for a full 3x3 M: row i is M[i, :] × r. */
+static inline void cross_right(const double M[9], const double r[3], double C[9])
+{
+    for (int i = 0; i < 3; i++) {
+        const double *p = M + 3 * i;
+        C[3 * i] = p[1] * r[2] - p[2] * r[1];
+        C[3 * i + 1] = p[2] * r[0] - p[0] * r[2];
+        C[3 * i + 2] = p[0] * r[1] - p[1] * r[0];
+    }
+}
+
+/* Adds w Q2 of the ordered pair whose source is the triangle of fit f,
+ * with corners at local 0, 1, sp, and whose target has its own corner at
+ * local tq ({sp, tq} = {2, 3}). */
+static inline void add_ordered_pair(const iso_elem_fit *f, const double xl[12], int sp, int tq,
+                                    double w, double Q[144])
+{
+    double r[4][3], sq[3], W[9], T[9], M[9], G[9], P[4][9], Z[4][4][9];
+    for (int l = 0; l < 4; l++)
+        for (int a = 0; a < 3; a++)
+            r[l][a] = (xl[3 * l + a] - f->c[a]) * f->inv_s - f->d[a];
+    W[0] = f->W[0], W[1] = W[3] = f->W[1], W[2] = W[6] = f->W[2];
+    W[4] = f->W[3], W[5] = W[7] = f->W[4], W[8] = f->W[5];
+    for (int a = 0; a < 3; a++)
+        sq[a] = r[0][a] + r[1][a] + r[tq][a];
+    /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners and their sum */
+    const double *g4[4] = {r[0], r[1], r[tq], sq};
+    double tr = 0;
+    for (int i = 0; i < 9; i++)
+        T[i] = 0;
+    for (int g = 0; g < 4; g++) {
+        const double *v = g4[g];
+        tr += v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                T[3 * i + j] -= v[i] * v[j];
+    }
+    T[0] += tr, T[4] += tr, T[8] += tr;
+    for (int i = 0; i < 3; i++) /* M = T W, G = W M */
+        for (int j = 0; j < 3; j++)
+            M[3 * i + j] = T[3 * i] * W[j] + T[3 * i + 1] * W[3 + j] + T[3 * i + 2] * W[6 + j];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            G[3 * i + j] = W[3 * i] * M[j] + W[3 * i + 1] * M[3 + j] + W[3 * i + 2] * M[6 + j];
+    /* c_kl = [target corner k is local l] − [l is a source corner]/3 */
+    double c[4][3];
+    for (int l = 0; l < 4; l++)
+        for (int k = 0; k < 3; k++)
+            c[l][k] = ((k < 2 ? k : tq) == l ? 1.0 : 0.0) - (l != tq ? 1.0 / 3.0 : 0.0);
+    for (int l = 0; l < 4; l++) {
+        double wl[3], C[9];
+        for (int a = 0; a < 3; a++)
+            wl[a] = c[l][0] * (r[0][a] + sq[a]) + c[l][1] * (r[1][a] + sq[a]) +
+                    c[l][2] * (r[tq][a] + sq[a]);
+        cross_left(wl, W, P[l]);
+        if (l == tq)
+            continue;
+        cross_left(r[l], G, C);
+        for (int i = 0; i < 9; i++)
+            P[l][i] -= 0.5 * C[i];
+    }
+    for (int l = 0; l < 4; l++)
+        for (int m = 0; m < 4; m++)
+            if (m != tq)
+                cross_right(P[l], r[m], Z[l][m]);
+    for (int l = 0; l < 4; l++) {
+        double suml = c[l][0] + c[l][1] + c[l][2];
+        for (int m = l; m < 4; m++) {
+            double cjc = c[l][0] * c[m][0] + c[l][1] * c[m][1] + c[l][2] * c[m][2] +
+                         suml * (c[m][0] + c[m][1] + c[m][2]);
+            for (int i = 0; i < 3; i++)
+                for (int j = (l == m ? i : 0); j < 3; j++) {
+                    double v = i == j ? cjc : 0.0;
+                    if (m != tq)
+                        v += Z[l][m][3 * i + j];
+                    if (l != tq)
+                        v += Z[m][l][3 * j + i];
+                    Q[12 * (3 * l + i) + 3 * m + j] += w * v;
+                }
+        }
+    }
+    (void)sp;
+}
+
+void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
+                             double wi, double wj, double Q[144])
+{
+    add_ordered_pair(fi, xl, 2, 3, wi, Q);
+    if (wj != 0)
+        add_ordered_pair(fj, xl, 3, 2, wj, Q);
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])

@@ -41,6 +41,8 @@ typedef struct iso_elem_fit {
     double d[3];    /* rounding shift of the frame: the scaled corners
                        (x − c)/s sum to 3d, not exactly zero */
     double R[54];   /* iso_elem_rigid_fit, in the frame (c + s d, s) */
+    double W[6];    /* S⁻¹ of the closed form (element.c), upper: 00 01 02 11 12 22 */
+    double inv_s;   /* 1/s: the edge blocks take points to the frame with it */
 } iso_elem_fit;
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
@@ -51,6 +53,17 @@ void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weightin
                           double Q[81]);
 void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
                           const int jmap[3], iso_weighting w, double Q[144]);
+
+/* The smoothness block of one interior edge, both ordered pairs summed:
+ *     Q += wi Q2(Ti, Tj) + wj Q2(Tj, Ti)
+ * on the local vertices (a, b, p, q): the shared edge in Ti's order, Ti's
+ * third corner, Tj's third corner (xl: their 12 coordinates). fi, fj: the
+ * fits of Ti and Tj. wi carries ω and Tj's N scale, wj ω and Ti's; wj = 0
+ * leaves Tj's fit unread (fj may be NULL). Only Q's upper triangle (12x12,
+ * row-major) is added to. Equal to the sum of iso_elem_q2_from_fit's two
+ * blocks up to rounding, at about half their arithmetic. */
+void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
+                             double wi, double wj, double Q[144]);
 
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);
