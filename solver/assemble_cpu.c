@@ -143,14 +143,13 @@ static double n_scale_of(const iso_solver *s, int t, const double *x)
 }
 
 /* ω (Q2(Ti, Tj) + Q2(Tj, Ti)) of pair element e and, when `mirror` is not
- * NULL, its mirror, as one 12x12 block in e's local order: both ordered
- * pairs of an edge share their four vertices, so one block and one scatter
- * serve both. −1 (and *bad_tri) when a fit is singular. */
-static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const double *x,
-                          double *Q, int *bad_tri)
+ * NULL, its mirror, as one 12x12 block (upper triangle) in the edge layout
+ * (a, b, p, q) of iso_solver__edge_layout: both ordered pairs of an edge
+ * share their four vertices, so one block and one scatter serve both. −1
+ * (and *bad_tri) when a fit is singular. */
+static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const int map[4],
+                          const double *x, double *Q, int *bad_tri)
 {
-    int map[4];
-    iso_solver__edge_layout(e, map);
     const iso_elem_fit *fi = cached_fit(s, e->tri, x), *fj = NULL;
     if (!fi) {
         *bad_tri = e->tri;
@@ -160,30 +159,75 @@ static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror
         *bad_tri = mirror->tri;
         return -1;
     }
-    double xl[12], Ql[144];
+    double xl[12];
     for (int l = 0; l < 4; l++)
         memcpy(xl + 3 * l, x + 3 * e->v[map[l]], 3 * sizeof(double));
-    memset(Ql, 0, sizeof Ql);
+    for (int i = 0; i < 12; i++)
+        memset(Q + 13 * i, 0, (size_t)(12 - i) * sizeof(double));
     /* each ordered pair's N is its target's */
-    int tj = mirror ? mirror->tri : -1;
-    double w2 = s->o.omega, sj;
+    double w2 = s->o.omega, sj, si = 0.0;
     if (mirror) {
-        sj = n_scale_of(s, tj, x);
+        sj = n_scale_of(s, mirror->tri, x);
+        si = n_scale_of(s, e->tri, x);
     } else {
         double xj[9];
         memcpy(xj, xl, 6 * sizeof(double));
         memcpy(xj + 6, xl + 9, 3 * sizeof(double));
         sj = iso_elem_n_scale(xj, s->o.weighting);
     }
-    double si = mirror ? n_scale_of(s, e->tri, x) : 0.0;
-    iso_elem_edge_from_fits(fi, fj, xl, w2 * sj, w2 * si, Ql);
-    for (int i = 0; i < 12; i++)
-        for (int j = i; j < 12; j++) {
-            double v = Ql[12 * i + j];
-            int ei = 3 * map[i / 3] + i % 3, ej = 3 * map[j / 3] + j % 3;
-            Q[12 * ei + ej] = Q[12 * ej + ei] = v;
-        }
+    iso_elem_edge_from_fits(fi, fj, xl, w2 * sj, w2 * si, Q);
     return 0;
+}
+
+/* scatter() for an edge block: Q holds the upper triangle in the edge
+ * layout, map takes it to e's local vertices (and so to e's slots). */
+static void scatter_edge(iso_solver *s, const element *e, const int map[4], const double *Q,
+                         const double *vc, double *Ax, double *rhs)
+{
+    const int *sl = s->slots + e->slot;
+    int g[4], f[4];
+    for (int l = 0; l < 4; l++) {
+        g[l] = e->v[map[l]];
+        f[l] = s->free_of[g[l]];
+    }
+    for (int l = 0; l < 4; l++)
+        for (int m = l; m < 4; m++) {
+            if (f[l] < 0 && f[m] < 0)
+                continue;
+            const double *B = Q + 12 * 3 * l + 3 * m; /* B[12 i + j]: row i, column j */
+            const int *pos = sl + 3 * (4 * map[l] + map[m]);
+            if (pos[0] >= 0) { /* rows of l, columns of m */
+                if (f[l] == f[m]) {
+                    for (int k = 0; k < 3; k++)
+                        for (int al = 0; al <= k; al++)
+                            Ax[pos[k] + al] += B[12 * al + k];
+                } else {
+                    for (int k = 0; k < 3; k++)
+                        for (int al = 0; al < 3; al++)
+                            Ax[pos[k] + al] += B[12 * al + k];
+                }
+                continue;
+            }
+            pos = sl + 3 * (4 * map[m] + map[l]);
+            if (pos[0] >= 0) { /* rows of m, columns of l: the transpose */
+                for (int k = 0; k < 3; k++)
+                    for (int al = 0; al < 3; al++)
+                        Ax[pos[k] + al] += B[12 * k + al];
+                continue;
+            }
+            /* one end free, the other constrained: a handle moves it */
+            int a = f[l] >= 0 ? l : m, b = a == l ? m : l;
+            if (l == m || s->r->kind[g[b]] != ISO_HANDLE)
+                continue;
+            const double *v = vc + 3 * g[b];
+            double *y = rhs + 3 * f[a];
+            if (a == l)
+                for (int al = 0; al < 3; al++)
+                    y[al] -= B[12 * al] * v[0] + B[12 * al + 1] * v[1] + B[12 * al + 2] * v[2];
+            else
+                for (int al = 0; al < 3; al++)
+                    y[al] -= B[al] * v[0] + B[12 + al] * v[1] + B[24 + al] * v[2];
+        }
 }
 
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err)
@@ -212,10 +256,11 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
             const element *mirror = NULL;
             if (i + 1 < s->nel && iso_solver__is_mirror(e, &s->el[i + 1]))
                 mirror = &s->el[++i];
-            int bad;
-            if (edge_matrix_q2(s, e, mirror, x, Q, &bad) != 0)
+            int bad, map[4];
+            iso_solver__edge_layout(e, map);
+            if (edge_matrix_q2(s, e, mirror, map, x, Q, &bad) != 0)
                 return report_degenerate(s, bad, err);
-            scatter(s, e, Q, 1.0, vc, Ax, rhs);
+            scatter_edge(s, e, map, Q, vc, Ax, rhs);
             continue;
         }
         if (cached_element_matrix(s, e, x, Q) != 0)

@@ -152,7 +152,7 @@ int iso_elem_rigid_fit(const double x[9], double R[54])
  * OpenCL kernels (assemble_cl_kernels.h) use the same forms. */
 
 /* ([a]× B)_ij = (a × B[:, j])_i for a 3x3 row-major B. */
-static void cross_mat(const double a[3], const double B[9], double C[9])
+static inline void cross_mat(const double a[3], const double B[9], double C[9])
 {
     for (int j = 0; j < 3; j++) {
         C[j] = a[1] * B[6 + j] - a[2] * B[3 + j];
@@ -364,106 +364,176 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
  * layout (a, b, p, q) fixes it. The OpenCL kernel pair_edges does the same
  * arithmetic in the same order. */
 
-/* C = [a]× M for a full 3x3 M: column j is a × M[:, j]. */
+/* C = [a]× M for a full 3x3 M: column j is a × M[:, j]. Written out: at
+ * -O2 GCC keeps 3-trip loops as loops, at three times the instructions. */
 static inline void cross_left(const double a[3], const double M[9], double C[9])
 {
-    for (int j = 0; j < 3; j++) {
-        C[j] = a[1] * M[6 + j] - a[2] * M[3 + j];
-        C[3 + j] = a[2] * M[j] - a[0] * M[6 + j];
-        C[6 + j] = a[0] * M[3 + j] - a[1] * M[j];
-    }
+    C[0] = a[1] * M[6] - a[2] * M[3];
+    C[1] = a[1] * M[7] - a[2] * M[4];
+    C[2] = a[1] * M[8] - a[2] * M[5];
+    C[3] = a[2] * M[0] - a[0] * M[6];
+    C[4] = a[2] * M[1] - a[0] * M[7];
+    C[5] = a[2] * M[2] - a[0] * M[8];
+    C[6] = a[0] * M[3] - a[1] * M[0];
+    C[7] = a[0] * M[4] - a[1] * M[1];
+    C[8] = a[0] * M[5] - a[1] * M[2];
 }
 
 /* C = M [r]× for a full 3x3 M: row i is M[i, :] × r. */
 static inline void cross_right(const double M[9], const double r[3], double C[9])
 {
-    for (int i = 0; i < 3; i++) {
-        const double *p = M + 3 * i;
-        C[3 * i] = p[1] * r[2] - p[2] * r[1];
-        C[3 * i + 1] = p[2] * r[0] - p[0] * r[2];
-        C[3 * i + 2] = p[0] * r[1] - p[1] * r[0];
-    }
+    C[0] = M[1] * r[2] - M[2] * r[1];
+    C[1] = M[2] * r[0] - M[0] * r[2];
+    C[2] = M[0] * r[1] - M[1] * r[0];
+    C[3] = M[4] * r[2] - M[5] * r[1];
+    C[4] = M[5] * r[0] - M[3] * r[2];
+    C[5] = M[3] * r[1] - M[4] * r[0];
+    C[6] = M[7] * r[2] - M[8] * r[1];
+    C[7] = M[8] * r[0] - M[6] * r[2];
+    C[8] = M[6] * r[1] - M[7] * r[0];
 }
 
-/* Adds w Q2 of the ordered pair whose source is the triangle of fit f,
- * with corners at local 0, 1, sp, and whose target has its own corner at
- * local tq ({sp, tq} = {2, 3}). */
-static inline void add_ordered_pair(const iso_elem_fit *f, const double xl[12], int sp, int tq,
-                                    double w, double Q[144])
+/* C = A B for full 3x3 A, B. */
+static inline void mul3(const double A[9], const double B[9], double C[9])
 {
-    double r[4][3], sq[3], W[9], T[9], M[9], G[9], P[4][9], Z[4][4][9];
-    for (int l = 0; l < 4; l++)
+#define MUL3_ROW(i)                                                                                \
+    C[3 * i] = A[3 * i] * B[0] + A[3 * i + 1] * B[3] + A[3 * i + 2] * B[6];                        \
+    C[3 * i + 1] = A[3 * i] * B[1] + A[3 * i + 1] * B[4] + A[3 * i + 2] * B[7];                    \
+    C[3 * i + 2] = A[3 * i] * B[2] + A[3 * i + 1] * B[5] + A[3 * i + 2] * B[8]
+    MUL3_ROW(0);
+    MUL3_ROW(1);
+    MUL3_ROW(2);
+#undef MUL3_ROW
+}
+
+/* Adds w (cjc I + Z + Zᵀ) to the upper triangle of a diagonal 3x3 block
+ * of a 12x12 row-major matrix; q points at the block's first entry. */
+static inline void add_diag_block(double *q, double w, double cjc, const double Z[9])
+{
+    q[0] += w * (cjc + 2.0 * Z[0]);
+    q[1] += w * (Z[1] + Z[3]);
+    q[2] += w * (Z[2] + Z[6]);
+    q[13] += w * (cjc + 2.0 * Z[4]);
+    q[14] += w * (Z[5] + Z[7]);
+    q[26] += w * (cjc + 2.0 * Z[8]);
+}
+
+/* Adds w (cjc I + A + Btᵀ) to an off-diagonal 3x3 block (q: its first
+ * entry), or its transpose to the mirrored block when tr. */
+static inline void add_off_block(double *q, int tr, double w, double cjc, const double A[9],
+                                 const double Bt[9])
+{
+    int s0 = tr ? 1 : 12, s1 = tr ? 12 : 1; /* strides of v's rows and columns in q */
+#define OFF(i, j, c) q[(i)*s0 + (j)*s1] += w * (A[3 * (i) + (j)] + Bt[3 * (j) + (i)] + (c))
+    OFF(0, 0, cjc), OFF(0, 1, 0.0), OFF(0, 2, 0.0);
+    OFF(1, 0, 0.0), OFF(1, 1, cjc), OFF(1, 2, 0.0);
+    OFF(2, 0, 0.0), OFF(2, 1, 0.0), OFF(2, 2, cjc);
+#undef OFF
+}
+
+static const double ZERO9[9];
+
+/* Adds w Q2 / σ of one ordered pair to the edge block Q's upper triangle.
+ * The pair's layout is (0, 1, s, t): the shared corners, the source's third
+ * corner, the target's third corner, given in the source's frame (r0, r1,
+ * rt; the source's third is −r0 − r1, which the frame's centring makes it
+ * to rounding, and which keeps the translations exactly in the null space
+ * of the h-terms). W: the source's S⁻¹ (full). In the edge layout (a, b, p,
+ * q), s and t sit at 2 and 3 (rev = 0: source Ti) or at 3 and 2 (rev = 1).
+ * The constants are c_lᵀ J c_m and the w_l of iso_elem_q2_from_fit for
+ * this layout. */
+static inline void add_ordered_pair(const double r0[3], const double r1[3], const double rt[3],
+                                    const double W[9], double w, int rev, double Q[144])
+{
+    double rs[3], sq[3], T[9], M[9], G[9];
+    double w0[3], w1[3], w2[3], w3[3], P0[9], P1[9], P2[9], P3[9], C[9];
+    rs[0] = -(r0[0] + r1[0]), rs[1] = -(r0[1] + r1[1]), rs[2] = -(r0[2] + r1[2]);
+    sq[0] = r0[0] + r1[0] + rt[0], sq[1] = r0[1] + r1[1] + rt[1], sq[2] = r0[2] + r1[2] + rt[2];
+    /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners r0, r1, rt and sq */
+#define OUTER4(i, j) (r0[i] * r0[j] + r1[i] * r1[j] + rt[i] * rt[j] + sq[i] * sq[j])
+    double o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + o22;
+    T[0] = tr - o00, T[4] = tr - o11, T[8] = tr - o22;
+    T[1] = T[3] = -OUTER4(0, 1);
+    T[2] = T[6] = -OUTER4(0, 2);
+    T[5] = T[7] = -OUTER4(1, 2);
+#undef OUTER4
+    mul3(T, W, M);
+    mul3(W, M, G);
+    for (int a = 0; a < 3; a++) { /* w_l = Σ_k c_kl (q_k + Σq) */
+        w0[a] = r0[a] - sq[a] / 3.0;
+        w1[a] = r1[a] - sq[a] / 3.0;
+        w2[a] = -4.0 * sq[a] / 3.0;
+        w3[a] = rt[a] + sq[a];
+    }
+    /* P_l = [w_l]× W − ½ [r_l]× G; the target's own corner has no r */
+    cross_left(w0, W, P0);
+    cross_left(r0, G, C);
+    for (int i = 0; i < 9; i++)
+        P0[i] -= 0.5 * C[i];
+    cross_left(w1, W, P1);
+    cross_left(r1, G, C);
+    for (int i = 0; i < 9; i++)
+        P1[i] -= 0.5 * C[i];
+    cross_left(w2, W, P2);
+    cross_left(rs, G, C);
+    for (int i = 0; i < 9; i++)
+        P2[i] -= 0.5 * C[i];
+    cross_left(w3, W, P3);
+    /* Z_lm = P_l [r_m]× for m = 0, 1; Z_l2 = −Z_l0 − Z_l1 since r_s = −r0 − r1 */
+    double Z00[9], Z01[9], Z02[9], Z10[9], Z11[9], Z12[9], Z20[9], Z21[9], Z22[9];
+    double Z30[9], Z31[9], Z32[9];
+    cross_right(P0, r0, Z00), cross_right(P0, r1, Z01);
+    cross_right(P1, r0, Z10), cross_right(P1, r1, Z11);
+    cross_right(P2, r0, Z20), cross_right(P2, r1, Z21);
+    cross_right(P3, r0, Z30), cross_right(P3, r1, Z31);
+    for (int i = 0; i < 9; i++) {
+        Z02[i] = -(Z00[i] + Z01[i]);
+        Z12[i] = -(Z10[i] + Z11[i]);
+        Z22[i] = -(Z20[i] + Z21[i]);
+        Z32[i] = -(Z30[i] + Z31[i]);
+    }
+    /* blocks (l, m) of the pair layout at (L_l, L_m) of the edge layout */
+    int S = rev ? 3 : 2, T_ = rev ? 2 : 3;
+#define AT(l, m) (Q + 36 * (l) + 3 * (m))
+    add_diag_block(AT(0, 0), w, 2.0 / 3.0, Z00);
+    add_off_block(AT(0, 1), 0, w, -1.0 / 3.0, Z01, Z10);
+    add_off_block(AT(0, S), 0, w, 0.0, Z02, Z20);
+    add_off_block(AT(0, T_), 0, w, -1.0 / 3.0, ZERO9, Z30);
+    add_diag_block(AT(1, 1), w, 2.0 / 3.0, Z11);
+    add_off_block(AT(1, S), 0, w, 0.0, Z12, Z21);
+    add_off_block(AT(1, T_), 0, w, -1.0 / 3.0, ZERO9, Z31);
+    add_diag_block(AT(S, S), w, 4.0 / 3.0, Z22);
+    add_off_block(rev ? AT(T_, S) : AT(S, T_), rev, w, -4.0 / 3.0, ZERO9, Z32);
+    add_diag_block(AT(T_, T_), w, 2.0, ZERO9);
+#undef AT
+}
+
+/* Points x (n) into the frame of fit f with its inverse scale. */
+static void frame_points_fast(const iso_elem_fit *f, const double *x, int n, double *r)
+{
+    for (int k = 0; k < n; k++)
         for (int a = 0; a < 3; a++)
-            r[l][a] = (xl[3 * l + a] - f->c[a]) * f->inv_s - f->d[a];
+            r[3 * k + a] = (x[3 * k + a] - f->c[a]) * f->inv_s - f->d[a];
+}
+
+static void full_w(const iso_elem_fit *f, double W[9])
+{
     W[0] = f->W[0], W[1] = W[3] = f->W[1], W[2] = W[6] = f->W[2];
     W[4] = f->W[3], W[5] = W[7] = f->W[4], W[8] = f->W[5];
-    for (int a = 0; a < 3; a++)
-        sq[a] = r[0][a] + r[1][a] + r[tq][a];
-    /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners and their sum */
-    const double *g4[4] = {r[0], r[1], r[tq], sq};
-    double tr = 0;
-    for (int i = 0; i < 9; i++)
-        T[i] = 0;
-    for (int g = 0; g < 4; g++) {
-        const double *v = g4[g];
-        tr += v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-        for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++)
-                T[3 * i + j] -= v[i] * v[j];
-    }
-    T[0] += tr, T[4] += tr, T[8] += tr;
-    for (int i = 0; i < 3; i++) /* M = T W, G = W M */
-        for (int j = 0; j < 3; j++)
-            M[3 * i + j] = T[3 * i] * W[j] + T[3 * i + 1] * W[3 + j] + T[3 * i + 2] * W[6 + j];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            G[3 * i + j] = W[3 * i] * M[j] + W[3 * i + 1] * M[3 + j] + W[3 * i + 2] * M[6 + j];
-    /* c_kl = [target corner k is local l] − [l is a source corner]/3 */
-    double c[4][3];
-    for (int l = 0; l < 4; l++)
-        for (int k = 0; k < 3; k++)
-            c[l][k] = ((k < 2 ? k : tq) == l ? 1.0 : 0.0) - (l != tq ? 1.0 / 3.0 : 0.0);
-    for (int l = 0; l < 4; l++) {
-        double wl[3], C[9];
-        for (int a = 0; a < 3; a++)
-            wl[a] = c[l][0] * (r[0][a] + sq[a]) + c[l][1] * (r[1][a] + sq[a]) +
-                    c[l][2] * (r[tq][a] + sq[a]);
-        cross_left(wl, W, P[l]);
-        if (l == tq)
-            continue;
-        cross_left(r[l], G, C);
-        for (int i = 0; i < 9; i++)
-            P[l][i] -= 0.5 * C[i];
-    }
-    for (int l = 0; l < 4; l++)
-        for (int m = 0; m < 4; m++)
-            if (m != tq)
-                cross_right(P[l], r[m], Z[l][m]);
-    for (int l = 0; l < 4; l++) {
-        double suml = c[l][0] + c[l][1] + c[l][2];
-        for (int m = l; m < 4; m++) {
-            double cjc = c[l][0] * c[m][0] + c[l][1] * c[m][1] + c[l][2] * c[m][2] +
-                         suml * (c[m][0] + c[m][1] + c[m][2]);
-            for (int i = 0; i < 3; i++)
-                for (int j = (l == m ? i : 0); j < 3; j++) {
-                    double v = i == j ? cjc : 0.0;
-                    if (m != tq)
-                        v += Z[l][m][3 * i + j];
-                    if (l != tq)
-                        v += Z[m][l][3 * j + i];
-                    Q[12 * (3 * l + i) + 3 * m + j] += w * v;
-                }
-        }
-    }
-    (void)sp;
 }
 
 void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
                              double wi, double wj, double Q[144])
 {
-    add_ordered_pair(fi, xl, 2, 3, wi, Q);
-    if (wj != 0)
-        add_ordered_pair(fj, xl, 3, 2, wj, Q);
+    double r[12], W[9];
+    frame_points_fast(fi, xl, 4, r); /* (Ti, Tj): pair layout (a, b, p, q) */
+    full_w(fi, W);
+    add_ordered_pair(r, r + 3, r + 9, W, wi, 0, Q);
+    if (wj == 0)
+        return;
+    frame_points_fast(fj, xl, 4, r); /* (Tj, Ti): pair layout (a, b, q, p) */
+    full_w(fj, W);
+    add_ordered_pair(r, r + 3, r + 6, W, wj, 1, Q);
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])
