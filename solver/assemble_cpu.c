@@ -106,8 +106,9 @@ static int ensure_fit_cache(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
-/* Q of a triangle or pair element through the fit cache; −1 if degenerate. */
-static int cached_element_matrix(iso_solver *s, const element *e, const double *x, double *Q)
+/* w Q1 of a triangle element through the fit cache; −1 if degenerate. */
+static int cached_element_matrix(iso_solver *s, const element *e, const double *x, double w,
+                                 double *Q)
 {
     const iso_elem_fit *f = cached_fit(s, e->tri, x);
     if (!f)
@@ -115,10 +116,10 @@ static int cached_element_matrix(iso_solver *s, const element *e, const double *
     double xi[9];
     for (int k = 0; k < 3; k++)
         memcpy(xi + 3 * k, x + 3 * e->v[k], 3 * sizeof(double));
-    if (e->kind == 1)
-        iso_elem_q1_from_fit(xi, f, s->o.weighting, Q);
-    else
-        iso_elem_q2_from_fit(f, xi, x + 3 * e->v[3], e->jmap, s->o.weighting, Q);
+    iso_elem_q1_from_fit(xi, f, s->o.weighting, Q);
+    for (int i = 0; i < 9; i++) /* the upper triangle is what is scattered */
+        for (int j = i; j < 9; j++)
+            Q[9 * i + j] *= w;
     return 0;
 }
 
@@ -162,8 +163,7 @@ static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror
     double xl[12];
     for (int l = 0; l < 4; l++)
         memcpy(xl + 3 * l, x + 3 * e->v[map[l]], 3 * sizeof(double));
-    for (int i = 0; i < 12; i++)
-        memset(Q + 13 * i, 0, (size_t)(12 - i) * sizeof(double));
+    memset(Q, 0, 144 * sizeof(double));
     /* each ordered pair's N is its target's */
     double w2 = s->o.omega, sj, si = 0.0;
     if (mirror) {
@@ -179,40 +179,46 @@ static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror
     return 0;
 }
 
-/* scatter() for an edge block: Q holds the upper triangle in the edge
- * layout, map takes it to e's local vertices (and so to e's slots). */
-static void scatter_edge(iso_solver *s, const element *e, const int map[4], const double *Q,
-                         const double *vc, double *Ax, double *rhs)
+/* GCC at -O2 keeps 3-trip loops as loops; unrolled, the block loops below
+ * lose their index arithmetic and the ≤ k bound's branches. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define UNROLL3 _Pragma("GCC unroll 3")
+#else
+#define UNROLL3
+#endif
+
+/* scatter() for a block whose upper triangle alone is filled: Q (leading
+ * dimension ld) in a layout of n vertices that map takes to e's local
+ * vertices (and so to e's slots). Its weight is already in Q. */
+static void scatter_upper(iso_solver *s, const element *e, int n, const int *map, const double *Q,
+                          int ld, const double *vc, double *Ax, double *rhs)
 {
     const int *sl = s->slots + e->slot;
-    int g[4], f[4];
-    for (int l = 0; l < 4; l++) {
+    int nl = local_count(e), g[4], f[4];
+    for (int l = 0; l < n; l++) {
         g[l] = e->v[map[l]];
         f[l] = s->free_of[g[l]];
     }
-    for (int l = 0; l < 4; l++)
-        for (int m = l; m < 4; m++) {
+    for (int l = 0; l < n; l++)
+        for (int m = l; m < n; m++) {
             if (f[l] < 0 && f[m] < 0)
                 continue;
-            const double *B = Q + 12 * 3 * l + 3 * m; /* B[12 i + j]: row i, column j */
-            const int *pos = sl + 3 * (4 * map[l] + map[m]);
+            const double *B = Q + ld * 3 * l + 3 * m; /* B[ld i + j]: row i, column j */
+            const int *pos = sl + 3 * (nl * map[l] + map[m]);
             if (pos[0] >= 0) { /* rows of l, columns of m */
                 if (f[l] == f[m]) {
-                    for (int k = 0; k < 3; k++)
-                        for (int al = 0; al <= k; al++)
-                            Ax[pos[k] + al] += B[12 * al + k];
+                    UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int al = 0; al <= k; al++)
+                        Ax[pos[k] + al] += B[ld * al + k];
                 } else {
-                    for (int k = 0; k < 3; k++)
-                        for (int al = 0; al < 3; al++)
-                            Ax[pos[k] + al] += B[12 * al + k];
+                    UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int al = 0; al < 3; al++)
+                        Ax[pos[k] + al] += B[ld * al + k];
                 }
                 continue;
             }
-            pos = sl + 3 * (4 * map[m] + map[l]);
+            pos = sl + 3 * (nl * map[m] + map[l]);
             if (pos[0] >= 0) { /* rows of m, columns of l: the transpose */
-                for (int k = 0; k < 3; k++)
-                    for (int al = 0; al < 3; al++)
-                        Ax[pos[k] + al] += B[12 * k + al];
+                UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int al = 0; al < 3; al++)
+                    Ax[pos[k] + al] += B[ld * k + al];
                 continue;
             }
             /* one end free, the other constrained: a handle moves it */
@@ -222,11 +228,11 @@ static void scatter_edge(iso_solver *s, const element *e, const int map[4], cons
             const double *v = vc + 3 * g[b];
             double *y = rhs + 3 * f[a];
             if (a == l)
-                for (int al = 0; al < 3; al++)
-                    y[al] -= B[12 * al] * v[0] + B[12 * al + 1] * v[1] + B[12 * al + 2] * v[2];
+                UNROLL3 for (int al = 0; al < 3; al++) y[al] -=
+                    B[ld * al] * v[0] + B[ld * al + 1] * v[1] + B[ld * al + 2] * v[2];
             else
-                for (int al = 0; al < 3; al++)
-                    y[al] -= B[al] * v[0] + B[12 + al] * v[1] + B[24 + al] * v[2];
+                UNROLL3 for (int al = 0; al < 3; al++) y[al] -=
+                    B[al] * v[0] + B[ld + al] * v[1] + B[2 * ld + al] * v[2];
         }
 }
 
@@ -260,12 +266,13 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
             iso_solver__edge_layout(e, map);
             if (edge_matrix_q2(s, e, mirror, map, x, Q, &bad) != 0)
                 return report_degenerate(s, bad, err);
-            scatter_edge(s, e, map, Q, vc, Ax, rhs);
+            scatter_upper(s, e, 4, map, Q, 12, vc, Ax, rhs);
             continue;
         }
-        if (cached_element_matrix(s, e, x, Q) != 0)
+        if (cached_element_matrix(s, e, x, w1, Q) != 0)
             return report_degenerate(s, e->tri, err);
-        scatter(s, e, Q, w1, vc, Ax, rhs);
+        static const int id[3] = {0, 1, 2};
+        scatter_upper(s, e, 3, id, Q, 9, vc, Ax, rhs);
     }
     return ISO_OK;
 }

@@ -8,6 +8,15 @@
 #include <math.h>
 #include <string.h>
 
+/* GCC at -O2 keeps 3-trip loops as loops; unrolled in the assembly's hot
+ * paths, their indices and branches fold to constants (at up to three
+ * times fewer instructions). */
+#if defined(__GNUC__) && !defined(__clang__)
+#define UNROLL3 _Pragma("GCC unroll 3")
+#else
+#define UNROLL3
+#endif
+
 static const double J3[3][3] = {{2, 1, 1}, {1, 2, 1}, {1, 1, 2}};
 
 void iso_elem_frame(const double x[9], double c[3], double *s)
@@ -154,7 +163,8 @@ int iso_elem_rigid_fit(const double x[9], double R[54])
 /* ([a]× B)_ij = (a × B[:, j])_i for a 3x3 row-major B. */
 static inline void cross_mat(const double a[3], const double B[9], double C[9])
 {
-    for (int j = 0; j < 3; j++) {
+    UNROLL3 for (int j = 0; j < 3; j++)
+    {
         C[j] = a[1] * B[6 + j] - a[2] * B[3 + j];
         C[3 + j] = a[2] * B[j] - a[0] * B[6 + j];
         C[6 + j] = a[0] * B[3 + j] - a[1] * B[j];
@@ -178,11 +188,10 @@ static void mul_nn3(const double A[9], const double B[9], double C[9])
 }
 
 /* Block l of R's lower half, B_l = W [r_l]×, as it sits in R (6x9). */
-static void fit_block(const double R[54], int l, double B[9])
+static inline void fit_block(const double R[54], int l, double B[9])
 {
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            B[3 * i + j] = R[9 * (3 + i) + 3 * l + j];
+    UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = 0; j < 3; j++) B[3 * i + j] =
+        R[9 * (3 + i) + 3 * l + j];
 }
 
 /* Points x (n of them) in the fit's frame: (x − c)/s − δ, where δ is the
@@ -257,19 +266,18 @@ void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weightin
 {
     double sigma = iso_elem_n_scale(x, w), r[9], B[27];
     frame_points(f, x, 3, r);
-    for (int l = 0; l < 3; l++)
-        fit_block(f->R, l, B + 9 * l);
-    for (int k = 0; k < 3; k++)
-        for (int l = k; l < 3; l++) {
-            double C[9];
-            cross_mat(r + 3 * k, B + 9 * l, C);
-            double jk = k == l ? 2.0 / 3.0 : -1.0 / 3.0;
-            for (int i = 0; i < 3; i++)
-                for (int j = (k == l ? i : 0); j < 3; j++) {
-                    double v = sigma * ((i == j ? jk : 0.0) + C[3 * i + j]);
-                    Q[9 * (3 * k + i) + 3 * l + j] = Q[9 * (3 * l + j) + 3 * k + i] = v;
-                }
+    UNROLL3 for (int l = 0; l < 3; l++) fit_block(f->R, l, B + 9 * l);
+    UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int l = k; l < 3; l++)
+    {
+        double C[9];
+        cross_mat(r + 3 * k, B + 9 * l, C);
+        double jk = k == l ? 2.0 / 3.0 : -1.0 / 3.0;
+        UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = (k == l ? i : 0); j < 3; j++)
+        {
+            double v = sigma * ((i == j ? jk : 0.0) + C[3 * i + j]);
+            Q[9 * (3 * k + i) + 3 * l + j] = Q[9 * (3 * l + j) + 3 * k + i] = v;
         }
+    }
 }
 
 /* Q2 in closed form. With M = P − E_j R (9x12) split into 3x3 blocks
@@ -364,9 +372,16 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
  * layout (a, b, p, q) fixes it. The OpenCL kernel pair_edges does the same
  * arithmetic in the same order. */
 
+/* Both ordered pairs of an edge go through the same arithmetic with
+ * different data, so they run side by side in the two lanes of a vector:
+ * lane 0 is (Ti, Tj), lane 1 is (Tj, Ti). GCC's and Clang's generic vectors
+ * compile to SSE2 on x86-64 (its baseline) and to scalar code elsewhere;
+ * each lane's rounding is that of the scalar code. */
+typedef double v2d __attribute__((vector_size(16)));
+
 /* C = [a]× M for a full 3x3 M: column j is a × M[:, j]. Written out: at
  * -O2 GCC keeps 3-trip loops as loops, at three times the instructions. */
-static inline void cross_left(const double a[3], const double M[9], double C[9])
+static inline void cross_left(const v2d a[3], const v2d M[9], v2d C[9])
 {
     C[0] = a[1] * M[6] - a[2] * M[3];
     C[1] = a[1] * M[7] - a[2] * M[4];
@@ -380,7 +395,7 @@ static inline void cross_left(const double a[3], const double M[9], double C[9])
 }
 
 /* C = M [r]× for a full 3x3 M: row i is M[i, :] × r. */
-static inline void cross_right(const double M[9], const double r[3], double C[9])
+static inline void cross_right(const v2d M[9], const v2d r[3], v2d C[9])
 {
     C[0] = M[1] * r[2] - M[2] * r[1];
     C[1] = M[2] * r[0] - M[0] * r[2];
@@ -394,7 +409,7 @@ static inline void cross_right(const double M[9], const double r[3], double C[9]
 }
 
 /* C = A B for full 3x3 A, B. */
-static inline void mul3(const double A[9], const double B[9], double C[9])
+static inline void mul3(const v2d A[9], const v2d B[9], v2d C[9])
 {
 #define MUL3_ROW(i)                                                                                \
     C[3 * i] = A[3 * i] * B[0] + A[3 * i + 1] * B[3] + A[3 * i + 2] * B[6];                        \
@@ -406,52 +421,25 @@ static inline void mul3(const double A[9], const double B[9], double C[9])
 #undef MUL3_ROW
 }
 
-/* Adds w (cjc I + Z + Zᵀ) to the upper triangle of a diagonal 3x3 block
- * of a 12x12 row-major matrix; q points at the block's first entry. */
-static inline void add_diag_block(double *q, double w, double cjc, const double Z[9])
+/* The 3x3 blocks of one ordered pair in its pair layout (0, 1, s, t): the
+ * shared corners, the source's third corner, the target's third corner.
+ * The corners come in the source's frame (r0, r1, rt); the source's third
+ * is −r0 − r1, which the frame's centring makes it to rounding and which
+ * keeps the translations exactly in the null space of the h-terms. W: the
+ * source's S⁻¹ (full). Out: Z_lm for l = 0..3 and m = 0..2 (Z[3 l + m]);
+ * the block (l, m) is cjc_lm I + Z_lm + Z_mlᵀ, Z_l3 = 0. */
+static void ordered_pair_z(const v2d r0[3], const v2d r1[3], const v2d rt[3], const v2d W[9],
+                           v2d Z[12][9])
 {
-    q[0] += w * (cjc + 2.0 * Z[0]);
-    q[1] += w * (Z[1] + Z[3]);
-    q[2] += w * (Z[2] + Z[6]);
-    q[13] += w * (cjc + 2.0 * Z[4]);
-    q[14] += w * (Z[5] + Z[7]);
-    q[26] += w * (cjc + 2.0 * Z[8]);
-}
-
-/* Adds w (cjc I + A + Btᵀ) to an off-diagonal 3x3 block (q: its first
- * entry), or its transpose to the mirrored block when tr. */
-static inline void add_off_block(double *q, int tr, double w, double cjc, const double A[9],
-                                 const double Bt[9])
-{
-    int s0 = tr ? 1 : 12, s1 = tr ? 12 : 1; /* strides of v's rows and columns in q */
-#define OFF(i, j, c) q[(i)*s0 + (j)*s1] += w * (A[3 * (i) + (j)] + Bt[3 * (j) + (i)] + (c))
-    OFF(0, 0, cjc), OFF(0, 1, 0.0), OFF(0, 2, 0.0);
-    OFF(1, 0, 0.0), OFF(1, 1, cjc), OFF(1, 2, 0.0);
-    OFF(2, 0, 0.0), OFF(2, 1, 0.0), OFF(2, 2, cjc);
-#undef OFF
-}
-
-static const double ZERO9[9];
-
-/* Adds w Q2 / σ of one ordered pair to the edge block Q's upper triangle.
- * The pair's layout is (0, 1, s, t): the shared corners, the source's third
- * corner, the target's third corner, given in the source's frame (r0, r1,
- * rt; the source's third is −r0 − r1, which the frame's centring makes it
- * to rounding, and which keeps the translations exactly in the null space
- * of the h-terms). W: the source's S⁻¹ (full). In the edge layout (a, b, p,
- * q), s and t sit at 2 and 3 (rev = 0: source Ti) or at 3 and 2 (rev = 1).
- * The constants are c_lᵀ J c_m and the w_l of iso_elem_q2_from_fit for
- * this layout. */
-static inline void add_ordered_pair(const double r0[3], const double r1[3], const double rt[3],
-                                    const double W[9], double w, int rev, double Q[144])
-{
-    double rs[3], sq[3], T[9], M[9], G[9];
-    double w0[3], w1[3], w2[3], w3[3], P0[9], P1[9], P2[9], P3[9], C[9];
-    rs[0] = -(r0[0] + r1[0]), rs[1] = -(r0[1] + r1[1]), rs[2] = -(r0[2] + r1[2]);
-    sq[0] = r0[0] + r1[0] + rt[0], sq[1] = r0[1] + r1[1] + rt[1], sq[2] = r0[2] + r1[2] + rt[2];
+    v2d rs[3], sq[3], T[9], M[9], G[9];
+    v2d w0[3], w1[3], w2[3], w3[3], P0[9], P1[9], P2[9], P3[9], C[9];
+    for (int a = 0; a < 3; a++) {
+        rs[a] = -(r0[a] + r1[a]);
+        sq[a] = r0[a] + r1[a] + rt[a];
+    }
     /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners r0, r1, rt and sq */
 #define OUTER4(i, j) (r0[i] * r0[j] + r1[i] * r1[j] + rt[i] * rt[j] + sq[i] * sq[j])
-    double o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + o22;
+    v2d o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + o22;
     T[0] = tr - o00, T[4] = tr - o11, T[8] = tr - o22;
     T[1] = T[3] = -OUTER4(0, 1);
     T[2] = T[6] = -OUTER4(0, 2);
@@ -480,60 +468,82 @@ static inline void add_ordered_pair(const double r0[3], const double r1[3], cons
         P2[i] -= 0.5 * C[i];
     cross_left(w3, W, P3);
     /* Z_lm = P_l [r_m]× for m = 0, 1; Z_l2 = −Z_l0 − Z_l1 since r_s = −r0 − r1 */
-    double Z00[9], Z01[9], Z02[9], Z10[9], Z11[9], Z12[9], Z20[9], Z21[9], Z22[9];
-    double Z30[9], Z31[9], Z32[9];
-    cross_right(P0, r0, Z00), cross_right(P0, r1, Z01);
-    cross_right(P1, r0, Z10), cross_right(P1, r1, Z11);
-    cross_right(P2, r0, Z20), cross_right(P2, r1, Z21);
-    cross_right(P3, r0, Z30), cross_right(P3, r1, Z31);
-    for (int i = 0; i < 9; i++) {
-        Z02[i] = -(Z00[i] + Z01[i]);
-        Z12[i] = -(Z10[i] + Z11[i]);
-        Z22[i] = -(Z20[i] + Z21[i]);
-        Z32[i] = -(Z30[i] + Z31[i]);
+    const v2d *P[4] = {P0, P1, P2, P3};
+    for (int l = 0; l < 4; l++) {
+        cross_right(P[l], r0, Z[3 * l]);
+        cross_right(P[l], r1, Z[3 * l + 1]);
+        for (int i = 0; i < 9; i++)
+            Z[3 * l + 2][i] = -(Z[3 * l][i] + Z[3 * l + 1][i]);
     }
-    /* blocks (l, m) of the pair layout at (L_l, L_m) of the edge layout */
-    int S = rev ? 3 : 2, T_ = rev ? 2 : 3;
+}
+
+/* Adds both lanes' blocks (Z of ordered_pair_z), weighted by wv, to the
+ * edge block Q's upper triangle. A pair's block (l, m) is
+ * cjc_lm I + Z_lm + Z_mlᵀ in the pair layout (0, 1, s, t); in the edge
+ * layout (a, b, p, q), s and t sit at 2 and 3 for lane 0 (source Ti) and at
+ * 3 and 2 for lane 1, whose (s, t) block lands transposed in (p, q). The
+ * constants are c_lᵀ J c_m of the pair layout. */
+static void add_edge_blocks(const v2d Z[12][9], v2d wv, double Q[144])
+{
+    static const v2d zero[9];
 #define AT(l, m) (Q + 36 * (l) + 3 * (m))
-    add_diag_block(AT(0, 0), w, 2.0 / 3.0, Z00);
-    add_off_block(AT(0, 1), 0, w, -1.0 / 3.0, Z01, Z10);
-    add_off_block(AT(0, S), 0, w, 0.0, Z02, Z20);
-    add_off_block(AT(0, T_), 0, w, -1.0 / 3.0, ZERO9, Z30);
-    add_diag_block(AT(1, 1), w, 2.0 / 3.0, Z11);
-    add_off_block(AT(1, S), 0, w, 0.0, Z12, Z21);
-    add_off_block(AT(1, T_), 0, w, -1.0 / 3.0, ZERO9, Z31);
-    add_diag_block(AT(S, S), w, 4.0 / 3.0, Z22);
-    add_off_block(rev ? AT(T_, S) : AT(S, T_), rev, w, -4.0 / 3.0, ZERO9, Z32);
-    add_diag_block(AT(T_, T_), w, 2.0, ZERO9);
+#define DIAG(l0, l1, cjc, Zb)                                                                      \
+    do {                                                                                           \
+        double *q0 = AT(l0, l0), *q1 = AT(l1, l1);                                                 \
+        UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = i; j < 3; j++)                    \
+        {                                                                                          \
+            v2d v = wv * ((i == j ? (cjc) : 0.0) + (Zb)[3 * i + j] + (Zb)[3 * j + i]);             \
+            q0[12 * i + j] += v[0];                                                                \
+            q1[12 * i + j] += v[1];                                                                \
+        }                                                                                          \
+    } while (0)
+#define OFF(q0, q1, tr1, cjc, Za, Zbt)                                                             \
+    do {                                                                                           \
+        UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = 0; j < 3; j++)                    \
+        {                                                                                          \
+            v2d v = wv * ((i == j ? (cjc) : 0.0) + (Za)[3 * i + j] + (Zbt)[3 * j + i]);            \
+            (q0)[12 * i + j] += v[0];                                                              \
+            (q1)[(tr1) ? 12 * j + i : 12 * i + j] += v[1];                                         \
+        }                                                                                          \
+    } while (0)
+    DIAG(0, 0, 2.0 / 3.0, Z[0]);
+    OFF(AT(0, 1), AT(0, 1), 0, -1.0 / 3.0, Z[1], Z[3]);
+    OFF(AT(0, 2), AT(0, 3), 0, 0.0, Z[2], Z[6]);
+    OFF(AT(0, 3), AT(0, 2), 0, -1.0 / 3.0, zero, Z[9]);
+    DIAG(1, 1, 2.0 / 3.0, Z[4]);
+    OFF(AT(1, 2), AT(1, 3), 0, 0.0, Z[5], Z[7]);
+    OFF(AT(1, 3), AT(1, 2), 0, -1.0 / 3.0, zero, Z[10]);
+    DIAG(2, 3, 4.0 / 3.0, Z[8]);
+    OFF(AT(2, 3), AT(2, 3), 1, -4.0 / 3.0, zero, Z[11]);
+    DIAG(3, 2, 2.0, zero);
+#undef OFF
+#undef DIAG
 #undef AT
 }
 
-/* Points x (n) into the frame of fit f with its inverse scale. */
-static void frame_points_fast(const iso_elem_fit *f, const double *x, int n, double *r)
+/* Lane `lane` of the corners xl[o0], xl[o1], xl[ot] (edge layout indices)
+ * and of W, taken to the frame of fit f with its inverse scale. */
+static void load_lane(const iso_elem_fit *f, const double xl[12], int ot, int lane, v2d r[9],
+                      v2d W[9])
 {
-    for (int k = 0; k < n; k++)
+    const int at[3] = {0, 1, ot};
+    for (int k = 0; k < 3; k++)
         for (int a = 0; a < 3; a++)
-            r[3 * k + a] = (x[3 * k + a] - f->c[a]) * f->inv_s - f->d[a];
-}
-
-static void full_w(const iso_elem_fit *f, double W[9])
-{
-    W[0] = f->W[0], W[1] = W[3] = f->W[1], W[2] = W[6] = f->W[2];
-    W[4] = f->W[3], W[5] = W[7] = f->W[4], W[8] = f->W[5];
+            r[3 * k + a][lane] = (xl[3 * at[k] + a] - f->c[a]) * f->inv_s - f->d[a];
+    const double *w = f->W;
+    const double full[9] = {w[0], w[1], w[2], w[1], w[3], w[4], w[2], w[4], w[5]};
+    for (int i = 0; i < 9; i++)
+        W[i][lane] = full[i];
 }
 
 void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
                              double wi, double wj, double Q[144])
 {
-    double r[12], W[9];
-    frame_points_fast(fi, xl, 4, r); /* (Ti, Tj): pair layout (a, b, p, q) */
-    full_w(fi, W);
-    add_ordered_pair(r, r + 3, r + 9, W, wi, 0, Q);
-    if (wj == 0)
-        return;
-    frame_points_fast(fj, xl, 4, r); /* (Tj, Ti): pair layout (a, b, q, p) */
-    full_w(fj, W);
-    add_ordered_pair(r, r + 3, r + 6, W, wj, 1, Q);
+    v2d r[9], W[9], Z[12][9];
+    load_lane(fi, xl, 3, 0, r, W);                /* (Ti, Tj): pair layout (a, b, p, q) */
+    load_lane(wj != 0 ? fj : fi, xl, 2, 1, r, W); /* (Tj, Ti): pair layout (a, b, q, p) */
+    ordered_pair_z(r, r + 3, r + 6, W, Z);
+    add_edge_blocks((const v2d(*)[9])Z, (v2d){wi, wj}, Q);
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])
