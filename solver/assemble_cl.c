@@ -65,6 +65,8 @@ struct iso_cl_assembler {
     double *A_host, *B_host;
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
+    int np;               /* pair items padded to whole work-groups */
+    int pair_lo, pair_hi; /* the pair records' region of the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
     int *first_el;    /* per fit item: first element (list order) using it as Ti or Q1 */
@@ -301,7 +303,7 @@ static int build_program(iso_cl_assembler *cl, iso_err *err)
 /* Host-side lists built once; freed after upload. */
 typedef struct plan {
     int *fit_work;  /* 4 per fit item */
-    int *pair_work; /* 8 per pair item */
+    int *pair_work; /* 6 rows of np: the pair items, value-major */
     int *rest_work; /* 4 per restoration item */
     double *rest_par;
     int *fit_of_tri; /* per triangle: fit item or −1 */
@@ -353,7 +355,7 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
  * record's local vertex x is element e's local vertex map[x] (nl of them);
  * the record sits at offset `rec`. */
 static void gather_record(const iso_solver *s, plan *p, const element *e, const int *map, int nl,
-                          int rec, int force_rhs)
+                          int rec, int st, int force_rhs)
 {
     int enl = local_count(e), pair = 0, handle = force_rhs;
     const int *sl = s->slots + e->slot;
@@ -366,7 +368,7 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
     for (int a = 0; a < nl; a++)
         if (fv[a] >= 0) {
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (map[a] * enl + map[a])]];
-            p->go[p->ngb++] = rec + 6 * a;
+            p->go[p->ngb++] = rec + st * (6 * a);
         }
     for (int a = 0; a < nl; a++)
         for (int b = a + 1; b < nl; b++, pair++) {
@@ -374,14 +376,14 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
                 continue;
             int lo = fv[a] < fv[b] ? map[a] : map[b], hi = fv[a] < fv[b] ? map[b] : map[a];
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (lo * enl + hi)]];
-            p->go[p->ngb++] = rec + 6 * nl + 9 * pair;
+            p->go[p->ngb++] = rec + st * (6 * nl + 9 * pair);
         }
     if (!handle)
         return;
     for (int a = 0; a < nl; a++)
         if (fv[a] >= 0) {
             p->gr[p->ngr] = fv[a];
-            p->gro[p->ngr++] = rec + 6 * nl + 9 * pair + 3 * a;
+            p->gro[p->ngr++] = rec + st * (6 * nl + 9 * pair + 3 * a);
         }
 }
 
@@ -447,15 +449,14 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     p->fit_of_tri = malloc(((size_t)nt + 1) * sizeof(int));
     cl->first_el = malloc(((size_t)nt + 1) * sizeof(int));
     cl->tri_of = malloc(((size_t)nt + 1) * sizeof(int));
-    p->pair_work = malloc(8 * cap * sizeof(int));
     p->rest_work = malloc(4 * cap * sizeof(int));
     p->rest_par = malloc(2 * cap * sizeof(double));
     p->gb = malloc(10 * cap * sizeof(int));
     p->go = malloc(10 * cap * sizeof(int));
     p->gr = malloc(4 * cap * sizeof(int));
     p->gro = malloc(4 * cap * sizeof(int));
-    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !p->pair_work || !p->rest_work || !p->rest_par || !p->gb || !p->go || !p->gr ||
-        !p->gro || find_blocks(s, cl, p) != 0)
+    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !p->rest_work ||
+        !p->rest_par || !p->gb || !p->go || !p->gr || !p->gro || find_blocks(s, cl, p) != 0)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     for (int t = 0; t < nt; t++)
         p->fit_of_tri[t] = -1;
@@ -469,9 +470,24 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         int f = fit_item(cl, p, tri, e->tri, i);
         p->fit_work[4 * f + 3] = (int)rec;
         static const int id[3] = {0, 1, 2};
-        gather_record(s, p, e, id, 3, (int)rec, 0);
+        gather_record(s, p, e, id, 3, (int)rec, 1, 0);
         rec += RECORD_SIZE(3);
     }
+    /* The pairs' records are value-major over np (the item count padded to
+     * whole work-groups): value k of item j at rec + k np + j. */
+    int n_items = 0;
+    for (int i = 0; i < nel; i++)
+        if (s->el[i].kind == 2) {
+            n_items++;
+            i += i + 1 < nel && iso_solver__is_mirror(&s->el[i], &s->el[i + 1]);
+        }
+    size_t wg = cl->wg[K_PAIR];
+    cl->np = (int)(((size_t)n_items + wg - 1) / wg * wg);
+    cl->pair_lo = (int)rec;
+    int np = cl->np;
+    p->pair_work = malloc(6 * ((size_t)np + 1) * sizeof(int));
+    if (!p->pair_work)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 2)
@@ -479,23 +495,24 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         /* Record order (a, b, p, q): the shared edge in Ti's order, Ti's
          * third corner, Tj's third corner; so the kernel's indices are
          * constants. map: record local -> e's local. */
-        int map[4];
+        int map[4], j = cl->n_pair;
         iso_solver__edge_layout(e, map);
-        int *w = p->pair_work + 8 * cl->n_pair;
         for (int l = 0; l < 4; l++)
-            w[l] = e->v[map[l]];
-        w[4] = fit_item(cl, p, tri, e->tri, i);
-        w[5] = -1;
+            p->pair_work[l * np + j] = e->v[map[l]];
+        p->pair_work[4 * np + j] = fit_item(cl, p, tri, e->tri, i);
+        p->pair_work[5 * np + j] = -1;
         if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
-            w[5] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
+            p->pair_work[5 * np + j] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
             i++;
         }
-        w[6] = (int)rec;
-        w[7] = 0;
-        gather_record(s, p, e, map, 4, (int)rec, 0);
-        rec += RECORD_SIZE(4);
+        gather_record(s, p, e, map, 4, (int)rec + j, np, 0);
         cl->n_pair++;
     }
+    for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without its mirror */
+        for (int r = 0; r < 6; r++)
+            p->pair_work[r * np + j] = r == 5 ? -1 : p->pair_work[r * np];
+    rec += (size_t)RECORD_SIZE(4) * (size_t)np;
+    cl->pair_hi = (int)rec;
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 3)
@@ -508,7 +525,7 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         p->rest_par[2 * cl->n_rest] = s->rest_len[e->tri];
         p->rest_par[2 * cl->n_rest + 1] = s->edge_w[e->tri];
         static const int id[2] = {0, 1};
-        gather_record(s, p, e, id, 2, (int)rec, 1);
+        gather_record(s, p, e, id, 2, (int)rec, 1, 1);
         rec += RECORD_SIZE(2);
         cl->n_rest++;
     }
@@ -571,7 +588,7 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->n_fit * I, p->fit_work,
                          "triangle list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 8 * (size_t)cl->n_pair * I, p->pair_work,
+        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 6 * (size_t)cl->np * I, p->pair_work,
                          "pair list", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->n_rest * I, p->rest_work,
@@ -622,26 +639,26 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
     cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA;
     cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu,
               tau = s->o.restore_tau;
-    cl_int n_fit = cl->n_fit, n_pair = cl->n_pair, n_rest = cl->n_rest, nb = cl->n_blocks,
-           nf = s->nf;
+    cl_int n_fit = cl->n_fit, n_rest = cl->n_rest, nb = cl->n_blocks, nf = s->nf;
     cl_kernel k = cl->k[K_FIT];
     ARG(k, 0, cl->fit_work), ARG(k, 1, n_fit), ARG(k, 2, weighting), ARG(k, 3, w1);
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
     ARG(k, 8, cl->elem), ARG(k, 9, cl->status);
+    cl_int np = cl->np, lo = cl->pair_lo, hi = cl->pair_hi;
     k = cl->k[K_PAIR];
-    ARG(k, 0, cl->pair_work), ARG(k, 1, n_pair), ARG(k, 2, weighting), ARG(k, 3, w2);
+    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w2);
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem);
+    ARG(k, 8, cl->elem), ARG(k, 9, lo);
     k = cl->k[K_RESTORE];
     ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, n_rest), ARG(k, 3, mu);
     ARG(k, 4, tau), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
     ARG(k, 8, cl->elem);
     k = cl->k[K_BLOCKS];
     ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, cl->blk_src), ARG(k, 3, nb);
-    ARG(k, 4, cl->elem), ARG(k, 5, cl->A);
+    ARG(k, 4, cl->elem), ARG(k, 5, cl->A), ARG(k, 6, lo), ARG(k, 7, hi), ARG(k, 8, np);
     k = cl->k[K_RHS];
     ARG(k, 0, cl->rhs_ptr), ARG(k, 1, cl->rhs_src), ARG(k, 2, nf), ARG(k, 3, cl->elem);
-    ARG(k, 4, cl->B);
+    ARG(k, 4, cl->B), ARG(k, 5, lo), ARG(k, 6, hi), ARG(k, 7, np);
     /* OR-ing error codes loses which one; any failure here is a bug. */
     return rc == CL_SUCCESS ? ISO_OK : cl_fail(err, "clSetKernelArg", rc);
 }
@@ -770,7 +787,8 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     if ((crc = clEnqueueWriteBuffer(cl->q, cl->x, CL_FALSE, 0, bytes, x, 0, NULL, NULL)) ||
         (crc = clEnqueueWriteBuffer(cl->q, cl->vc, CL_FALSE, 0, bytes, vc, 0, NULL, NULL)))
         return cl_fail(err, "uploading positions", crc);
-    if ((crc = run_kernel(cl, K_FIT, cl->n_fit)) || (crc = run_kernel(cl, K_PAIR, cl->n_pair)) ||
+    if ((crc = run_kernel(cl, K_FIT, cl->n_fit)) ||
+        (crc = run_kernel(cl, K_PAIR, cl->n_pair ? cl->np : 0)) ||
         (crc = run_kernel(cl, K_RESTORE, cl->n_rest)) ||
         (crc = run_kernel(cl, K_BLOCKS, cl->n_blocks)) || (crc = run_kernel(cl, K_RHS, cl->nf)))
         return cl_fail(err, "running the assembly kernels", crc);
