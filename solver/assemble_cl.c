@@ -375,8 +375,9 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
             if (fv[a] < 0 || fv[b] < 0)
                 continue;
             int lo = fv[a] < fv[b] ? map[a] : map[b], hi = fv[a] < fv[b] ? map[b] : map[a];
+            int off = rec + st * (6 * nl + 9 * pair); /* rows of a, columns of b */
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (lo * enl + hi)]];
-            p->go[p->ngb++] = rec + st * (6 * nl + 9 * pair);
+            p->go[p->ngb++] = fv[a] < fv[b] ? off : -off - 1; /* rows of b: transposed */
         }
     if (!handle)
         return;
