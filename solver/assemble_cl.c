@@ -66,7 +66,7 @@ struct iso_cl_assembler {
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
     int np;               /* pair items padded to whole work-groups */
-    int pair_lo, pair_hi; /* the pair records' region of the element buffer */
+    int pair_base;        /* the first pair record in the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
     int *first_el;    /* per fit item: first element (list order) using it as Ti or Q1 */
@@ -355,7 +355,7 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
  * record's local vertex x is element e's local vertex map[x] (nl of them);
  * the record sits at offset `rec`. */
 static void gather_record(const iso_solver *s, plan *p, const element *e, const int *map, int nl,
-                          int rec, int st, int force_rhs)
+                          int rec, int force_rhs)
 {
     int enl = local_count(e), pair = 0, handle = force_rhs;
     const int *sl = s->slots + e->slot;
@@ -368,14 +368,14 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
     for (int a = 0; a < nl; a++)
         if (fv[a] >= 0) {
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (map[a] * enl + map[a])]];
-            p->go[p->ngb++] = rec + st * (6 * a);
+            p->go[p->ngb++] = rec + 6 * a;
         }
     for (int a = 0; a < nl; a++)
         for (int b = a + 1; b < nl; b++, pair++) {
             if (fv[a] < 0 || fv[b] < 0)
                 continue;
             int lo = fv[a] < fv[b] ? map[a] : map[b], hi = fv[a] < fv[b] ? map[b] : map[a];
-            int off = rec + st * (6 * nl + 9 * pair); /* rows of a, columns of b */
+            int off = rec + 6 * nl + 9 * pair; /* rows of a, columns of b */
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (lo * enl + hi)]];
             p->go[p->ngb++] = fv[a] < fv[b] ? off : -off - 1; /* rows of b: transposed */
         }
@@ -384,7 +384,7 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
     for (int a = 0; a < nl; a++)
         if (fv[a] >= 0) {
             p->gr[p->ngr] = fv[a];
-            p->gro[p->ngr++] = rec + st * (6 * nl + 9 * pair + 3 * a);
+            p->gro[p->ngr++] = rec + 6 * nl + 9 * pair + 3 * a;
         }
 }
 
@@ -471,11 +471,11 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         int f = fit_item(cl, p, tri, e->tri, i);
         p->fit_work[4 * f + 3] = (int)rec;
         static const int id[3] = {0, 1, 2};
-        gather_record(s, p, e, id, 3, (int)rec, 1, 0);
+        gather_record(s, p, e, id, 3, (int)rec, 0);
         rec += RECORD_SIZE(3);
     }
-    /* The pairs' records are value-major over np (the item count padded to
-     * whole work-groups): value k of item j at rec + k np + j. */
+    /* Pair items are padded to np, whole work-groups, so that the kernel
+     * needs no bounds check; their work list is value-major over np. */
     int n_items = 0;
     for (int i = 0; i < nel; i++)
         if (s->el[i].kind == 2) {
@@ -484,7 +484,7 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         }
     size_t wg = cl->wg[K_PAIR];
     cl->np = (int)(((size_t)n_items + wg - 1) / wg * wg);
-    cl->pair_lo = (int)rec;
+    int pair_base = (int)rec;
     int np = cl->np;
     p->pair_work = malloc(6 * ((size_t)np + 1) * sizeof(int));
     if (!p->pair_work)
@@ -506,14 +506,14 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
             p->pair_work[5 * np + j] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
             i++;
         }
-        gather_record(s, p, e, map, 4, (int)rec + j, np, 0);
+        gather_record(s, p, e, map, 4, (int)rec + RECORD_SIZE(4) * j, 0);
         cl->n_pair++;
     }
     for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without its mirror */
         for (int r = 0; r < 6; r++)
             p->pair_work[r * np + j] = r == 5 ? -1 : p->pair_work[r * np];
     rec += (size_t)RECORD_SIZE(4) * (size_t)np;
-    cl->pair_hi = (int)rec;
+    cl->pair_base = pair_base;
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 3)
@@ -526,7 +526,7 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         p->rest_par[2 * cl->n_rest] = s->rest_len[e->tri];
         p->rest_par[2 * cl->n_rest + 1] = s->edge_w[e->tri];
         static const int id[2] = {0, 1};
-        gather_record(s, p, e, id, 2, (int)rec, 1, 1);
+        gather_record(s, p, e, id, 2, (int)rec, 1);
         rec += RECORD_SIZE(2);
         cl->n_rest++;
     }
@@ -645,21 +645,21 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
     ARG(k, 0, cl->fit_work), ARG(k, 1, n_fit), ARG(k, 2, weighting), ARG(k, 3, w1);
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
     ARG(k, 8, cl->elem), ARG(k, 9, cl->status);
-    cl_int np = cl->np, lo = cl->pair_lo, hi = cl->pair_hi;
+    cl_int np = cl->np, base = cl->pair_base;
     k = cl->k[K_PAIR];
     ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w2);
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem), ARG(k, 9, lo);
+    ARG(k, 8, cl->elem), ARG(k, 9, base);
     k = cl->k[K_RESTORE];
     ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, n_rest), ARG(k, 3, mu);
     ARG(k, 4, tau), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
     ARG(k, 8, cl->elem);
     k = cl->k[K_BLOCKS];
     ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, cl->blk_src), ARG(k, 3, nb);
-    ARG(k, 4, cl->elem), ARG(k, 5, cl->A), ARG(k, 6, lo), ARG(k, 7, hi), ARG(k, 8, np);
+    ARG(k, 4, cl->elem), ARG(k, 5, cl->A);
     k = cl->k[K_RHS];
     ARG(k, 0, cl->rhs_ptr), ARG(k, 1, cl->rhs_src), ARG(k, 2, nf), ARG(k, 3, cl->elem);
-    ARG(k, 4, cl->B), ARG(k, 5, lo), ARG(k, 6, hi), ARG(k, 7, np);
+    ARG(k, 4, cl->B);
     /* OR-ing error codes loses which one; any failure here is a bug. */
     return rc == CL_SUCCESS ? ISO_OK : cl_fail(err, "clSetKernelArg", rc);
 }
