@@ -66,6 +66,7 @@ struct iso_cl_assembler {
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
     int np;               /* pair items padded to whole work-groups */
+    int nfp;              /* fit items padded to whole work-groups */
     int pair_base;        /* the first pair record in the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
@@ -446,7 +447,7 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     int nt = iso_mesh_triangle_count(m), nel = s->nel;
     const int *tri = iso_mesh_triangles(m);
     size_t cap = (size_t)nel + 1;
-    p->fit_work = malloc(4 * ((size_t)nt + 1) * sizeof(int));
+    p->fit_work = malloc(4 * ((size_t)nt + 1 + cl->wg[K_FIT]) * sizeof(int));
     p->fit_of_tri = malloc(((size_t)nt + 1) * sizeof(int));
     cl->first_el = malloc(((size_t)nt + 1) * sizeof(int));
     cl->tri_of = malloc(((size_t)nt + 1) * sizeof(int));
@@ -462,18 +463,33 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     for (int t = 0; t < nt; t++)
         p->fit_of_tri[t] = -1;
 
-    /* Q1 records first, then the pairs', then the restoration's. */
-    size_t rec = 0;
+    /* The fit items first: every one writes a Q1 record (fit_triangles has
+     * no branch), at RECORD_SIZE(3) f, and they are padded to whole
+     * work-groups. Then the pairs' records, then the restoration's. */
+    for (int i = 0; i < nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind == 1 || e->kind == 2)
+            fit_item(cl, p, tri, e->tri, i);
+        if (e->kind == 2 && i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
+            fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
+            i++;
+        }
+    }
+    size_t wgf = cl->wg[K_FIT];
+    cl->nfp = (int)(((size_t)cl->n_fit + wgf - 1) / wgf * wgf);
+    for (int f = 0; f < cl->nfp; f++) {
+        if (f >= cl->n_fit) /* padding: item 0 again */
+            memcpy(p->fit_work + 4 * f, p->fit_work, 3 * sizeof(int));
+        p->fit_work[4 * f + 3] = RECORD_SIZE(3) * f;
+    }
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 1)
             continue;
-        int f = fit_item(cl, p, tri, e->tri, i);
-        p->fit_work[4 * f + 3] = (int)rec;
         static const int id[3] = {0, 1, 2};
-        gather_record(s, p, e, id, 3, (int)rec, 0);
-        rec += RECORD_SIZE(3);
+        gather_record(s, p, e, id, 3, RECORD_SIZE(3) * p->fit_of_tri[e->tri], 0);
     }
+    size_t rec = (size_t)RECORD_SIZE(3) * (size_t)cl->nfp;
     /* Pair items are padded to np, whole work-groups, so that the kernel
      * needs no bounds check; their work list is value-major over np. */
     int n_items = 0;
@@ -579,14 +595,14 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     size_t I = sizeof(int), D = sizeof(double);
     int rc = make_buffer(cl, &cl->vflag, RO_COPY, (size_t)s->nv * I, vflag, "vertex flag", err);
     free(vflag);
-    cl->status_host = malloc(((size_t)cl->n_fit + 1) * I);
+    cl->status_host = malloc(((size_t)cl->nfp + 1) * I);
     if (!cl->status_host)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
     cl->A_host = s->A->x;
     cl->B_host = s->B->x;
     cl_mem_flags use = CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR;
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->n_fit * I, p->fit_work,
+        rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->nfp * I, p->fit_work,
                          "triangle list", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->pair_work, RO_COPY, 6 * (size_t)cl->np * I, p->pair_work,
@@ -615,13 +631,12 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->vc, CL_MEM_READ_ONLY, cl->nx * D, NULL, "velocity", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->fit, CL_MEM_READ_WRITE, (size_t)cl->n_fit * FIT_STRIDE * D,
-                         NULL, "rigid fit", err);
+        rc = make_buffer(cl, &cl->fit, CL_MEM_READ_WRITE, (size_t)cl->nfp * FIT_STRIDE * D, NULL,
+                         "rigid fit", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->elem, CL_MEM_READ_WRITE, p->nrec * D, NULL, "element", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->status, use, (size_t)cl->n_fit * I, cl->status_host,
-                         "status", err);
+        rc = make_buffer(cl, &cl->status, use, (size_t)cl->nfp * I, cl->status_host, "status", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->A, use, cl->nnz * D, cl->A_host, "matrix", err);
     if (rc == ISO_OK)
@@ -640,11 +655,11 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
     cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA;
     cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu,
               tau = s->o.restore_tau;
-    cl_int n_fit = cl->n_fit, n_rest = cl->n_rest, nb = cl->n_blocks, nf = s->nf;
+    cl_int n_rest = cl->n_rest, nb = cl->n_blocks, nf = s->nf;
     cl_kernel k = cl->k[K_FIT];
-    ARG(k, 0, cl->fit_work), ARG(k, 1, n_fit), ARG(k, 2, weighting), ARG(k, 3, w1);
-    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem), ARG(k, 9, cl->status);
+    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, w1), ARG(k, 3, cl->x);
+    ARG(k, 4, cl->vc), ARG(k, 5, cl->vflag), ARG(k, 6, cl->fit), ARG(k, 7, cl->elem);
+    ARG(k, 8, cl->status);
     cl_int np = cl->np, base = cl->pair_base;
     k = cl->k[K_PAIR];
     ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w2);
@@ -788,7 +803,7 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     if ((crc = clEnqueueWriteBuffer(cl->q, cl->x, CL_FALSE, 0, bytes, x, 0, NULL, NULL)) ||
         (crc = clEnqueueWriteBuffer(cl->q, cl->vc, CL_FALSE, 0, bytes, vc, 0, NULL, NULL)))
         return cl_fail(err, "uploading positions", crc);
-    if ((crc = run_kernel(cl, K_FIT, cl->n_fit)) ||
+    if ((crc = run_kernel(cl, K_FIT, cl->n_fit ? cl->nfp : 0)) ||
         (crc = run_kernel(cl, K_PAIR, cl->n_pair ? cl->np : 0)) ||
         (crc = run_kernel(cl, K_RESTORE, cl->n_rest)) ||
         (crc = run_kernel(cl, K_BLOCKS, cl->n_blocks)) || (crc = run_kernel(cl, K_RHS, cl->nf)))
