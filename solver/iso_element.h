@@ -37,12 +37,13 @@ int iso_elem_rigid_fit(const double x[9], double R[54]);
 /* A triangle's best rigid fit with its frame, computed once per evaluation
  * and shared by its Q1 and the Q2 of every pair it is the source of. */
 typedef struct iso_elem_fit {
+    /* what the edge blocks read, first: two cache lines of the 68 doubles */
     double c[3], s; /* iso_elem_frame */
     double d[3];    /* rounding shift of the frame: the scaled corners
                        (x − c)/s sum to 3d, not exactly zero */
-    double R[54];   /* iso_elem_rigid_fit, in the frame (c + s d, s) */
+    double inv_s;   /* 1/s: points go to the frame as (x − c) inv_s − d */
     double W[6];    /* S⁻¹ of the closed form (element.c), upper: 00 01 02 11 12 22 */
-    double inv_s;   /* 1/s: the edge blocks take points to the frame with it */
+    double R[54];   /* iso_elem_rigid_fit, in the frame (c + s d, s) */
 } iso_elem_fit;
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
