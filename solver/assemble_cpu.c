@@ -79,17 +79,23 @@ static void edge_matrix(iso_solver *s, const element *e, const double *x, double
 }
 
 /* The rigid fit of triangle t at positions x, computed once per evaluation:
- * a triangle is the source of Q1 and of up to three pairs. */
-static const iso_elem_fit *cached_fit(iso_solver *s, int t, const double *x)
+ * a triangle is the source of Q1 and of up to three pairs. The cache keeps
+ * the fit's core (what the edge blocks read); Q1 asks for the whole fit in
+ * *full, which is then computed afresh (each triangle has one Q1 element,
+ * and triangle elements come first). NULL if the fit is singular. */
+static const iso_elem_fit_core *cached_fit(iso_solver *s, int t, const double *x,
+                                           iso_elem_fit *full)
 {
-    if (s->fit_stamp[t] == s->fit_epoch)
+    if (!full && s->fit_stamp[t] == s->fit_epoch)
         return &s->fits[t];
     const int *tri = iso_mesh_triangles(s->m) + 3 * t;
     double xt[9];
+    iso_elem_fit tmp, *f = full ? full : &tmp;
     for (int k = 0; k < 3; k++)
         memcpy(xt + 3 * k, x + 3 * tri[k], 3 * sizeof(double));
-    if (iso_elem_fit_compute(xt, &s->fits[t]) != 0)
+    if (iso_elem_fit_compute(xt, f) != 0)
         return NULL;
+    iso_elem_fit_core_of(f, &s->fits[t]);
     s->fit_stamp[t] = s->fit_epoch;
     return &s->fits[t];
 }
@@ -110,8 +116,8 @@ static int ensure_fit_cache(iso_solver *s, iso_err *err)
 static int cached_element_matrix(iso_solver *s, const element *e, const double *x, double w,
                                  double *Q)
 {
-    const iso_elem_fit *f = cached_fit(s, e->tri, x);
-    if (!f)
+    iso_elem_fit full, *f = &full;
+    if (!cached_fit(s, e->tri, x, f))
         return -1;
     double xi[9];
     for (int k = 0; k < 3; k++)
@@ -151,12 +157,12 @@ static double n_scale_of(const iso_solver *s, int t, const double *x)
 static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const int map[4],
                           const double *x, double *Q, int *bad_tri)
 {
-    const iso_elem_fit *fi = cached_fit(s, e->tri, x), *fj = NULL;
+    const iso_elem_fit_core *fi = cached_fit(s, e->tri, x, NULL), *fj = NULL;
     if (!fi) {
         *bad_tri = e->tri;
         return -1;
     }
-    if (mirror && !(fj = cached_fit(s, mirror->tri, x))) {
+    if (mirror && !(fj = cached_fit(s, mirror->tri, x, NULL))) {
         *bad_tri = mirror->tri;
         return -1;
     }

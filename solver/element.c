@@ -526,7 +526,7 @@ static void add_edge_blocks(const v2d Z[12][9], v2d wv, double Q[144])
 
 /* Lane `lane` of the corners xl[o0], xl[o1], xl[ot] (edge layout indices)
  * and of W, taken to the frame of fit f with its inverse scale. */
-static void load_lane(const iso_elem_fit *f, const double xl[12], int ot, int lane, v2d r[9],
+static void load_lane(const iso_elem_fit_core *f, const double xl[12], int ot, int lane, v2d r[9],
                       v2d W[9])
 {
     const int at[3] = {0, 1, ot};
@@ -539,8 +539,17 @@ static void load_lane(const iso_elem_fit *f, const double xl[12], int ot, int la
         W[i][lane] = full[i];
 }
 
-void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
-                             double wi, double wj, double Q[144])
+void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k)
+{
+    memcpy(k->c, f->c, sizeof k->c);
+    k->s = f->s;
+    memcpy(k->d, f->d, sizeof k->d);
+    k->inv_s = f->inv_s;
+    memcpy(k->W, f->W, sizeof k->W);
+}
+
+void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
+                             const double xl[12], double wi, double wj, double Q[144])
 {
     v2d r[9], W[9], Z[12][9];
     load_lane(fi, xl, 3, 0, r, W);                /* (Ti, Tj): pair layout (a, b, p, q) */

@@ -48,6 +48,17 @@ typedef struct iso_elem_fit {
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
 int iso_elem_fit_compute(const double x[9], iso_elem_fit *f);
+
+/* What an edge block reads of a fit: its frame and W, 14 doubles against
+ * iso_elem_fit's 68 (the assembly keeps one per triangle, and the memory it
+ * streams through is most of its time once a solve has emptied the caches). */
+typedef struct iso_elem_fit_core {
+    double c[3], s, d[3], inv_s;
+    double W[6];
+} iso_elem_fit_core;
+
+/* Copies f's frame and W into k. */
+void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k);
 /* Q1 and Q2 from a precomputed fit of triangle x (Q1) or Ti (Q2): the same
  * values as iso_elem_q1 / iso_elem_q2, with the fit not recomputed. */
 void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
@@ -59,12 +70,12 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
  *     Q += wi Q2(Ti, Tj) + wj Q2(Tj, Ti)
  * on the local vertices (a, b, p, q): the shared edge in Ti's order, Ti's
  * third corner, Tj's third corner (xl: their 12 coordinates). fi, fj: the
- * fits of Ti and Tj. wi carries ω and Tj's N scale, wj ω and Ti's; wj = 0
+ * fits of Ti and Tj (their cores). wi carries ω and Tj's N scale, wj ω and Ti's; wj = 0
  * leaves Tj's fit unread (fj may be NULL). Only Q's upper triangle (12x12,
  * row-major) is added to. Equal to the sum of iso_elem_q2_from_fit's two
  * blocks up to rounding, at about half their arithmetic. */
-void iso_elem_edge_from_fits(const iso_elem_fit *fi, const iso_elem_fit *fj, const double xl[12],
-                             double wi, double wj, double Q[144]);
+void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
+                             const double xl[12], double wi, double wj, double Q[144]);
 
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);

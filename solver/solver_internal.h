@@ -83,7 +83,7 @@ struct iso_solver {
     cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
     int have_factor;        /* L holds a numeric factor of some earlier A */
     double factor_flops;    /* CHOLMOD's Common->fl after analysis */
-    iso_elem_fit *fits;     /* C path: per triangle, the current evaluation's fit */
+    iso_elem_fit_core *fits; /* C path: per triangle, the current evaluation's fit */
     unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
     unsigned fit_epoch;
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */

@@ -564,7 +564,10 @@ static void edge_block_equals_both_pairs(void **state)
             /* q2_from_fit folds its target's σ in; the edge form takes it
              * in its weights */
             double si = sigma_of(xi, WEIGHTINGS[wi]), sj = sigma_of(xj, WEIGHTINGS[wi]);
-            iso_elem_edge_from_fits(&fi, &fj, xl, 0.3 * sj, 0.7 * si, got);
+            iso_elem_fit_core ki, kj;
+            iso_elem_fit_core_of(&fi, &ki);
+            iso_elem_fit_core_of(&fj, &kj);
+            iso_elem_edge_from_fits(&ki, &kj, xl, 0.3 * sj, 0.7 * si, got);
             double scale = iso_test_max_abs(want, 144), err = 0;
             for (int i = 0; i < 12; i++)
                 for (int j = 0; j < 12; j++) {

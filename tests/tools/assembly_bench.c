@@ -3,7 +3,7 @@
  * C path and the OpenCL path alternating so that both see the same load on
  * a shared machine: the figures behind issue 12's assembly work.
  *
- *   assembly_bench PREFIX [REPS [cpu|opencl|both]]
+ *   assembly_bench PREFIX [REPS [cpu|opencl|both [cold]]]
  *
  * PREFIX names the problem without extension (PREFIX.off and PREFIX.sel),
  * e.g. ../shared/data/benchmark/03-cactus-bend/cactus. REPS defaults to 31.
@@ -14,7 +14,9 @@
  * shared machine's load inflates far less than the wall time.
  * White-box: it calls the assembly entry points of solver_internal.h, so
  * the timing holds nothing but the assembly. Under callgrind, run it with
- * `cpu` and a few reps. */
+ * `cpu` and a few reps. With `cold`, 64 MiB are written between
+ * assemblies (untimed), as a factorization and solve do in a deformation,
+ * so that the assembly starts from caches that hold none of its data. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,8 +53,8 @@ static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *e
 
 int main(int argc, char **argv)
 {
-    if (argc < 2 || argc > 4) {
-        fprintf(stderr, "usage: assembly_bench PREFIX [REPS [cpu|opencl|both]]\n");
+    if (argc < 2 || argc > 5) {
+        fprintf(stderr, "usage: assembly_bench PREFIX [REPS [cpu|opencl|both [cold]]]\n");
         return 2;
     }
     int reps = argc > 2 ? atoi(argv[2]) : 31;
@@ -62,6 +64,9 @@ int main(int argc, char **argv)
         return 2;
     }
     int want[2] = {strcmp(which, "opencl") != 0, strcmp(which, "cpu") != 0};
+    int cold = argc > 4 && strcmp(argv[4], "cold") == 0;
+    size_t flush_n = cold ? (64u << 20) / sizeof(double) : 0;
+    double *flush = NULL;
     char path[4096];
     iso_err err;
     iso_err_clear(&err);
@@ -115,6 +120,10 @@ int main(int argc, char **argv)
         for (int k = 0; k < 2; k++) {
             if (!want[k])
                 continue;
+            if (cold && !flush && !(flush = calloc(flush_n, sizeof *flush)))
+                goto fail;
+            for (size_t j = 0; j < flush_n; j++)
+                flush[j] += 1.0;
             double t0 = iso_clock_now(), c0 = cpu_now();
             if (assemble(s[k], x, vc, &err) != ISO_OK)
                 goto fail;
@@ -143,5 +152,6 @@ done:
     free(t[1]);
     free(c[0]);
     free(c[1]);
+    free(flush);
     return status;
 }
