@@ -67,6 +67,7 @@ struct iso_cl_assembler {
     int n_fit, n_pair, n_rest, n_blocks, nf;
     int np;               /* pair items padded to whole work-groups */
     int nfp;              /* fit items padded to whole work-groups */
+    int nrp;              /* restoration items padded to whole work-groups */
     int pair_base;        /* the first pair record in the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
@@ -451,8 +452,8 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     p->fit_of_tri = malloc(((size_t)nt + 1) * sizeof(int));
     cl->first_el = malloc(((size_t)nt + 1) * sizeof(int));
     cl->tri_of = malloc(((size_t)nt + 1) * sizeof(int));
-    p->rest_work = malloc(4 * cap * sizeof(int));
-    p->rest_par = malloc(2 * cap * sizeof(double));
+    p->rest_work = malloc(4 * (cap + cl->wg[K_RESTORE]) * sizeof(int));
+    p->rest_par = malloc(2 * (cap + cl->wg[K_RESTORE]) * sizeof(double));
     p->gb = malloc(10 * cap * sizeof(int));
     p->go = malloc(10 * cap * sizeof(int));
     p->gr = malloc(4 * cap * sizeof(int));
@@ -546,6 +547,15 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         rec += RECORD_SIZE(2);
         cl->n_rest++;
     }
+    /* padding to whole work-groups: item 0 again, into records of its own */
+    size_t wgr = cl->wg[K_RESTORE];
+    cl->nrp = (int)(((size_t)cl->n_rest + wgr - 1) / wgr * wgr);
+    for (int j = cl->n_rest; j < cl->nrp; j++) {
+        memcpy(p->rest_work + 4 * j, p->rest_work, 4 * sizeof(int));
+        memcpy(p->rest_par + 2 * j, p->rest_par, 2 * sizeof(double));
+        p->rest_work[4 * j + 2] = (int)rec;
+        rec += RECORD_SIZE(2);
+    }
     if (rec > INT_MAX)
         return iso_err_set(err, ISO_ENOMEM, -1,
                            "OpenCL: the element buffer (%zu values) is too large for int offsets",
@@ -608,10 +618,10 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         rc = make_buffer(cl, &cl->pair_work, RO_COPY, 6 * (size_t)cl->np * I, p->pair_work,
                          "pair list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->n_rest * I, p->rest_work,
+        rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->nrp * I, p->rest_work,
                          "edge list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_par, RO_COPY, 2 * (size_t)cl->n_rest * D, p->rest_par,
+        rc = make_buffer(cl, &cl->rest_par, RO_COPY, 2 * (size_t)cl->nrp * D, p->rest_par,
                          "edge parameter", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->blk_dst, RO_COPY, 4 * (size_t)cl->n_blocks * I, p->blk_dst,
@@ -655,7 +665,7 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
     cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA;
     cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu,
               tau = s->o.restore_tau;
-    cl_int n_rest = cl->n_rest, nb = cl->n_blocks, nf = s->nf;
+    cl_int nb = cl->n_blocks, nf = s->nf;
     cl_kernel k = cl->k[K_FIT];
     ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, w1), ARG(k, 3, cl->x);
     ARG(k, 4, cl->vc), ARG(k, 5, cl->vflag), ARG(k, 6, cl->fit), ARG(k, 7, cl->elem);
@@ -666,9 +676,8 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
     ARG(k, 8, cl->elem), ARG(k, 9, base);
     k = cl->k[K_RESTORE];
-    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, n_rest), ARG(k, 3, mu);
-    ARG(k, 4, tau), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
-    ARG(k, 8, cl->elem);
+    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, mu), ARG(k, 3, tau);
+    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->elem);
     k = cl->k[K_BLOCKS];
     ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, cl->blk_src), ARG(k, 3, nb);
     ARG(k, 4, cl->elem), ARG(k, 5, cl->A);
@@ -805,7 +814,7 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
         return cl_fail(err, "uploading positions", crc);
     if ((crc = run_kernel(cl, K_FIT, cl->n_fit ? cl->nfp : 0)) ||
         (crc = run_kernel(cl, K_PAIR, cl->n_pair ? cl->np : 0)) ||
-        (crc = run_kernel(cl, K_RESTORE, cl->n_rest)) ||
+        (crc = run_kernel(cl, K_RESTORE, cl->n_rest ? cl->nrp : 0)) ||
         (crc = run_kernel(cl, K_BLOCKS, cl->n_blocks)) || (crc = run_kernel(cl, K_RHS, cl->nf)))
         return cl_fail(err, "running the assembly kernels", crc);
     void *pa = clEnqueueMapBuffer(cl->q, cl->A, CL_FALSE, CL_MAP_READ, 0,

@@ -21,37 +21,7 @@ int iso_solver__element_matrix(const iso_solver_opts *o, const element *e, const
     return iso_elem_q2(xi, x + 3 * e->v[3], e->jmap, o->weighting, Q);
 }
 
-/* Adds w·Q into A_ff's upper triangle through the slot map, and −w·Q·vc of
- * the constrained columns into the free rows of the right-hand side. */
-static void scatter(iso_solver *s, const element *e, const double *Q, double w,
-                    const double *vc, double *Ax, double *rhs)
-{
-    int nl = local_count(e), dim = 3 * nl;
-    const int *sl = s->slots + e->slot;
-    for (int a = 0; a < nl; a++) {
-        int fa = s->free_of[e->v[a]];
-        if (fa < 0)
-            continue;
-        for (int b = 0; b < nl; b++) {
-            int gb = e->v[b];
-            const int *pos = sl + 3 * (a * nl + b);
-            if (pos[0] >= 0) {
-                int diag = s->free_of[gb] == fa;
-                for (int k = 0; k < 3; k++)
-                    for (int al = 0; al <= (diag ? k : 2); al++)
-                        Ax[pos[k] + al] += w * Q[(3 * a + al) * dim + 3 * b + k];
-            } else if (s->free_of[gb] < 0 && s->r->kind[gb] == ISO_HANDLE) {
-                for (int al = 0; al < 3; al++) {
-                    const double *q = Q + (3 * a + al) * dim + 3 * b;
-                    rhs[3 * fa + al] -=
-                        w * (q[0] * vc[3 * gb] + q[1] * vc[3 * gb + 1] + q[2] * vc[3 * gb + 2]);
-                }
-            }
-        }
-    }
-}
-
-/* Restoration term of edge element e: Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ] and its
+/* Restoration term of edge element e: μ Q, Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ], and its
  * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
  * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
 static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q,
@@ -63,10 +33,11 @@ static void edge_matrix(iso_solver *s, const element *e, const double *x, double
     for (int k = 0; k < 3; k++)
         u[k] /= len;
     double we = s->edge_w[e->tri], c = (len - s->rest_len[e->tri]) / s->o.restore_tau;
-    for (int i = 0; i < 6; i++)
-        for (int j = 0; j < 6; j++) {
+    double mu = s->o.restore_mu;
+    for (int i = 0; i < 6; i++) /* μ Q, upper triangle: what scatter_upper reads */
+        for (int j = i; j < 6; j++) {
             double sign = (i < 3) == (j < 3) ? 1.0 : -1.0;
-            Q[6 * i + j] = sign * we * u[i % 3] * u[j % 3];
+            Q[6 * i + j] = mu * (sign * we * u[i % 3] * u[j % 3]);
         }
     for (int end = 0; end < 2; end++) {
         int f = s->free_of[e->v[end]];
@@ -260,8 +231,9 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
         if (e->kind == 3) {
+            static const int id2[2] = {0, 1};
             edge_matrix(s, e, x, Q, rhs);
-            scatter(s, e, Q, s->o.restore_mu, vc, Ax, rhs);
+            scatter_upper(s, e, 2, id2, Q, 6, vc, Ax, rhs);
             continue;
         }
         if (e->kind == 2) {
