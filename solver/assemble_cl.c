@@ -690,6 +690,29 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
 
 /* ===== create / destroy ================================================= */
 
+/* One assembly at the rest pose, its outcome dropped. PoCL builds each
+ * kernel's work-group function at its first launch (tens of milliseconds,
+ * more on a cold kernel cache): done here, that lands in the solver's
+ * creation instead of the first evaluation, which in a real-time session
+ * is its first tick, and in deform's per-evaluation figures. A failure to
+ * run is reported; what the values are is not (the first evaluation
+ * overwrites them). */
+static int warm_up(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
+{
+    double *vc = calloc(cl->nx + 1, sizeof *vc);
+    if (!vc)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+    iso_err e;
+    iso_err_clear(&e);
+    int rc = iso_solver__cl_assemble(cl, s, iso_mesh_positions(s->m), vc, &e);
+    free(vc);
+    if (rc == ISO_ENUMERIC) /* a degenerate rest pose is for the evaluation to report */
+        return ISO_OK;
+    if (rc != ISO_OK)
+        return iso_err_set(err, rc, -1, "%s", e.msg);
+    return ISO_OK;
+}
+
 int iso_solver__cl_create(iso_solver *s, iso_cl_assembler **out, iso_err *err)
 {
     *out = NULL;
@@ -720,6 +743,8 @@ int iso_solver__cl_create(iso_solver *s, iso_cl_assembler **out, iso_err *err)
     if (rc == ISO_OK)
         rc = set_args(s, cl, err);
     plan_free(&p);
+    if (rc == ISO_OK)
+        rc = warm_up(s, cl, err);
     if (rc != ISO_OK) {
         iso_solver__cl_destroy(cl);
         return rc;
