@@ -1,20 +1,30 @@
 /* solver/assemble_cl.c -- the OpenCL assembly path (solver_internal.h).
  *
- * Per evaluation, four kernels fill an element buffer and two reduce it:
- *   fit_triangles  per triangle: the rigid fit R (kept in a fit buffer, so
+ * Per evaluation, three kernels fill an element buffer and two reduce it:
+ *   fit_triangles  per triangle: the rigid fit (kept in a fit buffer, so
  *                  it is computed once per evaluation however many pairs
- *                  use it) and, where the triangle is an element, (1−ω)Q1;
- *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji), both ordered pairs
- *                  share the same four vertices, so one record serves both;
+ *                  use it) and (1−ω)Q1;
+ *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji) in the closed form of
+ *                  iso_elem_edge_from_fits; both ordered pairs share the
+ *                  same four vertices, so one record serves both;
  *   restore_edges  per edge, with restoration on: μ times its block and
  *                  its linear part;
  *   reduce_blocks  per 3x3 block of A_ff, reduce_rhs per free vertex: sum
  *                  the records listed for it in a gather map (CSR) built
  *                  once here from the slot map, in a fixed order.
  * Every record holds only what reaches A_ff or the right-hand side, already
- * weighted and oriented as its destination: upper 3x3 diagonal blocks,
- * off-diagonal blocks with the rows of the lower free index, and per free
- * vertex the triple −Σ_handles Q vc (+ the restoration's linear part).
+ * weighted: upper 3x3 diagonal blocks, off-diagonal blocks with the rows of
+ * their first vertex (the gather map lists a block whose other vertex has
+ * the lower free index as −offset − 1, and reduce_blocks reads it
+ * transposed), and per vertex the triple −Σ_handles Q vc (+ the
+ * restoration's linear part).
+ * The element kernels are written so that PoCL runs the work-items of a
+ * group as vector lanes (check with POCL_VECTORIZER_REMARKS=1): their items
+ * are padded to whole work-groups (no bounds check), nothing branches on
+ * the data (selects instead, a singular fit is a status, not an early
+ * return), every loop is unrolled and every helper inlined, so private
+ * arrays are registers, and square roots are Clang's builtin (an
+ * instruction; PoCL's sqrt is a call).
  * The reductions write every entry of A's value array and of B, straight
  * into s->A->x and s->B->x (wrapped as CL_MEM_USE_HOST_PTR buffers and left
  * mapped for reading between evaluations), so there are no atomics, no

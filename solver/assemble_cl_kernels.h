@@ -95,72 +95,39 @@ static const char *iso_cl_source[] = {
     " * no branches, and every loop unrolled, so PoCL can run the work-items of a\n",
     " * group as vector lanes. Q: dim x dim, upper triangle filled. */\n",
     "#define Q_AT(Q, dim, i, j) ((i) <= (j) ? (Q)[(i) * (dim) + (j)] : (Q)[(j) * (dim) + (i)])\n",
-    "#define WRITE_RECORD(out, nl, vf, vg, Q, vc, lin)                                           "
-    "\\\n",
-    "    do {                                                                                     "
-    "\\\n",
-    "        const int dim_ = 3 * (nl);                                                           "
-    "\\\n",
-    "        UNROLL for (int a = 0; a < (nl); a++)                                                "
-    "\\\n",
-    "            UNROLL for (int k = 0; k < 3; k++)                                               "
-    "\\\n",
-    "                UNROLL for (int al = 0; al <= k; al++)                                       "
-    "\\\n",
-    "                    (out)[6 * a + k * (k + 1) / 2 + al] =                                    "
-    "\\\n",
-    "                        Q[(3 * a + al) * dim_ + 3 * a + k];                                  "
-    "\\\n",
-    "        UNROLL for (int a = 0; a < (nl); a++)                                                "
-    "\\\n",
-    "            UNROLL for (int b = a + 1; b < (nl); b++) {                                      "
-    "\\\n",
-    "                const int pair_ = a * (2 * (nl) - a - 1) / 2 + b - a - 1;                    "
-    "\\\n",
-    "                UNROLL for (int k = 0; k < 3; k++)                                           "
-    "\\\n",
-    "                    UNROLL for (int al = 0; al < 3; al++)                                    "
-    "\\\n",
-    "                        (out)[6 * (nl) + 9 * pair_ + 3 * k + al] =                          "
-    "\\\n",
-    "                            Q[(3 * a + al) * dim_ + 3 * b + k];                              "
-    "\\\n",
-    "            }                                                                                "
-    "\\\n",
-    "        double vh_[3 * (nl)];                                                                "
-    "\\\n",
-    "        UNROLL for (int b = 0; b < (nl); b++)                                                "
-    "\\\n",
-    "            UNROLL for (int k = 0; k < 3; k++) {                                             "
-    "\\\n",
-    "                double v_ = vc[3 * vg[b] + k]; /* loaded anyway: a select, no branch */      "
-    "\\\n",
-    "                vh_[3 * b + k] = vf[b] == VF_HANDLE ? v_ : 0.0;                              "
-    "\\\n",
-    "            }                                                                                "
-    "\\\n",
-    "        const int rhs_ = 6 * (nl) + 9 * ((nl) * ((nl)-1) / 2);                               "
-    "\\\n",
-    "        UNROLL for (int a = 0; a < (nl); a++)                                                "
-    "\\\n",
-    "            UNROLL for (int al = 0; al < 3; al++) {                                          "
-    "\\\n",
-    "                double acc_ = lin[3 * a + al];                                               "
-    "\\\n",
-    "                UNROLL for (int b = 0; b < (nl); b++)                                        "
-    "\\\n",
-    "                    if (b != a)                                                              "
-    "\\\n",
-    "                        acc_ -= Q_AT(Q, dim_, 3 * a + al, 3 * b) * vh_[3 * b] +              "
-    "\\\n",
-    "                                Q_AT(Q, dim_, 3 * a + al, 3 * b + 1) * vh_[3 * b + 1] +      "
-    "\\\n",
-    "                                Q_AT(Q, dim_, 3 * a + al, 3 * b + 2) * vh_[3 * b + 2];       "
-    "\\\n",
-    "                (out)[rhs_ + 3 * a + al] = acc_;                                             "
-    "\\\n",
-    "            }                                                                                "
-    "\\\n",
+    "#define WRITE_RECORD(out, nl, vf, vg, Q, vc, lin)                                   \\\n",
+    "    do {                                                                            \\\n",
+    "        const int dim_ = 3 * (nl);                                                  \\\n",
+    "        UNROLL for (int a = 0; a < (nl); a++)                                       \\\n",
+    "            UNROLL for (int k = 0; k < 3; k++)                                      \\\n",
+    "                UNROLL for (int al = 0; al <= k; al++)                              \\\n",
+    "                    (out)[6 * a + k * (k + 1) / 2 + al] =                           \\\n",
+    "                        Q[(3 * a + al) * dim_ + 3 * a + k];                         \\\n",
+    "        UNROLL for (int a = 0; a < (nl); a++)                                       \\\n",
+    "            UNROLL for (int b = a + 1; b < (nl); b++) {                             \\\n",
+    "                const int pair_ = a * (2 * (nl) - a - 1) / 2 + b - a - 1;           \\\n",
+    "                UNROLL for (int k = 0; k < 3; k++)                                  \\\n",
+    "                    UNROLL for (int al = 0; al < 3; al++)                           \\\n",
+    "                        (out)[6 * (nl) + 9 * pair_ + 3 * k + al] =                  \\\n",
+    "                            Q[(3 * a + al) * dim_ + 3 * b + k];                     \\\n",
+    "            }                                                                       \\\n",
+    "        double vh_[3 * (nl)];                                                       \\\n",
+    "        UNROLL for (int b = 0; b < (nl); b++)                                       \\\n",
+    "            UNROLL for (int k = 0; k < 3; k++) {                                    \\\n",
+    "                double v_ = vc[3 * vg[b] + k]; /* loaded anyway: a select, no branch */ \\\n",
+    "                vh_[3 * b + k] = vf[b] == VF_HANDLE ? v_ : 0.0;                     \\\n",
+    "            }                                                                       \\\n",
+    "        const int rhs_ = 6 * (nl) + 9 * ((nl) * ((nl)-1) / 2);                      \\\n",
+    "        UNROLL for (int a = 0; a < (nl); a++)                                       \\\n",
+    "            UNROLL for (int al = 0; al < 3; al++) {                                 \\\n",
+    "                double acc_ = lin[3 * a + al];                                      \\\n",
+    "                UNROLL for (int b = 0; b < (nl); b++)                               \\\n",
+    "                    if (b != a)                                                     \\\n",
+    "                        acc_ -= Q_AT(Q, dim_, 3 * a + al, 3 * b) * vh_[3 * b] +     \\\n",
+    "                                Q_AT(Q, dim_, 3 * a + al, 3 * b + 1) * vh_[3 * b + 1] + \\\n",
+    "                                Q_AT(Q, dim_, 3 * a + al, 3 * b + 2) * vh_[3 * b + 2]; \\\n",
+    "                (out)[rhs_ + 3 * a + al] = acc_;                                    \\\n",
+    "            }                                                                       \\\n",
     "    } while (0)\n",
     "\n",
     "/* ---- per triangle: rigid fit, and Q1 where the triangle is an element --- */\n",
@@ -246,8 +213,8 @@ static const char *iso_cl_source[] = {
     "            double jk = k == l ? 2.0 / 3.0 : -1.0 / 3.0;\n",
     "            UNROLL for (int i = 0; i < 3; i++)\n",
     "                UNROLL for (int j = 0; j < 3; j++)\n",
-    "                    Q[(3 * k + i) * 9 + 3 * l + j] = w1 * (sigma * ((i == j ? jk : 0.0) + C[3 "
-    "* i + j]));\n",
+    "                    Q[(3 * k + i) * 9 + 3 * l + j] =\n",
+    "                        w1 * (sigma * ((i == j ? jk : 0.0) + C[3 * i + j]));\n",
     "        }\n",
     "    int vf[3] = {vflag[vg[0]], vflag[vg[1]], vflag[vg[2]]};\n",
     "    double lin[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};\n",
@@ -258,10 +225,11 @@ static const char *iso_cl_source[] = {
     "/* ---- per interior edge: both ordered pairs' Q2, summed ------------------ */\n",
     "\n",
     "/* element.c's iso_elem_edge_from_fits, which derives it, in the same order\n",
-    " * of operations: the block (l, m) of one ordered pair, in its layout\n",
-    " * (0, 1, s, t) = the shared corners, the source's third, the target's\n",
-    " * third, is cjc_lm I + Z_lm + Z_ml^T with Z_lm = P_l [r_m]x,\n",
-    " * P_l = [w_l]x W - G [r_l]x / 2... (see element.c). */\n",
+    " * of operations (PoCL may fuse multiply-adds; the C path does not): the\n",
+    " * block (l, m) of one ordered pair, in its layout (0, 1, s, t) = the shared\n",
+    " * corners, the source's third, the target's third, is\n",
+    " * cjc_lm I + Z_lm + Z_ml^T with Z_lm = P_l [r_m]x, P_l = [w_l]x W - [r_l]x G / 2,\n",
+    " * G = W T W, and no r for the target's own corner. */\n",
     "\n",
     "/* C = [a]x M: column j is a x M[:, j]. */\n",
     "INLINE void cross_left(const double *a, const double *M, double *C)\n",
@@ -304,9 +272,8 @@ static const char *iso_cl_source[] = {
     "/* Z (12 blocks of 9: Z_lm at 9 (3 l + m), m < 3) of the ordered pair whose\n",
     " * source has fit record f, with the shared corners xa, xb and the target's\n",
     " * third corner xt; the source's third corner is -r0 - r1 in its frame. */\n",
-    "INLINE void pair_z(__global const double *f, const double *xa, const double *xb, const double "
-    "*xt,\n",
-    "            double *Z)\n",
+    "INLINE void pair_z(__global const double *f, const double *xa, const double *xb,\n",
+    "                   const double *xt, double *Z)\n",
     "{\n",
     "    double r0[3], r1[3], rt[3], rs[3], sq[3], W[9], T[9], M[9], G[9];\n",
     "    double w0[3], w1[3], w2[3], w3[3], P[36], C[9];\n",
@@ -328,8 +295,8 @@ static const char *iso_cl_source[] = {
     "        sq[a] = r0[a] + r1[a] + rt[a];\n",
     "    }\n",
     "#define OUTER4(i, j) (r0[i] * r0[j] + r1[i] * r1[j] + rt[i] * rt[j] + sq[i] * sq[j])\n",
-    "    double o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + "
-    "o22;\n",
+    "    double o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2);\n",
+    "    double tr = o00 + o11 + o22;\n",
     "    T[0] = tr - o00;\n",
     "    T[4] = tr - o11;\n",
     "    T[8] = tr - o22;\n",
@@ -371,35 +338,24 @@ static const char *iso_cl_source[] = {
     " * with s and t at 3 and 2 and its (s, t) block transposed into (p, q).\n",
     " * Upper triangle of Q only. */\n",
     "#define ZE(Z, b, i) ((b) < 0 ? 0.0 : (Z)[9 * (b) + (i)])\n",
-    "#define EDGE_DIAG(l0, l1, cjc, b)                                                           "
-    "\\\n",
-    "    UNROLL for (int i = 0; i < 3; i++)                                                      "
-    "\\\n",
-    "        UNROLL for (int j = i; j < 3; j++) {                                                "
-    "\\\n",
-    "            Q[12 * (3 * (l0) + i) + 3 * (l0) + j] +=                                        "
-    "\\\n",
-    "                wv0 * ((i == j ? (cjc) : 0.0) + ZE(Z0, b, 3 * i + j) + ZE(Z0, b, 3 * j + i)); "
-    "\\\n",
-    "            Q[12 * (3 * (l1) + i) + 3 * (l1) + j] +=                                        "
-    "\\\n",
-    "                wv1 * ((i == j ? (cjc) : 0.0) + ZE(Z1, b, 3 * i + j) + ZE(Z1, b, 3 * j + i)); "
-    "\\\n",
+    "#define ZSUM(Z, a, bt, i, j, cjc) \\\n",
+    "    (((i) == (j) ? (cjc) : 0.0) + ZE(Z, a, 3 * (i) + (j)) + ZE(Z, bt, 3 * (j) + (i)))\n",
+    "#define EDGE_DIAG(l0, l1, cjc, b)                                        \\\n",
+    "    UNROLL for (int i = 0; i < 3; i++)                                   \\\n",
+    "        UNROLL for (int j = i; j < 3; j++) {                             \\\n",
+    "            Q[12 * (3 * (l0) + i) + 3 * (l0) + j] +=                     \\\n",
+    "                wv0 * ZSUM(Z0, b, b, i, j, cjc);                         \\\n",
+    "            Q[12 * (3 * (l1) + i) + 3 * (l1) + j] +=                     \\\n",
+    "                wv1 * ZSUM(Z1, b, b, i, j, cjc);                         \\\n",
     "        }\n",
-    "#define EDGE_OFF(l0, m0, l1, m1, tr1, cjc, a, bt)                                           "
-    "\\\n",
-    "    UNROLL for (int i = 0; i < 3; i++)                                                      "
-    "\\\n",
-    "        UNROLL for (int j = 0; j < 3; j++) {                                                "
-    "\\\n",
-    "            Q[12 * (3 * (l0) + i) + 3 * (m0) + j] +=                                        "
-    "\\\n",
-    "                wv0 * ((i == j ? (cjc) : 0.0) + ZE(Z0, a, 3 * i + j) + ZE(Z0, bt, 3 * j + "
-    "i)); \\\n",
-    "            Q[(tr1) ? 12 * (3 * (m1) + j) + 3 * (l1) + i : 12 * (3 * (l1) + i) + 3 * (m1) + "
-    "j] += \\\n",
-    "                wv1 * ((i == j ? (cjc) : 0.0) + ZE(Z1, a, 3 * i + j) + ZE(Z1, bt, 3 * j + "
-    "i)); \\\n",
+    "#define EDGE_OFF(l0, m0, l1, m1, tr1, cjc, a, bt)                        \\\n",
+    "    UNROLL for (int i = 0; i < 3; i++)                                   \\\n",
+    "        UNROLL for (int j = 0; j < 3; j++) {                             \\\n",
+    "            Q[12 * (3 * (l0) + i) + 3 * (m0) + j] +=                     \\\n",
+    "                wv0 * ZSUM(Z0, a, bt, i, j, cjc);                        \\\n",
+    "            Q[(tr1) ? 12 * (3 * (m1) + j) + 3 * (l1) + i                 \\\n",
+    "                    : 12 * (3 * (l1) + i) + 3 * (m1) + j] +=             \\\n",
+    "                wv1 * ZSUM(Z1, a, bt, i, j, cjc);                        \\\n",
     "        }\n",
     "\n",
     "/* work: 6 rows of np ints (row-major, np = the padded item count, which is\n",
