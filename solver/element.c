@@ -434,13 +434,10 @@ static inline void mul3(const v2d A[9], const v2d B[9], v2d C[9])
 static void ordered_pair_z(const v2d r0[3], const v2d r1[3], const v2d rt[3], const v2d W[9],
                            v2d Z[12][9])
 {
-    v2d rs[3], sq[3], T[9], M[9], G[9];
-    v2d w0[3], w1[3], w2[3], w3[3], P0[9], P1[9], P2[9], P3[9], C[9];
-    for (int a = 0; a < 3; a++) {
-        rs[a] = -(r0[a] + r1[a]);
+    v2d sq[3], T[9], M[9], G[9], P0[9], P1[9], P2[9], P3[9], C[9];
+    for (int a = 0; a < 3; a++)
         sq[a] = r0[a] + r1[a] + rt[a];
-    }
-    /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners r0, r1, rt and sq */
+        /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners r0, r1, rt and sq */
 #define OUTER4(i, j) (r0[i] * r0[j] + r1[i] * r1[j] + rt[i] * rt[j] + sq[i] * sq[j])
     v2d o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + o22;
     T[0] = tr - o00, T[4] = tr - o11, T[8] = tr - o22;
@@ -450,26 +447,29 @@ static void ordered_pair_z(const v2d r0[3], const v2d r1[3], const v2d rt[3], co
 #undef OUTER4
     mul3(T, W, M);
     mul3(W, M, G);
-    for (int a = 0; a < 3; a++) { /* w_l = Σ_k c_kl (q_k + Σq) */
-        w0[a] = r0[a] - sq[a] / 3.0;
-        w1[a] = r1[a] - sq[a] / 3.0;
-        w2[a] = -4.0 * sq[a] / 3.0;
+    /* P_l = [w_l]× W − ½ [r_l]× G (the target's own corner has no r), with
+     * w_l = Σ_k c_kl (q_k + Σq): w0 = r0 − sq/3, w1 = r1 − sq/3, w2 = −4 sq/3,
+     * w3 = rt + sq. Grouped by what they share, H = W − G/2 and K = [sq]× W:
+     * P0 = [r0]× H − K/3, P1 = [r1]× H − K/3, P2 = [r0 + r1]× G / 2 − 4 K/3
+     * (r_s = −r0 − r1), P3 = [rt + sq]× W: five 3x3 cross products, not seven. */
+    v2d H[9], K[9], r01[3], w3[3];
+    for (int i = 0; i < 9; i++)
+        H[i] = W[i] - 0.5 * G[i];
+    for (int a = 0; a < 3; a++) {
+        r01[a] = r0[a] + r1[a];
         w3[a] = rt[a] + sq[a];
     }
-    /* P_l = [w_l]× W − ½ [r_l]× G; the target's own corner has no r */
-    cross_left(w0, W, P0);
-    cross_left(r0, G, C);
-    for (int i = 0; i < 9; i++)
-        P0[i] -= 0.5 * C[i];
-    cross_left(w1, W, P1);
-    cross_left(r1, G, C);
-    for (int i = 0; i < 9; i++)
-        P1[i] -= 0.5 * C[i];
-    cross_left(w2, W, P2);
-    cross_left(rs, G, C);
-    for (int i = 0; i < 9; i++)
-        P2[i] -= 0.5 * C[i];
+    cross_left(r0, H, P0);
+    cross_left(r1, H, P1);
+    cross_left(sq, W, K);
+    cross_left(r01, G, C);
     cross_left(w3, W, P3);
+    for (int i = 0; i < 9; i++) {
+        v2d k3 = K[i] * (1.0 / 3.0);
+        P0[i] -= k3;
+        P1[i] -= k3;
+        P2[i] = 0.5 * C[i] - 4.0 * k3;
+    }
     /* Z_lm = P_l [r_m]× for m = 0, 1; Z_l2 = −Z_l0 − Z_l1 since r_s = −r0 − r1 */
     const v2d *P[4] = {P0, P1, P2, P3};
     for (int l = 0; l < 4; l++) {
