@@ -120,8 +120,10 @@ int main(int argc, char **argv)
         for (int k = 0; k < 2; k++) {
             if (!want[k])
                 continue;
-            if (cold && !flush && !(flush = calloc(flush_n, sizeof *flush)))
-                goto fail;
+            if (cold && !flush && !(flush = calloc(flush_n, sizeof *flush))) {
+                fprintf(stderr, "assembly_bench: out of memory for the cache flush\n");
+                goto done;
+            }
             for (size_t j = 0; j < flush_n; j++)
                 flush[j] += 1.0;
             double t0 = iso_clock_now(), c0 = cpu_now();
