@@ -3,10 +3,15 @@
  * Per evaluation, three kernels fill an element buffer and two reduce it:
  *   fit_triangles  per triangle: the rigid fit (kept in a fit buffer, so
  *                  it is computed once per evaluation however many pairs
- *                  use it) and (1−ω)Q1;
+ *                  use it);
  *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji) in the closed form of
  *                  iso_elem_edge_from_fits; both ordered pairs share the
- *                  same four vertices, so one record serves both;
+ *                  same four vertices, so one record serves both. It also
+ *                  adds (1−ω)Q1 of Ti and Tj where it carries them: every
+ *                  triangle element is carried by one of its interior
+ *                  edges, whose blocks include all of its own, so Q1 has
+ *                  no records (a third of the buffer's bytes, and the
+ *                  kernels' time is mostly the buffer's traffic);
  *   restore_edges  per edge, with restoration on: μ times its block and
  *                  its linear part;
  *   reduce_blocks  per 3x3 block of A_ff, reduce_rhs per free vertex: sum
@@ -474,9 +479,7 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     for (int t = 0; t < nt; t++)
         p->fit_of_tri[t] = -1;
 
-    /* The fit items first: every one writes a Q1 record (fit_triangles has
-     * no branch), at RECORD_SIZE(3) f, and they are padded to whole
-     * work-groups. Then the pairs' records, then the restoration's. */
+    /* The fit items first, padded to whole work-groups. */
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind == 1 || e->kind == 2)
@@ -491,16 +494,19 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     for (int f = 0; f < cl->nfp; f++) {
         if (f >= cl->n_fit) /* padding: item 0 again */
             memcpy(p->fit_work + 4 * f, p->fit_work, 3 * sizeof(int));
-        p->fit_work[4 * f + 3] = RECORD_SIZE(3) * f;
+        p->fit_work[4 * f + 3] = 0;
     }
-    for (int i = 0; i < nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind != 1)
-            continue;
-        static const int id[3] = {0, 1, 2};
-        gather_record(s, p, e, id, 3, RECORD_SIZE(3) * p->fit_of_tri[e->tri], 0);
-    }
-    size_t rec = (size_t)RECORD_SIZE(3) * (size_t)cl->nfp;
+    /* Which pair item carries each triangle element's Q1: the first whose
+     * Ti or Tj it is (q1_el: the element, −1 once carried). */
+    int *q1_el = malloc(((size_t)nt + 1) * sizeof *q1_el);
+    if (!q1_el)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int t = 0; t < nt; t++)
+        q1_el[t] = -1;
+    for (int i = 0; i < nel; i++)
+        if (s->el[i].kind == 1)
+            q1_el[s->el[i].tri] = i;
+    size_t rec = 0;
     /* Pair items are padded to np, whole work-groups, so that the kernel
      * needs no bounds check; their work list is value-major over np. */
     int n_items = 0;
@@ -511,11 +517,41 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         }
     size_t wg = cl->wg[K_PAIR];
     cl->np = (int)(((size_t)n_items + wg - 1) / wg * wg);
-    int pair_base = (int)rec;
     int np = cl->np;
-    p->pair_work = malloc(6 * ((size_t)np + 1) * sizeof(int));
-    if (!p->pair_work)
+    p->pair_work = malloc(8 * ((size_t)np + 1) * sizeof(int));
+    if (!p->pair_work) {
+        free(q1_el);
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    }
+    /* Each triangle element's Q1 goes with the first pair item whose Ti or
+     * Tj it is. There always is one: a triangle with no interior edge is a
+     * part of the mesh of its own, which iso_solver_create refuses unless
+     * its three vertices are constrained, and then it is no element. */
+    for (int i = 0, j = 0; i < nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind != 2)
+            continue;
+        int ti = e->tri, tj = -1;
+        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1]))
+            tj = s->el[++i].tri;
+        p->pair_work[6 * np + j] = q1_el[ti] >= 0;
+        if (q1_el[ti] >= 0)
+            q1_el[ti] = -1;
+        p->pair_work[7 * np + j] = tj >= 0 && q1_el[tj] >= 0;
+        if (tj >= 0 && q1_el[tj] >= 0)
+            q1_el[tj] = -1;
+        j++;
+    }
+    for (int t = 0; t < nt; t++)
+        if (q1_el[t] >= 0) {
+            free(q1_el);
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "OpenCL: internal error: triangle %d is an element, but no "
+                               "interior edge carries it",
+                               t);
+        }
+    free(q1_el);
+    int pair_base = (int)rec;
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 2)
@@ -536,9 +572,9 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         gather_record(s, p, e, map, 4, (int)rec + RECORD_SIZE(4) * j, 0);
         cl->n_pair++;
     }
-    for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without its mirror */
-        for (int r = 0; r < 6; r++)
-            p->pair_work[r * np + j] = r == 5 ? -1 : p->pair_work[r * np];
+    for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without mirror or Q1 */
+        for (int r = 0; r < 8; r++)
+            p->pair_work[r * np + j] = r >= 5 ? (r == 5 ? -1 : 0) : p->pair_work[r * np];
     rec += (size_t)RECORD_SIZE(4) * (size_t)np;
     cl->pair_base = pair_base;
     for (int i = 0; i < nel; i++) {
@@ -625,7 +661,7 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->nfp * I, p->fit_work,
                          "triangle list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 6 * (size_t)cl->np * I, p->pair_work,
+        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 8 * (size_t)cl->np * I, p->pair_work,
                          "pair list", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->nrp * I, p->rest_work,
@@ -677,14 +713,13 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
               tau = s->o.restore_tau;
     cl_int nb = cl->n_blocks, nf = s->nf;
     cl_kernel k = cl->k[K_FIT];
-    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, w1), ARG(k, 3, cl->x);
-    ARG(k, 4, cl->vc), ARG(k, 5, cl->vflag), ARG(k, 6, cl->fit), ARG(k, 7, cl->elem);
-    ARG(k, 8, cl->status);
+    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, cl->x), ARG(k, 3, cl->fit);
+    ARG(k, 4, cl->status);
     cl_int np = cl->np, base = cl->pair_base;
     k = cl->k[K_PAIR];
-    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w2);
-    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem), ARG(k, 9, base);
+    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w1);
+    ARG(k, 4, w2), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
+    ARG(k, 8, cl->fit), ARG(k, 9, cl->elem), ARG(k, 10, base);
     k = cl->k[K_RESTORE];
     ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, mu), ARG(k, 3, tau);
     ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->elem);
