@@ -71,6 +71,51 @@ static const iso_elem_fit_core *cached_fit(iso_solver *s, int t, const double *x
     return &s->fits[t];
 }
 
+/* Which edge carries each triangle element's Q1 (iso_elem_edge_from_fits
+ * adds it with the edge's block, which holds all of the triangle's blocks):
+ * the first pair element whose Ti or Tj it is. q1_carry[i]: for a pair
+ * element (the first of a mirrored two), bit 0 if it carries Ti's and bit
+ * 1 if it carries Tj's; for a triangle element, 1 if an edge carries it. A
+ * triangle element with no interior edge keeps its own Q1 (iso_solver_create
+ * only lets one through with all three vertices constrained, when it is no
+ * element at all, but this costs nothing to allow). */
+static int plan_q1_carriers(iso_solver *s, iso_err *err)
+{
+    int nt = iso_mesh_triangle_count(s->m);
+    int *q1_el = malloc(((size_t)nt + 1) * sizeof *q1_el);
+    s->q1_carry = calloc((size_t)s->nel + 1, 1);
+    if (!q1_el || !s->q1_carry) {
+        free(q1_el);
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rigid-fit cache");
+    }
+    for (int t = 0; t < nt; t++)
+        q1_el[t] = -1;
+    for (int i = 0; i < s->nel; i++)
+        if (s->el[i].kind == 1)
+            q1_el[s->el[i].tri] = i;
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind != 2)
+            continue;
+        int k = i, tj = -1;
+        if (i + 1 < s->nel && iso_solver__is_mirror(e, &s->el[i + 1]))
+            tj = s->el[++i].tri;
+        int qi = q1_el[e->tri], qj = tj >= 0 ? q1_el[tj] : -1;
+        if (qi >= 0) {
+            s->q1_carry[k] |= 1;
+            s->q1_carry[qi] = 1;
+            q1_el[e->tri] = -1;
+        }
+        if (qj >= 0) {
+            s->q1_carry[k] |= 2;
+            s->q1_carry[qj] = 1;
+            q1_el[tj] = -1;
+        }
+    }
+    free(q1_el);
+    return ISO_OK;
+}
+
 static int ensure_fit_cache(iso_solver *s, iso_err *err)
 {
     if (s->fits)
@@ -80,7 +125,7 @@ static int ensure_fit_cache(iso_solver *s, iso_err *err)
     s->fit_stamp = calloc(nt, sizeof *s->fit_stamp);
     if (!s->fits || !s->fit_stamp)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rigid-fit cache");
-    return ISO_OK;
+    return plan_q1_carriers(s, err);
 }
 
 /* w Q1 of a triangle element through the fit cache; −1 if degenerate. */
@@ -108,6 +153,19 @@ static int report_degenerate(iso_solver *s, int t, iso_err *err)
                        iso_mesh_origin(s->m), t);
 }
 
+/* A fit has failed: names the triangle of the first element, in list
+ * order, whose fit fails, as the OpenCL path does, whichever element's
+ * fit this assembly happened to compute first. */
+static int report_first_degenerate(iso_solver *s, const double *x, iso_err *err)
+{
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        if ((e->kind == 1 || e->kind == 2) && !cached_fit(s, e->tri, x, NULL))
+            return report_degenerate(s, e->tri, err);
+    }
+    return iso_err_set(err, ISO_ENUMERIC, -1, "%s: a rigid fit is singular", iso_mesh_origin(s->m));
+}
+
 /* N scale of triangle t (iso_elem_n_scale) at positions x. */
 static double n_scale_of(const iso_solver *s, int t, const double *x)
 {
@@ -126,7 +184,7 @@ static double n_scale_of(const iso_solver *s, int t, const double *x)
  * share their four vertices, so one block and one scatter serve both. −1
  * (and *bad_tri) when a fit is singular. */
 static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const int map[4],
-                          const double *x, double *Q, int *bad_tri)
+                          int carry, const double *x, double *Q, int *bad_tri)
 {
     const iso_elem_fit_core *fi = cached_fit(s, e->tri, x, NULL), *fj = NULL;
     if (!fi) {
@@ -141,18 +199,18 @@ static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror
     for (int l = 0; l < 4; l++)
         memcpy(xl + 3 * l, x + 3 * e->v[map[l]], 3 * sizeof(double));
     memset(Q, 0, 144 * sizeof(double));
-    /* each ordered pair's N is its target's */
-    double w2 = s->o.omega, sj, si = 0.0;
+    /* each ordered pair's N is its target's; each Q1's N its own */
+    double w1 = 1.0 - s->o.omega, w2 = s->o.omega, sj, si = n_scale_of(s, e->tri, x);
     if (mirror) {
         sj = n_scale_of(s, mirror->tri, x);
-        si = n_scale_of(s, e->tri, x);
     } else {
         double xj[9];
         memcpy(xj, xl, 6 * sizeof(double));
         memcpy(xj + 6, xl + 9, 3 * sizeof(double));
         sj = iso_elem_n_scale(xj, s->o.weighting);
     }
-    iso_elem_edge_from_fits(fi, fj, xl, w2 * sj, w2 * si, Q);
+    iso_elem_edge_from_fits(fi, fj, xl, w2 * sj, mirror ? w2 * si : 0.0, carry & 1 ? w1 * si : 0.0,
+                            mirror && (carry & 2) ? w1 * sj : 0.0, Q);
     return 0;
 }
 
@@ -242,13 +300,16 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
                 mirror = &s->el[++i];
             int bad, map[4];
             iso_solver__edge_layout(e, map);
-            if (edge_matrix_q2(s, e, mirror, map, x, Q, &bad) != 0)
-                return report_degenerate(s, bad, err);
+            if (edge_matrix_q2(s, e, mirror, map, s->q1_carry[i - (mirror != NULL)], x, Q, &bad) !=
+                0)
+                return report_first_degenerate(s, x, err);
             scatter_upper(s, e, 4, map, Q, 12, vc, Ax, rhs);
             continue;
         }
+        if (s->q1_carry[i]) /* its edge adds it */
+            continue;
         if (cached_element_matrix(s, e, x, w1, Q) != 0)
-            return report_degenerate(s, e->tri, err);
+            return report_first_degenerate(s, x, err);
         static const int id[3] = {0, 1, 2};
         scatter_upper(s, e, 3, id, Q, 9, vc, Ax, rhs);
     }

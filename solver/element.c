@@ -548,14 +548,53 @@ void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k)
     memcpy(k->W, f->W, sizeof k->W);
 }
 
+/* Adds each lane's source triangle's Q1 / σ, weighted by qv, to the edge
+ * block Q's upper triangle. Q1 / σ block (k, l) over the source's corners
+ * (0, 1, s) is (J_kl − 4/3) I + X_kl, X_kl = [r_k]× W [r_l]×; with
+ * r_s = −r0 − r1, X_0s = −X00 − X01, X_1s = −X01ᵀ − X11 and
+ * X_ss = X00 + X01 + X01ᵀ + X11. The source's third corner s sits at 2
+ * (lane 0, Ti) or 3 (lane 1, Tj) of the edge layout. */
+static void add_q1_blocks(const v2d r0[3], const v2d r1[3], const v2d W[9], v2d qv, double Q[144])
+{
+    v2d Y[9], X00[9], X01[9], X11[9];
+    cross_right(W, r0, Y);
+    cross_left(r0, Y, X00);
+    cross_right(W, r1, Y);
+    cross_left(r0, Y, X01);
+    cross_left(r1, Y, X11);
+    UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = 0; j < 3; j++)
+    {
+        double d = i == j ? 2.0 / 3.0 : 0.0, o = i == j ? -1.0 / 3.0 : 0.0;
+        v2d x00 = X00[3 * i + j], x01 = X01[3 * i + j], x10 = X01[3 * j + i];
+        v2d x11 = X11[3 * i + j];
+        v2d b01 = qv * (o + x01), b0s = qv * (o - (x00 + x01)), b1s = qv * (o - (x10 + x11));
+        Q[12 * i + 3 + j] += b01[0] + b01[1];
+        Q[12 * i + 6 + j] += b0s[0];
+        Q[12 * i + 9 + j] += b0s[1];
+        Q[12 * (3 + i) + 6 + j] += b1s[0];
+        Q[12 * (3 + i) + 9 + j] += b1s[1];
+        if (j < i)
+            continue;
+        v2d b00 = qv * (d + x00), b11 = qv * (d + x11);
+        v2d bss = qv * (d + (x00 + x01 + x10 + x11));
+        Q[12 * i + j] += b00[0] + b00[1];
+        Q[12 * (3 + i) + 3 + j] += b11[0] + b11[1];
+        Q[12 * (6 + i) + 6 + j] += bss[0];
+        Q[12 * (9 + i) + 9 + j] += bss[1];
+    }
+}
+
 void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
-                             const double xl[12], double wi, double wj, double Q[144])
+                             const double xl[12], double wi, double wj, double qi, double qj,
+                             double Q[144])
 {
     v2d r[9], W[9], Z[12][9];
-    load_lane(fi, xl, 3, 0, r, W);                /* (Ti, Tj): pair layout (a, b, p, q) */
-    load_lane(wj != 0 ? fj : fi, xl, 2, 1, r, W); /* (Tj, Ti): pair layout (a, b, q, p) */
+    load_lane(fi, xl, 3, 0, r, W);           /* (Ti, Tj): pair layout (a, b, p, q) */
+    load_lane(fj ? fj : fi, xl, 2, 1, r, W); /* (Tj, Ti): pair layout (a, b, q, p) */
     ordered_pair_z(r, r + 3, r + 6, W, Z);
     add_edge_blocks((const v2d(*)[9])Z, (v2d){wi, wj}, Q);
+    if (qi != 0 || qj != 0)
+        add_q1_blocks(r, r + 3, W, (v2d){qi, qj}, Q);
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])

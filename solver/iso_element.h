@@ -66,16 +66,21 @@ void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weightin
 void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
                           const int jmap[3], iso_weighting w, double Q[144]);
 
-/* The smoothness block of one interior edge, both ordered pairs summed:
- *     Q += wi Q2(Ti, Tj) + wj Q2(Tj, Ti)
+/* The smoothness block of one interior edge, both ordered pairs summed,
+ * and optionally the distortion blocks of its two triangles:
+ *     Q += wi Q2(Ti, Tj) + wj Q2(Tj, Ti) + qi Q1(Ti)/σ_i + qj Q1(Tj)/σ_j
  * on the local vertices (a, b, p, q): the shared edge in Ti's order, Ti's
  * third corner, Tj's third corner (xl: their 12 coordinates). fi, fj: the
- * fits of Ti and Tj (their cores). wi carries ω and Tj's N scale, wj ω and Ti's; wj = 0
- * leaves Tj's fit unread (fj may be NULL). Only Q's upper triangle (12x12,
- * row-major) is added to. Equal to the sum of iso_elem_q2_from_fit's two
- * blocks up to rounding, at about half their arithmetic. */
+ * fits of Ti and Tj (their cores). wi carries ω and Tj's N scale, wj ω and
+ * Ti's; qi carries (1 − ω) and Ti's own N scale, qj Tj's (a triangle's Q1
+ * blocks are all among those of any of its interior edges, so one of them
+ * can carry it). fj NULL: no Tj, and wj and qj must be 0. Only Q's upper
+ * triangle (12x12, row-major) is added to. Equal to the sum of
+ * iso_elem_q2_from_fit's two blocks (and iso_elem_q1_from_fit's) up to
+ * rounding, at about half their arithmetic. */
 void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
-                             const double xl[12], double wi, double wj, double Q[144]);
+                             const double xl[12], double wi, double wj, double qi, double qj,
+                             double Q[144]);
 
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);

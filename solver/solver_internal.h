@@ -85,6 +85,7 @@ struct iso_solver {
     double factor_flops;    /* CHOLMOD's Common->fl after analysis */
     iso_elem_fit_core *fits; /* C path: per triangle, the current evaluation's fit */
     unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
+    unsigned char *q1_carry; /* C path: per element, which edge adds which Q1 (assemble_cpu.c) */
     unsigned fit_epoch;
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
     int cg_failures;        /* consecutive PCG attempts at factor age 1 that failed */

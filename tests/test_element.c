@@ -514,7 +514,8 @@ static void blocks_symmetric_psd_with_rank(void **state)
 /* ---- (h) one interior edge: both ordered pairs in one block ------------------------- */
 
 /* iso_elem_edge_from_fits against the sum of the two iso_elem_q2_from_fit
- * blocks, on random edges and far from the origin: its upper triangle
+ * blocks and the two triangles' iso_elem_q1_from_fit, on random edges and
+ * far from the origin: its upper triangle
  * agrees to 1e-13 of the largest entry, and it leaves the lower triangle
  * alone. Ti = (a, b, p) in that order, Tj = (b, a, q); local (a, b, p, q). */
 static void edge_block_equals_both_pairs(void **state)
@@ -556,6 +557,16 @@ static void edge_block_equals_both_pairs(void **state)
                     int li = 3 * to_l[i / 3] + i % 3, lj = 3 * to_l[j / 3] + j % 3;
                     want[12 * li + lj] += 0.7 * Qji[12 * i + j];
                 }
+            /* and the triangles' own Q1: Ti on (a, b, p), Tj on (b, a, q) */
+            double Q1i[81], Q1j[81];
+            iso_elem_q1_from_fit(xi, &fi, WEIGHTINGS[wi], Q1i);
+            iso_elem_q1_from_fit(xj, &fj, WEIGHTINGS[wi], Q1j);
+            for (int i = 0; i < 9; i++)
+                for (int j = 0; j < 9; j++) {
+                    int li = 3 * to_l[i / 3] + i % 3, lj = 3 * to_l[j / 3] + j % 3;
+                    want[12 * i + j] += 0.2 * Q1i[9 * i + j];
+                    want[12 * li + lj] += 0.4 * Q1j[9 * i + j];
+                }
             for (int i = 0; i < 144; i++)
                 got[i] = -7.0; /* the lower triangle must stay as it was */
             for (int i = 0; i < 12; i++)
@@ -567,7 +578,7 @@ static void edge_block_equals_both_pairs(void **state)
             iso_elem_fit_core ki, kj;
             iso_elem_fit_core_of(&fi, &ki);
             iso_elem_fit_core_of(&fj, &kj);
-            iso_elem_edge_from_fits(&ki, &kj, xl, 0.3 * sj, 0.7 * si, got);
+            iso_elem_edge_from_fits(&ki, &kj, xl, 0.3 * sj, 0.7 * si, 0.2 * si, 0.4 * sj, got);
             double scale = iso_test_max_abs(want, 144), err = 0;
             for (int i = 0; i < 12; i++)
                 for (int j = 0; j < 12; j++) {
