@@ -80,10 +80,10 @@ struct iso_cl_assembler {
     double *A_host, *B_host;
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
-    int np;               /* pair items padded to whole work-groups */
-    int nfp;              /* fit items padded to whole work-groups */
-    int nrp;              /* restoration items padded to whole work-groups */
-    int pair_base;        /* the first pair record in the element buffer */
+    int np;        /* pair items padded to whole work-groups */
+    int nfp;       /* fit items padded to whole work-groups */
+    int nrp;       /* restoration items padded to whole work-groups */
+    int pair_base; /* the first pair record in the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
     int *first_el;    /* per fit item: first element (list order) using it as Ti or Q1 */
