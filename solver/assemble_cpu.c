@@ -181,20 +181,15 @@ static double n_scale_of(const iso_solver *s, int t, const double *x)
 /* ω (Q2(Ti, Tj) + Q2(Tj, Ti)) of pair element e and, when `mirror` is not
  * NULL, its mirror, as one 12x12 block (upper triangle) in the edge layout
  * (a, b, p, q) of iso_solver__edge_layout: both ordered pairs of an edge
- * share their four vertices, so one block and one scatter serve both. −1
- * (and *bad_tri) when a fit is singular. */
+ * share their four vertices, so one block and one scatter serve both. With
+ * it (1 − ω) Q1 of Ti (carry bit 0) and of Tj (bit 1), whose blocks are
+ * among the edge's (plan_q1_carriers). −1 when a fit is singular. */
 static int edge_matrix_q2(iso_solver *s, const element *e, const element *mirror, const int map[4],
-                          int carry, const double *x, double *Q, int *bad_tri)
+                          int carry, const double *x, double *Q)
 {
     const iso_elem_fit_core *fi = cached_fit(s, e->tri, x, NULL), *fj = NULL;
-    if (!fi) {
-        *bad_tri = e->tri;
+    if (!fi || (mirror && !(fj = cached_fit(s, mirror->tri, x, NULL))))
         return -1;
-    }
-    if (mirror && !(fj = cached_fit(s, mirror->tri, x, NULL))) {
-        *bad_tri = mirror->tri;
-        return -1;
-    }
     double xl[12];
     for (int l = 0; l < 4; l++)
         memcpy(xl + 3 * l, x + 3 * e->v[map[l]], 3 * sizeof(double));
@@ -298,10 +293,9 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
             const element *mirror = NULL;
             if (i + 1 < s->nel && iso_solver__is_mirror(e, &s->el[i + 1]))
                 mirror = &s->el[++i];
-            int bad, map[4];
+            int map[4], carry = s->q1_carry[i - (mirror != NULL)];
             iso_solver__edge_layout(e, map);
-            if (edge_matrix_q2(s, e, mirror, map, s->q1_carry[i - (mirror != NULL)], x, Q, &bad) !=
-                0)
+            if (edge_matrix_q2(s, e, mirror, map, carry, x, Q) != 0)
                 return report_first_degenerate(s, x, err);
             scatter_upper(s, e, 4, map, Q, 12, vc, Ax, rhs);
             continue;
