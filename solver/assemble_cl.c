@@ -1,20 +1,35 @@
 /* solver/assemble_cl.c -- the OpenCL assembly path (solver_internal.h).
  *
- * Per evaluation, four kernels fill an element buffer and two reduce it:
- *   fit_triangles  per triangle: the rigid fit R (kept in a fit buffer, so
+ * Per evaluation, three kernels fill an element buffer and two reduce it:
+ *   fit_triangles  per triangle: the rigid fit (kept in a fit buffer, so
  *                  it is computed once per evaluation however many pairs
- *                  use it) and, where the triangle is an element, (1−ω)Q1;
- *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji), both ordered pairs
- *                  share the same four vertices, so one record serves both;
+ *                  use it);
+ *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji) in the closed form of
+ *                  iso_elem_edge_from_fits; both ordered pairs share the
+ *                  same four vertices, so one record serves both. It also
+ *                  adds (1−ω)Q1 of Ti and Tj where it carries them: every
+ *                  triangle element is carried by one of its interior
+ *                  edges, whose blocks include all of its own, so Q1 has
+ *                  no records (a third of the buffer's bytes, and the
+ *                  kernels' time is mostly the buffer's traffic);
  *   restore_edges  per edge, with restoration on: μ times its block and
  *                  its linear part;
  *   reduce_blocks  per 3x3 block of A_ff, reduce_rhs per free vertex: sum
  *                  the records listed for it in a gather map (CSR) built
  *                  once here from the slot map, in a fixed order.
  * Every record holds only what reaches A_ff or the right-hand side, already
- * weighted and oriented as its destination: upper 3x3 diagonal blocks,
- * off-diagonal blocks with the rows of the lower free index, and per free
- * vertex the triple −Σ_handles Q vc (+ the restoration's linear part).
+ * weighted: upper 3x3 diagonal blocks, off-diagonal blocks with the rows of
+ * their first vertex (the gather map lists a block whose other vertex has
+ * the lower free index as −offset − 1, and reduce_blocks reads it
+ * transposed), and per vertex the triple −Σ_handles Q vc (+ the
+ * restoration's linear part).
+ * The element kernels are written so that PoCL runs the work-items of a
+ * group as vector lanes (check with POCL_VECTORIZER_REMARKS=1): their items
+ * are padded to whole work-groups (no bounds check), nothing branches on
+ * the data (selects instead, a singular fit is a status, not an early
+ * return), every loop is unrolled and every helper inlined, so private
+ * arrays are registers, and square roots are Clang's builtin (an
+ * instruction; PoCL's sqrt is a call).
  * The reductions write every entry of A's value array and of B, straight
  * into s->A->x and s->B->x (wrapped as CL_MEM_USE_HOST_PTR buffers and left
  * mapped for reading between evaluations), so there are no atomics, no
@@ -46,8 +61,8 @@ typedef struct iso_cl_assembler iso_cl_assembler;
 #define VF_HANDLE (-2)
 
 enum { K_FIT, K_PAIR, K_RESTORE, K_BLOCKS, K_RHS, K_COUNT };
-static const char *const kernel_names[K_COUNT] = {"fit_triangles", "pair_edges",
-                                                  "restore_edges", "reduce_blocks", "reduce_rhs"};
+static const char *const kernel_names[K_COUNT] = {"fit_triangles", "pair_edges", "restore_edges",
+                                                  "reduce_blocks", "reduce_rhs"};
 
 struct iso_cl_assembler {
     cl_context ctx;
@@ -65,6 +80,10 @@ struct iso_cl_assembler {
     double *A_host, *B_host;
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
+    int np;        /* pair items padded to whole work-groups */
+    int nfp;       /* fit items padded to whole work-groups */
+    int nrp;       /* restoration items padded to whole work-groups */
+    int pair_base; /* the first pair record in the element buffer */
     int mapped;
     int *status_host; /* n_fit, wrapped by `status` */
     int *first_el;    /* per fit item: first element (list order) using it as Ti or Q1 */
@@ -134,7 +153,8 @@ static int contains_nocase(const char *hay, const char *needle)
     size_t n = strlen(needle);
     for (; *hay; hay++) {
         size_t i = 0;
-        while (i < n && hay[i] && tolower((unsigned char)hay[i]) == tolower((unsigned char)needle[i]))
+        while (i < n && hay[i] &&
+               tolower((unsigned char)hay[i]) == tolower((unsigned char)needle[i]))
             i++;
         if (i == n)
             return 1;
@@ -169,8 +189,7 @@ static int select_device(const char *want, cl_device_id *out, iso_err *err)
     if (rc == -1001 || (rc == CL_SUCCESS && np == 0))
         return iso_err_set(err, ISO_ENOTSUP, -1, "no platform found");
     if (rc != CL_SUCCESS)
-        return iso_err_set(err, ISO_ENOTSUP, -1, "listing platforms failed: %s",
-                           cl_error_name(rc));
+        return iso_err_set(err, ISO_ENOTSUP, -1, "listing platforms failed: %s", cl_error_name(rc));
     if (np > MAX_PLATFORMS)
         np = MAX_PLATFORMS;
     int wp = -1, wd = -1;
@@ -196,8 +215,7 @@ static int select_device(const char *want, cl_device_id *out, iso_err *err)
             return ISO_OK;
         }
         char pname[128];
-        if (clGetPlatformInfo(plat[p], CL_PLATFORM_NAME, sizeof pname, pname, NULL) !=
-            CL_SUCCESS)
+        if (clGetPlatformInfo(plat[p], CL_PLATFORM_NAME, sizeof pname, pname, NULL) != CL_SUCCESS)
             pname[0] = '\0';
         pname[sizeof pname - 1] = '\0';
         for (cl_uint d = 0; d < nd; d++) {
@@ -260,8 +278,8 @@ static void squeeze_spaces(char *s)
 static int build_program(iso_cl_assembler *cl, iso_err *err)
 {
     cl_int rc;
-    cl->prog = clCreateProgramWithSource(cl->ctx, (cl_uint)ISO_CL_SOURCE_LINES,
-                                         iso_cl_source, NULL, &rc);
+    cl->prog =
+        clCreateProgramWithSource(cl->ctx, (cl_uint)ISO_CL_SOURCE_LINES, iso_cl_source, NULL, &rc);
     if (!cl->prog)
         return cl_fail(err, "clCreateProgramWithSource", rc);
     rc = clBuildProgram(cl->prog, 1, &cl->dev, "-cl-std=CL1.2", NULL, NULL);
@@ -276,8 +294,9 @@ static int build_program(iso_cl_assembler *cl, iso_err *err)
             log[len] = '\0';
             squeeze_spaces(log);
         }
-        iso_err_set(err, ISO_EIO, -1, "OpenCL: the assembly kernels failed to build for %s (%s): %s",
-                    cl->device, cl_error_name(rc), log && *log ? log : "(no build log)");
+        iso_err_set(err, ISO_EIO, -1,
+                    "OpenCL: the assembly kernels failed to build for %s (%s): %s", cl->device,
+                    cl_error_name(rc), log && *log ? log : "(no build log)");
         free(log);
         return ISO_EIO;
     }
@@ -287,7 +306,8 @@ static int build_program(iso_cl_assembler *cl, iso_err *err)
             return cl_fail(err, kernel_names[i], rc);
         size_t wg = 0;
         if (clGetKernelWorkGroupInfo(cl->k[i], cl->dev, CL_KERNEL_WORK_GROUP_SIZE, sizeof wg, &wg,
-                                     NULL) != CL_SUCCESS || wg == 0)
+                                     NULL) != CL_SUCCESS ||
+            wg == 0)
             wg = 1;
         /* 64 items a group: enough for PoCL to vectorise across items and
          * few enough groups to keep both cores busy on small meshes. */
@@ -301,7 +321,7 @@ static int build_program(iso_cl_assembler *cl, iso_err *err)
 /* Host-side lists built once; freed after upload. */
 typedef struct plan {
     int *fit_work;  /* 4 per fit item */
-    int *pair_work; /* 8 per pair item */
+    int *pair_work; /* 6 rows of np: the pair items, value-major */
     int *rest_work; /* 4 per restoration item */
     double *rest_par;
     int *fit_of_tri; /* per triangle: fit item or −1 */
@@ -349,23 +369,6 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
     return f;
 }
 
-/* Is el[i + 1] the mirror of the pair el[i] (Tj, Ti)? */
-static int is_mirror(const element *a, const element *b)
-{
-    if (b->kind != 2)
-        return 0;
-    int opp_a = -1; /* Ti's corner that is not in Tj */
-    for (int l = 0; l < 3; l++)
-        if (a->jmap[0] != l && a->jmap[1] != l && a->jmap[2] != l)
-            opp_a = a->v[l];
-    if (b->v[3] != opp_a)
-        return 0;
-    for (int k = 0; k < 3; k++)
-        if (b->v[k] != a->v[a->jmap[k]])
-            return 0;
-    return 1;
-}
-
 /* Records where a record's blocks and right-hand-side triples go. The
  * record's local vertex x is element e's local vertex map[x] (nl of them);
  * the record sits at offset `rec`. */
@@ -390,8 +393,9 @@ static void gather_record(const iso_solver *s, plan *p, const element *e, const 
             if (fv[a] < 0 || fv[b] < 0)
                 continue;
             int lo = fv[a] < fv[b] ? map[a] : map[b], hi = fv[a] < fv[b] ? map[b] : map[a];
+            int off = rec + 6 * nl + 9 * pair; /* rows of a, columns of b */
             p->gb[p->ngb] = p->blk_of_pos[sl[3 * (lo * enl + hi)]];
-            p->go[p->ngb++] = rec + 6 * nl + 9 * pair;
+            p->go[p->ngb++] = fv[a] < fv[b] ? off : -off - 1; /* rows of b: transposed */
         }
     if (!handle)
         return;
@@ -460,35 +464,95 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     int nt = iso_mesh_triangle_count(m), nel = s->nel;
     const int *tri = iso_mesh_triangles(m);
     size_t cap = (size_t)nel + 1;
-    p->fit_work = malloc(4 * ((size_t)nt + 1) * sizeof(int));
+    p->fit_work = malloc(4 * ((size_t)nt + 1 + cl->wg[K_FIT]) * sizeof(int));
     p->fit_of_tri = malloc(((size_t)nt + 1) * sizeof(int));
     cl->first_el = malloc(((size_t)nt + 1) * sizeof(int));
     cl->tri_of = malloc(((size_t)nt + 1) * sizeof(int));
-    p->pair_work = malloc(8 * cap * sizeof(int));
-    p->rest_work = malloc(4 * cap * sizeof(int));
-    p->rest_par = malloc(2 * cap * sizeof(double));
+    p->rest_work = malloc(4 * (cap + cl->wg[K_RESTORE]) * sizeof(int));
+    p->rest_par = malloc(2 * (cap + cl->wg[K_RESTORE]) * sizeof(double));
     p->gb = malloc(10 * cap * sizeof(int));
     p->go = malloc(10 * cap * sizeof(int));
     p->gr = malloc(4 * cap * sizeof(int));
     p->gro = malloc(4 * cap * sizeof(int));
-    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !p->pair_work || !p->rest_work || !p->rest_par || !p->gb || !p->go || !p->gr ||
-        !p->gro || find_blocks(s, cl, p) != 0)
+    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !p->rest_work ||
+        !p->rest_par || !p->gb || !p->go || !p->gr || !p->gro || find_blocks(s, cl, p) != 0)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     for (int t = 0; t < nt; t++)
         p->fit_of_tri[t] = -1;
 
-    /* Q1 records first, then the pairs', then the restoration's. */
-    size_t rec = 0;
+    /* The fit items first, padded to whole work-groups. */
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
-        if (e->kind != 1)
-            continue;
-        int f = fit_item(cl, p, tri, e->tri, i);
-        p->fit_work[4 * f + 3] = (int)rec;
-        static const int id[3] = {0, 1, 2};
-        gather_record(s, p, e, id, 3, (int)rec, 0);
-        rec += RECORD_SIZE(3);
+        if (e->kind == 1 || e->kind == 2)
+            fit_item(cl, p, tri, e->tri, i);
+        if (e->kind == 2 && i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
+            fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
+            i++;
+        }
     }
+    size_t wgf = cl->wg[K_FIT];
+    cl->nfp = (int)(((size_t)cl->n_fit + wgf - 1) / wgf * wgf);
+    for (int f = 0; f < cl->nfp; f++) {
+        if (f >= cl->n_fit) /* padding: item 0 again */
+            memcpy(p->fit_work + 4 * f, p->fit_work, 3 * sizeof(int));
+        p->fit_work[4 * f + 3] = 0;
+    }
+    /* Which pair item carries each triangle element's Q1: the first whose
+     * Ti or Tj it is (q1_el: the element, −1 once carried). */
+    int *q1_el = malloc(((size_t)nt + 1) * sizeof *q1_el);
+    if (!q1_el)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int t = 0; t < nt; t++)
+        q1_el[t] = -1;
+    for (int i = 0; i < nel; i++)
+        if (s->el[i].kind == 1)
+            q1_el[s->el[i].tri] = i;
+    size_t rec = 0;
+    /* Pair items are padded to np, whole work-groups, so that the kernel
+     * needs no bounds check; their work list is value-major over np. */
+    int n_items = 0;
+    for (int i = 0; i < nel; i++)
+        if (s->el[i].kind == 2) {
+            n_items++;
+            i += i + 1 < nel && iso_solver__is_mirror(&s->el[i], &s->el[i + 1]);
+        }
+    size_t wg = cl->wg[K_PAIR];
+    cl->np = (int)(((size_t)n_items + wg - 1) / wg * wg);
+    int np = cl->np;
+    p->pair_work = malloc(8 * ((size_t)np + 1) * sizeof(int));
+    if (!p->pair_work) {
+        free(q1_el);
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    }
+    /* Each triangle element's Q1 goes with the first pair item whose Ti or
+     * Tj it is. There always is one: a triangle with no interior edge is a
+     * part of the mesh of its own, which iso_solver_create refuses unless
+     * its three vertices are constrained, and then it is no element. */
+    for (int i = 0, j = 0; i < nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind != 2)
+            continue;
+        int ti = e->tri, tj = -1;
+        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1]))
+            tj = s->el[++i].tri;
+        p->pair_work[6 * np + j] = q1_el[ti] >= 0;
+        if (q1_el[ti] >= 0)
+            q1_el[ti] = -1;
+        p->pair_work[7 * np + j] = tj >= 0 && q1_el[tj] >= 0;
+        if (tj >= 0 && q1_el[tj] >= 0)
+            q1_el[tj] = -1;
+        j++;
+    }
+    for (int t = 0; t < nt; t++)
+        if (q1_el[t] >= 0) {
+            free(q1_el);
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "OpenCL: internal error: triangle %d is an element, but no "
+                               "interior edge carries it",
+                               t);
+        }
+    free(q1_el);
+    int pair_base = (int)rec;
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 2)
@@ -496,29 +560,24 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         /* Record order (a, b, p, q): the shared edge in Ti's order, Ti's
          * third corner, Tj's third corner; so the kernel's indices are
          * constants. map: record local -> e's local. */
-        int map[4], n = 0;
-        for (int l = 0; l < 3; l++)
-            if (e->jmap[0] == l || e->jmap[1] == l || e->jmap[2] == l)
-                map[n++] = l;
-        for (int l = 0; l < 3; l++)
-            if (e->jmap[0] != l && e->jmap[1] != l && e->jmap[2] != l)
-                map[2] = l;
-        map[3] = 3;
-        int *w = p->pair_work + 8 * cl->n_pair;
+        int map[4], j = cl->n_pair;
+        iso_solver__edge_layout(e, map);
         for (int l = 0; l < 4; l++)
-            w[l] = e->v[map[l]];
-        w[4] = fit_item(cl, p, tri, e->tri, i);
-        w[5] = -1;
-        if (i + 1 < nel && is_mirror(e, &s->el[i + 1])) {
-            w[5] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
+            p->pair_work[l * np + j] = e->v[map[l]];
+        p->pair_work[4 * np + j] = fit_item(cl, p, tri, e->tri, i);
+        p->pair_work[5 * np + j] = -1;
+        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
+            p->pair_work[5 * np + j] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
             i++;
         }
-        w[6] = (int)rec;
-        w[7] = 0;
-        gather_record(s, p, e, map, 4, (int)rec, 0);
-        rec += RECORD_SIZE(4);
+        gather_record(s, p, e, map, 4, (int)rec + RECORD_SIZE(4) * j, 0);
         cl->n_pair++;
     }
+    for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without mirror or Q1 */
+        for (int r = 0; r < 8; r++)
+            p->pair_work[r * np + j] = r >= 5 ? (r == 5 ? -1 : 0) : p->pair_work[r * np];
+    rec += (size_t)RECORD_SIZE(4) * (size_t)np;
+    cl->pair_base = pair_base;
     for (int i = 0; i < nel; i++) {
         const element *e = &s->el[i];
         if (e->kind != 3)
@@ -534,6 +593,15 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         gather_record(s, p, e, id, 2, (int)rec, 1);
         rec += RECORD_SIZE(2);
         cl->n_rest++;
+    }
+    /* padding to whole work-groups: item 0 again, into records of its own */
+    size_t wgr = cl->wg[K_RESTORE];
+    cl->nrp = (int)(((size_t)cl->n_rest + wgr - 1) / wgr * wgr);
+    for (int j = cl->n_rest; j < cl->nrp; j++) {
+        memcpy(p->rest_work + 4 * j, p->rest_work, 4 * sizeof(int));
+        memcpy(p->rest_par + 2 * j, p->rest_par, 2 * sizeof(double));
+        p->rest_work[4 * j + 2] = (int)rec;
+        rec += RECORD_SIZE(2);
     }
     if (rec > INT_MAX)
         return iso_err_set(err, ISO_ENOMEM, -1,
@@ -578,29 +646,29 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     if (!vflag)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
     for (int i = 0; i < s->nv; i++)
-        vflag[i] = s->free_of[i] >= 0                ? s->free_of[i]
+        vflag[i] = s->free_of[i] >= 0            ? s->free_of[i]
                    : s->r->kind[i] == ISO_HANDLE ? VF_HANDLE
-                                                     : VF_FIXED;
+                                                 : VF_FIXED;
     size_t I = sizeof(int), D = sizeof(double);
     int rc = make_buffer(cl, &cl->vflag, RO_COPY, (size_t)s->nv * I, vflag, "vertex flag", err);
     free(vflag);
-    cl->status_host = malloc(((size_t)cl->n_fit + 1) * I);
+    cl->status_host = malloc(((size_t)cl->nfp + 1) * I);
     if (!cl->status_host)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
     cl->A_host = s->A->x;
     cl->B_host = s->B->x;
     cl_mem_flags use = CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR;
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->n_fit * I, p->fit_work,
+        rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->nfp * I, p->fit_work,
                          "triangle list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 8 * (size_t)cl->n_pair * I, p->pair_work,
+        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 8 * (size_t)cl->np * I, p->pair_work,
                          "pair list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->n_rest * I, p->rest_work,
+        rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->nrp * I, p->rest_work,
                          "edge list", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_par, RO_COPY, 2 * (size_t)cl->n_rest * D, p->rest_par,
+        rc = make_buffer(cl, &cl->rest_par, RO_COPY, 2 * (size_t)cl->nrp * D, p->rest_par,
                          "edge parameter", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->blk_dst, RO_COPY, 4 * (size_t)cl->n_blocks * I, p->blk_dst,
@@ -620,22 +688,24 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->vc, CL_MEM_READ_ONLY, cl->nx * D, NULL, "velocity", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->fit, CL_MEM_READ_WRITE, (size_t)cl->n_fit * FIT_STRIDE * D,
-                         NULL, "rigid fit", err);
+        rc = make_buffer(cl, &cl->fit, CL_MEM_READ_WRITE, (size_t)cl->nfp * FIT_STRIDE * D, NULL,
+                         "rigid fit", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->elem, CL_MEM_READ_WRITE, p->nrec * D, NULL, "element", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->status, use, (size_t)cl->n_fit * I, cl->status_host,
-                         "status", err);
+        rc = make_buffer(cl, &cl->status, use, (size_t)cl->nfp * I, cl->status_host, "status", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->A, use, cl->nnz * D, cl->A_host, "matrix", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->B, use, (size_t)(3 * s->nf) * D, cl->B_host,
-                         "right-hand side", err);
+        rc = make_buffer(cl, &cl->B, use, (size_t)(3 * s->nf) * D, cl->B_host, "right-hand side",
+                         err);
     return rc;
 }
 
 /* ===== kernel arguments ================================================= */
+
+/* restore_edges' τ: set here and again at every evaluation (it may change). */
+#define RESTORE_ARG_TAU 3
 
 #define ARG(k, i, v) (rc |= clSetKernelArg((k), (i), sizeof(v), &(v)))
 
@@ -643,22 +713,19 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
 {
     cl_int rc = CL_SUCCESS;
     cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA;
-    cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu,
-              tau = s->o.restore_tau;
-    cl_int n_fit = cl->n_fit, n_pair = cl->n_pair, n_rest = cl->n_rest, nb = cl->n_blocks,
-           nf = s->nf;
+    cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu, tau = s->o.restore_tau;
+    cl_int nb = cl->n_blocks, nf = s->nf;
     cl_kernel k = cl->k[K_FIT];
-    ARG(k, 0, cl->fit_work), ARG(k, 1, n_fit), ARG(k, 2, weighting), ARG(k, 3, w1);
-    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem), ARG(k, 9, cl->status);
+    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, cl->x), ARG(k, 3, cl->fit);
+    ARG(k, 4, cl->status);
+    cl_int np = cl->np, base = cl->pair_base;
     k = cl->k[K_PAIR];
-    ARG(k, 0, cl->pair_work), ARG(k, 1, n_pair), ARG(k, 2, weighting), ARG(k, 3, w2);
-    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->fit);
-    ARG(k, 8, cl->elem);
+    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w1);
+    ARG(k, 4, w2), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
+    ARG(k, 8, cl->fit), ARG(k, 9, cl->elem), ARG(k, 10, base);
     k = cl->k[K_RESTORE];
-    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, n_rest), ARG(k, 3, mu);
-    ARG(k, 4, tau), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
-    ARG(k, 8, cl->elem);
+    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, mu), ARG(k, RESTORE_ARG_TAU, tau);
+    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->elem);
     k = cl->k[K_BLOCKS];
     ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, cl->blk_src), ARG(k, 3, nb);
     ARG(k, 4, cl->elem), ARG(k, 5, cl->A);
@@ -670,6 +737,29 @@ static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
 }
 
 /* ===== create / destroy ================================================= */
+
+/* One assembly at the rest pose, its outcome dropped. PoCL builds each
+ * kernel's work-group function at its first launch (tens of milliseconds,
+ * more on a cold kernel cache): done here, that lands in the solver's
+ * creation instead of the first evaluation, which in a real-time session
+ * is its first tick, and in deform's per-evaluation figures. A failure to
+ * run is reported; what the values are is not (the first evaluation
+ * overwrites them). */
+static int warm_up(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
+{
+    double *vc = calloc(cl->nx + 1, sizeof *vc);
+    if (!vc)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
+    iso_err e;
+    iso_err_clear(&e);
+    int rc = iso_solver__cl_assemble(cl, s, iso_mesh_positions(s->m), vc, &e);
+    free(vc);
+    if (rc == ISO_ENUMERIC) /* a degenerate rest pose is for the evaluation to report */
+        return ISO_OK;
+    if (rc != ISO_OK)
+        return iso_err_set(err, rc, -1, "%s", e.msg);
+    return ISO_OK;
+}
 
 int iso_solver__cl_create(iso_solver *s, iso_cl_assembler **out, iso_err *err)
 {
@@ -701,6 +791,8 @@ int iso_solver__cl_create(iso_solver *s, iso_cl_assembler **out, iso_err *err)
     if (rc == ISO_OK)
         rc = set_args(s, cl, err);
     plan_free(&p);
+    if (rc == ISO_OK)
+        rc = warm_up(s, cl, err);
     if (rc != ISO_OK) {
         iso_solver__cl_destroy(cl);
         return rc;
@@ -736,10 +828,10 @@ void iso_solver__cl_destroy(iso_cl_assembler *cl)
         unmap_outputs(cl);
         clFinish(cl->q);
     }
-    cl_mem *mems[] = {&cl->vflag,   &cl->fit_work, &cl->pair_work, &cl->rest_work,
-                      &cl->rest_par, &cl->blk_dst, &cl->blk_ptr,   &cl->blk_src,   &cl->rhs_ptr,
-                      &cl->rhs_src,  &cl->x,       &cl->vc,        &cl->fit,       &cl->elem,
-                      &cl->status,   &cl->A,       &cl->B};
+    cl_mem *mems[] = {&cl->vflag,   &cl->fit_work, &cl->pair_work, &cl->rest_work, &cl->rest_par,
+                      &cl->blk_dst, &cl->blk_ptr,  &cl->blk_src,   &cl->rhs_ptr,   &cl->rhs_src,
+                      &cl->x,       &cl->vc,       &cl->fit,       &cl->elem,      &cl->status,
+                      &cl->A,       &cl->B};
     for (size_t i = 0; i < sizeof mems / sizeof mems[0]; i++)
         release_mem(mems[i]);
     for (int i = 0; i < K_COUNT; i++)
@@ -778,8 +870,8 @@ static int check_outputs(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
                        "since the OpenCL assembly was set up");
 }
 
-int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x,
-                            const double *vc, iso_err *err)
+int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x, const double *vc,
+                            iso_err *err)
 {
     int rc = check_outputs(s, cl, err);
     if (rc != ISO_OK)
@@ -796,14 +888,15 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     /* τ may change between evaluations (iso_solver_set_restore_tau: the
      * integrators clamp it to κ h per step); the kernel reads it from here. */
     cl_double tau = s->o.restore_tau;
-    if ((crc = clSetKernelArg(cl->k[K_RESTORE], 4, sizeof tau, &tau)) != CL_SUCCESS)
+    if ((crc = clSetKernelArg(cl->k[K_RESTORE], RESTORE_ARG_TAU, sizeof tau, &tau)) != CL_SUCCESS)
         return cl_fail(err, "setting the restoration time constant", crc);
-    if ((crc = run_kernel(cl, K_FIT, cl->n_fit)) || (crc = run_kernel(cl, K_PAIR, cl->n_pair)) ||
-        (crc = run_kernel(cl, K_RESTORE, cl->n_rest)) ||
+    if ((crc = run_kernel(cl, K_FIT, cl->n_fit ? cl->nfp : 0)) ||
+        (crc = run_kernel(cl, K_PAIR, cl->n_pair ? cl->np : 0)) ||
+        (crc = run_kernel(cl, K_RESTORE, cl->n_rest ? cl->nrp : 0)) ||
         (crc = run_kernel(cl, K_BLOCKS, cl->n_blocks)) || (crc = run_kernel(cl, K_RHS, cl->nf)))
         return cl_fail(err, "running the assembly kernels", crc);
-    void *pa = clEnqueueMapBuffer(cl->q, cl->A, CL_FALSE, CL_MAP_READ, 0,
-                                  cl->nnz * sizeof(double), 0, NULL, NULL, &crc);
+    void *pa = clEnqueueMapBuffer(cl->q, cl->A, CL_FALSE, CL_MAP_READ, 0, cl->nnz * sizeof(double),
+                                  0, NULL, NULL, &crc);
     void *pb = pa ? clEnqueueMapBuffer(cl->q, cl->B, CL_FALSE, CL_MAP_READ, 0,
                                        3 * (size_t)cl->nf * sizeof(double), 0, NULL, NULL, &crc)
                   : NULL;
@@ -815,8 +908,8 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     cl->mapped = 1;
     /* A USE_HOST_PTR buffer maps at its host pointer (OpenCL 1.2, 5.4.2). */
     if (pa != (void *)cl->A_host || pb != (void *)cl->B_host || ps != (void *)cl->status_host)
-        return iso_err_set(err, ISO_EIO, -1,
-                           "OpenCL: %s mapped a host-pointer buffer elsewhere", cl->device);
+        return iso_err_set(err, ISO_EIO, -1, "OpenCL: %s mapped a host-pointer buffer elsewhere",
+                           cl->device);
     int bad = -1;
     for (int f = 0; f < cl->n_fit; f++)
         if (cl->status_host[f] && (bad < 0 || cl->first_el[f] < cl->first_el[bad]))

@@ -37,20 +37,50 @@ int iso_elem_rigid_fit(const double x[9], double R[54]);
 /* A triangle's best rigid fit with its frame, computed once per evaluation
  * and shared by its Q1 and the Q2 of every pair it is the source of. */
 typedef struct iso_elem_fit {
+    /* what the edge blocks read, first: two cache lines of the 68 doubles */
     double c[3], s; /* iso_elem_frame */
     double d[3];    /* rounding shift of the frame: the scaled corners
                        (x − c)/s sum to 3d, not exactly zero */
+    double inv_s;   /* 1/s: points go to the frame as (x − c) inv_s − d */
+    double W[6];    /* S⁻¹ of the closed form (element.c), upper: 00 01 02 11 12 22 */
     double R[54];   /* iso_elem_rigid_fit, in the frame (c + s d, s) */
 } iso_elem_fit;
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
 int iso_elem_fit_compute(const double x[9], iso_elem_fit *f);
+
+/* What an edge block reads of a fit: its frame and W, 14 doubles against
+ * iso_elem_fit's 68 (the assembly keeps one per triangle, and the memory it
+ * streams through is most of its time once a solve has emptied the caches). */
+typedef struct iso_elem_fit_core {
+    double c[3], s, d[3], inv_s;
+    double W[6];
+} iso_elem_fit_core;
+
+/* Copies f's frame and W into k. */
+void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k);
 /* Q1 and Q2 from a precomputed fit of triangle x (Q1) or Ti (Q2): the same
  * values as iso_elem_q1 / iso_elem_q2, with the fit not recomputed. */
 void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
                           double Q[81]);
 void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
                           const int jmap[3], iso_weighting w, double Q[144]);
+
+/* The smoothness block of one interior edge, both ordered pairs summed,
+ * and optionally the distortion blocks of its two triangles:
+ *     Q += wi Q2(Ti, Tj) + wj Q2(Tj, Ti) + qi Q1(Ti)/σ_i + qj Q1(Tj)/σ_j
+ * on the local vertices (a, b, p, q): the shared edge in Ti's order, Ti's
+ * third corner, Tj's third corner (xl: their 12 coordinates). fi, fj: the
+ * fits of Ti and Tj (their cores). wi carries ω and Tj's N scale, wj ω and
+ * Ti's; qi carries (1 − ω) and Ti's own N scale, qj Tj's (a triangle's Q1
+ * blocks are all among those of any of its interior edges, so one of them
+ * can carry it). fj NULL: no Tj, and wj and qj must be 0. Only Q's upper
+ * triangle (12x12, row-major) is added to. Equal to the sum of
+ * iso_elem_q2_from_fit's two blocks (and iso_elem_q1_from_fit's) up to
+ * rounding, at about half their arithmetic. */
+void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
+                             const double xl[12], double wi, double wj, double qi, double qj,
+                             double Q[144]);
 
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);

@@ -577,6 +577,7 @@ void iso_solver_destroy(iso_solver *s)
     free(s->slots);
     free(s->fits);
     free(s->fit_stamp);
+    free(s->q1_carry);
     free(s->rest_len);
     free(s->edge_w);
     free(s);

@@ -28,6 +28,40 @@ static inline int iso_solver__local_count(const iso_solver__element *e)
     return e->kind == 1 ? 3 : e->kind == 2 ? 4 : 2;
 }
 
+/* Is b the mirror (Tj, Ti) of the pair element a = (Ti, Tj)? build_elements
+ * lists the two ordered pairs of an edge one after the other; both
+ * assembly paths compute them as one edge block. */
+static inline int iso_solver__is_mirror(const iso_solver__element *a, const iso_solver__element *b)
+{
+    if (b->kind != 2)
+        return 0;
+    int opp_a = -1; /* Ti's corner that is not in Tj */
+    for (int l = 0; l < 3; l++)
+        if (a->jmap[0] != l && a->jmap[1] != l && a->jmap[2] != l)
+            opp_a = a->v[l];
+    if (b->v[3] != opp_a)
+        return 0;
+    for (int k = 0; k < 3; k++)
+        if (b->v[k] != a->v[a->jmap[k]])
+            return 0;
+    return 1;
+}
+
+/* The edge layout (a, b, p, q) of pair element e: the shared edge in Ti's
+ * order, Ti's third corner, Tj's third corner. map[x] is e's local index of
+ * layout vertex x (iso_elem_edge_from_fits takes points in this order). */
+static inline void iso_solver__edge_layout(const iso_solver__element *e, int map[4])
+{
+    int n = 0;
+    for (int l = 0; l < 3; l++)
+        if (e->jmap[0] == l || e->jmap[1] == l || e->jmap[2] == l)
+            map[n++] = l;
+    for (int l = 0; l < 3; l++)
+        if (e->jmap[0] != l && e->jmap[1] != l && e->jmap[2] != l)
+            map[2] = l;
+    map[3] = 3;
+}
+
 struct iso_solver {
     const iso_mesh *m;
     const iso_regions *r;
@@ -49,8 +83,9 @@ struct iso_solver {
     cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
     int have_factor;        /* L holds a numeric factor of some earlier A */
     double factor_flops;    /* CHOLMOD's Common->fl after analysis */
-    iso_elem_fit *fits;     /* C path: per triangle, the current evaluation's fit */
+    iso_elem_fit_core *fits; /* C path: per triangle, the current evaluation's fit */
     unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
+    unsigned char *q1_carry; /* C path: per element, which edge adds which Q1 (assemble_cpu.c) */
     unsigned fit_epoch;
     int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
     int cg_failures;        /* consecutive PCG attempts at factor age 1 that failed */

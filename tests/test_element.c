@@ -511,6 +511,92 @@ static void blocks_symmetric_psd_with_rank(void **state)
                   worst_gap2, worst_null);
 }
 
+/* ---- (h) one interior edge: both ordered pairs in one block ------------------------- */
+
+/* iso_elem_edge_from_fits against the sum of the two iso_elem_q2_from_fit
+ * blocks and the two triangles' iso_elem_q1_from_fit, on random edges and
+ * far from the origin: its upper triangle
+ * agrees to 1e-13 of the largest entry, and it leaves the lower triangle
+ * alone. Ti = (a, b, p) in that order, Tj = (b, a, q); local (a, b, p, q). */
+static void edge_block_equals_both_pairs(void **state)
+{
+    (void)state;
+    fx_rng rng = {21};
+    double worst = 0;
+    for (int trial = 0; trial < 24; trial++) {
+        double xl[12];
+        random_triangle(&rng, xl);
+        for (int c = 0; c < 3; c++)
+            xl[9 + c] = xl[c] + xl[3 + c] - xl[6 + c] + fx_uniform(&rng, -0.3, 0.3);
+        if (trial % 3 == 2) /* small and far away */
+            for (int i = 0; i < 12; i++)
+                xl[i] = 1e-2 * xl[i] + (i % 3 == 1 ? -1e4 : 1e4);
+        double xi[9], xj[9];
+        memcpy(xi, xl, 9 * sizeof(double));
+        memcpy(xj, xl + 3, 3 * sizeof(double));     /* b */
+        memcpy(xj + 3, xl, 3 * sizeof(double));     /* a */
+        memcpy(xj + 6, xl + 9, 3 * sizeof(double)); /* q */
+        for (int wi = 0; wi < 2; wi++) {
+            iso_elem_fit fi, fj;
+            assert_int_equal(iso_elem_fit_compute(xi, &fi), 0);
+            assert_int_equal(iso_elem_fit_compute(xj, &fj), 0);
+            /* pair (Ti, Tj): Tj's corners b, a, q are Ti's local 1, 0, 3 */
+            static const int jm_ij[3] = {1, 0, 3};
+            /* pair (Tj, Ti) in Tj's local order (b, a, q, p): Ti's corners
+             * a, b, p are Tj's local 1, 0, 3 */
+            static const int jm_ji[3] = {1, 0, 3};
+            double Qij[144], Qji[144], want[144], got[144];
+            iso_elem_q2_from_fit(&fi, xi, xl + 9, jm_ij, WEIGHTINGS[wi], Qij);
+            iso_elem_q2_from_fit(&fj, xj, xl + 6, jm_ji, WEIGHTINGS[wi], Qji);
+            /* Tj's local order (b, a, q, p) -> (a, b, p, q) */
+            static const int to_l[4] = {1, 0, 3, 2};
+            for (int i = 0; i < 144; i++)
+                want[i] = 0.3 * Qij[i];
+            for (int i = 0; i < 12; i++)
+                for (int j = 0; j < 12; j++) {
+                    int li = 3 * to_l[i / 3] + i % 3, lj = 3 * to_l[j / 3] + j % 3;
+                    want[12 * li + lj] += 0.7 * Qji[12 * i + j];
+                }
+            /* and the triangles' own Q1: Ti on (a, b, p), Tj on (b, a, q) */
+            double Q1i[81], Q1j[81];
+            iso_elem_q1_from_fit(xi, &fi, WEIGHTINGS[wi], Q1i);
+            iso_elem_q1_from_fit(xj, &fj, WEIGHTINGS[wi], Q1j);
+            for (int i = 0; i < 9; i++)
+                for (int j = 0; j < 9; j++) {
+                    int li = 3 * to_l[i / 3] + i % 3, lj = 3 * to_l[j / 3] + j % 3;
+                    want[12 * i + j] += 0.2 * Q1i[9 * i + j];
+                    want[12 * li + lj] += 0.4 * Q1j[9 * i + j];
+                }
+            for (int i = 0; i < 144; i++)
+                got[i] = -7.0; /* the lower triangle must stay as it was */
+            for (int i = 0; i < 12; i++)
+                for (int j = i; j < 12; j++)
+                    got[12 * i + j] = 0;
+            /* q2_from_fit folds its target's σ in; the edge form takes it
+             * in its weights */
+            double si = sigma_of(xi, WEIGHTINGS[wi]), sj = sigma_of(xj, WEIGHTINGS[wi]);
+            iso_elem_fit_core ki, kj;
+            iso_elem_fit_core_of(&fi, &ki);
+            iso_elem_fit_core_of(&fj, &kj);
+            iso_elem_edge_from_fits(&ki, &kj, xl, 0.3 * sj, 0.7 * si, 0.2 * si, 0.4 * sj, got);
+            double scale = iso_test_max_abs(want, 144), err = 0;
+            for (int i = 0; i < 12; i++)
+                for (int j = 0; j < 12; j++) {
+                    if (j < i) {
+                        assert_true(got[12 * i + j] == -7.0);
+                        continue;
+                    }
+                    err = fmax(err, fabs(got[12 * i + j] - want[12 * i + j]) / scale);
+                }
+            if (!(err <= 1e-13))
+                fail_msg("trial %d (%s): edge block off by %.3e relative", trial,
+                         wi ? "area" : "param", err);
+            worst = fmax(worst, err);
+        }
+    }
+    print_message("edge block against both pairs: largest difference %.3g relative\n", worst);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -522,6 +608,7 @@ int main(void)
         cmocka_unit_test(q2_equals_quadrature),
         cmocka_unit_test(paper_s_matrix_relation),
         cmocka_unit_test(blocks_symmetric_psd_with_rank),
+        cmocka_unit_test(edge_block_equals_both_pairs),
     };
     return cmocka_run_group_tests_name("element", t, NULL, NULL);
 }
