@@ -109,6 +109,42 @@ static void replay_moves_a_scene_the_same_at_every_speed(void **state)
                         "isoshape replay: a scene needs --shape NAME, or both --mesh and --sel.\n");
 }
 
+/* A mesh and its regions from files drive a replay too: no .def is needed
+ * (a device-driven replay has no target pose). A 5x5 grid, its first row
+ * fixed and its last the handle. */
+static void replay_moves_a_mesh_and_sel(void **state)
+{
+    (void)state;
+    char mesh[1024], sel[1024], s[1024];
+    static char text[4096];
+    size_t n = (size_t)snprintf(text, sizeof text, "OFF\n25 32 0\n");
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 5; i++)
+            n += (size_t)snprintf(text + n, sizeof text - n, "%d %d 0\n", i, j);
+    for (int j = 0; j < 4; j++)
+        for (int i = 0; i < 4; i++) {
+            int v = 5 * j + i;
+            n += (size_t)snprintf(text + n, sizeof text - n, "3 %d %d %d\n3 %d %d %d\n", v, v + 1,
+                                  v + 6, v, v + 6, v + 5);
+        }
+    iso_test_write(iso_test_tmp(mesh, sizeof mesh, "dev_cli_grid.off"), text, -1);
+    n = (size_t)snprintf(text, sizeof text, "# 0 fixed, 1 free, 2 handle\n");
+    for (int v = 0; v < 25; v++)
+        n += (size_t)snprintf(text + n, sizeof text - n, "%d\n", v < 5 ? 0 : v >= 20 ? 2 : 1);
+    iso_test_write(iso_test_tmp(sel, sizeof sel, "dev_cli_grid.sel"), text, -1);
+    stream(s, sizeof s, "sm_twist.isorec");
+    assert_int_equal(run("%s replay %s --fast --mesh %s --sel %s 2>&1", bin(), s, mesh, sel), 0);
+    const char *line = strstr(g_out, "vertices, 10 steps, vertices checksum ");
+    assert_non_null(line);
+    char moved[64];
+    snprintf(moved, sizeof moved, "%.16s", line + strlen("vertices, 10 steps, vertices checksum "));
+    /* the same mesh under a recording in which nothing moves: another result */
+    stream(s, sizeof s, "gpio_estop.isorec");
+    assert_int_equal(run("%s replay %s --fast --mesh %s --sel %s 2>&1", bin(), s, mesh, sel), 0);
+    assert_non_null(strstr(g_out, "25 vertices"));
+    assert_null(strstr(g_out, moved));
+}
+
 static void inspect_reports_damage_and_tear(void **state)
 {
     (void)state;
@@ -228,6 +264,7 @@ int main(void)
     const struct CMUnitTest t[] = {
         cmocka_unit_test(replay_is_the_same_at_every_speed),
         cmocka_unit_test(replay_moves_a_scene_the_same_at_every_speed),
+        cmocka_unit_test(replay_moves_a_mesh_and_sel),
         cmocka_unit_test(inspect_reports_damage_and_tear),
         cmocka_unit_test(record_from_a_pty_then_kill_9),
     };
