@@ -112,9 +112,9 @@ static int init_mapping(iso_loop *l, iso_err *err)
             mo = d->map;
         } else if (memcmp(&d->map, &mo, sizeof mo) != 0) {
             fprintf(l->log,
-                    "isoshape run: handle '%s' maps its device like handle '%s' (one mapping "
+                    "isoshape %s: handle '%s' maps its device like handle '%s' (one mapping "
                     "serves every device-driven handle)\n",
-                    sc->handles[h].name, sc->handles[first].name);
+                    l->cmd, sc->handles[h].name, sc->handles[first].name);
         }
         l->dev_handle[l->n_dev++] = h;
     }

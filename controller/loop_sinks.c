@@ -48,15 +48,10 @@ static int open_display(iso_loop *l, iso_err *err)
     if (rc == ISO_EIO && o.port != 0 && l->o.port < 0) {
         /* the scene's port is taken (another run, another server): any free
          * one serves as well, and the line below says which */
-        fprintf(l->log, "isoshape run: %s; using a free port instead\n", err->msg);
+        fprintf(l->log, "isoshape %s: %s; using a free port instead\n", l->cmd, err->msg);
         iso_err_clear(err);
         o.port = 0;
         rc = iso_display_create(&o, &l->sinks->display, err);
-    }
-    if (rc == ISO_ENOTSUP) { /* a build without civetweb still runs headless */
-        fprintf(l->log, "isoshape run: no live display: %s\n", err->msg);
-        iso_err_clear(err);
-        return ISO_OK;
     }
     if (rc != ISO_OK)
         return rc;
@@ -70,7 +65,7 @@ static int open_display(iso_loop *l, iso_err *err)
 static void act_notice(void *ctx, const char *line)
 {
     iso_loop *l = ctx;
-    fprintf(l->log, "isoshape run: %s\n", line);
+    fprintf(l->log, "isoshape %s: %s\n", l->cmd, line);
 }
 
 /* The scene's actuator channels and link, in the sink's own terms (sim/
@@ -132,8 +127,8 @@ int iso_loop__sinks_open(iso_loop *l, iso_err *err)
         rc = iso_ply_frames_create(l->sc->ply.dir, l->sc->mesh, l->sc->ply.every, &l->sinks->ply,
                                    err);
         if (rc == ISO_OK)
-            fprintf(l->log, "isoshape run: PLY frames every %d ticks into %s\n", l->sc->ply.every,
-                    l->sc->ply.dir);
+            fprintf(l->log, "isoshape %s: PLY frames every %d ticks into %s\n", l->cmd,
+                    l->sc->ply.every, l->sc->ply.dir);
     }
     if (rc == ISO_OK && l->sc->display.n_snapshots > 0) {
         const char *dir = l->sc->display.snapshot_dir;
@@ -218,7 +213,7 @@ int iso_loop__sinks_close(iso_loop *l, iso_err *err)
         return ISO_OK;
     int rc = close_actuators(k, err);
     if (k->act_stop[0])
-        fprintf(l->log, "isoshape run: actuators: %s\n", k->act_stop);
+        fprintf(l->log, "isoshape %s: actuators: %s\n", l->cmd, k->act_stop);
     if (k->display)
         k->frames_sent = iso_display_frames_sent(k->display);
     iso_display_destroy(k->display);
