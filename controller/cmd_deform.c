@@ -45,8 +45,11 @@ static const char *const help =
     "  --steps N          N fixed steps, or\n"
     "  --tol T            adaptive steps with local error T x bbox diagonal (default 1e-4)\n"
     "  --restore MU,TAU   isometry restoration (beyond the paper): each edge's length\n"
-    "                     relaxes to its rest length with time constant TAU (a fraction\n"
-    "                     of the path, t in [0, 1]), weight MU; default " RESTORE_DEFAULT_TEXT "\n"
+    "                     relaxes to its rest length with time constant TAU seconds\n"
+    "                     (the path takes 1 s, t in [0, 1], so TAU is also its fraction;\n"
+    "                     a scene's tau is seconds of its stream time: a scene whose\n"
+    "                     motion lasts D s matches TAU/D here), weight MU; "
+    "default " RESTORE_DEFAULT_TEXT "\n"
     "  --restore off      the paper's method exactly (use for paper reproductions)\n"
     "  --out OUT          write the deformed mesh (format from the extension)\n"
     "  --reference REF    also measure REF, another result of the same problem\n"
@@ -119,8 +122,7 @@ static int parse_args(int argc, char **argv, deform_args *a)
             if (r > 0 && iso_cli__weighting(cmd, val, &weighting) != 0)
                 return 2;
         } else if (VALUE("--restore")) {
-            if (r > 0 &&
-                iso_cli__restore(cmd, val, &a->so.restore_mu, &a->so.restore_tau) != 0)
+            if (r > 0 && iso_cli__restore(cmd, val, &a->so.restore_mu, &a->so.restore_tau) != 0)
                 return 2;
         } else if (VALUE("--steps")) {
             if (r > 0 && iso_cli__int(cmd, "--steps", val, &a->steps) != 0)

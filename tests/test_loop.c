@@ -26,6 +26,16 @@
 #include "iso_integrate.h"
 #include "iso_loop.h"
 
+static iso_scene *scene_text(const char *text)
+{
+    iso_scene *sc = NULL;
+    iso_err e;
+    iso_err_clear(&e);
+    if (iso_scene_load_mem(text, strlen(text), "t", NULL, &sc, &e) != ISO_OK)
+        fail_msg("scene: %s", e.msg);
+    return sc;
+}
+
 static iso_scene *scene(const char *driver, const char *devices, double hz)
 {
     static char text[8192];
@@ -37,12 +47,7 @@ static iso_scene *scene(const char *driver, const char *devices, double hz)
              "solver: {assembly: cpu, refactor: always}\n"
              "tick_hz: %.17g\n",
              devices, driver, hz);
-    iso_scene *sc = NULL;
-    iso_err e;
-    iso_err_clear(&e);
-    if (iso_scene_load_mem(text, strlen(text), "t", NULL, &sc, &e) != ISO_OK)
-        fail_msg("scene: %s", e.msg);
-    return sc;
+    return scene_text(text);
 }
 
 typedef struct run_out {
@@ -235,6 +240,48 @@ static void slowed_replay_keeps_the_motion(void **state)
     iso_scene_destroy(sc);
 }
 
+/* ---- restoration in the loop -------------------------------------------------- */
+
+/* The built-in bar's twist at 60 Hz under PEC, the shipped scenes' mode:
+ * restoration (μ 1, τ 0.05 s, the mode's default κ) ends with lower
+ * metricErr and areaErr than the paper's method. (The benchmark's bar, not
+ * shipped, is where κ 4 failed this: iso_integrate.h has the figures; this
+ * smaller mesh holds at κ 4 too, 3.32 / 6.05, so it guards the property,
+ * not that choice.) */
+static void restoration_in_the_loop_is_no_worse(void **state)
+{
+    (void)state;
+    static const char *const restore[2] = {"off", "{mu: 1.0, tau: 0.05}"};
+    double metric[2], area[2];
+    for (int i = 0; i < 2; i++) {
+        char text[1024];
+        snprintf(text, sizeof text,
+                 "name: bar\nmesh: {shape: bar, resolution: 4}\n"
+                 "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                 "      driver: {screw: {def: builtin, duration: 2.0}}\n"
+                 "solver: {assembly: cpu, refactor: always, restore: %s}\n"
+                 "integrator: {abm: pec}\ntick_hz: 60\n",
+                 restore[i]);
+        iso_scene *sc = scene_text(text);
+        iso_loop_opts o = fast_opts();
+        iso_err e;
+        iso_err_clear(&e);
+        iso_loop *l = NULL;
+        if (iso_loop_create(sc, &o, &l, &e) != ISO_OK || iso_loop_run(l, &e) != ISO_OK)
+            fail_msg("loop: %s", e.msg);
+        iso_loop_summary s;
+        iso_loop_get_summary(l, &s);
+        metric[i] = s.metrics.metric_err;
+        area[i] = s.metrics.area_err;
+        iso_loop_destroy(l);
+        iso_scene_destroy(sc);
+    }
+    printf("bar at 60 Hz, PEC: restoration off metricErr %.4g areaErr %.4g; on %.4g %.4g\n",
+           metric[0], area[0], metric[1], area[1]);
+    assert_true(metric[1] <= metric[0]);
+    assert_true(area[1] <= area[0]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -242,6 +289,7 @@ int main(void)
         cmocka_unit_test(duration_runs_rounded_ticks),
         cmocka_unit_test(loop_converges_at_its_order),
         cmocka_unit_test(slowed_replay_keeps_the_motion),
+        cmocka_unit_test(restoration_in_the_loop_is_no_worse),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

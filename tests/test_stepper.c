@@ -33,8 +33,8 @@ static int setup(void **state)
     iso_err err;
     iso_err_clear(&err);
     assert_int_equal(iso_shape_init(&f->shape, "cylinder", 10, &err), ISO_OK);
-    assert_int_equal(iso_mesh_create(f->shape.nv, f->shape.x, f->shape.nt, f->shape.tri,
-                                     "cylinder", &f->m, &err),
+    assert_int_equal(iso_mesh_create(f->shape.nv, f->shape.x, f->shape.nt, f->shape.tri, "cylinder",
+                                     &f->m, &err),
                      ISO_OK);
     assert_int_equal(iso_shape_regions(&f->shape, &f->r, &err), ISO_OK);
     assert_int_equal(iso_solver_create(f->m, &f->r, NULL, &f->s, &err), ISO_OK);
@@ -179,8 +179,8 @@ static void pec_is_third_order_at_one_evaluation_a_step(void **state)
         e[k] = iso_test_max_abs_diff(x, ref, 3 * (size_t)nv) / diag;
         free(x);
     }
-    print_message("PEC errors at 24, 48, 96 steps: %.3g %.3g %.3g, ratios %.2f %.2f\n", e[0],
-                  e[1], e[2], e[0] / e[1], e[1] / e[2]);
+    print_message("PEC errors at 24, 48, 96 steps: %.3g %.3g %.3g, ratios %.2f %.2f\n", e[0], e[1],
+                  e[2], e[0] / e[1], e[1] / e[2]);
     assert_true(e[0] / e[1] > 6 && e[0] / e[1] < 10);
     assert_true(e[1] / e[2] > 6 && e[1] / e[2] < 10);
     free(ref);
@@ -219,9 +219,10 @@ static void pec_needs_its_own_restoration_clamp(void **state)
         iso_stepper_destroy(st);
         free(x);
     }
-    print_message("restoration: max edge strain %.3g PEC at kappa 4, %.3g PEC at kappa 1, %.3g "
-                  "PECE at kappa 4\n",
-                  strain[0], strain[1], strain[2]);
+    print_message("restoration: max edge strain %.3g PEC at its default kappa %g, %.3g PEC at "
+                  "kappa 1, %.3g PECE at kappa %g\n",
+                  strain[0], ISO_INTEGRATE_RESTORE_KAPPA_PEC, strain[1], strain[2],
+                  ISO_INTEGRATE_RESTORE_KAPPA_PEC);
     assert_true(strain[0] < 1.5 * strain[2]);
     assert_true(!(strain[1] < 1.0)); /* unbounded growth */
     iso_solver_destroy(s);
