@@ -747,6 +747,8 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
     case ISO_ACT_LINK_EMULATED: {
         iso_act_emu_info info;
         int rc = iso_act_emu_open(l->emulation, &a->link, &info, err);
+        if (rc == ISO_OK && !a->link)
+            rc = iso_err_set(err, ISO_EIO, -1, "actuators: the emulated MCU gave no link");
         if (rc == ISO_OK)
             say(a, info.line);
         return rc;

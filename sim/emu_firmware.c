@@ -639,6 +639,9 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
             return ISO_OK;
         }
         emu_close(&e->base);
+        if (qerr.code == ISO_OK) /* never a success without a link (seen once in CI) */
+            iso_err_set(&qerr, ISO_EIO, -1, "%s: QEMU did not start, and said nothing why",
+                        "emulated MCU (QEMU)");
         if (mode == ISO_ACT_EMU_QEMU)
             return iso_err_set(err, qerr.code, -1, "%s", qerr.msg);
         snprintf(why, sizeof why, "QEMU did not start: %s", qerr.msg);
