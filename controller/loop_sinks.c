@@ -106,8 +106,8 @@ static int open_actuators(iso_loop *l, iso_err *err)
     link.emulation = a->emulation;
     iso_act_opts o = {0, act_notice, l};
     /* The loop watchdog: no progress for max(250 ms, 5 periods) and the
-     * sender stops streaming, so the MCU's own watchdog brakes it. The loop
-     * reports progress every tick and every ABM step (iso_loop.h). */
+     * sender stops streaming and sends SAFE. The loop reports progress every
+     * tick, every ABM step and inside each field evaluation (iso_loop.h). */
     iso_act_safety_opts so;
     memset(&so, 0, sizeof so);
     so.tick_period_ms = (int)ceil(1000.0 / l->sc->tick_hz);
@@ -185,8 +185,9 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
     return rc;
 }
 
-/* A clean stop: no more setpoints, then wait for the MCU's own report of
- * its safe state (the link watchdog: 100 ms plus a frame). */
+/* A clean stop: no more setpoints and SAFE, then wait for the MCU's own
+ * report of its safe state (one round trip; without SAFE, firmware 1.0, the
+ * link watchdog: 100 ms plus a frame). */
 #define ISO_LOOP_SAFE_STOP_MS 400
 
 static int close_actuators(struct iso_loop_sinks *k, iso_err *err)

@@ -291,6 +291,34 @@ int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err)
     return send_frame(h, ISO_FB_DIAG, p, iso_fb_diag_pack(p, sizeof p, &d), err);
 }
 
+int iso_fb_host_send_safe(iso_fb_host *h, uint8_t cause, iso_err *err)
+{
+    if (!h || h->state == ISO_FB_HOST_DOWN)
+        return iso_err_set(err, ISO_EIO, -1, "fb host: link is down");
+    if (!iso_fb_host_can_safe(h))
+        return iso_err_set(err, ISO_ENOTSUP, -1,
+                           "fb host: the MCU (firmware %u.%u) does not offer SAFE; only its link "
+                           "watchdog brakes it",
+                           (unsigned)(h->device.fw_version >> 8), (unsigned)(h->device.fw_version & 0xffu));
+    iso_fb_safe q = {cause};
+    uint8_t p[ISO_FB_MAX_PAYLOAD];
+    iso_err e;
+    iso_err_clear(&e);
+    int rc = send_frame(h, ISO_FB_SAFE, p, iso_fb_safe_pack(p, sizeof p, &q), &e);
+    if (rc != ISO_OK && rc != ISO_EINVAL) { /* the transport failed: the link is lost */
+        h->last_err = e;
+        link_down(h);
+    }
+    if (rc != ISO_OK && err)
+        *err = e;
+    return rc;
+}
+
+int iso_fb_host_can_safe(const iso_fb_host *h)
+{
+    return h && (h->device.flags & ISO_FB_HELLO_CAN_SAFE) != 0;
+}
+
 int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap)
 {
     return iso_fb_host_stats_format(&h->stats, buf, cap);

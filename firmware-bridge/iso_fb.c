@@ -459,3 +459,19 @@ int iso_fb_diag_unpack(iso_fb_diag *m, const uint8_t *src, size_t len)
     m->magic = get32(&c);
     return rdone(&c);
 }
+
+int iso_fb_safe_pack(uint8_t *dst, size_t cap, const iso_fb_safe *m)
+{
+    if (!m)
+        return ISO_FB_EARG;
+    cursor c = writer(dst, cap);
+    put8(&c, m->cause);
+    return wdone(&c);
+}
+
+int iso_fb_safe_unpack(iso_fb_safe *m, const uint8_t *src, size_t len)
+{
+    cursor c = reader(src, len);
+    m->cause = (uint8_t)get8(&c);
+    return rdone(&c);
+}

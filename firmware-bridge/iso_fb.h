@@ -62,7 +62,8 @@ enum {
     ISO_FB_NAK = 6,           /* MCU -> host: a frame was refused, with a reason */
     ISO_FB_FAULT = 7,         /* MCU -> host: safe state entered, with a reason */
     ISO_FB_DIAG = 8,          /* host -> MCU: diagnostics (hang to prove the HW watchdog) */
-    ISO_FB_TYPE_COUNT = 9
+    ISO_FB_SAFE = 9,          /* host -> MCU: brake to the safe state now (firmware >= 1.1) */
+    ISO_FB_TYPE_COUNT = 10
 };
 
 /* ---- CRC and COBS ------------------------------------------------------- */
@@ -131,6 +132,8 @@ typedef struct iso_fb_channel_info {
 } iso_fb_channel_info;
 
 #define ISO_FB_HELLO_BOOT 0x01u /* flags: first HELLO after a (re)boot, sent unasked */
+#define ISO_FB_HELLO_CAN_SAFE 0x02u /* flags, MCU's HELLO: it obeys SAFE (firmware >= 1.1);
+                                     * a host sends SAFE only to an MCU that says so */
 
 typedef struct iso_fb_hello {
     uint8_t proto_version;
@@ -187,11 +190,13 @@ typedef struct iso_fb_nak {
 } iso_fb_nak;
 
 enum {
-    ISO_FB_FAULT_WATCHDOG = 1    /* no valid SETPOINTS for the watchdog time */
+    ISO_FB_FAULT_WATCHDOG = 1,   /* no valid SETPOINTS for the watchdog time */
+    ISO_FB_FAULT_REQUESTED = 2   /* the host sent SAFE */
 };
 typedef struct iso_fb_fault {
     uint8_t reason;
-    uint32_t detail;     /* WATCHDOG: ms from the last valid SETPOINTS to the safe state */
+    uint32_t detail;     /* WATCHDOG: ms from the last valid SETPOINTS to the safe state;
+                          * REQUESTED: the SAFE request's cause */
     uint32_t uptime_ms;
 } iso_fb_fault;
 
@@ -199,6 +204,13 @@ typedef struct iso_fb_fault {
 typedef struct iso_fb_diag {
     uint32_t magic;
 } iso_fb_diag;
+
+/* SAFE's cause, echoed in FAULT(REQUESTED)'s detail; the MCU brakes the same
+ * way for each. */
+enum { ISO_FB_SAFE_ESTOP = 1, ISO_FB_SAFE_LOOP_STALL = 2, ISO_FB_SAFE_STOP = 3 };
+typedef struct iso_fb_safe {
+    uint8_t cause; /* ISO_FB_SAFE_*; any value is obeyed */
+} iso_fb_safe;
 
 /* Pack: writes the payload into dst (capacity cap) and returns its length,
  * or ISO_FB_EARG (a count over ISO_FB_MAX_CHANNELS) / ISO_FB_ENOSPACE.
@@ -220,5 +232,7 @@ int iso_fb_fault_pack(uint8_t *dst, size_t cap, const iso_fb_fault *m);
 int iso_fb_fault_unpack(iso_fb_fault *m, const uint8_t *src, size_t len);
 int iso_fb_diag_pack(uint8_t *dst, size_t cap, const iso_fb_diag *m);
 int iso_fb_diag_unpack(iso_fb_diag *m, const uint8_t *src, size_t len);
+int iso_fb_safe_pack(uint8_t *dst, size_t cap, const iso_fb_safe *m);
+int iso_fb_safe_unpack(iso_fb_safe *m, const uint8_t *src, size_t len);
 
 #endif

@@ -85,6 +85,15 @@ int iso_fb_host_step(iso_fb_host *h, uint32_t tick, const int16_t *values, unsig
 /* Sends a DIAG hang request (proves the MCU's hardware watchdog). */
 ISO_NODISCARD int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err);
 
+/* Sends SAFE(cause): an MCU that obeys it (iso_fb_host_can_safe) brakes to
+ * its safe state at once and answers FAULT(REQUESTED), which drops the host
+ * to HANDSHAKE like any FAULT. ISO_ENOTSUP when the MCU's HELLO did not
+ * offer SAFE (firmware 1.0: only its link watchdog brakes it), ISO_EIO when
+ * the link is down. */
+ISO_NODISCARD int iso_fb_host_send_safe(iso_fb_host *h, uint8_t cause, iso_err *err);
+/* 1 when the MCU's last HELLO answer offered SAFE (ISO_FB_HELLO_CAN_SAFE). */
+int iso_fb_host_can_safe(const iso_fb_host *h);
+
 /* Drops to HANDSHAKE so the next step sends HELLO again. */
 void iso_fb_host_rehello(iso_fb_host *h);
 

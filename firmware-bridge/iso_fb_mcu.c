@@ -35,7 +35,7 @@ static void send_hello(iso_fb_mcu *m, uint8_t flags)
     iso_fb_hello h;
     h.proto_version = ISO_FB_VERSION;
     h.fw_version = ISO_FB_MCU_FW_VERSION;
-    h.flags = flags;
+    h.flags = flags | ISO_FB_HELLO_CAN_SAFE;
     h.uptime_ms = m->now_ms;
     h.n_channels = m->cfg.n_channels;
     for (unsigned i = 0; i < m->cfg.n_channels; i++)
@@ -50,6 +50,14 @@ static void send_nak(iso_fb_mcu *m, const iso_fb_view *v, uint8_t reason)
     uint8_t p[ISO_FB_MAX_PAYLOAD];
     m->naks++;
     send(m, ISO_FB_NAK, p, iso_fb_nak_pack(p, sizeof p, &k));
+}
+
+static void send_fault(iso_fb_mcu *m, uint8_t reason, uint32_t detail)
+{
+    iso_fb_fault f = {reason, detail, m->now_ms};
+    uint8_t p[ISO_FB_MAX_PAYLOAD];
+    m->faults++;
+    send(m, ISO_FB_FAULT, p, iso_fb_fault_pack(p, sizeof p, &f));
 }
 
 /* The safe state brakes: every channel is at its safe position at once, not
@@ -153,6 +161,21 @@ static void on_diag(iso_fb_mcu *m, const iso_fb_view *v)
     m->hang_requested = 1;
 }
 
+/* SAFE brakes at once in any state, the same brake as the link watchdog's,
+ * and says so with FAULT(REQUESTED) so the host knows when it took effect.
+ * An idle MCU is at its safe positions already and stays idle. Motion
+ * resumes only after a fresh HELLO exchange. */
+static void on_safe(iso_fb_mcu *m, const iso_fb_view *v)
+{
+    iso_fb_safe q;
+    if (iso_fb_safe_unpack(&q, v->payload, v->len) != 0) {
+        send_nak(m, v, ISO_FB_NAK_BAD_PAYLOAD);
+        return;
+    }
+    go_safe(m, m->state == ISO_FB_STATE_IDLE ? ISO_FB_STATE_IDLE : ISO_FB_STATE_SAFE);
+    send_fault(m, ISO_FB_FAULT_REQUESTED, q.cause);
+}
+
 void iso_fb_mcu_rx(iso_fb_mcu *m, const uint8_t *bytes, size_t n)
 {
     for (size_t i = 0; i < n; i++) {
@@ -163,6 +186,7 @@ void iso_fb_mcu_rx(iso_fb_mcu *m, const uint8_t *bytes, size_t n)
         case ISO_FB_HELLO: on_hello(m, &v); break;
         case ISO_FB_SETPOINTS: on_setpoints(m, &v); break;
         case ISO_FB_DIAG: on_diag(m, &v); break;
+        case ISO_FB_SAFE: on_safe(m, &v); break;
         default: send_nak(m, &v, ISO_FB_NAK_REFUSED); break; /* MCU-to-host types */
         }
     }
@@ -180,14 +204,6 @@ static void move_actuators(iso_fb_mcu *m, uint32_t elapsed_ms)
             d = -step;
         m->pos_u[i] += (int32_t)d;
     }
-}
-
-static void send_fault(iso_fb_mcu *m, uint8_t reason, uint32_t detail)
-{
-    iso_fb_fault f = {reason, detail, m->now_ms};
-    uint8_t p[ISO_FB_MAX_PAYLOAD];
-    m->faults++;
-    send(m, ISO_FB_FAULT, p, iso_fb_fault_pack(p, sizeof p, &f));
 }
 
 void iso_fb_mcu_tick(iso_fb_mcu *m, uint32_t now_ms)

@@ -10,7 +10,7 @@
 
 #include "iso_fb.h"
 
-#define ISO_FB_MCU_FW_VERSION 0x0100u /* 1.0 */
+#define ISO_FB_MCU_FW_VERSION 0x0101u /* 1.1: obeys SAFE */
 
 /* Sends bytes towards the host; must take them all (the firmware queues
  * them in its UART ring). */

@@ -14,6 +14,9 @@
 #define ECHO_SLOTS 128u      /* sent frames kept for the ACK check, by frame seq */
 #define PERIOD_US 10000u     /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
 #define KEEP_ARMED_US 40000u /* HELLO again this often until the first publish */
+/* The e-stop, the loop watchdog and safe_stop are looked at this often, not
+ * only once a period: an e-stop edge sends SAFE within 2 ms (+ the probe). */
+#define HOLD_POLL_US 2000u
 /* The loop watchdog stops setpoints this much before loop_timeout_ms: the
  * MCU brakes 100 ms after the last SETPOINTS *arrives* and checks every
  * 1 ms, and a frame takes ~2 ms on a 115200 baud UART. So the safe state
@@ -419,6 +422,8 @@ static void on_fault(void *ctx, const iso_fb_fault *f)
     if (f->reason == ISO_FB_FAULT_WATCHDOG)
         snprintf(how, sizeof how, "FAULT watchdog, %u ms after the last setpoints",
                  (unsigned)f->detail);
+    else if (f->reason == ISO_FB_FAULT_REQUESTED)
+        snprintf(how, sizeof how, "FAULT requested: it obeyed SAFE");
     else
         snprintf(how, sizeof how, "FAULT reason %u", (unsigned)f->reason);
     note_safe(a, how);
@@ -575,6 +580,15 @@ static void count_event(iso_actuators *a, uint32_t *counter)
     pthread_mutex_unlock(&a->lock);
 }
 
+/* How the MCU gets to its safe state after a hold begins (PROTOCOL.md). */
+static const char *brake_how(const iso_actuators *a)
+{
+    return iso_fb_host_can_safe(&a->host)
+               ? "SAFE sent: the MCU brakes to its safe state at once"
+               : "the MCU (firmware 1.0, no SAFE) brakes by its link watchdog, 100 ms after the "
+                 "last setpoints it got";
+}
+
 /* The e-stop (the call or the probe), the loop watchdog and safe_stop, as
  * hold bits, each edge said once; returns the bits. A hold that ends leaves
  * ISO_ACT_HOLD_TICK until a publish that began after its end, which re-arms
@@ -592,11 +606,8 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
         h |= ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_TICK;
         count_event(a, &a->st.estops);
         begin_break(a, t0, ISO_ACT_HOLD_ESTOP, "the e-stop");
-        snprintf(line, sizeof line,
-                 "actuators: E-STOP%s: setpoints stopped %.1f ms after it; the MCU's link watchdog "
-                 "brakes it to its safe state 100 ms after the last setpoints it got (protocol v1 "
-                 "has no faster request)",
-                 req ? "" : " (probe)", (double)(now - t0) / 1000.0);
+        snprintf(line, sizeof line, "actuators: E-STOP%s: setpoints stopped %.1f ms after it; %s",
+                 req ? "" : " (probe)", (double)(now - t0) / 1000.0, brake_how(a));
         say(a, line);
     } else if (!es && (h & ISO_ACT_HOLD_ESTOP)) {
         h &= ~(unsigned)ISO_ACT_HOLD_ESTOP;
@@ -613,8 +624,8 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
             begin_break(a, p, ISO_ACT_HOLD_LOOP, "the loop's last progress");
             snprintf(line, sizeof line,
                      "actuators: LOOP STALLED: no progress for %.0f ms (limit %d ms): setpoints "
-                     "stopped; the MCU's watchdog brakes it to its safe state within 100 ms",
-                     (double)(now - p) / 1000.0, a->loop_timeout_ms);
+                     "stopped; %s",
+                     (double)(now - p) / 1000.0, a->loop_timeout_ms, brake_how(a));
             say(a, line);
         } else if (!stalled && (h & ISO_ACT_HOLD_LOOP)) {
             h &= ~(unsigned)ISO_ACT_HOLD_LOOP;
@@ -639,6 +650,30 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
     return h;
 }
 
+/* The holds now, from the shared state; a hold that begins sends SAFE at
+ * once to an MCU that obeys it (the SETPOINTS stop as well, so a lost SAFE
+ * still ends in the MCU's watchdog brake). */
+static unsigned holds_now(iso_actuators *a)
+{
+    pthread_mutex_lock(&a->lock);
+    int stopped = a->stopped;
+    uint64_t last_pub = a->last_publish_us;
+    pthread_mutex_unlock(&a->lock);
+    unsigned before = a->hold;
+    unsigned h = update_holds(a, now_us(), stopped, last_pub);
+    unsigned fresh = h & ~before;
+    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP) ? ISO_FB_SAFE_ESTOP
+                    : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
+                    : (fresh & ISO_ACT_HOLD_STOP) ? ISO_FB_SAFE_STOP
+                                                  : 0;
+    if (cause && iso_fb_host_can_safe(&a->host) && a->host.state != ISO_FB_HOST_DOWN) {
+        iso_err e;
+        if (iso_fb_host_send_safe(&a->host, cause, &e) == ISO_OK)
+            count_event(a, &a->st.safe_requests);
+    }
+    return h;
+}
+
 /* One period's SETPOINTS: the latest values, undriven channels at the MCU's
  * safe position. Nothing before the first publish, while a hold stands
  * (e-stop, loop stall, safe_stop), or while the MCU lacks a driven channel
@@ -646,17 +681,15 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
 static void send_latest(iso_actuators *a)
 {
     int16_t vals[ISO_ACT_MAX_CHANNELS], v[ISO_ACT_MAX_CHANNELS];
+    unsigned hold = holds_now(a); /* read right before the write, so the guard holds */
     pthread_mutex_lock(&a->lock);
-    int have_tick = a->have_tick, stopped = a->stopped, mismatch = a->mismatch;
-    uint64_t last_pub = a->last_publish_us;
+    int have_tick = a->have_tick, mismatch = a->mismatch;
     uint32_t tick = a->tick;
     memcpy(vals, a->values, sizeof vals);
     unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
     for (unsigned c = 0; c < n; c++)
         v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
     pthread_mutex_unlock(&a->lock);
-    /* the holds are read right before the write, so the guard holds */
-    unsigned hold = update_holds(a, now_us(), stopped, last_pub);
     if (!have_tick || hold || mismatch) {
         if (!have_tick && !hold) {
             /* before the first tick: bring the link up, keep the MCU armed */
@@ -716,16 +749,17 @@ static void *sender_main(void *arg)
         if (next + PERIOD_US < now)
             next = now + PERIOD_US;
         while ((now = now_us()) < next) {
-            uint64_t left = next - now;
+            uint64_t slice = next - now < HOLD_POLL_US ? next - now : HOLD_POLL_US;
             int frames = 0;
-            if (left >= 1000u && a->host.state != ISO_FB_HOST_DOWN)
-                frames = iso_fb_host_poll(&a->host, (int)(left / 1000u));
+            if (slice >= 1000u && a->host.state != ISO_FB_HOST_DOWN)
+                frames = iso_fb_host_poll(&a->host, (int)(slice / 1000u));
             else {
                 struct timespec ts;
-                to_timespec(next, &ts);
+                to_timespec(now + slice, &ts);
                 clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
             }
-            if (frames > 0 || a->host.state == ISO_FB_HOST_DOWN)
+            unsigned before = a->hold;
+            if (holds_now(a) != before || frames > 0 || a->host.state == ISO_FB_HOST_DOWN)
                 share_host(a, frames);
         }
     }
@@ -1110,14 +1144,14 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
         "actuators: %llu ticks, %llu setpoints sent, %llu acked, %llu echo mismatches (%llu "
         "unchecked), %llu clamps, rtt avg %.3f ms (max %.3f), publish max %.2f ms (%llu over 1 "
         "ms); link %s, losses %u, reopens %u, emulation restarts %u, loop stalls %u, e-stops %u, "
-        "silences %u, safe states confirmed %u",
+        "silences %u, SAFE requests %u, safe states confirmed %u",
         (unsigned long long)s.ticks, (unsigned long long)s.setpoints_sent,
         (unsigned long long)s.acks, (unsigned long long)s.echo_mismatches,
         (unsigned long long)s.echo_unknown, (unsigned long long)s.clamps, s.rtt_avg_ms,
         s.rtt_max_ms, s.publish_max_ms, (unsigned long long)s.publish_over_1ms,
         iso_actuators_link_state(a), (unsigned)s.link_losses, (unsigned)s.reopens, s.emu_restarts,
         (unsigned)s.loop_stalls, (unsigned)s.estops, (unsigned)s.silences,
-        (unsigned)s.safe_confirms);
+        (unsigned)s.safe_requests, (unsigned)s.safe_confirms);
     if (!a->host_up || n < 0 || (size_t)n + 2 >= cap)
         return n;
     /* the host's line from its counters as the sender last shared them */

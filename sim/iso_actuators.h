@@ -16,13 +16,12 @@
  * sent and iso_actuators_publish() reports it, so the MCU's link watchdog
  * keeps it safe.
  *
- * Stopping: the protocol has no "go safe" request, and this sink does not
- * add one (the protocol and the firmware are fixed here). A clean stop
- * therefore uses the link watchdog: iso_actuators_safe_stop() stops sending
- * SETPOINTS and listens until the MCU reports FAULT(watchdog) or a HEARTBEAT
- * in the safe (or idle) state, which PROTOCOL.md bounds at 100 ms + one
- * frame after the last setpoints. An explicit request would cut that to one
- * round trip; it would be a protocol version 2 change.
+ * Stopping: iso_actuators_safe_stop() stops sending SETPOINTS, sends SAFE
+ * to an MCU that obeys it (firmware >= 1.1, HELLO flag CAN_SAFE; it brakes
+ * at once and answers FAULT(requested)), and listens until the MCU reports
+ * its safe state (that FAULT, FAULT(watchdog), or a HEARTBEAT in the safe
+ * or idle state). An MCU without SAFE gets there by its link watchdog, 100
+ * ms + one frame after the last setpoints (PROTOCOL.md).
  *
  * Emulated firmware (emu_firmware.c): the real firmware ELF in
  * `qemu-system-arm -M mps2-an385` with its UART0 on a loopback TCP
@@ -41,23 +40,24 @@
  * 40k-vertex tick takes longer than 100 ms), and publish never touches I/O.
  *
  * Safety (issue #14). The sender streams only while three things hold; when
- * one fails it stops sending SETPOINTS, so the MCU's own link watchdog
- * brakes it to its safe state 100 ms (+ one 1 ms MCU tick) after the last
- * SETPOINTS it got, and the sink says so in one notice line:
+ * one fails it stops sending SETPOINTS and sends SAFE (PROTOCOL.md step 5):
+ * the MCU brakes to its safe state at once, one frame after the sender saw
+ * the cause. An MCU without SAFE (firmware 1.0) brakes by its own link
+ * watchdog, 100 ms (+ one 1 ms MCU tick) after the last SETPOINTS it got.
+ * Either way the sink says so in one notice line. The sender looks at the
+ * three every 2 ms, between its 10 ms SETPOINTS periods too:
  *  - the loop makes progress: once the loop has called iso_actuators_alive()
  *    (the loop watchdog is armed by that first call; a loop that never
  *    calls it is not guarded), no SETPOINTS go out later than
  *    loop_timeout_ms - 5 ms after the last alive() or publish(), so the MCU
- *    is safe within loop_timeout_ms + 100 ms of the loop's last progress.
- *    A slow tick is live as long as it calls alive() as it goes;
- *  - no e-stop: iso_actuators_estop(a, 1) or the safety opts' estop_probe. The
- *    sender stops at its next cycle (<= 10 ms), but that does not set the
- *    time to safe: protocol v1 has no "go safe" request (PROTOCOL.md), no
- *    host frame makes the MCU brake at once (a bad or out-of-range frame is
- *    NAKed or clamped, never FAULTed), so the brake comes from the link
- *    watchdog, 100-102 ms after the last SETPOINTS, i.e. at most ~102 ms
- *    after the e-stop edge (measured: see tests/test_actuators.c). A
- *    20 ms bound needs a protocol v2 SAFE request (one round trip);
+ *    is safe within loop_timeout_ms + 2 ms + one frame of the loop's last
+ *    progress (+ 100 ms without SAFE). A slow tick is live as long as it
+ *    calls alive() as it goes;
+ *  - no e-stop: iso_actuators_estop(a, 1) or the safety opts' estop_probe,
+ *    which the sender itself calls every 2 ms, so a stuck loop does not
+ *    delay it. From the edge to the brake: at most 2 ms + the probe + one
+ *    frame (~2 ms at 115200 baud) + one 1 ms MCU tick (measured: see
+ *    tests/test_actuators.c; the goal is 20 ms). Without SAFE, ~102 ms;
  *  - the link is up (see "Loss" below).
  * The loop watchdog's bound and the e-stop probe are iso_act_safety_opts
  * (iso_actuators_create_v2).
@@ -222,6 +222,7 @@ typedef struct iso_act_stats {
     uint32_t estops;        /* e-stop presses seen by the sender */
     uint32_t silences;      /* the MCU went quiet for 500 ms */
     uint32_t safe_confirms; /* safe-state reports after streaming stopped */
+    uint32_t safe_requests; /* SAFE frames sent (e-stop, loop stall, stop; firmware >= 1.1) */
     uint64_t alive_calls;   /* iso_actuators_alive() calls */
     /* From what stopped the streaming (the e-stop call, the loop's last
      * progress, the loss or silence, the stop) to the MCU's report of its

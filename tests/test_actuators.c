@@ -538,7 +538,7 @@ static int end_to_end(int mode, const char *label)
             "recovered with %u handshakes\n",
             label, (unsigned)stall_faults, (unsigned)s.handshakes);
 
-    /* safe stop: the link watchdog, 100 ms + one frame on the MCU clock */
+    /* safe stop: SAFE, answered by FAULT(requested) (firmware 1.1) */
     run_ticks(a, &tick, 300, moving_x, NULL, NULL);
     iso_actuators_stats(a, &s0);
     double safe_ms = -1;
@@ -546,18 +546,13 @@ static int end_to_end(int mode, const char *label)
     assert_int_equal(iso_actuators_safe_stop(a, 1000, &safe_ms, &err), ISO_OK);
     double waited = (now_s() - t_stop) * 1000;
     iso_actuators_stats(a, &s);
-    if (s.faults == s0.faults + 1 && s.last_fault_reason == ISO_FB_FAULT_WATCHDOG) {
-        /* the FAULT of this stop: it cannot come before the watchdog time
-         * (less the MCU's 1 ms clock, which may be a tick stale) */
-        assert_true(safe_ms >= 98.0);
-        assert_true(s.last_fault_detail_ms >= 100);
-        if (mode == ISO_ACT_EMU_NATIVE && s.last_fault_detail_ms <= 110)
-            assert_true(safe_ms <= 150.0);
-        else if (mode == ISO_ACT_EMU_NATIVE)
-            printf(
-                "native: the MCU thread itself ran %u ms late (loaded machine): no 150 ms bound\n",
-                (unsigned)s.last_fault_detail_ms);
-        assert_true(safe_ms <= 1000.0);
+    assert_int_equal(s.safe_requests, s0.safe_requests + 1);
+    if (s.faults == s0.faults + 1 && s.last_fault_reason == ISO_FB_FAULT_REQUESTED) {
+        /* the MCU braked on the request, not 100 ms later by its watchdog;
+         * the stop waited for its answer, one round trip (a frame each way
+         * at 115200 baud) plus the sender's 2 ms look; generous on CI */
+        assert_int_equal(s.last_fault_detail_ms, ISO_FB_SAFE_STOP);
+        assert_true(waited <= 50.0);
     } else {
         printf("%s: the MCU was already safe when the stop began (a stall just before it)\n",
                label);
@@ -595,6 +590,13 @@ static int end_to_end(int mode, const char *label)
  * sender streams the latest values at 100 Hz regardless, so the MCU never
  * faults, the first handshake is the only one, every echo matches what went
  * out in its frame, and the MCU follows the published values. */
+static iso_act_stats stats_of(iso_actuators *a)
+{
+    iso_act_stats s;
+    iso_actuators_stats(a, &s);
+    return s;
+}
+
 static void publish_every(iso_actuators *a, uint32_t *tick, const double *x, double seconds,
                           int (*done)(const iso_act_stats *))
 {
@@ -692,7 +694,8 @@ static void slow_loop_still_streams_at_100hz(void **state)
     assert_int_equal(iso_actuators_safe_stop(a, 1000, &safe_ms, &err), ISO_OK);
     printf("  slow loop: safe state %.1f ms after the last setpoints, the stop waited %.1f ms\n",
            safe_ms, (now_s() - t_stop) * 1000);
-    assert_true(safe_ms >= 98.0 && safe_ms <= 1000.0);
+    assert_true(safe_ms >= 0 && safe_ms <= 50.0); /* SAFE: no wait for the watchdog */
+    assert_int_equal(stats_of(a).last_fault_reason, ISO_FB_FAULT_REQUESTED);
     iso_actuators_destroy(a);
     iso_regions_deinit(&r);
 }
@@ -982,13 +985,6 @@ static void scene_runs_hardware_free(void **state)
 
 /* ---- safety (issue #14): loop watchdog, e-stop, MCU loss ------------------ */
 
-static iso_act_stats stats_of(iso_actuators *a)
-{
-    iso_act_stats s;
-    iso_actuators_stats(a, &s);
-    return s;
-}
-
 static void sleep_ms(double ms)
 {
     struct timespec ts = {(time_t)(ms / 1000), (long)(fmod(ms, 1000.0) * 1e6)};
@@ -1020,7 +1016,7 @@ static void start_streaming(iso_actuators *a, uint32_t *tick, const char *label)
 
 /* A loop that stops reporting progress for 1 s: the sink stops setpoints
  * once loop_timeout_ms (250 ms here, the default for a 10 ms tick) has
- * passed, the MCU's watchdog brakes it, and the sink confirms the safe
+ * passed and sends SAFE, the MCU brakes, and the sink confirms the safe
  * state; when the loop ticks again it re-arms with HELLO and streams. Then
  * a slow but live tick (1.2 s, progress every 50 ms) does not trip it.
  * Returns 0 when the emulation is absent (the caller skips). */
@@ -1059,9 +1055,10 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     double stall_ms = (t_stall - t_last) * 1000, safe_ms = (t_safe - t_last) * 1000;
     printf(
         "%s: loop stalled: detected %.1f ms after its last progress, MCU safe %.1f ms after it "
-        "(sink: %.1f ms; bound: timeout 250 + watchdog 100 = 350 ms: %s), MCU FAULT detail %u ms; "
-        "state '%s'\n",
+        "(sink: %.1f ms; the issue's bound: timeout 250 + 100 = 350 ms: %s), MCU FAULT reason "
+        "%u detail %u; state '%s'\n",
         label, stall_ms, safe_ms, s1.last_safe_ms, safe_ms <= 350.0 ? "met" : "MISSED",
+        (unsigned)s1.last_fault_reason,
         (unsigned)s1.last_fault_detail_ms, st);
     assert_int_equal(s1.loop_stalls, s0.loop_stalls + 1);
     assert_true(t_stall > 0 && t_safe > 0);
@@ -1069,6 +1066,8 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     assert_true(stall_ms <= 250.0 + 200.0); /* generous: loaded CI */
     assert_true(s1.last_safe_ms <= 350.0 + 150.0);
     assert_true(safe_ms <= 350.0 + 200.0);
+    assert_int_equal(s1.last_fault_reason, ISO_FB_FAULT_REQUESTED); /* SAFE, not the watchdog */
+    assert_int_equal(s1.safe_requests, s0.safe_requests + 1);
     assert_int_equal(s1.setpoints_sent, sent_at_stall); /* nothing after the stall */
     assert_int_equal(s1.last_safe_cause, ISO_ACT_HOLD_LOOP);
     assert_true(noticed("LOOP STALLED"));
@@ -1167,11 +1166,12 @@ static int read_estop_line(void *ctx)
 }
 
 /* An e-stop pressed while the loop's tick is stuck (0.6 s, under the 2 s
- * loop watchdog, so only the e-stop acts): setpoints stop within the
- * sender's 10 ms cycle and the MCU reports its safe state; protocol v1
- * gets it there through its 100 ms link watchdog, not within 20 ms (see
- * iso_actuators.h). A loop that ticks again does not re-arm while the
- * e-stop is held; after the release it does. */
+ * loop watchdog, so only the e-stop acts): the sender sees it within its
+ * 2 ms look, stops the setpoints and sends SAFE, and the MCU reports its
+ * safe state within 20 ms of the press (issue #14's bound; measured ~2 ms,
+ * so the bound holds with a wide margin on a loaded CI machine). A loop
+ * that ticks again does not re-arm while the e-stop is held; after the
+ * release it does. */
 static int estop_while_stuck(int mode, int probe, const char *label)
 {
     iso_regions r;
@@ -1199,17 +1199,19 @@ static int estop_while_stuck(int mode, int probe, const char *label)
     iso_act_stats s1 = stats_of(a);
     double ms = (p.t_safe - p.t_press) * 1000;
     printf("%s: e-stop%s during a stuck tick: MCU safe %.1f ms after the press (sink: %.1f ms; "
-           "the 20 ms goal is %s by %.1f ms: protocol v1 brakes only by its 100 ms link "
-           "watchdog), MCU FAULT detail %u ms; setpoints after press+20 ms: %llu; state '%s'\n",
-           label, probe ? " (probe)" : "", ms, s1.last_safe_ms, ms <= 20 ? "met" : "missed",
-           ms - 20.0, (unsigned)s1.last_fault_detail_ms,
+           "bound 20 ms), MCU FAULT reason %u detail %u; setpoints after press+20 ms: %llu; "
+           "state '%s'\n",
+           label, probe ? " (probe)" : "", ms, s1.last_safe_ms, (unsigned)s1.last_fault_reason,
+           (unsigned)s1.last_fault_detail_ms,
            (unsigned long long)(p.sent_end - p.sent_20ms), iso_actuators_link_state(a));
     assert_true(p.t_safe > 0);
     assert_int_equal(s1.estops, s0.estops + 1);
     assert_int_equal(s1.last_safe_cause, ISO_ACT_HOLD_ESTOP);
     assert_int_equal(p.sent_end, p.sent_20ms);     /* stopped within the sender's cycle */
-    assert_true(s1.last_safe_ms <= 102.0 + 150.0); /* watchdog + frame; generous: loaded CI */
-    assert_true(ms <= 102.0 + 200.0);
+    assert_true(ms <= 20.0); /* the press to the MCU's answer, one round trip included */
+    assert_true(s1.last_safe_ms <= 20.0);
+    assert_int_equal(s1.last_fault_reason, ISO_FB_FAULT_REQUESTED);
+    assert_int_equal(s1.last_fault_detail_ms, ISO_FB_SAFE_ESTOP);
     assert_string_equal(iso_actuators_link_state(a), "safe (e-stop)");
     assert_true(noticed("E-STOP"));
     assert_int_equal(s1.loop_stalls, s0.loop_stalls); /* the e-stop acted, not the watchdog */

@@ -271,6 +271,58 @@ static void mcu_diag_hang_only_when_unarmed(void **state)
     assert_true(r->mcu.hang_requested);
 }
 
+/* SAFE (firmware 1.1): the brake of the watchdog, at once and in any state,
+ * answered by FAULT(requested) carrying the cause; only HELLO re-arms. */
+static void mcu_safe_brakes_at_once_in_any_state(void **state)
+{
+    (void)state;
+    rig *r = rig_new(0);
+    drain(&r->link, &r->p, &r->d);
+    assert_true(r->d.hello.flags & ISO_FB_HELLO_CAN_SAFE); /* the boot HELLO offers it */
+    uint8_t p[8];
+    iso_fb_safe q = {ISO_FB_SAFE_ESTOP};
+    /* idle: already at the safe positions; stays idle, still answers */
+    send_to(&r->mcu, ISO_FB_SAFE, 1, p, iso_fb_safe_pack(p, sizeof p, &q));
+    drain(&r->link, &r->p, &r->d);
+    assert_int_equal(r->mcu.state, ISO_FB_STATE_IDLE);
+    assert_int_equal(r->d.count[ISO_FB_FAULT], 1);
+    assert_int_equal(r->d.fault.reason, ISO_FB_FAULT_REQUESTED);
+    /* armed and moving: SAFE brakes before any MCU tick */
+    send_hello(&r->mcu, 2);
+    drain(&r->link, &r->p, &r->d);
+    assert_true(r->d.hello.flags & ISO_FB_HELLO_CAN_SAFE);
+    const int16_t v[3] = {500, -500, 400};
+    send_setpoints(&r->mcu, 3, 1, v, 3);
+    for (uint32_t t = 1001; t <= 1050; t++)
+        iso_fb_mcu_tick(&r->mcu, t);
+    assert_int_equal(iso_fb_mcu_position(&r->mcu, 0), 100); /* 50 ms at 2000/s */
+    q.cause = ISO_FB_SAFE_LOOP_STALL;
+    send_to(&r->mcu, ISO_FB_SAFE, 4, p, iso_fb_safe_pack(p, sizeof p, &q));
+    drain(&r->link, &r->p, &r->d);
+    assert_int_equal(r->mcu.state, ISO_FB_STATE_SAFE);
+    assert_int_equal(iso_fb_mcu_position(&r->mcu, 0), 0);
+    assert_int_equal(iso_fb_mcu_position(&r->mcu, 2), 100);
+    assert_int_equal(r->d.count[ISO_FB_FAULT], 1);
+    assert_int_equal(r->d.fault.reason, ISO_FB_FAULT_REQUESTED);
+    assert_int_equal(r->d.fault.detail, ISO_FB_SAFE_LOOP_STALL);
+    assert_int_equal(r->d.fault.uptime_ms, 1050);
+    /* no motion until a fresh HELLO; the watchdog does not fault again */
+    send_setpoints(&r->mcu, 5, 2, v, 3);
+    for (uint32_t t = 1051; t <= 1300; t++)
+        iso_fb_mcu_tick(&r->mcu, t);
+    drain(&r->link, &r->p, &r->d);
+    assert_int_equal(r->d.nak.reason, ISO_FB_NAK_NOT_ARMED);
+    assert_int_equal(r->d.count[ISO_FB_FAULT], 0);
+    assert_int_equal(iso_fb_mcu_position(&r->mcu, 0), 0);
+    /* a broken SAFE is refused, and changes nothing */
+    send_hello(&r->mcu, 6);
+    uint8_t two[2] = {1, 2};
+    send_to(&r->mcu, ISO_FB_SAFE, 7, two, 2);
+    drain(&r->link, &r->p, &r->d);
+    assert_int_equal(r->d.nak.reason, ISO_FB_NAK_BAD_PAYLOAD);
+    assert_int_equal(r->mcu.state, ISO_FB_STATE_ARMED);
+}
+
 static void mcu_samples_while_armed(void **state)
 {
     (void)state;
@@ -446,6 +498,43 @@ static void host_rehellos_when_mcu_reboots(void **state)
     assert_int_equal(h.stats.rx.out_of_order, 0);
 }
 
+/* The host sends SAFE only to an MCU whose HELLO offered it; the answer
+ * drops it to HANDSHAKE like any FAULT. */
+static void host_sends_safe_only_when_offered(void **state)
+{
+    (void)state;
+    rig *r = rig_new(0);
+    seen z;
+    memset(&z, 0, sizeof z);
+    iso_fb_host_callbacks cb = {NULL, NULL, on_fault, NULL, NULL, &z};
+    iso_fb_host h;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_fb_host_init(&h, &r->link.base, NULL, &cb, &err), ISO_OK);
+    uint32_t t = 1000, tick = 0;
+    host_run(r, &h, &t, &tick, 3, 1);
+    assert_int_equal(h.state, ISO_FB_HOST_STREAMING);
+    assert_true(iso_fb_host_can_safe(&h));
+    assert_int_equal(iso_fb_host_send_safe(&h, ISO_FB_SAFE_ESTOP, &err), ISO_OK);
+    assert_int_equal(r->mcu.state, ISO_FB_STATE_SAFE); /* the fake link delivers at once */
+    iso_fb_host_poll(&h, 0);
+    assert_int_equal(z.faults, 1);
+    assert_int_equal(z.last_fault_detail, ISO_FB_SAFE_ESTOP);
+    assert_int_equal(h.state, ISO_FB_HOST_HANDSHAKE);
+    /* an MCU with firmware 1.0 offers no SAFE: nothing is sent */
+    host_run(r, &h, &t, &tick, 3, 1);
+    assert_int_equal(h.state, ISO_FB_HOST_STREAMING);
+    h.device.flags &= (uint8_t)~ISO_FB_HELLO_CAN_SAFE;
+    h.device.fw_version = 0x0100;
+    uint64_t tx = h.stats.tx_frames;
+    iso_err_clear(&err);
+    assert_int_equal(iso_fb_host_send_safe(&h, ISO_FB_SAFE_ESTOP, &err), ISO_ENOTSUP);
+    assert_non_null(strstr(err.msg, "firmware 1.0"));
+    assert_int_equal(h.stats.tx_frames, tx);
+    assert_int_equal(r->mcu.state, ISO_FB_STATE_ARMED);
+    iso_fb_host_deinit(&h);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -453,10 +542,12 @@ int main(void)
         cmocka_unit_test(mcu_hello_arms_then_setpoints_echo_clamp_and_ramp),
         cmocka_unit_test(mcu_watchdog_safe_state_within_timeout_plus_one_tick),
         cmocka_unit_test(mcu_diag_hang_only_when_unarmed),
+        cmocka_unit_test(mcu_safe_brakes_at_once_in_any_state),
         cmocka_unit_test(mcu_samples_while_armed),
         cmocka_unit_test(mcu_rejects_bad_config),
         cmocka_unit_test(host_streams_recovers_from_watchdog_and_link_loss),
         cmocka_unit_test(host_rehellos_when_mcu_reboots),
+        cmocka_unit_test(host_sends_safe_only_when_offered),
     };
     return cmocka_run_group_tests_name("fb_mcu", t, NULL, NULL);
 }

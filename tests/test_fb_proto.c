@@ -337,6 +337,14 @@ static void messages_round_trip(void **state)
     n = iso_fb_diag_pack(b, sizeof b, &d);
     assert_int_equal(iso_fb_diag_unpack(&d2, b, (size_t)n), 0);
     assert_int_equal(d2.magic, ISO_FB_DIAG_HANG_MAGIC);
+
+    iso_fb_safe q = {ISO_FB_SAFE_LOOP_STALL}, q2;
+    n = iso_fb_safe_pack(b, sizeof b, &q);
+    assert_int_equal(n, 1); /* cause:u8 (PROTOCOL.md) */
+    assert_int_equal(iso_fb_safe_unpack(&q2, b, (size_t)n), 0);
+    assert_int_equal(q2.cause, ISO_FB_SAFE_LOOP_STALL);
+    assert_int_equal(iso_fb_safe_unpack(&q2, b, 0), ISO_FB_EPAYLOAD);
+    assert_int_equal(iso_fb_safe_unpack(&q2, b, 2), ISO_FB_EPAYLOAD);
 }
 
 int main(void)
