@@ -209,6 +209,7 @@ typedef struct iso_scene_actuators {
     int emulation;                 /* EMULATED: iso_scene_emu_mode */
     iso_scene_channel ch[ISO_SCENE_MAX_CHANNELS];
     int n_ch;
+    int loop_timeout_ms; /* loop watchdog bound; 0 (default) = max(250, 5 tick periods) */
 } iso_scene_actuators;
 
 /* ---- the scene -------------------------------------------------------------- */

@@ -1326,7 +1326,7 @@ static int parse_sinks(sctx *c, fnode *n)
         s->ply.enabled = 1;
     }
     if ((v = get(n, "actuators"))) {
-        static const char *const ak[] = {"link", "channels", NULL};
+        static const char *const ak[] = {"link", "channels", "loop_timeout_ms", NULL};
         iso_scene_actuators *a = &s->actuators;
         if ((rc = want_map(c, v, "sinks.actuators", "{link, channels}")) ||
             (rc = check_keys(c, v, "sinks.actuators", ak)))
@@ -1355,6 +1355,11 @@ static int parse_sinks(sctx *c, fnode *n)
                     return fail(c, get(e, "channel"), ISO_EPARSE, key,
                                 "channel %d is used twice", a->ch[i].channel);
         }
+        /* the loop watchdog may be widened or narrowed, never switched off */
+        fnode *lt = get(v, "loop_timeout_ms");
+        if (lt && (rc = to_int(c, lt, "sinks.actuators.loop_timeout_ms", 20, 60000,
+                               &a->loop_timeout_ms)))
+            return rc;
         a->enabled = 1;
     }
     return ISO_OK;

@@ -50,6 +50,19 @@
  * arrives after it is recorded, but a replay ends at that TICK record), so
  * replaying an interrupted session reproduces it bit for bit.
  *
+ * Safety (issue #14). The loop reports progress to the actuators' loop
+ * watchdog at every tick, every ABM step, and inside every field
+ * evaluation after its assembly, each factorization and each conjugate-
+ * gradient iteration (iso_solver_set_progress). The rule: the loop is live
+ * while no gap between two progress reports exceeds the scene's
+ * sinks.actuators.loop_timeout_ms (default max(250 ms, 5 tick periods));
+ * a slow tick made of short pieces is live whatever its length, a tick
+ * stuck anywhere (a hook, a hung call, a single piece longer than the
+ * bound) is not, and then the sender stops the setpoints and sends SAFE.
+ * E-stop inputs (the scene's GPIO e-stop lines, o->estop_probe) are read by
+ * the sender thread itself every 2 ms, so they act while a tick is stuck;
+ * the mapping's decoded e-stop acts at each device tick as well.
+ *
  * Not thread-safe; the display and the actuators have threads of their own
  * behind their APIs. */
 #ifndef ISO_LOOP_H
@@ -101,6 +114,14 @@ typedef struct iso_loop_opts {
     void (*on_tick)(void *ctx, const iso_loop_tick_info *t);
     void (*on_command)(void *ctx, const iso_dev_tick *cmd, double dt_s);
     void *hook_ctx;
+    /* An e-stop input of the embedding program (a hardware line, a button
+     * of its own), read by the actuators' sender thread every 2 ms whatever
+     * the tick is doing: nonzero = pressed. NULL: none. It must be quick and
+     * thread-safe. The scene's own e-stop inputs (a GPIO e-stop line) are
+     * read the same way without it (iso_dev_hub_estop_probe), and the
+     * mapping's decoded e-stop acts at each device tick as well. */
+    int (*estop_probe)(void *ctx);
+    void *estop_ctx;
 } iso_loop_opts;
 
 void iso_loop_opts_default(iso_loop_opts *o);
@@ -173,6 +194,10 @@ const iso_pose *iso_loop_commanded_pose(const iso_loop *l, int h);
 /* The device hub (NULL without devices) and, for a replay, its recording's
  * reader (records, damage, tear); NULL otherwise. Read-only. */
 const iso_dev_hub *iso_loop_hub(const iso_loop *l);
+/* The actuator sink (NULL without one), for a status display or a safety
+ * monitor on another thread: its stats, state and link state are safe to
+ * read from any thread (iso_actuators.h). */
+struct iso_actuators *iso_loop_actuators(const iso_loop *l);
 const iso_dev_rec_reader *iso_loop_replay_reader(const iso_loop *l);
 
 #endif

@@ -169,6 +169,13 @@ static void rest_centroids(iso_loop *l)
             l->centroid[h][j] /= n[h];
 }
 
+/* The solver's progress inside an evaluation is the loop's progress: the
+ * actuators' loop watchdog tells a slow evaluation from a stuck one. */
+static void solver_progress(void *ctx)
+{
+    iso_loop__sinks_alive(ctx);
+}
+
 static int build_solver(iso_loop *l, iso_err *err)
 {
     const iso_scene *sc = l->sc;
@@ -179,6 +186,7 @@ static int build_solver(iso_loop *l, iso_err *err)
     int rc = iso_solver_create(sc->mesh, &sc->regions, &so, &l->solver, err);
     if (rc != ISO_OK)
         return rc;
+    iso_solver_set_progress(l->solver, solver_progress, l);
     const char *notice = iso_solver_notice(l->solver);
     if (notice && notice[0])
         fprintf(l->log, "isoshape %s: %s\n", l->cmd, notice);
@@ -264,6 +272,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         rc = open_devices(l, err);
     if (rc == ISO_OK && l->hub)
         rc = devices_ready(l, err);
+    if (rc == ISO_OK && l->hub)
+        l->hub_estop = iso_dev_hub_has_estop(l->hub);
     if (rc == ISO_OK && sc->mesh)
         rc = iso_loop__sinks_open(l, err);
     const char *rec = l->o.record ? l->o.record : sc->recording;

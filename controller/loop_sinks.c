@@ -70,6 +70,16 @@ static void act_notice(void *ctx, const char *line)
 
 /* The scene's actuator channels and link, in the sink's own terms (sim/
  * does not read scene files). */
+/* The e-stop inputs the sender reads by itself: the embedder's probe and
+ * the devices' e-stop lines (the hub outlives the sinks). */
+static int estop_inputs(void *ctx)
+{
+    const iso_loop *l = ctx;
+    if (l->o.estop_probe && l->o.estop_probe(l->o.estop_ctx))
+        return 1;
+    return l->hub && l->hub_estop && iso_dev_hub_estop_probe(l->hub);
+}
+
 static int open_actuators(iso_loop *l, iso_err *err)
 {
     const iso_scene_actuators *a = &l->sc->actuators;
@@ -111,6 +121,9 @@ static int open_actuators(iso_loop *l, iso_err *err)
     iso_act_safety_opts so;
     memset(&so, 0, sizeof so);
     so.tick_period_ms = (int)ceil(1000.0 / l->sc->tick_hz);
+    so.loop_timeout_ms = a->loop_timeout_ms; /* 0: the default above */
+    so.estop_probe = estop_inputs; /* read on the sender thread, every 2 ms */
+    so.estop_ctx = l;
     return iso_actuators_create_v2(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &so,
                                    &l->sinks->act, err);
 }
@@ -263,4 +276,9 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
         snprintf(buf + n, cap - n, "%sactuators %s, %llu acks", n ? "  " : "",
                  iso_actuators_link_state(k->act), (unsigned long long)st.acks);
     }
+}
+
+struct iso_actuators *iso_loop_actuators(const iso_loop *l)
+{
+    return l && l->sinks ? l->sinks->act : NULL;
 }

@@ -95,7 +95,21 @@ static void gp_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops gp_ops = {"gpiod", gp_fd, gp_read, gp_write_level, gp_close};
+/* The e-stop line's level by ioctl on its request descriptor: no state of
+ * libgpiod's changes, so it may run on the actuators' sender thread while
+ * the loop reads edges from the same line (active-low is applied by the
+ * request flag). */
+static int gp_estop_level(iso_dev_source *s)
+{
+    struct gpiod_line *l = ((gp *)s->impl)->in[ISO_DEV_GPIO_ESTOP];
+    if (!l)
+        return ISO_ENOTSUP;
+    int v = gpiod_line_get_value(l);
+    return v < 0 ? ISO_EIO : v != 0;
+}
+
+static const iso_dev_source_ops gp_ops = {"gpiod",  gp_fd,   gp_read, gp_write_level,
+                                          gp_close, gp_estop_level};
 
 static int fail(gp *g, iso_dev_source *s, iso_err *err, const char *chip, const char *what,
                 int line)

@@ -59,7 +59,7 @@ static void ser_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops ser_ops = {"serialport", ser_fd, ser_read, NULL, ser_close};
+static const iso_dev_source_ops ser_ops = {"serialport", ser_fd, ser_read, NULL, ser_close, NULL};
 
 int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out, iso_err *err)
 {

@@ -47,7 +47,7 @@ static void tcp_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops tcp_ops = {"tcp", tcp_fd, tcp_read, NULL, tcp_close};
+static const iso_dev_source_ops tcp_ops = {"tcp", tcp_fd, tcp_read, NULL, tcp_close, NULL};
 
 static int connect_one(const struct addrinfo *a, int timeout_ms, int *err_no)
 {

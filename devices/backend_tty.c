@@ -72,7 +72,7 @@ static void tty_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops tty_ops = {"tty", tty_fd, tty_read, NULL, tty_close};
+static const iso_dev_source_ops tty_ops = {"tty", tty_fd, tty_read, NULL, tty_close, NULL};
 
 int iso_dev_tty_open_raw(const char *path, uint32_t baud, int *fd_out, iso_err *err)
 {

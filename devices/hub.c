@@ -7,6 +7,7 @@
  * that drains it, so a replay drains the same chunks into the same ticks. */
 #include "iso_dev.h"
 
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,6 +27,7 @@ typedef struct hub_src {
     uint8_t stale;                 /* its twist counted zero in the last tick */
     int64_t quiet_from;            /* stream time of the last twist before it went stale */
     uint32_t events, gone, back, stale_count;
+    uint8_t estop_line; /* the source has an e-stop input (estop_level answers) */
 } hub_src;
 
 struct iso_dev_hub {
@@ -43,7 +45,21 @@ struct iso_dev_hub {
     long tick_records; /* replay: TICK records drained so far */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
+    /* Guards src[].s and n against iso_dev_hub_estop_probe on another
+     * thread: held to swap a pointer or to read the lines, never across a
+     * device open, a close or a read of input. */
+    pthread_mutex_t line_mu;
 };
+
+/* Sets source i's pointer under line_mu and returns the old one. */
+static iso_dev_source *swap_source(iso_dev_hub *h, size_t i, iso_dev_source *s)
+{
+    pthread_mutex_lock(&h->line_mu);
+    iso_dev_source *old = h->src[i].s;
+    h->src[i].s = s;
+    pthread_mutex_unlock(&h->line_mu);
+    return old;
+}
 
 static void say(iso_dev_hub *h, const char *fmt, ...) ISO_PRINTF(2, 3);
 static void say(iso_dev_hub *h, const char *fmt, ...)
@@ -66,6 +82,7 @@ int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub *
     (*out)->notify = notify;
     (*out)->notify_ctx = notify_ctx;
     (*out)->retry_ns = 500000000;
+    pthread_mutex_init(&(*out)->line_mu, NULL);
     return ISO_OK;
 }
 
@@ -74,10 +91,11 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
     if (!h)
         return;
     for (size_t i = 0; i < h->n; i++)
-        iso_dev_source_close(h->src[i].s);
+        iso_dev_source_close(swap_source(h, i, NULL));
     iso_dev_source_close(h->mux);
     if (h->recording && iso_dev_rec_writer_close(&h->rec, NULL) != ISO_OK)
         say(h, "recording %s: could not be closed cleanly", h->rec.path);
+    pthread_mutex_destroy(&h->line_mu);
     free(h);
 }
 
@@ -119,13 +137,41 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
         iso_dev_source_close(s);
         return rc;
     }
-    x->s = s;
     x->present = 1;
     memcpy(x->detail, s->detail, sizeof x->detail);
     x->reopen = reopen;
     x->reopen_ctx = reopen_ctx;
+    x->estop_line = s->ops->estop_level && s->ops->estop_level(s) != ISO_ENOTSUP;
+    pthread_mutex_lock(&h->line_mu);
+    x->s = s;
     h->n++;
+    pthread_mutex_unlock(&h->line_mu);
     return ISO_OK;
+}
+
+int iso_dev_hub_estop_probe(void *hub)
+{
+    iso_dev_hub *h = hub;
+    int pressed = 0;
+    pthread_mutex_lock(&h->line_mu);
+    for (size_t i = 0; i < h->n && !pressed; i++) {
+        const hub_src *x = &h->src[i];
+        if (!x->estop_line)
+            continue;
+        /* gone or unreadable: the e-stop circuit cannot be trusted */
+        int v = x->s ? x->s->ops->estop_level(x->s) : ISO_EIO;
+        pressed = v != 0 && v != ISO_ENOTSUP;
+    }
+    pthread_mutex_unlock(&h->line_mu);
+    return pressed;
+}
+
+int iso_dev_hub_has_estop(const iso_dev_hub *h)
+{
+    for (size_t i = 0; i < h->n; i++)
+        if (h->src[i].estop_line)
+            return 1;
+    return 0;
 }
 
 size_t iso_dev_hub_sources(const iso_dev_hub *h)
@@ -277,10 +323,10 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         iso_err e;
         iso_err_clear(&e);
         x->next_try = now + h->retry_ns;
-        if (x->reopen(x->reopen_ctx, &x->info, &x->s, &e) != ISO_OK || !x->s) {
-            x->s = NULL;
+        iso_dev_source *back = NULL;
+        if (x->reopen(x->reopen_ctx, &x->info, &back, &e) != ISO_OK || !back)
             return ISO_OK;
-        }
+        swap_source(h, i, back);
         memcpy(x->detail, x->s->detail, sizeof x->detail);
         say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
         int rc = mark(h, i, ISO_DEV_CHUNK_BACK, now, err);
@@ -297,8 +343,7 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         if (got < 0) {
             say(h, "%s %s went away (%s): its handles hold still until it is back",
                 iso_dev_kind_name(x->info.kind), x->info.name, e.msg);
-            iso_dev_source_close(x->s);
-            x->s = NULL;
+            iso_dev_source_close(swap_source(h, i, NULL));
             x->next_try = now + h->retry_ns;
             return mark(h, i, ISO_DEV_CHUNK_GONE, now, err);
         }

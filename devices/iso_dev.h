@@ -87,6 +87,12 @@ typedef struct iso_dev_source_ops {
     /* Optional: drives an output line (GPIO trigger); NULL if none. */
     int (*write_level)(iso_dev_source *s, int level, iso_err *err);
     void (*close)(iso_dev_source *s);
+    /* Optional: the e-stop input's level now, read without blocking and
+     * safe to call from another thread than read's (the actuators' sender
+     * reads it every 2 ms while a tick computes: iso_dev_hub_estop_probe).
+     * 1 pressed, 0 released, ISO_ENOTSUP when the source has no e-stop
+     * line, another negative ISO_E* when the read failed. NULL: none. */
+    int (*estop_level)(iso_dev_source *s);
 } iso_dev_source_ops;
 
 struct iso_dev_source {
@@ -118,6 +124,10 @@ ISO_NODISCARD int iso_dev_fake_push(iso_dev_source *s, int64_t t_ns, const void 
 ISO_NODISCARD int iso_dev_fake_push_gone(iso_dev_source *s, int64_t t_ns);
 /* How many times write_level was called, and the last level written. */
 int iso_dev_fake_writes(iso_dev_source *s, int *last_level);
+/* Gives the fake an e-stop line at this level (1 pressed, 0 released, or a
+ * negative ISO_E* its estop_level then returns); any thread. Until the first
+ * call it has none (ISO_ENOTSUP). */
+void iso_dev_fake_set_estop(iso_dev_source *s, int level);
 
 /* ---- OS backends without optional libraries (always built) ------------ */
 
@@ -474,6 +484,17 @@ void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is a no-op
 ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
                                   void *reopen_ctx, iso_err *err);
 size_t iso_dev_hub_sources(const iso_dev_hub *h);
+/* The e-stop inputs (sources whose estop_level answers, e.g. a GPIO e-stop
+ * line), read now: 1 when any is pressed, or is gone or unreadable (an
+ * e-stop circuit that cannot be read is not trusted), else 0. Safe to call
+ * from any thread while the hub's own thread drains and reconnects; it
+ * takes a lock held only for pointer swaps and these reads, never across
+ * device I/O. The signature is iso_act_estop_fn's: the actuators' sender
+ * calls it every 2 ms, so an e-stop edge acts while a tick computes. The
+ * decoded e-stop (debounced, recorded) still goes through the mapping;
+ * this probe only ever stops sooner. */
+int iso_dev_hub_estop_probe(void *hub);
+int iso_dev_hub_has_estop(const iso_dev_hub *h); /* any source with an e-stop input */
 const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i);
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
 

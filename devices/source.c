@@ -3,6 +3,7 @@
  * tests drive, and the replay of a recording. */
 #include "iso_dev.h"
 
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -45,6 +46,7 @@ typedef struct fake {
     fake_item *q;
     size_t n, cap, next;
     int writes, last_level;
+    atomic_int estop; /* iso_dev_fake_set_estop; ISO_ENOTSUP until then */
 } fake;
 
 static int fake_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
@@ -80,7 +82,18 @@ static void fake_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops fake_ops = {"fake", NULL, fake_read, fake_write_level, fake_close};
+static int fake_estop_level(iso_dev_source *s)
+{
+    return atomic_load(&((fake *)s->impl)->estop);
+}
+
+static const iso_dev_source_ops fake_ops = {"fake",         NULL,       fake_read, fake_write_level,
+                                            fake_close,     fake_estop_level};
+
+void iso_dev_fake_set_estop(iso_dev_source *s, int level)
+{
+    atomic_store(&((fake *)s->impl)->estop, level);
+}
 
 int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *err)
 {
@@ -92,6 +105,7 @@ int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *e
         free(f);
         return iso_err_set(err, ISO_ENOMEM, -1, "fake source: out of memory");
     }
+    atomic_init(&f->estop, ISO_ENOTSUP);
     s->ops = &fake_ops;
     s->info = *info;
     s->impl = f;
@@ -186,7 +200,7 @@ static void replay_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops replay_ops = {"replay", NULL, replay_read, NULL, replay_close};
+static const iso_dev_source_ops replay_ops = {"replay", NULL, replay_read, NULL, replay_close, NULL};
 
 int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err)
 {

@@ -89,6 +89,16 @@ ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double 
 ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
                                         const double *guess, double *v, iso_err *err);
 
+/* Progress inside a field evaluation, for a watchdog that must tell a slow
+ * evaluation from a stuck one (the actuators' loop watchdog, issue #14).
+ * fn(ctx) is called on the evaluating thread after the assembly, after each
+ * factorization and after each conjugate-gradient iteration, so the longest
+ * silence is one of those pieces (cactus: ~25 ms factorization; the 40k
+ * bumpplane: 0.1-0.3 s assembly or factorization). It must be quick and
+ * must not call back into the solver. NULL fn stops the calls. */
+typedef void (*iso_solver_progress_fn)(void *ctx);
+void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx);
+
 /* The restoration term's settings (iso_solver_opts): μ and the τ now in use.
  * Defined in restore.c. */
 void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */

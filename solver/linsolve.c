@@ -121,6 +121,7 @@ static int factorize(iso_solver *s, iso_err *err)
     }
     s->have_factor = 1;
     s->st.factorizations++;
+    iso_solver__progress(s);
     return ISO_OK;
 }
 
@@ -231,6 +232,7 @@ static int pcg(iso_solver *s, int *iters, iso_err *err)
             r[i] -= alpha * ap[i];
         }
         ++*iters;
+        iso_solver__progress(s);
         rnorm = sqrt(dot(r, r, n));
         if (rnorm <= target)
             return 1;

@@ -583,6 +583,14 @@ void iso_solver_destroy(iso_solver *s)
     free(s);
 }
 
+void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx)
+{
+    if (!s)
+        return;
+    s->progress = fn;
+    s->progress_ctx = ctx;
+}
+
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 {
     *st = s->st;
@@ -626,6 +634,7 @@ int iso_solver_field_from(iso_solver *s, const double *x, const double *vc, cons
     if (s->nf > 0)
         rc = assemble(s, x, vc, err);
     s->st.t_assembly += iso_clock_now() - t0;
+    iso_solver__progress(s);
     if (rc == ISO_OK && s->nf > 0)
         rc = iso_solver__linsolve(s, err); /* times its own phases */
     if (rc != ISO_OK)

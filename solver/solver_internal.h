@@ -98,7 +98,16 @@ struct iso_solver {
     int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */
     void (*blas_set_threads)(int);
     iso_solver_stats st;
+    iso_solver_progress_fn progress; /* iso_solver_set_progress; NULL: none */
+    void *progress_ctx;
 };
+
+/* Reports progress (iso_solver_set_progress), if anyone listens. */
+static inline void iso_solver__progress(const struct iso_solver *s)
+{
+    if (s->progress)
+        s->progress(s->progress_ctx);
+}
 
 
 /* Element matrix Q (dimension 3·nl) of a triangle or pair element at
