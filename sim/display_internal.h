@@ -44,6 +44,33 @@ typedef struct iso_display__ws_rx {
  * above ISO_DISPLAY_MAX_CLIENT_FRAME). */
 int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n);
 
+/* ---- HTTP (display_http.c) ------------------------------------------------ */
+
+/* The parts of a request the view reads; pointers into the caller's buffer. */
+typedef struct iso_display__request {
+    const char *method, *path; /* path without its query */
+    size_t method_len, path_len;
+    const char *host, *origin, *upgrade, *key, *version; /* NULL when absent */
+    size_t host_len, origin_len, upgrade_len, key_len, version_len;
+} iso_display__request;
+
+/* Splits a request: buf is NUL-terminated and holds the request line and
+ * the headers up to and including the empty line. Returns 0, or -1 when the
+ * request line is malformed or a line does not end in CRLF (a NUL byte
+ * inside the request ends it early: the server refuses those before). */
+int iso_display__parse_request(char *buf, iso_display__request *r);
+
+/* Is `a` (n bytes: HOST or HOST:PORT, as in a Host header or after an
+ * origin's scheme) one of names[] (NULL entries skipped)? A port, when
+ * given, must be `port`; without one it must be too (80) unless
+ * port_optional (a Host header may leave it out). */
+int iso_display__authority_is(const char *a, size_t n, int port, int port_optional,
+                              const char *const *names, size_t n_names);
+
+/* Case-insensitive: [p, p+n) equals s / contains s. */
+int iso_display__token_eq(const char *p, size_t n, const char *s);
+int iso_display__contains_ci(const char *p, size_t n, const char *s);
+
 /* ---- the display's state -------------------------------------------------- */
 
 typedef struct iso_display__conn iso_display__conn; /* display_server.c */

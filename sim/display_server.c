@@ -283,116 +283,16 @@ static void respond_error(iso_display__conn *c, int status, const char *reason, 
 
 /* ---- the request ---------------------------------------------------------- */
 
-typedef struct request {
-    const char *method, *path;
-    size_t method_len, path_len;
-    const char *host, *origin, *upgrade, *key, *version;
-    size_t host_len, origin_len, upgrade_len, key_len, version_len;
-} request;
-
-static int token_eq(const char *p, size_t n, const char *s)
-{
-    return strlen(s) == n && strncasecmp(p, s, n) == 0;
-}
-
-/* Does [p, p+n) contain s, ignoring case? */
-static int contains_ci(const char *p, size_t n, const char *s)
-{
-    size_t k = strlen(s);
-    for (size_t i = 0; i + k <= n; i++)
-        if (strncasecmp(p + i, s, k) == 0)
-            return 1;
-    return 0;
-}
-
-/* Splits the request in c->req (NUL-terminated, ending in an empty line).
- * Returns 0, or -1 when the request line is malformed. */
-static int parse_request(char *buf, request *r)
-{
-    memset(r, 0, sizeof *r);
-    char *eol = strstr(buf, "\r\n");
-    char *sp1 = memchr(buf, ' ', (size_t)(eol - buf));
-    if (!sp1)
-        return -1;
-    char *sp2 = memchr(sp1 + 1, ' ', (size_t)(eol - sp1 - 1));
-    if (!sp2 || sp1 == buf || sp2 == sp1 + 1 || strncmp(sp2 + 1, "HTTP/1.", 7) != 0)
-        return -1;
-    r->method = buf;
-    r->method_len = (size_t)(sp1 - buf);
-    r->path = sp1 + 1;
-    r->path_len = (size_t)(sp2 - sp1 - 1);
-    const char *q = memchr(r->path, '?', r->path_len);
-    if (q)
-        r->path_len = (size_t)(q - r->path);
-    for (char *line = eol + 2; *line && !(line[0] == '\r' && line[1] == '\n');) {
-        char *end = strstr(line, "\r\n");
-        char *colon = memchr(line, ':', (size_t)(end - line));
-        if (colon) {
-            const char *v = colon + 1;
-            while (v < end && (*v == ' ' || *v == '\t'))
-                v++;
-            const char *ve = end;
-            while (ve > v && (ve[-1] == ' ' || ve[-1] == '\t'))
-                ve--;
-            size_t nl = (size_t)(colon - line), vl = (size_t)(ve - v);
-            if (token_eq(line, nl, "host") && !r->host)
-                r->host = v, r->host_len = vl;
-            else if (token_eq(line, nl, "origin") && !r->origin)
-                r->origin = v, r->origin_len = vl;
-            else if (token_eq(line, nl, "upgrade"))
-                r->upgrade = v, r->upgrade_len = vl;
-            else if (token_eq(line, nl, "sec-websocket-key"))
-                r->key = v, r->key_len = vl;
-            else if (token_eq(line, nl, "sec-websocket-version"))
-                r->version = v, r->version_len = vl;
-        }
-        line = end + 2;
-    }
-    return 0;
-}
-
-/* Is `a` (HOST or HOST:PORT, as in a Host header or after an origin's
- * scheme) a name of this view? The port, when given, must be the view's;
- * without one it must be too unless port_optional (a Host header). */
+/* Is `a` (HOST or HOST:PORT) a name of this view? */
 static int authority_is_ours(const iso_display *d, const iso_display__conn *c, const char *a,
                              size_t n, int port_optional)
 {
-    size_t hn = n;
-    const char *port = NULL;
-    if (n && a[0] == '[') {
-        const char *rb = memchr(a, ']', n);
-        if (!rb)
-            return 0;
-        hn = (size_t)(rb - a) + 1;
-    } else {
-        const char *colon = memchr(a, ':', n);
-        hn = colon ? (size_t)(colon - a) : n;
-    }
-    if (hn < n) {
-        if (a[hn] != ':' || hn + 1 == n || n - hn - 1 > 5)
-            return 0;
-        port = a + hn + 1;
-        int p = 0;
-        for (const char *s = port; s < a + n; s++) {
-            if (*s < '0' || *s > '9')
-                return 0;
-            p = 10 * p + (*s - '0');
-        }
-        if (p != d->port)
-            return 0;
-    } else if (!port_optional && d->port != 80) {
-        return 0;
-    }
-    if (hn == 0)
-        return 0;
     const char *names[] = {"localhost", "127.0.0.1", "[::1]", d->host_name, c->local};
-    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
-        if (token_eq(a, hn, names[i]))
-            return 1;
-    return 0;
+    return iso_display__authority_is(a, n, d->port, port_optional, names,
+                                     sizeof names / sizeof names[0]);
 }
 
-static int origin_is_ours(const iso_display *d, const iso_display__conn *c, const request *r)
+static int origin_is_ours(const iso_display *d, const iso_display__conn *c, const iso_display__request *r)
 {
     if (!r->origin) /* not a web page: browsers send Origin on every upgrade */
         return 1;
@@ -402,7 +302,7 @@ static int origin_is_ours(const iso_display *d, const iso_display__conn *c, cons
 
 /* ---- answering ------------------------------------------------------------ */
 
-static void start_viewer(iso_display *d, iso_display__conn *c, const request *r)
+static void start_viewer(iso_display *d, iso_display__conn *c, const iso_display__request *r)
 {
     char accept[29];
     if (iso_display__ws_accept(r->key, r->key_len, accept) != 0) {
@@ -440,13 +340,13 @@ static int count_viewers(const iso_display *d)
 
 static void answer(iso_display *d, iso_display__conn *c)
 {
-    request r;
-    if (parse_request(c->req, &r) != 0) {
+    iso_display__request r;
+    if (iso_display__parse_request(c->req, &r) != 0) {
         respond_error(c, 400, "Bad Request", NULL, "malformed request line", 0);
         return;
     }
-    int head = token_eq(r.method, r.method_len, "HEAD");
-    if (!head && !token_eq(r.method, r.method_len, "GET")) {
+    int head = iso_display__token_eq(r.method, r.method_len, "HEAD");
+    if (!head && !iso_display__token_eq(r.method, r.method_len, "GET")) {
         respond_error(c, 405, "Method Not Allowed", "Allow: GET, HEAD\r\n",
                       "this view serves only GET and HEAD", 0);
         return;
@@ -472,10 +372,10 @@ static void answer(iso_display *d, iso_display__conn *c)
         if (!origin_is_ours(d, c, &r))
             respond_error(c, 403, "Forbidden", NULL,
                           "the stream is only for this view's own page (foreign Origin)", head);
-        else if (head || !r.upgrade || !contains_ci(r.upgrade, r.upgrade_len, "websocket"))
+        else if (head || !r.upgrade || !iso_display__contains_ci(r.upgrade, r.upgrade_len, "websocket"))
             respond_error(c, 426, "Upgrade Required", "Upgrade: websocket\r\n",
                           "/ws is a WebSocket", head);
-        else if (!r.version || !token_eq(r.version, r.version_len, "13"))
+        else if (!r.version || !iso_display__token_eq(r.version, r.version_len, "13"))
             respond_error(c, 426, "Upgrade Required", "Sec-WebSocket-Version: 13\r\n",
                           "only WebSocket version 13 is spoken", 0);
         else if (count_viewers(d) >= ISO_DISPLAY_MAX_VIEWERS)
@@ -574,6 +474,10 @@ static void on_request_bytes(iso_display *d, iso_display__conn *c)
     if (r < 0)
         return;
     size_t from = c->req_len > 3 ? c->req_len - 3 : 0;
+    if (memchr(c->req + c->req_len, 0, (size_t)r)) { /* would cut the text short */
+        respond_error(c, 400, "Bad Request", NULL, "a NUL byte in the request", 0);
+        return;
+    }
     c->req_len += (size_t)r;
     c->req[c->req_len] = 0;
     char *end = strstr(c->req + from, "\r\n\r\n");

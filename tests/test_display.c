@@ -804,6 +804,16 @@ static void only_get_and_head_are_served(void **state)
     print_message("HEAD /: %zu bytes of headers, Content-Length %zu, no body\n", len, get_body);
     free(get);
     free(head);
+    /* a NUL byte would cut the request's text short: 400, never parsed */
+    int fd = connect_family(AF_INET, port, 0);
+    assert_true(fd >= 0);
+    static const char nul[] = "GET / HTTP/1.1\r\nHost: 127.0.0.1\0evil\r\n\r\n";
+    assert_int_equal(send(fd, nul, sizeof nul - 1, 0), (ssize_t)(sizeof nul - 1));
+    char *bad = read_to_end(fd, &len);
+    close(fd);
+    if (!strstr(bad, "HTTP/1.1 400"))
+        fail_msg("a request with a NUL byte: answered %.80s", bad);
+    free(bad);
     iso_display_destroy(d);
     scene_deinit(&s);
 }

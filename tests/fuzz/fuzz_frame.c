@@ -17,6 +17,7 @@ static void unpack_any(const iso_fb_view *v)
         iso_fb_nak k;
         iso_fb_fault f;
         iso_fb_diag d;
+        iso_fb_safe q;
     } m;
     switch (v->type) {
     case ISO_FB_HELLO: (void)iso_fb_hello_unpack(&m.h, v->payload, v->len); break;
@@ -27,6 +28,7 @@ static void unpack_any(const iso_fb_view *v)
     case ISO_FB_NAK: (void)iso_fb_nak_unpack(&m.k, v->payload, v->len); break;
     case ISO_FB_FAULT: (void)iso_fb_fault_unpack(&m.f, v->payload, v->len); break;
     case ISO_FB_DIAG: (void)iso_fb_diag_unpack(&m.d, v->payload, v->len); break;
+    case ISO_FB_SAFE: (void)iso_fb_safe_unpack(&m.q, v->payload, v->len); break;
     default: abort(); /* the parser must never pass an unknown type */
     }
 }
