@@ -28,6 +28,7 @@
 #endif
 
 #include "iso_display.h"
+#include "ws_client.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -217,32 +218,6 @@ static void ply_frames_round_trip_exactly(void **state)
 
 /* ---- (c) the server, by hand -------------------------------------------- */
 
-static int connect_local(int port)
-{
-    int fd = socket(AF_INET, SOCK_STREAM, 0);
-    assert_true(fd >= 0);
-    struct timeval tv = {5, 0};
-    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    struct sockaddr_in a;
-    memset(&a, 0, sizeof a);
-    a.sin_family = AF_INET;
-    a.sin_port = htons((unsigned short)port);
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    assert_int_equal(connect(fd, (struct sockaddr *)&a, sizeof a), 0);
-    return fd;
-}
-
-static void send_all(int fd, const char *s)
-{
-    size_t n = strlen(s);
-    while (n) {
-        ssize_t w = write(fd, s, n);
-        assert_true(w > 0);
-        s += w;
-        n -= (size_t)w;
-    }
-}
-
 /* Reads until the peer closes; returns a NUL-terminated malloc'd buffer. */
 static char *read_to_end(int fd, size_t *len)
 {
@@ -268,11 +243,11 @@ static char *read_to_end(int fd, size_t *len)
 
 static char *http_get(int port, const char *path, size_t *len)
 {
-    int fd = connect_local(port);
+    int fd = iso_test_connect(AF_INET, port, 0);
     char req[256];
     snprintf(req, sizeof req, "GET %s HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n",
              path);
-    send_all(fd, req);
+    iso_test_send_all(fd, req);
     char *b = read_to_end(fd, len);
     close(fd);
     return b;
@@ -373,8 +348,8 @@ static void server_serves_page_and_streams_frames(void **state)
     free(missing);
 
     /* WebSocket handshake, written out (RFC 6455's sample key and answer). */
-    int fd = connect_local(port);
-    send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+    int fd = iso_test_connect(AF_INET, port, 0);
+    iso_test_send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
                  "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
                  "Sec-WebSocket-Version: 13\r\n\r\n");
     char resp[1024];
@@ -447,8 +422,8 @@ static void stalled_browser_never_blocks_publish(void **state)
     scene_init(&s, "cylinder", 64);
     iso_display *d = NULL;
     start_display(&s, &d);
-    int fd = connect_local(iso_display_port(d));
-    send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+    int fd = iso_test_connect(AF_INET, iso_display_port(d), 0);
+    iso_test_send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
                  "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
                  "Sec-WebSocket-Version: 13\r\n\r\n");
     for (int w = 0; w < 500 && iso_display_clients(d) < 1; w++)
@@ -486,45 +461,12 @@ static double ms_since(const struct timespec *t0)
     return (double)(t1.tv_sec - t0->tv_sec) * 1e3 + (double)(t1.tv_nsec - t0->tv_nsec) / 1e6;
 }
 
-/* Connects to the loopback of `family` (AF_INET or AF_INET6); -1 if not. */
-static int connect_family(int family, int port, int rcvbuf)
-{
-    int fd = socket(family, SOCK_STREAM, 0);
-    if (fd < 0)
-        return -1;
-    struct timeval tv = {5, 0};
-    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    if (rcvbuf)
-        setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
-    struct sockaddr_storage ss;
-    memset(&ss, 0, sizeof ss);
-    socklen_t sl;
-    if (family == AF_INET6) {
-        struct sockaddr_in6 *a = (struct sockaddr_in6 *)&ss;
-        a->sin6_family = AF_INET6;
-        a->sin6_port = htons((unsigned short)port);
-        a->sin6_addr = in6addr_loopback;
-        sl = sizeof *a;
-    } else {
-        struct sockaddr_in *a = (struct sockaddr_in *)&ss;
-        a->sin_family = AF_INET;
-        a->sin_port = htons((unsigned short)port);
-        a->sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        sl = sizeof *a;
-    }
-    if (connect(fd, (struct sockaddr *)&ss, sl) != 0) {
-        close(fd);
-        return -1;
-    }
-    return fd;
-}
-
 /* Sends a whole request and reads the answer to the server's close. */
 static char *http_raw(int family, int port, const char *req, size_t *len)
 {
-    int fd = connect_family(family, port, 0);
+    int fd = iso_test_connect(family, port, 0);
     assert_true(fd >= 0);
-    send_all(fd, req);
+    iso_test_send_all(fd, req);
     char *b = read_to_end(fd, len);
     close(fd);
     return b;
@@ -542,44 +484,12 @@ static int get_with_host(int port, const char *host)
     return status;
 }
 
-/* Reads a response's status line and headers (to the empty line). */
-static int read_head(int fd, char *buf, size_t cap)
-{
-    size_t n = 0;
-    while (n < cap - 1 && !(n >= 4 && memcmp(buf + n - 4, "\r\n\r\n", 4) == 0)) {
-        ssize_t r = read(fd, buf + n, 1);
-        if (r <= 0)
-            break;
-        n++;
-    }
-    buf[n] = 0;
-    return n > 12 ? atoi(buf + 9) : -1;
-}
-
-/* Opens /ws with `extra` headers (each ending in \r\n); returns the fd and
- * stores the answer's status. */
-static int ws_open(int family, int port, const char *host, const char *extra, int rcvbuf,
-                   int *status)
-{
-    int fd = connect_family(family, port, rcvbuf);
-    assert_true(fd >= 0);
-    char req[1024];
-    snprintf(req, sizeof req,
-             "GET /ws HTTP/1.1\r\nHost: %s\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n%s\r\n",
-             host, extra);
-    send_all(fd, req);
-    char head[2048];
-    *status = read_head(fd, head, sizeof head);
-    return fd;
-}
-
 static int ws_status(int port, const char *extra)
 {
     char host[64];
     snprintf(host, sizeof host, "127.0.0.1:%d", port);
     int status;
-    int fd = ws_open(AF_INET, port, host, extra, 0, &status);
+    int fd = iso_test_ws_open(AF_INET, port, host, extra, 0, &status);
     close(fd);
     return status;
 }
@@ -613,58 +523,6 @@ static int wait_clients(iso_display *d, int want)
 
 /* (a) A viewer that never reads is dropped after ISO_DISPLAY_STALL_MS; the
  * loop's calls never wait on it, and the viewer that reads keeps up. */
-typedef struct reader {
-    int fd;
-    long frames;      /* binary frames received */
-    double last_tick; /* the newest tick in them */
-    int failed;
-} reader;
-
-/* Reads frames until the socket ends; no cmocka asserts off the main thread. */
-static void *reader_main(void *arg)
-{
-    reader *r = arg;
-    for (;;) {
-        unsigned char h[10];
-        if (read(r->fd, h, 2) != 2)
-            break;
-        uint64_t n = h[1] & 0x7f;
-        size_t ext = n == 126 ? 2 : n == 127 ? 8 : 0;
-        size_t got = 0;
-        while (got < ext) {
-            ssize_t k = read(r->fd, h + 2 + got, ext - got);
-            if (k <= 0)
-                return NULL;
-            got += (size_t)k;
-        }
-        if (ext) {
-            n = 0;
-            for (size_t i = 0; i < ext; i++)
-                n = n << 8 | h[2 + i];
-        }
-        unsigned char buf[65536], first[16];
-        uint64_t left = n;
-        size_t at = 0;
-        while (left) {
-            ssize_t k = read(r->fd, buf, left < sizeof buf ? (size_t)left : sizeof buf);
-            if (k <= 0)
-                return NULL;
-            for (ssize_t i = 0; i < k && at < sizeof first; i++)
-                first[at++] = buf[i];
-            left -= (uint64_t)k;
-        }
-        if ((h[0] & 0x0f) == 2 && at == sizeof first) {
-            double t;
-            memcpy(&t, first + 8, 8);
-            if (t <= r->last_tick)
-                r->failed = 1;
-            r->last_tick = t;
-            r->frames++;
-        }
-    }
-    return NULL;
-}
-
 static void slow_viewer_is_dropped_and_others_keep_up(void **state)
 {
     (void)state;
@@ -674,11 +532,10 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
     int port =
         open_view(&s, "cylinder", 64, &d, host); /* ~100 KB frames: a stuck socket fills fast */
     int st;
-    reader good = {ws_open(AF_INET, port, host, "", 0, &st), 0, -1, 0};
+    iso_test_ws_reader good;
+    iso_test_ws_reader_start(&good, iso_test_ws_open(AF_INET, port, host, "", 0, &st));
     assert_int_equal(st, 101);
-    pthread_t th;
-    assert_int_equal(pthread_create(&th, NULL, reader_main, &good), 0);
-    int bad = ws_open(AF_INET, port, host, "", 4096, &st); /* and never reads again */
+    int bad = iso_test_ws_open(AF_INET, port, host, "", 4096, &st); /* and never reads again */
     assert_int_equal(st, 101);
     assert_int_equal(wait_clients(d, 2), 2);
     struct timespec t_bad, t0;
@@ -704,8 +561,7 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
     }
     sleep_ms(200); /* the last frames in flight */
     int clients_left = iso_display_clients(d);
-    shutdown(good.fd, SHUT_RDWR);
-    pthread_join(th, NULL);
+    iso_test_ws_reader_stop(&good);
     print_message("slow viewer: %ld ticks at %d ms; slowest publish %.3f ms, slowest "
                   "clients/frames_sent %.3f ms\n",
                   ticks, tick_ms, worst_publish, worst_clients);
@@ -720,7 +576,6 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
     assert_false(good.failed);             /* ticks only ever increase */
     assert_true(good.frames >= ticks / 3); /* about the tick rate, on a loaded machine */
     assert_true(good.last_tick >= (double)(ticks - 10));
-    close(good.fd);
     close(bad);
     iso_display_destroy(d);
     scene_deinit(&s);
@@ -805,7 +660,7 @@ static void only_get_and_head_are_served(void **state)
     free(get);
     free(head);
     /* a NUL byte would cut the request's text short: 400, never parsed */
-    int fd = connect_family(AF_INET, port, 0);
+    int fd = iso_test_connect(AF_INET, port, 0);
     assert_true(fd >= 0);
     static const char nul[] = "GET / HTTP/1.1\r\nHost: 127.0.0.1\0evil\r\n\r\n";
     assert_int_equal(send(fd, nul, sizeof nul - 1, 0), (ssize_t)(sizeof nul - 1));
@@ -827,7 +682,7 @@ static void huge_client_frame_closes_without_allocating(void **state)
     char host[64];
     int port = open_view(&s, "bar", 4, &d, host);
     int st;
-    int fd = ws_open(AF_INET, port, host, "", 0, &st);
+    int fd = iso_test_ws_open(AF_INET, port, host, "", 0, &st);
     assert_int_equal(st, 101);
     unsigned char *msg;
     size_t len;
@@ -896,13 +751,13 @@ static void viewers_beyond_the_limit_are_refused_and_the_page_loads(void **state
     int port = open_view(&s, "bar", 4, &d, host);
     int fds[ISO_DISPLAY_MAX_VIEWERS], st;
     for (int i = 0; i < ISO_DISPLAY_MAX_VIEWERS; i++) {
-        fds[i] = ws_open(AF_INET, port, host, "", 0, &st);
+        fds[i] = iso_test_ws_open(AF_INET, port, host, "", 0, &st);
         assert_int_equal(st, 101);
     }
     assert_int_equal(wait_clients(d, ISO_DISPLAY_MAX_VIEWERS), ISO_DISPLAY_MAX_VIEWERS);
     struct timespec t0;
     clock_gettime(CLOCK_MONOTONIC, &t0);
-    int extra = ws_open(AF_INET, port, host, "", 0, &st);
+    int extra = iso_test_ws_open(AF_INET, port, host, "", 0, &st);
     double refused_ms = ms_since(&t0);
     assert_int_equal(st, 503);
     close(extra);
@@ -912,9 +767,9 @@ static void viewers_beyond_the_limit_are_refused_and_the_page_loads(void **state
     enum { HALF = ISO_DISPLAY_MAX_CONNS };
     int half[HALF];
     for (int i = 0; i < HALF; i++) {
-        half[i] = connect_family(AF_INET, port, 0);
+        half[i] = iso_test_connect(AF_INET, port, 0);
         assert_true(half[i] >= 0);
-        send_all(half[i], "GET / HTTP/1.1\r\nHost: 12");
+        iso_test_send_all(half[i], "GET / HTTP/1.1\r\nHost: 12");
     }
     clock_gettime(CLOCK_MONOTONIC, &t0);
     size_t len;
@@ -1008,7 +863,7 @@ static void ipv6_loopback_serves(void **state)
         snprintf(host, sizeof host, "[::1]:%d", port);
         snprintf(origin, sizeof origin, "Origin: http://[::1]:%d\r\n", port);
         int st;
-        int fd = ws_open(AF_INET6, port, host, origin, 0, &st);
+        int fd = iso_test_ws_open(AF_INET6, port, host, origin, 0, &st);
         assert_int_equal(st, 101);
         close(fd);
         assert_int_equal(nt.n, k == 2); /* "::" reaches other machines: a warning */
@@ -1101,7 +956,7 @@ static void connect_close_cycles_leave_nothing_behind(void **state)
     const int cycles = 1500;
     for (int i = 0; i < cycles; i++) {
         int st;
-        int fd = ws_open(AF_INET, port, host, "", 0, &st);
+        int fd = iso_test_ws_open(AF_INET, port, host, "", 0, &st);
         assert_int_equal(st, 101);
         if (i % 3 == 0) { /* some read their topology first, some leave at once */
             unsigned char *msg;

@@ -1,0 +1,36 @@
+/* tests/ws_client.h -- a minimal HTTP and WebSocket client for the tests of
+ * the live view (test_display, test_run_view): loopback connections, a
+ * request's head, the /ws upgrade, and a reader thread that counts frames. */
+#ifndef ISO_TEST_WS_CLIENT_H
+#define ISO_TEST_WS_CLIENT_H
+
+#include <pthread.h>
+
+/* Connects to the loopback of `family` (AF_INET or AF_INET6) with a 5 s
+ * receive timeout and, when rcvbuf > 0, that receive buffer; -1 if not. */
+int iso_test_connect(int family, int port, int rcvbuf);
+/* Writes all of s; asserts. */
+void iso_test_send_all(int fd, const char *s);
+/* Reads a response's status line and headers (to the empty line) into buf;
+ * returns the status code, -1 when there is none. */
+int iso_test_read_head(int fd, char *buf, size_t cap);
+/* Opens /ws with `extra` headers (each ending in \r\n); returns the fd and
+ * stores the answer's status. */
+int iso_test_ws_open(int family, int port, const char *host, const char *extra, int rcvbuf,
+                     int *status);
+
+/* Reads frames on its own thread until the socket ends. Binary frames carry
+ * the tick (a double at byte 8); a tick that does not grow sets failed. No
+ * cmocka asserts run off the main thread. */
+typedef struct iso_test_ws_reader {
+    int fd;
+    long frames;      /* binary frames received */
+    double last_tick; /* the newest tick in them */
+    int failed;
+    pthread_t th;
+} iso_test_ws_reader;
+void iso_test_ws_reader_start(iso_test_ws_reader *r, int fd);
+/* Shuts the socket down, joins the thread and closes the fd. */
+void iso_test_ws_reader_stop(iso_test_ws_reader *r);
+
+#endif
