@@ -656,7 +656,11 @@ static void sleep_until(const iso_loop *l, int64_t t)
 
 /* SCHED_FIFO and locked memory, when this process may have them. Asked for
  * after the display's and BLAS's threads exist, so only the loop's thread
- * (and threads it starts later) run at real-time priority. */
+ * (and threads it starts later) run at real-time priority. Memory: what
+ * the process holds now (MCL_CURRENT: the mesh, the solver and its factor,
+ * the sinks, the tick statistics reserved for the planned run), not what
+ * it allocates later, so a browser's buffers are never locked (issue #14:
+ * lock only the memory the loop needs). */
 static void go_realtime(iso_loop *l)
 {
     iso_loop_summary *r = &l->rt;
@@ -668,7 +672,14 @@ static void go_realtime(iso_loop *l)
         r->rt_active = 1;
     else
         snprintf(why, sizeof why, "SCHED_FIFO: %s", strerror(errno));
-    if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0)
+    /* the planned ticks, or 10 minutes of a live run, before the lock */
+    long plan = l->k_end < INT64_MAX ? (long)l->k_end + 1 : (long)(600 * l->sc->tick_hz);
+    iso_err quiet;
+    iso_err_clear(&quiet);
+    if (iso_loop__stats_reserve(&l->stats, plan, &quiet) != ISO_OK)
+        snprintf(why + strlen(why), sizeof why - strlen(why), "%s%.100s", why[0] ? "; " : "",
+                 quiet.msg);
+    else if (mlockall(MCL_CURRENT) == 0)
         r->mem_locked = 1;
     else
         snprintf(why + strlen(why), sizeof why - strlen(why), "%smlockall: %s", why[0] ? "; " : "",

@@ -22,6 +22,9 @@ typedef struct iso_loop_stats {
 
 void iso_loop__stats_init(iso_loop_stats *s);
 void iso_loop__stats_deinit(iso_loop_stats *s);
+/* Room for n ticks now, so a run whose memory is locked at its start does
+ * not grow them (and fault pages in) while it ticks. */
+ISO_NODISCARD int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err);
 ISO_NODISCARD int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms,
                                       iso_err *err);
 /* q-quantile (0..1, nearest rank) of n values; sorts a copy. NAN for n = 0. */

@@ -19,19 +19,34 @@ void iso_loop__stats_deinit(iso_loop_stats *s)
     memset(s, 0, sizeof *s);
 }
 
+/* Grows the sample arrays to hold at least n ticks. */
+static int stats_grow(iso_loop_stats *s, long n, iso_err *err)
+{
+    if (n <= s->cap)
+        return ISO_OK;
+    double *a = realloc(s->tick_ms, (size_t)n * sizeof *a);
+    if (a)
+        s->tick_ms = a;
+    double *b = realloc(s->lat_ms, (size_t)n * sizeof *b);
+    if (b)
+        s->lat_ms = b;
+    if (!a || !b)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %ld tick samples", n);
+    s->cap = n;
+    return ISO_OK;
+}
+
+int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err)
+{
+    return stats_grow(s, n, err);
+}
+
 int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms, iso_err *err)
 {
     if (s->n == s->cap) {
-        long nc = s->cap ? 2 * s->cap : 4096;
-        double *a = realloc(s->tick_ms, (size_t)nc * sizeof *a);
-        if (a)
-            s->tick_ms = a;
-        double *b = realloc(s->lat_ms, (size_t)nc * sizeof *b);
-        if (b)
-            s->lat_ms = b;
-        if (!a || !b)
-            return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %ld tick samples", nc);
-        s->cap = nc;
+        int rc = stats_grow(s, s->cap ? 2 * s->cap : 4096, err);
+        if (rc != ISO_OK)
+            return rc;
     }
     s->tick_ms[s->n] = tick_ms;
     s->lat_ms[s->n] = lat_ms;
