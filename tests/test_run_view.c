@@ -178,6 +178,14 @@ static void a_browser_that_stops_reading_does_not_stall_the_loop(void **state)
     assert_non_null(a);
     assert_non_null(b);
     run_view(scene, 0, a);
+    if (a->tick_median > 0.5 * 1000.0 / 30) { /* e.g. an ASan build at -O0 */
+        print_message("skipped: this build's median tick (%.1f ms) does not fit half the 33 ms "
+                      "period, so the run is not in real time and the comparison means nothing\n",
+                      a->tick_median);
+        free(a);
+        free(b);
+        skip();
+    }
     run_view(scene, 1, b);
     print_message("view e2e: one reading viewer: wall %.2f s, %ld ticks, median tick %.2f ms, "
                   "%ld skipped, the viewer got %ld frames\n",
