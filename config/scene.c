@@ -937,7 +937,7 @@ static int parse_solver(sctx *c, fnode *n)
 
 static int parse_integrator(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"steps_per_tick", "restore_kappa", "abm", NULL};
+    static const char *const keys[] = {"steps_per_tick", "restore_kappa", "abm", "cg_share", NULL};
     static const char *const modes[] = {"pece", "pec", NULL}; /* iso_abm_mode order */
     int rc;
     fnode *v;
@@ -955,6 +955,14 @@ static int parse_integrator(sctx *c, fnode *n)
             return rc;
         if (!(*k >= 0))
             return fail(c, v, ISO_EINVAL, "integrator.restore_kappa", "expected >= 0, found %g", *k);
+    }
+    if ((v = get(n, "cg_share"))) {
+        double *q = &c->s->integrate.cg_share;
+        if ((rc = to_double(c, v, "integrator.cg_share", q)))
+            return rc;
+        if (!(*q >= 0 && *q <= 1))
+            return fail(c, v, ISO_EINVAL, "integrator.cg_share",
+                        "expected a value in [0, 1], found %g", *q);
     }
     return ISO_OK;
 }

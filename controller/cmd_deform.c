@@ -44,6 +44,8 @@ static const char *const help =
     "  --weighting        param (default) or area: how triangles are weighted\n"
     "  --steps N          N fixed steps, or\n"
     "  --tol T            adaptive steps with local error T x bbox diagonal (default 1e-4)\n"
+    "  --start S          rk4 (default, the paper's) or adams: how the Adams history\n"
+    "                     starts; adams is the real-time loop's (orders 1, 2, 3)\n"
     "  --restore MU,TAU   isometry restoration (beyond the paper): each edge's length\n"
     "                     relaxes to its rest length with time constant TAU seconds\n"
     "                     (the path takes 1 s, t in [0, 1], so TAU is also its fraction;\n"
@@ -58,7 +60,7 @@ static const char *const help =
 
 typedef struct deform_args {
     const char *mesh, *sel, *def, *shape, *benchmark, *bench_dir, *out, *reference;
-    int resolution, json, steps;
+    int resolution, json, steps, start;
     double tol;
     iso_solver_opts so;
 } deform_args;
@@ -132,6 +134,13 @@ static int parse_args(int argc, char **argv, deform_args *a)
                 return 2;
             }
             have_steps = 1;
+        } else if (VALUE("--start")) {
+            if (r > 0 && strcmp(val, "rk4") != 0 && strcmp(val, "adams") != 0) {
+                iso_cli__fail(cmd, "--start '%s' is unknown: use rk4 or adams.", val);
+                return 2;
+            }
+            a->start = r > 0 && strcmp(val, "adams") == 0 ? ISO_INTEGRATE_START_ADAMS
+                                                          : ISO_INTEGRATE_START_RK4;
         } else if (VALUE("--tol")) {
             if (r > 0 && iso_cli__double(cmd, "--tol", val, &a->tol) != 0)
                 return 2;
@@ -321,6 +330,7 @@ static int run(const deform_args *a, const iso_cli__problem *p, double *x, repor
     iso_integrate_opts_default(&io);
     io.steps = a->steps;
     io.tol = a->tol;
+    io.start = a->start;
     progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1};
     io.progress = show_progress;
     io.progress_ctx = &pg;

@@ -198,6 +198,8 @@ static int build_solver(iso_loop *l, iso_err *err)
     if (rc == ISO_OK)
         rc = iso_stepper_configure(l->st, (iso_abm_mode)sc->abm_mode, sc->integrate.restore_kappa,
                                    err);
+    if (rc == ISO_OK)
+        rc = iso_stepper_set_cg_share(l->st, sc->integrate.cg_share, err);
     return rc;
 }
 

@@ -104,15 +104,19 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->latency_median, s->latency_p99, s->latency_max);
     fprintf(f, "  deadlines   %ld missed of %ld (%.2f%%), %ld skipped to catch up\n", s->misses,
             s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
-    fprintf(f, "  integrator  %d steps (%d RK4, %ld restarts, ABM3 %s), %ld field evaluations\n",
-            s->integ.steps, s->integ.rk4_steps, s->restarts,
-            iso_abm_mode_name((iso_abm_mode)sc->abm_mode), s->integ.evaluations);
+    fprintf(f,
+            "  integrator  %d steps (%d low-order, %ld restarts, ABM3 %s), %ld field evaluations, "
+            "at most %d a step\n",
+            s->integ.steps, s->integ.low_order_steps, s->restarts,
+            iso_abm_mode_name((iso_abm_mode)sc->abm_mode), s->integ.evaluations,
+            s->integ.max_step_evaluations);
     double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
     fprintf(f,
             "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms; "
-            "%ld factorizations, %ld CG iterations\n",
+            "%ld factorizations, %ld CG iterations (at most %ld a step, %ld capped)\n",
             1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
-            1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations);
+            1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
+            s->integ.max_step_cg_iterations, s->solver.cg_capped);
     fprintf(f, "  distortion  metricErr %.6g, areaErr %.6g, angleErr %.6g, max edge strain %.4g\n",
             s->metrics.metric_err, s->metrics.area_err, s->metrics.angle_err,
             s->metrics.max_edge_strain);
@@ -188,8 +192,12 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
     fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"abm\": \"%s\", \"evaluations\": %ld,\n",
             s->integ.steps, s->integ.rk4_steps, iso_abm_mode_name((iso_abm_mode)sc->abm_mode),
             s->integ.evaluations);
+    fprintf(f, " \"low_order_steps\": %d, \"max_step_evaluations\": %d, ", s->integ.low_order_steps,
+            s->integ.max_step_evaluations);
+    fprintf(f, "\"max_step_cg_iterations\": %ld,\n", s->integ.max_step_cg_iterations);
     fprintf(f, " \"solver\": {\"factorizations\": %ld, \"cg_iterations\": %ld, ",
             s->solver.factorizations, s->solver.cg_iterations);
+    fprintf(f, "\"cg_capped\": %ld, ", s->solver.cg_capped);
     num(f, "assembly_s", s->solver.t_assembly, 1);
     num(f, "factor_s", s->solver.t_factor, 1);
     num(f, "solve_s", s->solver.t_solve, 0);

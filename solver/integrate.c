@@ -1,14 +1,16 @@
-/* solver/integrate.c -- ABM3 PECE with an RK4 start (iso_integrate.h).
+/* solver/integrate.c -- ABM3 with an RK4 or a low-order Adams start
+ * (iso_integrate.h).
  *
  * State: the positions of all vertices. Only free vertices are integrated;
  * before every field evaluation the handle vertices are placed at their
  * exact pose for that stage's time, so they cannot drift.
  *
  * The Adams coefficients are recomputed for the actual node spacing, so the
- * step may change without restarting: the predictor integrates the
- * quadratic through f at t_n, t_{n-1}, t_{n-2} over [t_n, t_n + h], the
- * corrector the one through t_{n+1}, t_n, t_{n-1}. With equal steps they are
- * the textbook 23/12, −16/12, 5/12 and 5/12, 8/12, −1/12. */
+ * step may change without restarting: a predictor of order k integrates the
+ * polynomial through f at t_n, ..., t_{n-k+1} over [t_n, t_n + h], the
+ * corrector the one through t_{n+1}, t_n (and t_{n-1} once k ≥ 2). With
+ * equal steps and k = 3 they are the textbook 23/12, −16/12, 5/12 and 5/12,
+ * 8/12, −1/12; k = 1 is Euler and the trapezoidal rule (Heun). */
 #include "iso_integrate.h"
 
 #include <math.h>
@@ -23,6 +25,8 @@ void iso_integrate_opts_default(iso_integrate_opts *o)
     o->steps = 0;
     o->tol = ISO_INTEGRATE_DEFAULT_TOL;
     o->restore_kappa = ISO_INTEGRATE_RESTORE_KAPPA;
+    o->start = ISO_INTEGRATE_START_RK4;
+    o->cg_share = ISO_INTEGRATE_CG_SHARE;
 }
 
 typedef struct integ {
@@ -42,6 +46,9 @@ typedef struct integ {
     long evaluations;
     double restore_mu, restore_tau; /* the solver's, as the caller set them */
     double restore_kappa;
+    int hist;          /* valid entries of the history f (0..3) */
+    double cg_share;   /* CG's share of a step's local error; 0: cg_tol */
+    double est, est_h; /* the last third-order step's Milne estimate and length */
 } integ;
 
 /* Places the handle vertices of x at their poses for time t and fills the
@@ -119,34 +126,36 @@ static int rk4_step(integ *g, double t, double h, double *x, iso_err *err)
     return ISO_OK;
 }
 
-/* The Lagrange basis polynomials through nodes t[0..2], at tau. */
-static void lagrange_basis(const double t[3], double tau, double l[3])
+/* The Lagrange basis polynomials through nodes t[0..n-1] (n ≤ 3), at tau. */
+static void lagrange_basis(const double *t, int n, double tau, double *l)
 {
-    for (int i = 0; i < 3; i++) {
+    for (int i = 0; i < n; i++) {
         l[i] = 1;
-        for (int j = 0; j < 3; j++)
+        for (int j = 0; j < n; j++)
             if (j != i)
                 l[i] *= (tau - t[j]) / (t[i] - t[j]);
     }
 }
 
-/* ∫_a^b of the Lagrange basis polynomials through nodes t[0..2], exact by
- * two-point Gauss–Legendre (the basis is quadratic). */
-static void lagrange_weights(const double t[3], double a, double b, double w[3])
+/* ∫_a^b of the Lagrange basis polynomials through nodes t[0..n-1], exact by
+ * two-point Gauss–Legendre (the basis is at most quadratic). */
+static void lagrange_weights(const double *t, int n, double a, double b, double *w)
 {
     double mid = 0.5 * (a + b), rad = 0.5 * (b - a), g = rad / sqrt(3.0);
     double pts[2] = {mid - g, mid + g};
-    w[0] = w[1] = w[2] = 0;
+    for (int i = 0; i < n; i++)
+        w[i] = 0;
     for (int q = 0; q < 2; q++) {
         double l[3];
-        lagrange_basis(t, pts[q], l);
-        for (int i = 0; i < 3; i++)
+        lagrange_basis(t, n, pts[q], l);
+        for (int i = 0; i < n; i++)
             w[i] += rad * l[i];
     }
 }
 
 static void push_history(integ *g, double t)
 {
+    g->hist = g->hist < 3 ? g->hist + 1 : 3;
     double *oldest = g->f[2];
     g->f[2] = g->f[1];
     g->f[1] = g->f[0];
@@ -170,37 +179,83 @@ static double max_free_diff(const integ *g, const double *a, const double *b)
     return m;
 }
 
-/* y = the quadratic through the history f at times t[0..2] (relative),
+/* y = the polynomial through the history f at times t[0..n-1] (relative),
  * evaluated at τ: where the field is heading, the start for the solve at
  * the predicted point (the previous solution is one step behind). */
-static void extrapolate(const integ *g, const double t[3], double tau, double *y)
+static void extrapolate(const integ *g, const double *t, int n, double tau, double *y)
 {
     double l[3];
-    lagrange_basis(t, tau, l);
-    for (int q = 0; q < 3 * g->nv; q++)
-        y[q] = l[0] * g->f[0][q] + l[1] * g->f[1][q] + l[2] * g->f[2][q];
+    lagrange_basis(t, n, tau, l);
+    for (int q = 0; q < 3 * g->nv; q++) {
+        double val = 0;
+        for (int j = 0; j < n; j++)
+            val += l[j] * g->f[j][q];
+        y[q] = val;
+    }
 }
 
-/* PEC of one ABM3 step of length h from t = tf[0]; leaves the corrected
- * positions in xc and returns Milne's estimate in *est (absolute). The
- * history is not touched. */
-static int abm_predict_correct(integ *g, double h, const double *x, double *xc, double *est,
-                               iso_err *err)
+/* CG's accuracy for the evaluations of a step of length h: the field error
+ * δ of a solve moves the step by h δ (iso_integrate.h), so CG may stop at
+ * δ ≤ share × est / h, est the last third-order step's Milne estimate,
+ * scaled by (h / its length)⁴ as the local error is. Without an estimate
+ * (a start) the solver's cg_tol holds. */
+static void set_cg_target(integ *g, double h)
+{
+    double target = 0;
+    if (g->cg_share > 0 && g->est > 0) {
+        double q = h / g->est_h;
+        target = g->cg_share * g->est * (q * q) * (q * q) / h;
+    }
+    iso_solver_set_cg_target(g->s, target);
+}
+
+/* P, E and C of one Adams step of order k (1..3, iso_integrate.h) and
+ * length h from t = tf[0]; leaves the corrected positions in xc, f at the
+ * predicted point in k[0], and returns Milne's estimate in *est (absolute;
+ * it estimates the corrector's error only when k = 3). The history is not
+ * touched. */
+static int adams_predict_correct(integ *g, int k, double h, const double *x, double *xc,
+                                 double *est, iso_err *err)
 {
     double t = g->tf[0], wp[3], wc[3];
     double tp[3] = {0, g->tf[1] - t, g->tf[2] - t};
-    lagrange_weights(tp, 0, h, wp);
-    combine(g, g->xp, x, 3, wp, g->f);
-    extrapolate(g, tp, h, g->k[0]);
+    lagrange_weights(tp, k, 0, h, wp);
+    combine(g, g->xp, x, k, wp, g->f);
+    extrapolate(g, tp, k, h, g->k[0]);
+    set_cg_target(g, h);
     int rc = eval_field_from(g, t + h, g->xp, g->k[0], g->k[0], err);
     if (rc != ISO_OK)
         return rc;
+    int kc = k < 2 ? k + 1 : 3; /* the corrector's nodes: t + h and k of the history, at most 2 */
     double tc[3] = {h, 0, g->tf[1] - t};
-    lagrange_weights(tc, 0, h, wc);
+    lagrange_weights(tc, kc, 0, h, wc);
     double *dc[3] = {g->k[0], g->f[0], g->f[1]};
-    combine(g, xc, x, 3, wc, dc);
+    combine(g, xc, x, kc, wc, dc);
     *est = max_free_diff(g, xc, g->xp) / 10.0;
     return ISO_OK;
+}
+
+/* Ends a step at time t1 with x at its end: the history takes f at x (an
+ * evaluation: RK4, PECE) or, with `pec`, the predictor's f in k[0] (the
+ * handles are still placed at t1). */
+static int end_step(integ *g, double t1, double *x, int pec, iso_err *err)
+{
+    push_history(g, t1);
+    if (!pec) {
+        set_cg_target(g, t1 - g->tf[1]);
+        return eval_field(g, t1, x, g->f[0], err);
+    }
+    double *fp = g->k[0]; /* f(x_p, t1) becomes f_{n+1}; k[0] is scratch */
+    g->k[0] = g->f[0];
+    g->f[0] = fp;
+    return place_handles(g, t1, x, err);
+}
+
+/* A third-order step's estimate, for the CG target of the steps after. */
+static void keep_estimate(integ *g, double est, double h)
+{
+    g->est = est;
+    g->est_h = h;
 }
 
 static int integ_init(integ *g, iso_solver *s, const iso_mesh *m, const iso_regions *r,
@@ -265,13 +320,54 @@ static int set_step_tau(integ *g, double h, iso_err *err)
     return iso_solver_set_restore_tau(g->s, fmax(g->restore_tau, g->restore_kappa * h), err);
 }
 
+/* One offline step of length h from (t, x): RK4 while the paper's start
+ * lasts, else an Adams step of the history's order k. Returns 1 with xc
+ * holding the step's end and *pec saying how the history is to be ended
+ * (end_step), 0 when an adaptive step was rejected (*h shrunk), or a
+ * negative code. *h_next: the next step's length. */
+static int offline_step(integ *g, const iso_integrate_opts *o, double t, double *h, double *h_next,
+                        double *x, double *xc, int *pec, iso_integrate_stats *st, iso_err *err)
+{
+    int adaptive = o->steps <= 0, rc;
+    double span = o->t1 - o->t0, scale = iso_mesh_bbox_diagonal(g->m);
+    double tol = (o->tol > 0 ? o->tol : ISO_INTEGRATE_DEFAULT_TOL) * scale;
+    *pec = 0;
+    *h_next = *h;
+    if (o->start == ISO_INTEGRATE_START_RK4 && st->steps < 2) {
+        if ((rc = rk4_step(g, t, *h, x, err)) != ISO_OK)
+            return rc;
+        st->rk4_steps++;
+        memcpy(xc, x, (size_t)(3 * g->nv) * sizeof(double));
+        return 1;
+    }
+    int k = g->hist;
+    double est;
+    if ((rc = adams_predict_correct(g, k, *h, x, xc, &est, err)) != ISO_OK)
+        return rc;
+    st->adams_order = k;
+    if (k < 3) { /* the low-order start: accepted as RK4's steps are, the first one PEC */
+        st->low_order_steps++;
+        *pec = k == 1;
+        return 1;
+    }
+    double ratio = est / tol;
+    if (adaptive && ratio > 1.0 && *h > 1e-6 * span) {
+        st->rejected++;
+        *h *= fmax(0.2, 0.9 * cbrt(1.0 / ratio));
+        return 0;
+    }
+    st->max_err_estimate = fmax(st->max_err_estimate, est / scale);
+    keep_estimate(g, est, *h);
+    if (adaptive)
+        *h_next = fmin(*h * fmin(2.0, 0.9 * cbrt(1.0 / fmax(ratio, 1e-12))), span);
+    return 1;
+}
+
 static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_stats *st,
                iso_err *err)
 {
     double span = o->t1 - o->t0, t = o->t0;
     int adaptive = o->steps <= 0;
-    double scale = iso_mesh_bbox_diagonal(g->m);
-    double tol = (o->tol > 0 ? o->tol : ISO_INTEGRATE_DEFAULT_TOL) * scale;
     double h = adaptive ? span * fmin(0.1, cbrt(o->tol > 0 ? o->tol : ISO_INTEGRATE_DEFAULT_TOL))
                         : span / o->steps;
     int total = adaptive ? 0 : o->steps, rc;
@@ -279,41 +375,29 @@ static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_s
 
     if ((rc = set_step_tau(g, h, err)) != ISO_OK)
         return rc;
+    set_cg_target(g, h);
     if ((rc = eval_field(g, t, x, g->f[0], err)) != ISO_OK)
         return rc;
     g->tf[0] = t;
+    g->hist = 1;
     while (t < o->t1 && (adaptive || st->steps < total)) {
         if (adaptive)
             h = fit_to_end(t, o->t1, h);
         else if (st->steps == total - 1)
             h = o->t1 - t; /* no drift from summing h */
-        double tn = t + h, h_next = h;
+        double tn = t + h, h_next;
+        int pec;
         if ((rc = set_step_tau(g, h, err)) != ISO_OK)
             return rc;
-        if (st->steps < 2) {
-            if ((rc = rk4_step(g, t, h, x, err)) != ISO_OK)
-                return rc;
-            st->rk4_steps++;
-        } else {
-            double est;
-            if ((rc = abm_predict_correct(g, h, x, xc, &est, err)) != ISO_OK)
-                return rc;
-            double ratio = est / tol;
-            if (adaptive && ratio > 1.0 && h > 1e-6 * span) {
-                st->rejected++;
-                h *= fmax(0.2, 0.9 * cbrt(1.0 / ratio));
-                continue;
-            }
-            st->max_err_estimate = fmax(st->max_err_estimate, est / scale);
-            memcpy(x, xc, (size_t)(3 * g->nv) * sizeof(double));
-            if (adaptive)
-                h_next = fmin(h * fmin(2.0, 0.9 * cbrt(1.0 / fmax(ratio, 1e-12))), span);
-        }
+        if ((rc = offline_step(g, o, t, &h, &h_next, x, xc, &pec, st, err)) < 0)
+            return rc;
+        if (rc == 0)
+            continue;
+        memcpy(x, xc, (size_t)(3 * g->nv) * sizeof(double));
         if (tn > o->t1 || (!adaptive && st->steps == total - 1))
             tn = o->t1;
         h = h_next;
-        push_history(g, tn);
-        if ((rc = eval_field(g, tn, x, g->f[0], err)) != ISO_OK)
+        if ((rc = end_step(g, tn, x, pec, err)) != ISO_OK)
             return rc;
         t = tn;
         st->steps++;
@@ -337,12 +421,18 @@ int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const 
         return iso_err_set(err, ISO_EINVAL, -1, "the time span [%g, %g] is empty", o.t0, o.t1);
     if (o.steps <= 0 && !(o.tol > 0))
         return iso_err_set(err, ISO_EINVAL, -1, "tolerance %g must be positive", o.tol);
+    if (o.start != ISO_INTEGRATE_START_RK4 && o.start != ISO_INTEGRATE_START_ADAMS)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown start %d (RK4 0 or Adams 1)", o.start);
+    if (!(o.cg_share >= 0 && isfinite(o.cg_share)))
+        return iso_err_set(err, ISO_EINVAL, -1, "cg_share %g must be >= 0 and finite", o.cg_share);
     integ g;
     int rc = integ_init(&g, s, m, r, path, err);
     iso_solver_get_restore(s, &g.restore_mu, &g.restore_tau);
     g.restore_kappa = o.restore_kappa;
+    g.cg_share = o.cg_share;
     if (rc == ISO_OK)
         rc = run(&g, &o, x, st, err);
+    iso_solver_set_cg_target(s, 0); /* the solver as the caller gave it */
     if (g.restore_mu > 0 && g.restore_kappa > 0) {
         iso_err ignored; /* τ was accepted at creation: setting it back cannot fail */
         if (iso_solver_set_restore_tau(s, g.restore_tau, &ignored) != ISO_OK)
@@ -363,7 +453,6 @@ struct iso_stepper {
     int nh;
     iso_pose *base;    /* per handle: pose at t */
     iso_twist *tw;     /* per handle: twist held over the current tick */
-    int since_restart; /* steps since the history was dropped; 0 = f_n not yet valid */
     iso_abm_mode mode;
     iso_integrate_stats st;
 };
@@ -404,6 +493,7 @@ int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r, d
         iso_pose_identity(&st->base[h]);
     iso_solver_get_restore(s, &st->g.restore_mu, &st->g.restore_tau);
     st->g.restore_kappa = ISO_INTEGRATE_RESTORE_KAPPA;
+    st->g.cg_share = ISO_INTEGRATE_CG_SHARE;
     *out = st;
     return ISO_OK;
 }
@@ -417,6 +507,8 @@ void iso_stepper_destroy(iso_stepper *st)
         if (iso_solver_set_restore_tau(st->g.s, st->g.restore_tau, &ignored) != ISO_OK)
             ignored.code = ISO_OK;
     }
+    if (st->g.s)
+        iso_solver_set_cg_target(st->g.s, 0);
     integ_deinit(&st->g);
     free(st->base);
     free(st->tw);
@@ -441,25 +533,45 @@ int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kap
     return ISO_OK;
 }
 
-/* The ABM3 part of a step. PECE evaluates the field at the corrected
- * positions into the history; PEC keeps the predictor's evaluation there
- * and only places the handles at the step's end. */
-static int abm_step(iso_stepper *st, double h, iso_err *err)
+int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err)
+{
+    if (!(share >= 0 && isfinite(share)))
+        return iso_err_set(err, ISO_EINVAL, -1, "cg_share %g must be >= 0 and finite", share);
+    st->g.cg_share = share;
+    return ISO_OK;
+}
+
+/* The step's evaluations: f at its start after a restart (with this tick's
+ * twists), then an Adams step of the history's order (iso_integrate.h). The
+ * restart's own step ends PEC in either mode, so that it too makes two. */
+static int stepper_advance(iso_stepper *st, double h, int restart, iso_err *err)
 {
     integ *g = &st->g;
-    double est, *xc = g->xs;
-    int rc = abm_predict_correct(g, h, st->x, xc, &est, err);
+    int rc = set_step_tau(g, h, err);
     if (rc != ISO_OK)
         return rc;
-    st->st.max_err_estimate = fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
-    memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
-    push_history(g, st->t + h);
-    if (st->mode == ISO_ABM_PECE)
-        return eval_field(g, st->t + h, st->x, g->f[0], err);
-    double *fp = g->k[0]; /* f(x_p, t + h) becomes f_{n+1}; k[0] is scratch */
-    g->k[0] = g->f[0];
-    g->f[0] = fp;
-    return place_handles(g, st->t + h, st->x, err);
+    if (restart || g->hist == 0) {
+        set_cg_target(g, h);
+        if ((rc = eval_field(g, st->t, st->x, g->f[0], err)) != ISO_OK)
+            return rc;
+        g->tf[0] = st->t;
+        g->hist = 1;
+    }
+    int k = g->hist;
+    double est, *xc = g->xs;
+    if ((rc = adams_predict_correct(g, k, h, st->x, xc, &est, err)) != ISO_OK)
+        return rc;
+    st->st.adams_order = k;
+    if (k == 3) {
+        st->st.max_err_estimate = fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
+        keep_estimate(g, est, h);
+    } else {
+        st->st.low_order_steps++;
+    }
+    rc = end_step(g, st->t + h, xc, st->mode == ISO_ABM_PEC || k == 1, err);
+    if (rc == ISO_OK)
+        memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
+    return rc;
 }
 
 int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int restart,
@@ -470,27 +582,15 @@ int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int res
     integ *g = &st->g;
     memcpy(st->tw, twists, (size_t)st->nh * sizeof *st->tw);
     long evals0 = g->evaluations;
-    int rc = set_step_tau(g, h, err);
-    if (rc != ISO_OK)
+    iso_solver_stats s0, s1;
+    iso_solver_get_stats(g->s, &s0);
+    iso_solver_budget_begin(g->s); /* one PCG budget a step (iso_solver.h) */
+    int rc = stepper_advance(st, h, restart, err);
+    iso_solver_budget_end(g->s);
+    if (rc != ISO_OK) {
+        g->hist = 0; /* the history is not to be trusted: the next step restarts */
         return rc;
-    if (restart || st->since_restart == 0) {
-        /* f at the tick's start, with this tick's twists. */
-        st->since_restart = 0;
-        if ((rc = eval_field(g, st->t, st->x, g->f[0], err)) != ISO_OK)
-            return rc;
-        g->tf[0] = st->t;
     }
-    if (st->since_restart < 2) {
-        if ((rc = rk4_step(g, st->t, h, st->x, err)) != ISO_OK)
-            return rc;
-        st->st.rk4_steps++;
-        push_history(g, st->t + h);
-        rc = eval_field(g, st->t + h, st->x, g->f[0], err);
-    } else {
-        rc = abm_step(st, h, err);
-    }
-    if (rc != ISO_OK)
-        return rc;
     /* The tick is done: its end becomes the next tick's base. */
     for (int k = 0; k < st->nh; k++) {
         iso_pose end;
@@ -499,9 +599,14 @@ int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int res
         st->base[k] = end;
     }
     st->t += h;
-    st->since_restart++;
     st->st.steps++;
-    st->st.evaluations += g->evaluations - evals0;
+    long evals = g->evaluations - evals0;
+    iso_solver_get_stats(g->s, &s1);
+    st->st.evaluations += evals;
+    if (evals > st->st.max_step_evaluations)
+        st->st.max_step_evaluations = (int)evals;
+    if (s1.cg_iterations - s0.cg_iterations > st->st.max_step_cg_iterations)
+        st->st.max_step_cg_iterations = s1.cg_iterations - s0.cg_iterations;
     return ISO_OK;
 }
 

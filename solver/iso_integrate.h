@@ -3,9 +3,22 @@
  * dx/dt = v̂(x, t) for free vertices; handle vertices are placed from their
  * exact pose at every stage (never integrated, so they cannot drift); fixed
  * vertices never move. Third-order Adams–Bashforth–Moulton in PECE form
- * (two field evaluations per step), started with RK4, with variable-step
- * coefficients. Adaptive mode controls the step with Milne's estimate
- * |x_c − x_p| / 10 (max over free vertices) against tol × bbox diagonal. */
+ * (two field evaluations per step), with variable-step coefficients, started
+ * with RK4 (the paper's) or with low-order Adams steps (the real-time
+ * stepper's, below). Adaptive mode controls the step with Milne's estimate
+ * |x_c − x_p| / 10 (max over free vertices) against tol × bbox diagonal.
+ *
+ * The solve's accuracy follows the integrator. With the solver's adaptive
+ * refactoring, each evaluation is a PCG solve, and an error δ in one
+ * evaluation's field moves the path by h δ in all (the Adams weights that
+ * multiply one f over the steps that use it sum to h). So CG stops when
+ * h δ is cg_share (a tenth) of the step's local error: δ ≤ cg_share × est / h,
+ * est the Milne estimate of the last third-order step scaled by (h / its
+ * step)⁴, δ measured as the solver's preconditioned residual at its largest
+ * vertex (iso_solver_set_cg_target). Steps without such an estimate yet (the
+ * start, RK4 or low order) use the solver's cg_tol. Offline and in real
+ * time alike; with refactor = always every solve is direct and this changes
+ * nothing. */
 #ifndef ISO_INTEGRATE_H
 #define ISO_INTEGRATE_H
 
@@ -29,10 +42,21 @@ typedef struct iso_integrate_opts {
      * positions at t, so a callback may sample them (test_long_session). */
     void (*progress)(void *ctx, double t, int steps, long evaluations);
     void *progress_ctx;
+    int start;       /* ISO_INTEGRATE_START_RK4 (default, the paper's) or _ADAMS */
+    double cg_share; /* CG's share of a step's local error, default
+                        ISO_INTEGRATE_CG_SHARE; 0 = the solver's cg_tol always */
 } iso_integrate_opts;
 
 #define ISO_INTEGRATE_DEFAULT_TOL 1e-4
 #define ISO_INTEGRATE_RESTORE_KAPPA 1.0
+#define ISO_INTEGRATE_CG_SHARE 0.1
+
+/* How the Adams history is started.
+ *   RK4:   two RK4 steps (4 evaluations each, the first after f(t0)), then
+ *          ABM3 PECE: the paper's method.
+ *   ADAMS: the real-time stepper's start (iso_stepper_step), for comparing
+ *          the two: Adams steps of order 1, 2, then 3. */
+enum { ISO_INTEGRATE_START_RK4 = 0, ISO_INTEGRATE_START_ADAMS = 1 };
 
 void iso_integrate_opts_default(iso_integrate_opts *o);
 
@@ -41,7 +65,11 @@ typedef struct iso_integrate_stats {
     int rk4_steps;
     int rejected;     /* adaptive steps redone with a smaller step */
     long evaluations; /* field evaluations */
-    double max_err_estimate; /* largest accepted Milne estimate, relative */
+    double max_err_estimate;     /* largest accepted Milne estimate (third-order steps), relative */
+    int low_order_steps;         /* Adams steps of order 1 or 2 (an Adams start or restart) */
+    int adams_order;             /* the last step's predictor order k (0 after RK4) */
+    int max_step_evaluations;    /* real time: the most field evaluations one step made */
+    long max_step_cg_iterations; /* real time: the most PCG iterations one step made */
 } iso_integrate_stats;
 
 /* Integrates from t0 to t1. x (3*nv) holds the rest positions on entry (the
@@ -57,9 +85,36 @@ ISO_NODISCARD int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regi
  * The controller advances the mesh by one step per tick, with each handle
  * moving at a constant world twist over the tick (the latest device input).
  * The stepper keeps the Adams history between ticks; the caller asks for a
- * restart (RK4 again) after a discontinuity such as the clutch. The poses
+ * restart after a discontinuity such as the clutch (the field jumps with
+ * the twist, so the history before it is of another field). The poses
  * accumulate: pose(t_n + τ) = exp(τ ξ) ∘ pose(t_n). Deterministic: the same
- * twists and step lengths give bit-identical positions. */
+ * twists and step lengths give bit-identical positions.
+ *
+ * No step costs more than two field evaluations, a restart included. A
+ * restart does not take RK4 steps (four evaluations each, five in the
+ * restart's tick): it evaluates f at the step's start with the new twists
+ * and rebuilds the Adams history at low order over the next steps. The
+ * predictor's order k and the corrector's, step by step after a restart:
+ *   step 1: k = 1, Euler predictor, trapezoidal corrector (Heun, local
+ *           error O(h³)); f(x_n), then f(x_p): two evaluations. It ends PEC
+ *           in either mode (f(x_p) joins the history), which keeps it at
+ *           two; that f is off by O(h²) and costs a further O(h³) in the two
+ *           steps that use it.
+ *   step 2: k = 2, AB2 predictor, AM3 corrector (local error O(h⁴) from
+ *           the corrector, O(h³) from step 1's f); one evaluation (PEC) or
+ *           two (PECE).
+ *   step 3 on: k = 3, ABM3 as configured: one (PEC) or two (PECE).
+ * A restart thus leaves a fixed number of O(h³) local errors, and the path
+ * stays third order at a fixed number of restarts (test_stepper measures
+ * it). Milne's estimate speaks for the corrector only when both are of the
+ * same order, so only k = 3 steps report one (max_err_estimate) and set
+ * CG's target; the low-order steps keep the last one (or cg_tol at first).
+ *
+ * PCG is capped per step (per tick, at one step a tick): each step opens
+ * one solver budget of cg_max_iter iterations for its evaluations together
+ * (iso_solver_budget_begin). The fallback when it is spent, or when the rate
+ * shows it will be: a fresh factorization and a direct solve, whose factor
+ * then serves the step's other evaluation with a fresh budget. */
 typedef struct iso_stepper iso_stepper; /* opaque */
 
 /* x (3*nv, caller-owned, must outlive the stepper) holds the current
@@ -100,10 +155,16 @@ const char *iso_abm_mode_name(iso_abm_mode mode);
 ISO_NODISCARD int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kappa,
                                         iso_err *err);
 
+/* CG's share of a step's local error (iso_integrate.h), default
+ * ISO_INTEGRATE_CG_SHARE; 0 = the solver's cg_tol always. ISO_EINVAL for a
+ * negative or non-finite share. */
+ISO_NODISCARD int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err);
+
 /* Advances by h > 0 with twists[k] (one per handle) held over the step.
- * restart != 0 drops the multistep history first. A step is RK4 (four
- * field evaluations) for the first two steps after a restart, else ABM3
- * PECE (two) or PEC (one). On error x is left at the last completed step. */
+ * restart != 0 drops the multistep history first. The step's order and
+ * evaluations follow the sequence above: at most two evaluations a step.
+ * On error x is left at the last completed step, and the next step restarts
+ * the history. */
 ISO_NODISCARD int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists,
                                    int restart, iso_err *err);
 

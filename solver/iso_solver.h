@@ -46,8 +46,11 @@ typedef struct iso_solver_opts {
                                 (PoCL), else "P:D" platform/device indices or
                                 a substring of the device or platform name */
     iso_refactor refactor;   /* default ISO_REFACTOR_ALWAYS in the library */
-    double cg_tol;           /* adaptive: relative residual, default 1e-10 */
-    int cg_max_iter;         /* adaptive: refactor beyond this, default 12 */
+    double cg_tol;           /* adaptive: relative residual, default 1e-10, unless the
+                                integrator sets a target (iso_solver_set_cg_target) */
+    int cg_max_iter;         /* adaptive: PCG iterations a solve may spend, or a tick
+                                (iso_solver_budget_begin); beyond them it refactors and
+                                solves directly; default 12 */
     /* Isometry restoration (beyond the paper; 0 = off, the paper's method
      * exactly). Adds, per edge e = (i, j) with rest length L_e, current
      * length |e| and unit direction u_e, the term
@@ -109,11 +112,43 @@ void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* ou
  * elements and μ stay. With μ = 0 it is accepted and changes nothing. */
 ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
 
+/* ===== what an integrator asks of conjugate gradients (adaptive refactor)
+ *
+ * Accuracy. Without a target PCG stops at the relative residual cg_tol,
+ * a figure set by habit. An integrator knows what it needs: the error of a
+ * solve moves its step by h times that error, which should be a fraction of
+ * the step's own local error (iso_integrate.h). iso_solver_set_cg_target(s,
+ * target) with target > 0 makes the solves that follow stop instead when
+ * z = (LLᵀ)⁻¹ r, the preconditioned residual, is at most target at every
+ * free vertex (the Euclidean norm of its three components, in the field's
+ * units). z is what the cached factor says the remaining error is: with a
+ * young factor, M = LLᵀ close to A, the error e = A⁻¹ r = z + (M⁻¹(M − A)) e.
+ * On stopping, z is added to the solution (one preconditioned Richardson
+ * step; z was computed for the test, so it is free), which leaves an error
+ * smaller than z by the factor's quality. A relative residual of
+ * ISO_SOLVER_CG_FLOOR also ends it (rounding leaves nothing to gain).
+ * target ≤ 0 (or NaN) goes back to cg_tol. Direct solves are exact anyway.
+ *
+ * Budget. Between iso_solver_budget_begin() and iso_solver_budget_end() the
+ * solves share one budget of cg_max_iter PCG iterations (the real-time
+ * stepper opens one a tick, so a tick's iterations are capped, not each
+ * solve's). A solve that has spent what is left, or whose rate shows that
+ * it would, stops and falls back to a fresh factorization and a direct
+ * solve; that factorization refills the budget, as the fresh factor starts
+ * the count again. So a tick costs at most cg_max_iter iterations before
+ * its first factorization. Outside a budget each solve has cg_max_iter. */
+#define ISO_SOLVER_CG_FLOOR 1e-14
+
+void iso_solver_set_cg_target(iso_solver *s, double target);
+void iso_solver_budget_begin(iso_solver *s);
+void iso_solver_budget_end(iso_solver *s);
+
 typedef struct iso_solver_stats {
     long evaluations;
     long factorizations;  /* numeric factorizations */
     long cg_iterations;   /* adaptive refactor: PCG iterations, summed */
     long refactors;       /* adaptive: factorizations forced by slow/stalled CG */
+    long cg_capped;       /* of those, forced by the iteration cap or budget */
     double t_assembly, t_factor, t_solve; /* seconds, summed */
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */

@@ -197,30 +197,94 @@ static double predicted_iterations(double r0, double rk, int k, double target)
     return log(target / r0) / rate;
 }
 
-/* PCG from the previous X. Returns 1 if converged, 0 if it should give up
- * (budget spent, stall, or loss of positive curvature), or a negative code. */
-static int pcg(iso_solver *s, int *iters, iso_err *err)
+/* The PCG iterations this solve may spend: cg_max_iter, or what is left of
+ * an open budget (iso_solver.h). */
+static int iteration_cap(const iso_solver *s)
 {
-    int n = 3 * s->nf, rc;
+    if (!s->budget_on)
+        return s->o.cg_max_iter;
+    int left = s->o.cg_max_iter - s->budget_used;
+    return left > 0 ? left : 0;
+}
+
+/* The largest Euclidean norm of a free vertex's three entries of z. */
+static double vertex_max(const double *z, int nf)
+{
+    double m = 0;
+    for (int f = 0; f < nf; f++) {
+        const double *q = z + 3 * f;
+        m = fmax(m, sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]));
+    }
+    return m;
+}
+
+/* PCG's stopping test. Without a target: the residual against cg_tol,
+ * before preconditioning. With one: z's largest vertex, after it (z is the
+ * next iteration's preconditioned residual anyway); on success z is added
+ * to x. The residual floor ends either. */
+typedef struct cg_goal {
+    double res_target; /* ‖r‖ at which to stop: cg_tol or the floor */
+    double z_target;   /* > 0: stop when vertex_max(z) reaches it */
+    double z0;         /* vertex_max of the first z, for the rate */
+} cg_goal;
+
+static int reached_z(iso_solver *s, cg_goal *g, const double *z, int iters)
+{
+    if (!(g->z_target > 0))
+        return 0;
+    double zm = vertex_max(z, s->nf);
+    if (iters == 0)
+        g->z0 = zm;
+    if (zm > g->z_target)
+        return 0;
+    double *x = s->X->x;
+    for (int i = 0; i < 3 * s->nf; i++)
+        x[i] += z[i];
+    return 1;
+}
+
+/* Hopeless: at the rate seen so far the cap would not suffice, so stop now
+ * rather than spend it (the common case when the factor is older than a few
+ * small steps). The rate is read from what the test measures. */
+static int hopeless(const cg_goal *g, double r0, double r, const double *z, int nf, int iters,
+                    int cap)
+{
+    if (iters < 3)
+        return 0;
+    if (g->z_target > 0)
+        return predicted_iterations(g->z0, vertex_max(z, nf), iters, g->z_target) > (double)cap;
+    return predicted_iterations(r0, r, iters, g->res_target) > (double)cap;
+}
+
+/* PCG from the current X. Returns 1 if converged, 0 if it should give up
+ * (*capped: because of the iteration cap; else a stall or a loss of
+ * positive curvature), or a negative code. */
+static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
+{
+    int n = 3 * s->nf, rc, cap = iteration_cap(s);
     cholmod_dense *R = s->work[0], *P = s->work[2], *AP = s->work[3];
     double *x = s->X->x, *r = R->x, *p = P->x, *ap = AP->x;
     const double *b = s->B->x;
     *iters = 0;
+    *capped = 0;
     if ((rc = matvec(s, s->X, AP, err)) != ISO_OK)
         return rc;
     for (int i = 0; i < n; i++)
         r[i] = b[i] - ap[i];
-    double bnorm = sqrt(dot(b, b, n)), target = s->o.cg_tol * (bnorm > 0 ? bnorm : 1.0);
+    double bnorm = sqrt(dot(b, b, n)), scale = bnorm > 0 ? bnorm : 1.0;
+    cg_goal g = {(s->cg_target > 0 ? ISO_SOLVER_CG_FLOOR : s->o.cg_tol) * scale, s->cg_target, 0};
     double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
-    if (rnorm <= target)
+    if (rnorm <= g.res_target)
         return 1;
     if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
         return rc;
     double *z = s->work[1]->x;
+    if (reached_z(s, &g, z, 0))
+        return 1;
     memcpy(p, z, (size_t)n * sizeof(double));
     double rz = dot(r, z, n);
     int slow = 0;
-    while (*iters < s->o.cg_max_iter) {
+    while (*iters < cap) {
         if ((rc = matvec(s, P, AP, err)) != ISO_OK)
             return rc;
         double pap = dot(p, ap, n);
@@ -234,28 +298,29 @@ static int pcg(iso_solver *s, int *iters, iso_err *err)
         ++*iters;
         iso_solver__progress(s);
         rnorm = sqrt(dot(r, r, n));
-        if (rnorm <= target)
+        if (rnorm <= g.res_target)
             return 1;
         /* Stalled: three iterations in a row that gained less than 10%. */
         slow = rnorm > 0.9 * prev ? slow + 1 : 0;
         if (slow >= 3)
             return 0;
-        /* Hopeless: at the rate seen so far the budget would not suffice,
-         * so stop now rather than spend it (the common case when the factor
-         * is older than a few small steps). */
-        if (*iters >= 3 && predicted_iterations(r0norm, rnorm, *iters, target) >
-                               (double)s->o.cg_max_iter)
-            return 0;
         prev = rnorm;
+        if (!(g.z_target > 0) && hopeless(&g, r0norm, rnorm, NULL, s->nf, *iters, cap))
+            return *capped = 1, 0;
         if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
             return rc;
         z = s->work[1]->x;
+        if (reached_z(s, &g, z, *iters))
+            return 1;
+        if (g.z_target > 0 && hopeless(&g, r0norm, rnorm, z, s->nf, *iters, cap))
+            return *capped = 1, 0;
         double rz_new = dot(r, z, n);
         double beta = rz_new / rz;
         rz = rz_new;
         for (int i = 0; i < n; i++)
             p[i] = z[i] + beta * p[i];
     }
+    *capped = 1;
     return 0;
 }
 
@@ -278,6 +343,11 @@ static int want_reuse(iso_solver *s)
 {
     if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || !s->have_factor || !s->X)
         return 0;
+    if (iteration_cap(s) == 0) { /* the tick's budget is spent: the stated fallback */
+        s->st.refactors++;
+        s->st.cg_capped++;
+        return 0;
+    }
     if (s->last_cg_iters >= (3 * s->o.cg_max_iter) / 4)
         return 0; /* the previous solve nearly spent the budget: refactor now */
     if (s->reuse_horizon > 0 && s->factor_age > s->reuse_horizon)
@@ -310,6 +380,7 @@ static void learn_from_attempt(iso_solver *s, int converged)
 static void after_factorization(iso_solver *s)
 {
     s->factor_age = 0;
+    s->budget_used = 0; /* the fresh factor starts the count again (iso_solver.h) */
     if (s->reuse_horizon > 0 && s->horizon_probe > 0 && --s->horizon_probe == 0) {
         s->reuse_horizon++;
         s->horizon_probe = 8;
@@ -324,11 +395,12 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
     if (want_reuse(s)) {
         if ((rc = ensure_work(s, err)) != ISO_OK)
             return rc;
-        int iters = 0;
+        int iters = 0, capped = 0;
         double t0 = iso_clock_now();
-        rc = pcg(s, &iters, err);
+        rc = pcg(s, &iters, &capped, err);
         s->st.t_solve += iso_clock_now() - t0;
         s->st.cg_iterations += iters;
+        s->budget_used += iters;
         if (rc < 0)
             return rc;
         learn_from_attempt(s, rc == 1);
@@ -337,9 +409,29 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
             return check_finite(s, err);
         }
         s->st.refactors++;
+        s->st.cg_capped += capped;
     }
     if ((rc = direct_solve(s, err)) != ISO_OK)
         return rc;
     after_factorization(s);
     return check_finite(s, err);
+}
+
+/* ===== the integrator's settings (iso_solver.h) ========================= */
+
+void iso_solver_set_cg_target(iso_solver *s, double target)
+{
+    s->cg_target = target > 0 && isfinite(target) ? target : 0.0;
+}
+
+void iso_solver_budget_begin(iso_solver *s)
+{
+    s->budget_on = 1;
+    s->budget_used = 0;
+}
+
+void iso_solver_budget_end(iso_solver *s)
+{
+    s->budget_on = 0;
+    s->budget_used = 0;
 }

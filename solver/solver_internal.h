@@ -93,6 +93,9 @@ struct iso_solver {
     int factor_age;         /* evaluations since L was computed (this one included) */
     int reuse_horizon;      /* oldest factor age PCG is tried at; 0: not learned yet */
     int horizon_probe;      /* factorizations left until the horizon is probed */
+    double cg_target;       /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
+    int budget_on;          /* a shared iteration budget is open */
+    int budget_used;        /* its iterations spent since it opened or since a factorization */
     int omp_serialised;     /* linsolve.c has capped CHOLMOD's OpenMP teams */
     int blas_looked_up;     /* linsolve.c has decided on OpenBLAS threads: */
     int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */

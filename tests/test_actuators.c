@@ -701,7 +701,7 @@ static void slow_loop_still_streams_at_100hz(void **state)
 }
 
 /* The loop's first tick may come long after the sink is created (mesh,
- * solver, a 5-evaluation RK4 start): meanwhile the MCU stays armed, with no
+ * solver, the first tick's evaluations): meanwhile the MCU stays armed, with no
  * watchdog FAULT, and streaming starts at the first publish. */
 static void waiting_for_the_first_tick_keeps_the_mcu_armed(void **state)
 {

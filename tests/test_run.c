@@ -11,7 +11,8 @@
  *   with ISO_UPDATE_GOLDEN=1 after a deliberate change, and say why.
  * - One engine: the same recording through `run` of its scene and through
  *   `isoshape replay --shape` gives the same bytes. A screw driver equals
- *   `isoshape deform --steps N` to 1e-12 (same integrator; measured 3e-15).
+ *   `isoshape deform --steps N --start adams` to 1e-12 (same integrator, the
+ *   loop's low-order start; measured 3e-15).
  *   Keyframes end at their pose.
  * - Time: late ticks cover every deadline already due (ticks + skipped =
  *   the path's periods), latency does not pile up, pacing follows --speed.
@@ -300,17 +301,20 @@ static void screw_driver_equals_deform(void **state)
     iso_test_tmp(a, sizeof a, "screw_run.off");
     iso_test_tmp(b, sizeof b, "screw_deform.off");
     assert_int_equal(iso("run '%s' --fast --quiet --out '%s' --stats-json /dev/null", scene, a), 0);
-    assert_int_equal(iso("deform --shape cactus --resolution 1 --steps 20 --restore off "
-                         "--assembly cpu --refactor always --out '%s'",
+    assert_int_equal(iso("deform --shape cactus --resolution 1 --steps 20 --start adams "
+                         "--restore off --assembly cpu --refactor always --out '%s'",
                          b),
                      0);
     double diag, d = max_diff(a, b, &diag);
-    printf("screw: loop vs deform --steps 20: %.3g of the diagonal\n", d / diag);
+    printf("screw: loop vs deform --steps 20 --start adams: %.3g of the diagonal\n", d / diag);
     assert_true(d <= DIAG_TOL_DEFORM * diag);
+    assert_int_equal(
+        iso("deform --shape cactus --resolution 1 --steps 20 --start rk5 --out '%s'", b), 2);
+    assert_non_null(strstr(g_err, "--start 'rk5'"));
 }
 
 /* --abm pec: the same screw path at one field evaluation a step instead of
- * two (RK4's start aside), and a result that differs from PECE's by
+ * two (the start's first step aside), and a result that differs from PECE's by
  * integration error only: both are third order, so PEC lands within a few
  * times PECE's own error (against the offline integrator at 4x the steps)
  * of PECE. */
@@ -337,8 +341,8 @@ static void pec_takes_half_the_evaluations(void **state)
     double diag, d = max_diff(a, b, &diag);
     printf("screw: %ld evaluations under PECE, %ld under PEC; results %.3g of the diagonal apart\n",
            ea, eb, d / diag);
-    assert_int_equal(ea, 1 + 2 * 4 + 18 * 2); /* f(0), two RK4 steps (3 + f), 18 ABM */
-    assert_int_equal(eb, 1 + 2 * 4 + 18 * 1);
+    assert_int_equal(ea, 2 + 19 * 2); /* f(0) and f(x_p), then 19 steps */
+    assert_int_equal(eb, 2 + 19 * 1);
     char ref[PATH_MAX];
     iso_test_tmp(ref, sizeof ref, "screw_fine.off");
     assert_int_equal(iso("deform --shape cactus --resolution 1 --steps 80 --restore off "

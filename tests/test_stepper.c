@@ -2,14 +2,19 @@
  * per tick with a twist held over each tick.
  *
  * Properties: (1) with the same twist every tick it follows the same screw
- * path as iso_integrate at the same fixed step, because both take two RK4
- * steps and then ABM3 PECE with identical coefficients; they differ only in
- * how the handle pose is formed (composed per tick vs exp(tξ) at once), a
- * rounding-level difference; (2) handle vertices sit exactly at the
- * composed pose; (3) a restart spends RK4 steps again; (4) the same input
- * gives bit-identical output; (5) a zero twist leaves the mesh at rest;
- * (6) PEC mode is third order at one evaluation a step; (7) its smaller
- * stability interval is covered by its restoration clamp. */
+ * path as iso_integrate with the same start (ISO_INTEGRATE_START_ADAMS) at
+ * the same fixed step: the same Adams steps with identical coefficients;
+ * they differ only in how the handle pose is formed (composed per tick vs
+ * exp(tξ) at once), a rounding-level difference; (2) handle vertices sit
+ * exactly at the composed pose; (3) a restart rebuilds the history at
+ * orders 1, 2, 3 over three steps, never more than two evaluations a step,
+ * and (4) the same input gives bit-identical output; (5) a zero twist leaves
+ * the mesh at rest; (6) PEC mode is third order at one evaluation a step;
+ * (7) the path stays third order with restarts and twist jumps on it, under
+ * PEC and PECE; (8) PEC's smaller stability interval is covered by its
+ * restoration clamp; (9) PCG's iterations a step are capped, and past the
+ * cap the step falls back to a fresh factorization and a direct solve, with
+ * the same answer as a direct solve every evaluation. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -94,17 +99,22 @@ static void constant_twist_matches_offline_integration(void **state)
     iso_integrate_stats sst, ist;
     run_ticks(f, xs, N, 1.0 / N, &f->xi, -1, &sst);
     assert_int_equal(sst.steps, N);
-    assert_int_equal(sst.rk4_steps, 2);
-    assert_int_equal(sst.evaluations, 1 + 2 * 4 + (N - 2) * 2);
+    assert_int_equal(sst.rk4_steps, 0);
+    assert_int_equal(sst.low_order_steps, 2);
+    assert_int_equal(sst.evaluations, 2 * N); /* f(0) and f(x_p); then PECE's two */
+    assert_int_equal(sst.max_step_evaluations, 2);
 
     iso_screw_path sp = {&f->xi, 1};
     iso_path path = iso_screw_path_make(&sp);
     iso_integrate_opts o;
     iso_integrate_opts_default(&o);
     o.steps = N;
+    o.start = ISO_INTEGRATE_START_ADAMS;
     iso_err err;
     iso_err_clear(&err);
     assert_int_equal(iso_integrate(f->s, f->m, &f->r, &path, &o, xi, &ist, &err), ISO_OK);
+    assert_int_equal(ist.evaluations, sst.evaluations);
+    assert_int_equal(ist.low_order_steps, 2);
     int nv = iso_mesh_vertex_count(f->m);
     double diag = iso_mesh_bbox_diagonal(f->m);
     double d = iso_test_max_abs_diff(xs, xi, 3 * (size_t)nv) / diag;
@@ -129,19 +139,46 @@ static void constant_twist_matches_offline_integration(void **state)
     free(xi);
 }
 
-/* (3) and (4) */
-static void restart_spends_rk4_and_replays_bit_identically(void **state)
+/* (3) and (4): orders after the first step and after a restart at tick 5,
+ * under both modes; every step at most two evaluations. */
+static void restart_rebuilds_the_order_and_replays_bit_identically(void **state)
 {
     fixture *f = *state;
-    double *a = rest_copy(f), *b = rest_copy(f);
-    iso_integrate_stats sa, sb;
-    run_ticks(f, a, 8, 0.05, &f->xi, 5, &sa);
-    run_ticks(f, b, 8, 0.05, &f->xi, 5, &sb);
-    assert_int_equal(sa.rk4_steps, 4); /* ticks 0, 1 and again 5, 6 */
-    assert_int_equal(sa.evaluations, sb.evaluations);
-    assert_memory_equal(a, b, 3 * (size_t)iso_mesh_vertex_count(f->m) * sizeof(double));
-    free(a);
-    free(b);
+    static const int order[8] = {1, 2, 3, 3, 3, 1, 2, 3};
+    /* PECE: two a step throughout (the restart's f(x_n) and f(x_p), its
+     * step ending PEC); PEC: two on a restart's step, else one */
+    static const int evals[2][8] = {{2, 2, 2, 2, 2, 2, 2, 2}, {2, 1, 1, 1, 1, 2, 1, 1}};
+    size_t n = 3 * (size_t)iso_mesh_vertex_count(f->m);
+    for (int mode = 0; mode < 2; mode++) {
+        double *x[2] = {rest_copy(f), rest_copy(f)};
+        for (int run = 0; run < 2; run++) {
+            iso_err err;
+            iso_err_clear(&err);
+            iso_stepper *st = NULL;
+            assert_int_equal(iso_stepper_create(f->s, f->m, &f->r, x[run], &st, &err), ISO_OK);
+            assert_int_equal(iso_stepper_configure(st, (iso_abm_mode)mode, -1, &err), ISO_OK);
+            long before = 0;
+            for (int k = 0; k < 8; k++) {
+                assert_int_equal(iso_stepper_step(st, 0.05, &f->xi, k == 5, &err), ISO_OK);
+                iso_integrate_stats s;
+                iso_stepper_stats(st, &s);
+                if (s.adams_order != order[k] || s.evaluations - before != evals[mode][k])
+                    fail_msg("%s tick %d: order %d (want %d), %ld evaluations (want %d)",
+                             iso_abm_mode_name((iso_abm_mode)mode), k, s.adams_order, order[k],
+                             s.evaluations - before, evals[mode][k]);
+                before = s.evaluations;
+                if (k == 7) {
+                    assert_int_equal(s.low_order_steps, 4); /* ticks 0, 1 and 5, 6 */
+                    assert_int_equal(s.rk4_steps, 0);
+                    assert_int_equal(s.max_step_evaluations, 2);
+                }
+            }
+            iso_stepper_destroy(st);
+        }
+        assert_memory_equal(x[0], x[1], n * sizeof(double));
+        free(x[0]);
+        free(x[1]);
+    }
 }
 
 /* (5) */
@@ -160,7 +197,7 @@ static void zero_twist_stays_at_rest(void **state)
 
 /* (6) PEC: one evaluation per ABM step and still third order. The error
  * against a PECE run at 16x the steps (its own error ~4000x smaller) falls
- * by 2^3 per halving; 6..10 allows for the RK4 start and the
+ * by 2^3 per halving; 6..10 allows for the low-order start and the
  * not-yet-asymptotic first level. */
 static void pec_is_third_order_at_one_evaluation_a_step(void **state)
 {
@@ -175,7 +212,7 @@ static void pec_is_third_order_at_one_evaluation_a_step(void **state)
         int n = 24 << k;
         double *x = rest_copy(f);
         run_mode(f, f->s, ISO_ABM_PEC, -1, x, n, 1.0 / n, &f->xi, -1, &st);
-        assert_int_equal(st.evaluations, 1 + 2 * 4 + (n - 2) * 1);
+        assert_int_equal(st.evaluations, 2 + (n - 1) * 1);
         e[k] = iso_test_max_abs_diff(x, ref, 3 * (size_t)nv) / diag;
         free(x);
     }
@@ -186,7 +223,70 @@ static void pec_is_third_order_at_one_evaluation_a_step(void **state)
     free(ref);
 }
 
-/* (7) PEC's stability interval (h/τ < 0.287 against PECE's 1.73) is what
+/* The path of (7): twist ξ over [0, 0.4), then a jump to a twist about
+ * another axis over [0.4, 0.7), then −ξ/2, each jump restarting the
+ * history, at n ticks over [0, 1] (n a multiple of 10, so the jumps fall on
+ * ticks). */
+static void run_jumps(fixture *f, iso_abm_mode mode, int n, double *x, iso_integrate_stats *stats)
+{
+    iso_twist tw[3] = {f->xi, f->xi, f->xi};
+    for (int a = 0; a < 3; a++) {
+        tw[1].v[a] = 0.5 * f->xi.w[(a + 1) % 3];
+        tw[1].w[a] = 0.7 * f->xi.w[(a + 2) % 3] + 0.3 * f->xi.w[a];
+        tw[2].v[a] = -0.5 * f->xi.v[a];
+        tw[2].w[a] = -0.5 * f->xi.w[a];
+    }
+    iso_err err;
+    iso_err_clear(&err);
+    iso_stepper *st = NULL;
+    assert_int_equal(iso_stepper_create(f->s, f->m, &f->r, x, &st, &err), ISO_OK);
+    assert_int_equal(iso_stepper_configure(st, mode, -1, &err), ISO_OK);
+    int prev = 0;
+    for (int k = 0; k < n; k++) {
+        int seg = 10 * k < 4 * n ? 0 : 10 * k < 7 * n ? 1 : 2;
+        if (iso_stepper_step(st, 1.0 / n, &tw[seg], seg != prev, &err) != ISO_OK)
+            fail_msg("tick %d of %d: %s", k, n, err.msg);
+        prev = seg;
+    }
+    iso_stepper_stats(st, stats);
+    iso_stepper_destroy(st);
+}
+
+/* (7) Restarts cost accuracy only at the method's order: each leaves a
+ * fixed number of O(h³) local errors (iso_integrate.h), so with a fixed
+ * number of them on the path the error still falls 8x per halving. The
+ * reference: PECE at 16x the finest ticks, the same jumps. */
+static void restarts_keep_third_order(void **state)
+{
+    fixture *f = *state;
+    int nv = iso_mesh_vertex_count(f->m);
+    double diag = iso_mesh_bbox_diagonal(f->m);
+    iso_integrate_stats st;
+    double *ref = rest_copy(f);
+    run_jumps(f, ISO_ABM_PECE, 640, ref, &st);
+    for (int mode = 0; mode < 2; mode++) {
+        double e[3];
+        for (int k = 0; k < 3; k++) {
+            int n = 40 << k;
+            double *x = rest_copy(f);
+            run_jumps(f, (iso_abm_mode)mode, n, x, &st);
+            assert_int_equal(st.low_order_steps, 6); /* two after each of the three (re)starts */
+            assert_int_equal(st.max_step_evaluations, 2);
+            assert_int_equal(st.rk4_steps, 0);
+            e[k] = iso_test_max_abs_diff(x, ref, 3 * (size_t)nv) / diag;
+            free(x);
+        }
+        print_message("%s with two twist jumps, errors at 40, 80, 160 ticks: %.3g %.3g %.3g, "
+                      "ratios %.2f %.2f (order %.2f %.2f)\n",
+                      iso_abm_mode_name((iso_abm_mode)mode), e[0], e[1], e[2], e[0] / e[1],
+                      e[1] / e[2], log2(e[0] / e[1]), log2(e[1] / e[2]));
+        assert_true(e[1] / e[2] > 6 && e[1] / e[2] < 10);
+        assert_true(e[0] / e[1] > 5 && e[0] / e[1] < 11);
+    }
+    free(ref);
+}
+
+/* (8) PEC's stability interval (h/τ < 0.287 against PECE's 1.73) is what
  * its κ default of 4 is for: a stiff restoration term (μ 10, τ far below a
  * step) stays bounded with it, as PECE does at the same τ_eff, and blows up
  * at PECE's κ = 1. (The price: at a given step PEC restores 4x slower.) */
@@ -228,6 +328,65 @@ static void pec_needs_its_own_restoration_clamp(void **state)
     iso_solver_destroy(s);
 }
 
+/* (9) A cap of 3 iterations a step with a tolerance CG cannot always meet in 3
+ * (1e-12, no share of the step's error): steps fall back to a fresh
+ * factorization and a direct solve. Each step spends at most the cap before
+ * its first factorization and at most the cap again after each (the fresh
+ * factor refills the budget), and the path is a direct-solve path's to the
+ * solves' rounding. */
+static void pcg_cap_falls_back_to_a_direct_solve(void **state)
+{
+    fixture *f = *state;
+    enum { CAP = 3, TICKS = 16 };
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.refactor = ISO_REFACTOR_ADAPTIVE;
+    so.cg_tol = 1e-12;
+    so.cg_max_iter = CAP;
+    iso_err err;
+    iso_err_clear(&err);
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(f->m, &f->r, &so, &s, &err), ISO_OK);
+    double *x = rest_copy(f), *ref = rest_copy(f);
+    iso_integrate_stats direct;
+    run_mode(f, f->s, ISO_ABM_PECE, -1, ref, TICKS, 1.0 / TICKS, &f->xi, -1, &direct);
+    iso_stepper *st = NULL;
+    assert_int_equal(iso_stepper_create(s, f->m, &f->r, x, &st, &err), ISO_OK);
+    assert_int_equal(iso_stepper_set_cg_share(st, 0, &err), ISO_OK);
+    long reused = 0;
+    for (int k = 0; k < TICKS; k++) {
+        iso_solver_stats a, b;
+        iso_solver_get_stats(s, &a);
+        assert_int_equal(iso_stepper_step(st, 1.0 / TICKS, &f->xi, 0, &err), ISO_OK);
+        iso_solver_get_stats(s, &b);
+        long iters = b.cg_iterations - a.cg_iterations;
+        long facts = b.factorizations - a.factorizations;
+        reused += (b.evaluations - a.evaluations) - facts;
+        if (iters > CAP * (1 + facts))
+            fail_msg("tick %d: %ld PCG iterations with %ld factorizations, cap %d", k, iters, facts,
+                     CAP);
+    }
+    iso_solver_stats ss;
+    iso_solver_get_stats(s, &ss);
+    iso_integrate_stats sst;
+    iso_stepper_stats(st, &sst);
+    int nv = iso_mesh_vertex_count(f->m);
+    double d = iso_test_max_abs_diff(x, ref, 3 * (size_t)nv) / iso_mesh_bbox_diagonal(f->m);
+    print_message("cap %d: %ld evaluations, %ld factorizations (%ld forced by the cap), %ld "
+                  "served by PCG, %ld iterations; against a direct solve each time %.3g of the "
+                  "diagonal\n",
+                  CAP, ss.evaluations, ss.factorizations, ss.cg_capped, reused, ss.cg_iterations,
+                  d);
+    assert_true(ss.cg_capped > 0);
+    assert_true(ss.refactors >= ss.cg_capped);
+    assert_true(reused > 0); /* PCG did serve some solves within the cap */
+    assert_true(d < 1e-9);
+    iso_stepper_destroy(st);
+    iso_solver_destroy(s);
+    free(x);
+    free(ref);
+}
+
 static void bad_step_is_refused(void **state)
 {
     fixture *f = *state;
@@ -238,6 +397,9 @@ static void bad_step_is_refused(void **state)
     assert_int_equal(iso_stepper_create(f->s, f->m, &f->r, x, &st, &err), ISO_OK);
     assert_int_equal(iso_stepper_step(st, 0.0, &f->xi, 0, &err), ISO_EINVAL);
     assert_non_null(strstr(err.msg, "positive"));
+    iso_err_clear(&err);
+    assert_int_equal(iso_stepper_set_cg_share(st, -0.1, &err), ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "cg_share"));
     iso_stepper_destroy(st);
     free(x);
 }
@@ -246,10 +408,12 @@ int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(constant_twist_matches_offline_integration),
-        cmocka_unit_test(restart_spends_rk4_and_replays_bit_identically),
+        cmocka_unit_test(restart_rebuilds_the_order_and_replays_bit_identically),
         cmocka_unit_test(zero_twist_stays_at_rest),
         cmocka_unit_test(pec_is_third_order_at_one_evaluation_a_step),
+        cmocka_unit_test(restarts_keep_third_order),
         cmocka_unit_test(pec_needs_its_own_restoration_clamp),
+        cmocka_unit_test(pcg_cap_falls_back_to_a_direct_solve),
         cmocka_unit_test(bad_step_is_refused),
     };
     return cmocka_run_group_tests_name("stepper", t, setup, teardown);

@@ -689,6 +689,77 @@ static void guess_is_where_cg_starts(void **state)
     bumpy_deinit(&bp);
 }
 
+/* Largest Euclidean norm of a vertex's difference a − b. */
+static double vertex_max_diff(const double *a, const double *b, int nv)
+{
+    double m = 0;
+    for (int i = 0; i < nv; i++) {
+        double d0 = a[3 * i] - b[3 * i], d1 = a[3 * i + 1] - b[3 * i + 1],
+               d2 = a[3 * i + 2] - b[3 * i + 2];
+        m = fmax(m, sqrt(d0 * d0 + d1 * d1 + d2 * d2));
+    }
+    return m;
+}
+
+/* iso_solver_set_cg_target: PCG stops when z = (LLᵀ)⁻¹ r is within the
+ * target at every free vertex and adds z, so the error left against a
+ * direct solve is within the target too; a tighter target costs more
+ * iterations, and target 0 goes back to cg_tol. Each solve starts from the
+ * same guess (the field at the point before), with the factor of that
+ * point. */
+static void cg_target_bounds_the_error(void **state)
+{
+    (void)state;
+    bumpy bp;
+    bumpy_init(&bp);
+    int nv = bp.fm.nv, n = 3 * nv;
+    double *x = malloc(sizeof(double) * (size_t)n), *v0 = malloc(sizeof(double) * (size_t)n);
+    double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
+    assert_true(x && v0 && ref && v);
+    iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
+    iso_solver *always = NULL, *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    o.cg_max_iter = 100;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
+    assert_int_equal(iso_solver_field(s, x, bp.vc, v0, &err), ISO_OK); /* factors */
+    for (int i = 0; i < n; i++)
+        x[i] += 0.05 * v0[i];
+    assert_int_equal(iso_solver_field(always, x, bp.vc, ref, &err), ISO_OK);
+    double top = iso_test_max_abs(ref, (size_t)n), start = vertex_max_diff(v0, ref, nv);
+    static const double share[4] = {1e-2, 1e-4, 1e-7, 0};
+    long iters[4];
+    for (int k = 0; k < 4; k++) {
+        iso_solver_stats a, c;
+        iso_solver_get_stats(s, &a);
+        iso_solver_set_cg_target(s, share[k] * top);
+        assert_int_equal(iso_solver_field_from(s, x, bp.vc, v0, v, &err), ISO_OK);
+        iso_solver_get_stats(s, &c);
+        assert_int_equal(c.factorizations, a.factorizations); /* PCG served each */
+        iters[k] = c.cg_iterations - a.cg_iterations;
+        double e = vertex_max_diff(v, ref, nv);
+        printf("CG target %.0e of the field: %ld iterations, error %.3g of the field (start "
+               "%.3g)\n",
+               share[k], iters[k], e / top, start / top);
+        if (share[k] > 0)
+            assert_true(e <= share[k] * top);
+        else
+            assert_true(e <= 1e-7 * top); /* cg_tol 1e-10, as the tests above */
+    }
+    assert_true(iters[0] <= iters[1] && iters[1] < iters[2]);
+    iso_solver_destroy(always);
+    iso_solver_destroy(s);
+    free(x);
+    free(v0);
+    free(ref);
+    free(v);
+    bumpy_deinit(&bp);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -700,6 +771,7 @@ int main(void)
         cmocka_unit_test(ill_posed_constraints_are_refused),
         cmocka_unit_test(factor_reuse_matches_refactoring),
         cmocka_unit_test(guess_is_where_cg_starts),
+        cmocka_unit_test(cg_target_bounds_the_error),
     };
     return cmocka_run_group_tests_name("system", t, NULL, NULL);
 }
