@@ -20,6 +20,8 @@
 #ifdef ISO_DEV_WITH_GPIOD
 #include <gpiod.h>
 
+const int iso_dev__gpiod_built = 1;
+
 typedef struct gp {
     struct gpiod_chip *chip;
     struct gpiod_line *in[ISO_DEV_GPIO_ROLES]; /* NULL when not configured */
@@ -173,6 +175,8 @@ int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err
 }
 
 #else
+
+const int iso_dev__gpiod_built = 0;
 
 int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err *err)
 {

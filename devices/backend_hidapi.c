@@ -14,6 +14,8 @@
 #ifdef ISO_DEV_WITH_HIDAPI
 #include <hidapi.h>
 
+const int iso_dev__hidapi_built = 1;
+
 typedef struct hid {
     hid_device *dev;
 } hid;
@@ -152,6 +154,8 @@ size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
 }
 
 #else
+
+const int iso_dev__hidapi_built = 0;
 
 int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
 {

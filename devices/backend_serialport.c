@@ -12,6 +12,8 @@
 #ifdef ISO_DEV_WITH_SERIALPORT
 #include <libserialport.h>
 
+const int iso_dev__serialport_built = 1;
+
 typedef struct ser {
     struct sp_port *port;
     int fd;
@@ -147,6 +149,8 @@ size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap)
 }
 
 #else
+
+const int iso_dev__serialport_built = 0;
 
 int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out, iso_err *err)
 {

@@ -24,6 +24,8 @@
 #ifdef ISO_DEV_WITH_SPNAV
 #include <spnav.h>
 
+const int iso_dev__spnav_built = 1;
+
 #define SPNAV_DEFAULT_SOCKET "/var/run/spnav.sock"
 
 /* 1 if something accepts a connection on the unix socket at path. */
@@ -224,6 +226,8 @@ int iso_dev__spnav_running(void)
 }
 
 #else
+
+const int iso_dev__spnav_built = 0;
 
 int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 {

@@ -192,8 +192,15 @@ size_t iso_dev_enumerate(iso_dev_found *out, size_t cap);
 int iso_dev_is_3dmouse(uint16_t vid, uint16_t pid);
 /* The udev rule that grants the logged-in user a device (uaccess). */
 void iso_dev_udev_rule(uint16_t vid, char *buf, size_t cap);
-/* Which backends were compiled in, e.g. "hidapi spnav serialport gpiod libusb tty tcp". */
-const char *iso_dev_backends(void);
+/* Which backends were compiled in, e.g. "fake replay tty tcp hidapi
+ * serialport gpiod libusb spnav", written into buf (the names that fit in
+ * cap, whole); returns buf. */
+const char *iso_dev_backends(char *buf, size_t cap);
+/* 1 if the backend `name` ("hidapi", "serialport", "gpiod", "libusb",
+ * "spnav", or one always built: "fake", "replay", "tty", "tcp") was compiled
+ * in, 0 if it was compiled out (its open function then returns ISO_ENOTSUP),
+ * -1 if there is no backend of that name. */
+int iso_dev_backend_built(const char *name);
 
 /* libusb hotplug: a watcher whose fd set wakes the loop on arrival and
  * removal of known devices. iso_dev_usb_watch_poll returns how many events

@@ -97,23 +97,21 @@ static void test_examples_load(void **state)
 static void test_check_benchmark(void **state)
 {
     (void)state;
-    char probe[512];
+    char probe[512], bin[1024];
     if (!iso_test_benchmark(probe, sizeof probe, "03-cactus-bend/cactus.off")) {
-        printf("# skipped: benchmark data absent\n");
-        return;
+        print_message("skipped: benchmark data absent (%s)\n", probe);
+        skip();
     }
-    const char *bin = getenv("ISOSHAPE_BIN");
-    if (!bin)
-        return;
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "ISOSHAPE_BENCHMARK_DIR='%s' '%s' check '%s/cactus.yaml' 2>&1",
+    if (iso_test_isoshape_bin(bin, sizeof bin) != 0) {
+        print_message("skipped: no isoshape binary at %s (set ISOSHAPE_BIN)\n", bin);
+        skip();
+    }
+    char cmd[3072], out[4096], err[4096];
+    snprintf(cmd, sizeof cmd, "ISOSHAPE_BENCHMARK_DIR='%s' '%s' check '%s/cactus.yaml'",
              ISO_BENCHMARK_DIR, bin, SCENES);
-    FILE *p = popen(cmd, "r");
-    assert_non_null(p);
-    char out[4096];
-    size_t n = fread(out, 1, sizeof out - 1, p);
-    out[n] = '\0';
-    assert_int_equal(pclose(p), 0);
+    int st = iso_test_sh(cmd, out, sizeof out, err, sizeof err);
+    if (st != 0)
+        fail_msg("isoshape check exited %d: %s%s", st, out, err);
     assert_non_null(strstr(out, "mesh: benchmark cactus"));
     assert_non_null(strstr(out, "ok"));
 }
