@@ -178,10 +178,6 @@ size_t iso_dev_hub_sources(const iso_dev_hub *h)
 {
     return h->n;
 }
-const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i)
-{
-    return i < h->n ? &h->src[i].info : NULL;
-}
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i)
 {
     return i < h->n ? &h->src[i].dec : NULL;

@@ -502,7 +502,6 @@ size_t iso_dev_hub_sources(const iso_dev_hub *h);
  * this probe only ever stops sooner. */
 int iso_dev_hub_estop_probe(void *hub);
 int iso_dev_hub_has_estop(const iso_dev_hub *h); /* any source with an e-stop input */
-const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i);
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
 
 /* What the loop's summary and --stats-json report per source: counted
