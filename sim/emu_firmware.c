@@ -463,10 +463,14 @@ static int qemu_launch(emu_link *e, iso_err *err)
     char serial[64];
     snprintf(serial, sizeof serial, "tcp:127.0.0.1:%d,nodelay=on", ntohs(a.sin_port));
     /* Everything the child needs is built before fork: after it, only
-     * async-signal-safe calls (this process may have threads). */
-    char *const argv[] = {(char *)qemu, "-M",        "mps2-an385", "-nodefaults", "-display",
-                          "none",       "-monitor",  "none",       "-serial",     serial,
-                          "-kernel",    (char *)elf, NULL};
+     * async-signal-safe calls (this process may have threads). The board's
+     * on-chip Ethernet (lan9118) is created whatever -nodefaults or -nic
+     * none say, and QEMU 7.2 warns that it "has no peer": a user-mode
+     * network with restrict=on gives it one that reaches neither the host
+     * nor the outside (the firmware never drives it). */
+    char *const argv[] = {(char *)qemu,       "-M",       "mps2-an385", "-nodefaults", "-nic",
+                          "user,restrict=on", "-display", "none",       "-monitor",    "none",
+                          "-serial",          serial,     "-kernel",    (char *)elf,   NULL};
     pid_t parent = getpid();
     pid_t pid = fork();
     if (pid == 0) {

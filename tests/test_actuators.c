@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "iso_actuators.h"
 #include "iso_mesh.h"
@@ -739,6 +740,46 @@ static void qemu_end_to_end(void **state)
     (void)state;
     if (!end_to_end(ISO_ACT_EMU_QEMU, "qemu"))
         skip();
+}
+
+/* QEMU shares this process's stderr (its own errors must reach the user),
+ * so a clean start, a short session and the stop must write nothing there:
+ * no "nic lan9118.0 has no peer" from the board's on-chip Ethernet. */
+static void qemu_keeps_the_terminal_quiet(void **state)
+{
+    (void)state;
+    char path[512];
+    iso_test_tmp(path, sizeof path, "qemu_stderr.txt");
+    fflush(stderr);
+    int saved = dup(2);
+    FILE *cap = fopen(path, "w+");
+    assert_true(saved >= 0 && cap != NULL);
+    dup2(fileno(cap), 2);
+    iso_regions r;
+    iso_actuators *a = NULL;
+    iso_err err;
+    int rc = emulated_sink(&r, ISO_ACT_EMU_QEMU, &a, &err);
+    uint32_t tick = 0;
+    if (rc == ISO_OK) {
+        run_ticks(a, &tick, 3000, NULL, NULL, streaming);
+        iso_actuators_destroy(a);
+    }
+    iso_regions_deinit(&r);
+    fflush(stderr);
+    dup2(saved, 2);
+    close(saved);
+    char said[4096];
+    rewind(cap);
+    size_t n = fread(said, 1, sizeof said - 1, cap);
+    said[n] = '\0';
+    fclose(cap);
+    if (rc == ISO_ENOTSUP) {
+        print_message("skipped: %s\n", err.msg);
+        skip();
+    }
+    assert_int_equal(rc, ISO_OK);
+    if (n)
+        fail_msg("QEMU wrote to the terminal: %s", said);
 }
 
 static void auto_falls_back_to_native_and_says_why(void **state)
@@ -1484,6 +1525,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(slow_loop_still_streams_at_100hz),
         cmocka_unit_test(waiting_for_the_first_tick_keeps_the_mcu_armed),
         cmocka_unit_test(qemu_end_to_end),
+        cmocka_unit_test(qemu_keeps_the_terminal_quiet),
         cmocka_unit_test(auto_falls_back_to_native_and_says_why),
         cmocka_unit_test(mcu_channel_count_disagreement),
         cmocka_unit_test(scene_link_emulated_forms_and_errors),

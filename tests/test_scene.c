@@ -210,8 +210,23 @@ static void test_errors(void **state)
                  "bad.yaml:7:", "solver.omgea", "did you mean 'omega'", NULL);
     expect_error(BASE "regoins: {}\n", ISO_EPARSE, "bad.yaml:2:1:", "regoins",
                  "did you mean 'regions'", NULL);
-    /* YAML syntax: one line with line:col. */
+    /* YAML syntax: one line with the line:col of the offending token
+     * (libfyaml counts from 1 already: no line or column too far). */
     expect_error("mesh: [1, 2\nregions: {\n", ISO_EPARSE, "bad.yaml:", "YAML syntax error", NULL);
+    expect_error("a: 1\nb: [1, 2\n}\n", ISO_EPARSE, "bad.yaml:3:1:", "YAML syntax error", NULL);
+    /* A duplicate key points at the second one (line 8, column 1). */
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: 60\ntick_hz: 30\n", ISO_EPARSE,
+                 "bad.yaml:8:1:", "duplicate key", NULL);
+    expect_error("mesh: {shape: bar, resolution: 4, shape: cactus}\n", ISO_EPARSE,
+                 "bad.yaml:1:35:", "duplicate key", NULL);
+    /* Anchors and aliases (SCENES.md: not accepted), even one nothing uses. */
+    expect_error("mesh: &m {shape: bar, resolution: 4}\nregions:\n  sel: builtin\n" HANDLES,
+                 ISO_EPARSE, "bad.yaml:1:11:", "mesh: anchors ('&m') are not accepted", NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: *rate\n", ISO_EPARSE,
+                 "bad.yaml:7:11:", "tick_hz: aliases ('*rate') are not accepted", NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                      "      driver: {screw: {duration: &d 1}}\n",
+                 ISO_EPARSE, "regions.handles[0].driver.screw.duration: anchors ('&d')", NULL);
     /* Types. */
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: fast\n", ISO_EPARSE,
                  "bad.yaml:7:10:", "tick_hz", "expected a finite number", NULL);
