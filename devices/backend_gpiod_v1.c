@@ -52,7 +52,7 @@ static int gp_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err
             out->data[out->len++] = (uint8_t)r;
             out->data[out->len++] = (uint8_t)v;
         }
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         return out->len ? 1 : 0;
     }
     for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++) {

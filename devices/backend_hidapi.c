@@ -26,7 +26,7 @@ static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, 
     hid *h = s->impl;
     int n = hid_read(h->dev, out->data, ISO_DEV_CHUNK_MAX);
     if (n > 0) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         out->len = (uint16_t)n;
         return 1;
     }

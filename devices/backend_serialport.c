@@ -43,7 +43,7 @@ static int ser_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
         return iso_err_set(err, ISO_EIO, -1, "%s: the adapter hung up (unplugged?)", s->info.name);
     int n = sp_nonblocking_read(p->port, out->data, ISO_DEV_CHUNK_MAX);
     if (n > 0) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         out->len = (uint16_t)n;
         return 1;
     }

@@ -176,7 +176,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
     /* Events that came before the end are handed out first; the end is
      * still there at the next read. */
     if (out->len) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         return 1;
     }
     if (why)

@@ -19,6 +19,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "iso_clock.h" /* iso_clock_ns(): the time base of every live chunk */
 #include "iso_err.h"
 #include "iso_motion.h"
 
@@ -109,9 +110,6 @@ int iso_dev_source_fd(iso_dev_source *s);
 ISO_NODISCARD int iso_dev_source_read(iso_dev_source *s, int64_t until_ns, iso_dev_chunk *out,
                                       iso_err *err);
 void iso_dev_source_close(iso_dev_source *s); /* NULL is a no-op */
-
-/* Monotonic nanoseconds (the time base of every live chunk). */
-int64_t iso_dev_now_ns(void);
 
 /* ---- simulated backends (always built) --------------------------------- */
 

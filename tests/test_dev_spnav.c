@@ -130,11 +130,11 @@ typedef struct rig {
  * the milliseconds it took, or -1. */
 static double tick_until(rig *r, int (*done)(const iso_dev_tick *), double limit_ms)
 {
-    int64_t t0 = iso_dev_now_ns();
+    int64_t t0 = iso_clock_ns();
     for (;;) {
         iso_err err;
         iso_err_clear(&err);
-        int64_t now = iso_dev_now_ns();
+        int64_t now = iso_clock_ns();
         assert_int_equal(iso_dev_hub_tick(r->h, &r->m, now, 5e-3, r->P, &r->out, &err), ISO_OK);
         if (done(&r->out))
             return (double)(now - t0) / 1e6;
