@@ -154,6 +154,8 @@ static const char *type_name(fnode *n)
         return "a mapping";
     if (fy_node_is_sequence(n))
         return "a list";
+    if (fy_node_is_alias(n))
+        return "an alias";
     return "a scalar";
 }
 
@@ -316,6 +318,51 @@ static int to_vec3(sctx *c, fnode *n, const char *key, double v[3])
             return rc;
     }
     return ISO_OK;
+}
+
+/* SCENES.md forbids anchors and aliases: a scene says each value where it
+ * applies. Walks the whole document first, so an anchor that nothing uses
+ * is refused too, and an alias is named as one rather than as the value it
+ * stands for. Deeper than any scene goes, the schema walk refuses it. */
+static int no_anchors(sctx *c, fnode *n, const char *path, int depth)
+{
+    const char *at = path && *path ? path : "(top level)";
+    size_t len = 0;
+    struct fy_anchor *a = n ? fy_node_get_anchor(n) : NULL;
+    if (a) {
+        const char *t = fy_anchor_get_text(a, &len);
+        return fail(c, n, ISO_EPARSE, at,
+                    "anchors ('&%.*s') are not accepted in scene files; write the value out",
+                    (int)(t ? len : 0), t ? t : "");
+    }
+    if (n && fy_node_is_alias(n)) {
+        const char *t = fy_node_get_scalar(n, &len);
+        return fail(c, n, ISO_EPARSE, at,
+                    "aliases ('*%.*s') are not accepted in scene files; write the value out",
+                    (int)(t ? len : 0), t ? t : "");
+    }
+    if (!n || depth > 64)
+        return ISO_OK;
+    void *it = NULL;
+    char key[KEY_MAX];
+    int rc = ISO_OK;
+    if (fy_node_is_mapping(n)) {
+        struct fy_node_pair *p;
+        while (rc == ISO_OK && (p = fy_node_mapping_iterate(n, &it)) != NULL) {
+            const char *ks = scalar(c, fy_node_pair_key(p));
+            join(key, sizeof key, path, ks ? ks : "?");
+            rc = no_anchors(c, fy_node_pair_key(p), key, depth + 1);
+            if (rc == ISO_OK)
+                rc = no_anchors(c, fy_node_pair_value(p), key, depth + 1);
+        }
+    } else if (fy_node_is_sequence(n)) {
+        fnode *item;
+        for (int i = 0; rc == ISO_OK && (item = fy_node_sequence_iterate(n, &it)) != NULL; i++) {
+            snprintf(key, sizeof key, "%s[%d]", path, i);
+            rc = no_anchors(c, item, key, depth + 1);
+        }
+    }
+    return rc;
 }
 
 static int missing(sctx *c, fnode *map, const char *path, const char *name, const char *what)
@@ -1530,9 +1577,11 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
     if (!doc) {
         void *it = NULL;
         struct fy_diag_error *e = fy_diag_errors_iterate(diag, &it);
+        /* libfyaml's collected line and column count from 1 already. */
         if (e)
-            rc = iso_err_set(err, ISO_EPARSE, e->line + 1, "%s:%d:%d: YAML syntax error: %s", path,
-                             e->line + 1, e->column + 1, e->msg ? e->msg : "?");
+            rc = iso_err_set(err, ISO_EPARSE, e->line, "%s:%d:%d: YAML syntax error: %s", path,
+                             e->line > 0 ? e->line : 1, e->column > 0 ? e->column : 1,
+                             e->msg ? e->msg : "?");
         else
             rc = iso_err_set(err, ISO_EPARSE, 1, "%s:1:1: (top level): the file is empty or holds "
                              "no YAML document (expected a mapping with mesh and regions)", path);
@@ -1547,7 +1596,9 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
     c0->file = path;
     c0->err = err;
     c0->check_files = !(opts->flags & ISO_SCENE_PARSE_ONLY);
-    rc = parse_root(c0, fy_document_root(doc));
+    rc = no_anchors(c0, fy_document_root(doc), "", 0);
+    if (rc == ISO_OK)
+        rc = parse_root(c0, fy_document_root(doc));
     fy_document_destroy(doc);
     doc = NULL;
     int check_files = c0->check_files;

@@ -36,8 +36,10 @@ static const char *const help =
     "                       (the small built-in one when the benchmark is absent)\n"
     "  --reps N             timed runs per figure, median reported (default 3)\n"
     "  --json               print one JSON object instead of tables\n"
-    "  --refactor R         run only this scheme (default: always and "
-    "adaptive)\n" ISO_CLI_SOLVER_HELP;
+    "  --refactor R         run only this scheme: always (factor every evaluation, the\n"
+    "                       paper's scheme) or adaptive (reuse the last factor as a CG\n"
+    "                       preconditioner); default: both\n" ISO_CLI_ASSEMBLY_HELP
+        ISO_CLI_CG_TOL_HELP;
 
 /* The paper's times (Martinez Esturo, Roessl, Theisel 2010, Table 1). */
 static const struct {

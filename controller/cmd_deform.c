@@ -296,11 +296,7 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
            ist->rejected);
     printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations\n",
            ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations);
-    printf("metricErr      %.6e\n", r->ours.metric_err);
-    printf("areaErr        %.6e\n", r->ours.area_err);
-    printf("angleErr       %.6e\n", r->ours.angle_err);
-    printf("maxEdgeStrain  %.6e (%.3f%%)\n", r->ours.max_edge_strain,
-           100.0 * r->ours.max_edge_strain);
+    iso_metrics_print(stdout, "", &r->ours);
     printf("time           %.3f s: assembly %.3f, factorization %.3f, solve %.3f, other %.3f\n",
            r->run.seconds, sst->t_assembly, sst->t_factor, sst->t_solve, r->run.other);
     printf("per evaluation %.3f ms: assembly %.3f, factorization %.3f, solve %.3f\n",
@@ -310,15 +306,14 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
            iso_cli__per_evaluation_ms(sst->t_factor, sst->evaluations),
            iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations));
     if (r->has_ref) {
-        printf("reference      %s\n", p->ref_path);
-        printf("  metricErr    %.6e  (reference/ours %.4g)\n", r->ref.metric_err,
-               ratio(r->ref.metric_err, r->ours.metric_err));
-        printf("  areaErr      %.6e  (reference/ours %.4g)\n", r->ref.area_err,
-               ratio(r->ref.area_err, r->ours.area_err));
-        printf("  angleErr     %.6e  (reference/ours %.4g)\n", r->ref.angle_err,
-               ratio(r->ref.angle_err, r->ours.angle_err));
-        printf("  maxEdgeStrain %.6e (%.3f%%)\n", r->ref.max_edge_strain,
-               100.0 * r->ref.max_edge_strain);
+        printf("reference      %s, the same measures of it\n", p->ref_path);
+        size_t n;
+        const iso_metrics_measure *k = iso_metrics_measures(&n);
+        for (size_t i = 0; i < n; i++) {
+            double ref = iso_metrics_value(&r->ref, &k[i]);
+            printf("  %-13s %.6e  (reference/ours %.4g)\n", k[i].name, ref,
+                   ratio(ref, iso_metrics_value(&r->ours, &k[i])));
+        }
     }
 }
 

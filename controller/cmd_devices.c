@@ -24,7 +24,8 @@ int iso_cli__devices(int argc, char **argv)
     }
     iso_dev_found f[64];
     size_t n = iso_dev_enumerate(f, 64);
-    printf("backends: %s\n", iso_dev_backends());
+    char built[128];
+    printf("backends: %s\n", iso_dev_backends(built, sizeof built));
     size_t usable = 0;
     for (size_t i = 0; i < n; i++) {
         char ids[16] = "";

@@ -81,10 +81,7 @@ int iso_cli__metrics(int argc, char **argv)
                "\"maxEdgeStrain\": %.17g, \"rmsEdgeStrain\": %.17g}\n",
                mt.metric_err, mt.area_err, mt.angle_err, mt.max_edge_strain, mt.rms_edge_strain);
     else
-        printf("metricErr      %.6e\nareaErr        %.6e\nangleErr       %.6e\n"
-               "maxEdgeStrain  %.6e (%.3f%%)\nrmsEdgeStrain  %.6e\n",
-               mt.metric_err, mt.area_err, mt.angle_err, mt.max_edge_strain,
-               100.0 * mt.max_edge_strain, mt.rms_edge_strain);
+        iso_metrics_print(stdout, "", &mt);
     status = 0;
 out:
     iso_mesh_destroy(m[0]);

@@ -314,7 +314,7 @@ int iso_loop_shutdown(iso_loop *l, iso_err *err)
          * at the last TICK record, computes exactly the ticks this run did. */
         iso_dev_event ev[64];
         size_t n = 0;
-        int r1 = iso_dev_hub_drain(l->hub, iso_dev_now_ns(), ev, 64, &n, err);
+        int r1 = iso_dev_hub_drain(l->hub, iso_clock_ns(), ev, 64, &n, err);
         if (rc == ISO_OK)
             rc = r1;
     }
@@ -640,18 +640,10 @@ int64_t iso_loop__grid_ns(const iso_loop *l, int64_t k)
     return l->stream0 + (int64_t)llround((double)k * 1e9 / l->sc->tick_hz);
 }
 
-static int64_t now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 /* Sleeps to an absolute deadline; returns early only for a stop request. */
 static void sleep_until(const iso_loop *l, int64_t t)
 {
-    struct timespec ts = {(time_t)(t / 1000000000), (long)(t % 1000000000)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR)
+    while (iso_clock_sleep_until(t))
         if (l->o.stop && *l->o.stop)
             return;
 }
@@ -751,7 +743,7 @@ static void status_line(iso_loop *l, double t_s, double dt)
 static void start_streams(iso_loop *l)
 {
     const int live = l->hub && !l->replay;
-    l->stream0 = live ? iso_dev_now_ns() : 0;
+    l->stream0 = live ? iso_clock_ns() : 0;
     if (l->replay) {
         int64_t first = iso_dev_hub_next_tick(l->hub, l->period_ns);
         l->stream0 = first == INT64_MAX ? 0 : first - l->period_ns;
@@ -772,7 +764,7 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         fprintf(l->log, "isoshape %s: --fast with live devices: ticks do not wait for input\n",
                 l->cmd);
     start_streams(l);
-    l->wall0 = now_ns();
+    l->wall0 = iso_clock_ns();
     int64_t prev_wake = l->wall0;
     l->wall_start = iso_clock_now();
     double last_status = 0;
@@ -790,11 +782,11 @@ int iso_loop_run(iso_loop *l, iso_err *err)
             if (l->o.stop && *l->o.stop)
                 break;
         }
-        int64_t wake = now_ns();
+        int64_t wake = iso_clock_ns();
         iso_loop__sinks_alive(l);
         if ((rc = tick(l, timed ? wake : 0, err)) != ISO_OK)
             break;
-        int64_t done = now_ns();
+        int64_t done = iso_clock_ns();
         if ((rc = iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
                                       (double)(done - prev_wake) * 1e-6, err)) != ISO_OK)
             break;

@@ -93,6 +93,38 @@ void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, d
 
 /* ---- the summary ---------------------------------------------------------- */
 
+/* Prints `text` after a label column, a new line for each "; "-separated
+ * part, and a part wrapped at ", " to stay within SUMMARY_WIDTH columns
+ * (never inside parentheses). A leading "LABEL: " is the label again and
+ * goes. */
+enum { SUMMARY_INDENT = 14, SUMMARY_WIDTH = 100 };
+static void print_wrapped(FILE *f, const char *label, const char *text)
+{
+    size_t ll = strlen(label);
+    if (strncmp(text, label, ll) == 0 && strncmp(text + ll, ": ", 2) == 0)
+        text += ll + 2;
+    int col = fprintf(f, "  %-*s", SUMMARY_INDENT - 2, label);
+    while (*text) {
+        size_t n = 0;
+        for (int depth = 0; text[n]; n++) {
+            depth += text[n] == '(' ? 1 : text[n] == ')' ? -1 : 0;
+            if (depth == 0 && (text[n] == ',' || text[n] == ';') && text[n + 1] == ' ')
+                break;
+        }
+        int len = (int)n + (text[n] == ','); /* a comma stays with its item */
+        if (col > SUMMARY_INDENT && col + 1 + len > SUMMARY_WIDTH)
+            col = fprintf(f, "\n%*s", SUMMARY_INDENT, "") - 1;
+        else if (col > SUMMARY_INDENT)
+            col += fprintf(f, " ");
+        col += fprintf(f, "%.*s", len, text);
+        char sep = text[n];
+        text += n + (sep ? 2 : 0);
+        if (sep == ';' && *text)
+            col = fprintf(f, "\n%*s", SUMMARY_INDENT, "") - 1;
+    }
+    fputc('\n', f);
+}
+
 void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f)
 {
     fprintf(f, "scene %s: %ld ticks, %.3f s of stream time in %.3f s wall (%.1f ticks/s)\n",
@@ -112,21 +144,22 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->integ.max_step_evaluations);
     double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
     fprintf(f,
-            "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms; "
-            "%ld factorizations, %ld CG iterations (at most %ld a step, %ld capped)\n",
+            "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms\n"
+            "              %ld factorizations, %ld CG iterations (at most %ld a step, %ld capped)\n",
             1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
             1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
             s->integ.max_step_cg_iterations, s->solver.cg_capped);
-    fprintf(f, "  distortion  metricErr %.6g, areaErr %.6g, angleErr %.6g, max edge strain %.4g\n",
-            s->metrics.metric_err, s->metrics.area_err, s->metrics.angle_err,
-            s->metrics.max_edge_strain);
+    fprintf(f, "  distortion  of the mesh against its rest pose (e' and e: an edge now and at "
+               "rest)\n");
+    iso_metrics_print(f, "    ", &s->metrics);
     for (int h = 0; h < s->n_handles; h++)
         fprintf(f, "  handle %d    '%s' at %.6g %.6g %.6g\n", h, sc->handles[h].name,
                 s->handle_p[h][0], s->handle_p[h][1], s->handle_p[h][2]);
     for (int i = 0; i < s->n_devices; i++) {
         const iso_dev_source_stats *d = &s->device[i];
         fprintf(f,
-                "  device %d    %s: %u events, %u bad frames, %u garbage bytes, gone %u, back %u, "
+                "  device %d    %s\n"
+                "              %u events, %u bad frames, %u garbage bytes, gone %u, back %u, "
                 "stale %u\n",
                 i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->gone,
                 d->back, d->stale);
@@ -137,7 +170,7 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
         fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames,
                 s->snapshots);
     if (s->act_line[0])
-        fprintf(f, "  actuators   %s\n", s->act_line);
+        print_wrapped(f, "actuators", s->act_line);
     fprintf(f, "  realtime    %s\n",
             s->rt_active ? "SCHED_FIFO" : (s->rt_note[0] ? s->rt_note : "off (--fast or --no-rt)"));
     fprintf(f, "  vertices checksum %016llx\n", (unsigned long long)s->checksum);

@@ -20,6 +20,8 @@
 #ifdef ISO_DEV_WITH_GPIOD
 #include <gpiod.h>
 
+const int iso_dev__gpiod_built = 1;
+
 typedef struct gp {
     struct gpiod_chip *chip;
     struct gpiod_line *in[ISO_DEV_GPIO_ROLES]; /* NULL when not configured */
@@ -50,7 +52,7 @@ static int gp_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err
             out->data[out->len++] = (uint8_t)r;
             out->data[out->len++] = (uint8_t)v;
         }
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         return out->len ? 1 : 0;
     }
     for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++) {
@@ -173,6 +175,8 @@ int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err
 }
 
 #else
+
+const int iso_dev__gpiod_built = 0;
 
 int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err *err)
 {

@@ -14,6 +14,8 @@
 #ifdef ISO_DEV_WITH_HIDAPI
 #include <hidapi.h>
 
+const int iso_dev__hidapi_built = 1;
+
 typedef struct hid {
     hid_device *dev;
 } hid;
@@ -24,7 +26,7 @@ static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, 
     hid *h = s->impl;
     int n = hid_read(h->dev, out->data, ISO_DEV_CHUNK_MAX);
     if (n > 0) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         out->len = (uint16_t)n;
         return 1;
     }
@@ -152,6 +154,8 @@ size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
 }
 
 #else
+
+const int iso_dev__hidapi_built = 0;
 
 int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
 {

@@ -12,6 +12,8 @@
 #ifdef ISO_DEV_WITH_LIBUSB
 #include <libusb.h>
 
+const int iso_dev__libusb_built = 1;
+
 static const uint16_t known_vids[] = {0x046d, 0x256f};
 
 struct iso_dev_usb_watch {
@@ -116,6 +118,8 @@ size_t iso_dev__usb_enumerate(iso_dev_found *out, size_t cap)
 }
 
 #else
+
+const int iso_dev__libusb_built = 0;
 
 struct iso_dev_usb_watch {
     int unused;

@@ -12,6 +12,8 @@
 #ifdef ISO_DEV_WITH_SERIALPORT
 #include <libserialport.h>
 
+const int iso_dev__serialport_built = 1;
+
 typedef struct ser {
     struct sp_port *port;
     int fd;
@@ -41,7 +43,7 @@ static int ser_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
         return iso_err_set(err, ISO_EIO, -1, "%s: the adapter hung up (unplugged?)", s->info.name);
     int n = sp_nonblocking_read(p->port, out->data, ISO_DEV_CHUNK_MAX);
     if (n > 0) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         out->len = (uint16_t)n;
         return 1;
     }
@@ -147,6 +149,8 @@ size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap)
 }
 
 #else
+
+const int iso_dev__serialport_built = 0;
 
 int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out, iso_err *err)
 {

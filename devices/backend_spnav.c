@@ -24,6 +24,8 @@
 #ifdef ISO_DEV_WITH_SPNAV
 #include <spnav.h>
 
+const int iso_dev__spnav_built = 1;
+
 #define SPNAV_DEFAULT_SOCKET "/var/run/spnav.sock"
 
 /* 1 if something accepts a connection on the unix socket at path. */
@@ -174,7 +176,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
     /* Events that came before the end are handed out first; the end is
      * still there at the next read. */
     if (out->len) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         return 1;
     }
     if (why)
@@ -224,6 +226,8 @@ int iso_dev__spnav_running(void)
 }
 
 #else
+
+const int iso_dev__spnav_built = 0;
 
 int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 {

@@ -46,7 +46,7 @@ static int tty_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
     tty *t = s->impl;
     ssize_t n = read(t->fd, out->data, ISO_DEV_CHUNK_MAX);
     if (n > 0) {
-        out->t_ns = iso_dev_now_ns();
+        out->t_ns = iso_clock_ns();
         out->len = (uint16_t)n;
         return 1;
     }

@@ -7,11 +7,9 @@
 
 #include <string.h>
 
-#ifdef ISO_DEV_HAVE_FB
 #include "iso_fb.h"
 _Static_assert(sizeof(iso_fb_parser) <= sizeof(((iso_dev_decoder *)0)->fb),
                "iso_dev_decoder.fb holds an iso_fb_parser");
-#endif
 
 const char *iso_dev_kind_name(int kind)
 {
@@ -72,16 +70,7 @@ int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t s
     case ISO_DEV_KIND_HID:
     case ISO_DEV_KIND_SPNAV:
     case ISO_DEV_KIND_GPIO: return ISO_OK;
-    case ISO_DEV_KIND_SERIAL:
-#ifdef ISO_DEV_HAVE_FB
-        iso_fb_parser_init((iso_fb_parser *)(void *)d->fb);
-        return ISO_OK;
-#else
-        return iso_err_set(err, ISO_ENOTSUP, -1,
-                           "source %u (%s): this build has no firmware-bridge parser "
-                           "(firmware-bridge/iso_fb.c), so serial streams cannot be decoded",
-                           source, info->name);
-#endif
+    case ISO_DEV_KIND_SERIAL: iso_fb_parser_init((iso_fb_parser *)(void *)d->fb); return ISO_OK;
     default:
         return iso_err_set(err, ISO_EINVAL, -1, "source %u (%s): unknown device kind %d", source,
                            info->name, info->kind);
@@ -185,7 +174,6 @@ static size_t spnav_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size
 
 /* ---- the firmware bridge's serial stream ------------------------------- */
 
-#ifdef ISO_DEV_HAVE_FB
 static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
                             iso_dev_event *ev, size_t cap)
 {
@@ -217,12 +205,10 @@ static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
     }
     return n;
 }
-#endif
 
 void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out)
 {
     memset(out, 0, sizeof *out);
-#ifdef ISO_DEV_HAVE_FB
     if (d->kind != ISO_DEV_KIND_SERIAL)
         return;
     const iso_fb_counters *n = &((const iso_fb_parser *)(const void *)d->fb)->n;
@@ -236,9 +222,6 @@ void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out)
     out->duplicate = n->duplicate;
     out->out_of_order = n->out_of_order;
     out->seq_gaps = n->seq_gaps;
-#else
-    (void)d;
-#endif
 }
 
 /* ---- GPIO edges and their debounce ------------------------------------- */
@@ -320,7 +303,6 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
         d->buttons = 0;
         for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++)
             d->gpio[r].have = 0;
-#ifdef ISO_DEV_HAVE_FB
         if (d->kind == ISO_DEV_KIND_SERIAL) {
             /* A new link: no half frame, no sequence; the counts go on. */
             iso_fb_parser *fb = (iso_fb_parser *)(void *)d->fb;
@@ -328,7 +310,6 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
             iso_fb_parser_init(fb);
             fb->n = keep;
         }
-#endif
         emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
         return n;
     case ISO_DEV_CHUNK_BACK: emit(d, c->t_ns, ISO_DEV_EV_BACK, ev, cap, &n); return n;
@@ -338,9 +319,7 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
     switch (d->kind) {
     case ISO_DEV_KIND_HID: return iso_dev_sm_decode(d, c->t_ns, c->data, len, ev, cap);
     case ISO_DEV_KIND_SPNAV: return spnav_decode(d, c->t_ns, c->data, len, ev, cap);
-#ifdef ISO_DEV_HAVE_FB
     case ISO_DEV_KIND_SERIAL: return serial_decode(d, c->t_ns, c->data, len, ev, cap);
-#endif
     case ISO_DEV_KIND_GPIO: return gpio_decode(d, c->t_ns, c->data, len, ev, cap);
     default: d->n.garbage += (uint32_t)len; return 0;
     }

@@ -178,10 +178,6 @@ size_t iso_dev_hub_sources(const iso_dev_hub *h)
 {
     return h->n;
 }
-const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i)
-{
-    return i < h->n ? &h->src[i].info : NULL;
-}
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i)
 {
     return i < h->n ? &h->src[i].dec : NULL;
@@ -256,7 +252,7 @@ int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err)
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
     for (size_t i = 0; i < h->n; i++)
         infos[i] = h->src[i].info;
-    int rc = iso_dev_rec_writer_open(&h->rec, path, infos, h->n, iso_dev_now_ns(), err);
+    int rc = iso_dev_rec_writer_open(&h->rec, path, infos, h->n, iso_clock_ns(), err);
     free(infos);
     if (rc == ISO_OK)
         h->recording = 1;

@@ -19,6 +19,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "iso_clock.h" /* iso_clock_ns(): the time base of every live chunk */
 #include "iso_err.h"
 #include "iso_motion.h"
 
@@ -110,9 +111,6 @@ ISO_NODISCARD int iso_dev_source_read(iso_dev_source *s, int64_t until_ns, iso_d
                                       iso_err *err);
 void iso_dev_source_close(iso_dev_source *s); /* NULL is a no-op */
 
-/* Monotonic nanoseconds (the time base of every live chunk). */
-int64_t iso_dev_now_ns(void);
-
 /* ---- simulated backends (always built) --------------------------------- */
 
 /* A scripted source for tests: chunks and "gone" marks queued by the test,
@@ -192,8 +190,15 @@ size_t iso_dev_enumerate(iso_dev_found *out, size_t cap);
 int iso_dev_is_3dmouse(uint16_t vid, uint16_t pid);
 /* The udev rule that grants the logged-in user a device (uaccess). */
 void iso_dev_udev_rule(uint16_t vid, char *buf, size_t cap);
-/* Which backends were compiled in, e.g. "hidapi spnav serialport gpiod libusb tty tcp". */
-const char *iso_dev_backends(void);
+/* Which backends were compiled in, e.g. "fake replay tty tcp hidapi
+ * serialport gpiod libusb spnav", written into buf (the names that fit in
+ * cap, whole); returns buf. */
+const char *iso_dev_backends(char *buf, size_t cap);
+/* 1 if the backend `name` ("hidapi", "serialport", "gpiod", "libusb",
+ * "spnav", or one always built: "fake", "replay", "tty", "tcp") was compiled
+ * in, 0 if it was compiled out (its open function then returns ISO_ENOTSUP),
+ * -1 if there is no backend of that name. */
+int iso_dev_backend_built(const char *name);
 
 /* libusb hotplug: a watcher whose fd set wakes the loop on arrival and
  * removal of known devices. iso_dev_usb_watch_poll returns how many events
@@ -495,7 +500,6 @@ size_t iso_dev_hub_sources(const iso_dev_hub *h);
  * this probe only ever stops sooner. */
 int iso_dev_hub_estop_probe(void *hub);
 int iso_dev_hub_has_estop(const iso_dev_hub *h); /* any source with an e-stop input */
-const iso_dev_info *iso_dev_hub_info(const iso_dev_hub *h, size_t i);
 const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
 
 /* What the loop's summary and --stats-json report per source: counted

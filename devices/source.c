@@ -9,13 +9,6 @@
 #include <string.h>
 #include <time.h>
 
-int64_t iso_dev_now_ns(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
-}
-
 int iso_dev_source_fd(iso_dev_source *s)
 {
     return s && s->ops->fd ? s->ops->fd(s) : -1;

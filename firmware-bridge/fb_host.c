@@ -30,7 +30,7 @@ static void link_down(iso_fb_host *h)
     if (h->state != ISO_FB_HOST_DOWN)
         h->stats.link_losses++;
     h->state = ISO_FB_HOST_DOWN;
-    h->last_reopen_us = iso_fb__now_us();
+    h->last_reopen_us = iso_clock_us();
 }
 
 static void send_hello(iso_fb_host *h)
@@ -45,7 +45,7 @@ static void send_hello(iso_fb_host *h)
         return;
     }
     h->state = ISO_FB_HOST_HANDSHAKE;
-    h->last_hello_us = iso_fb__now_us();
+    h->last_hello_us = iso_clock_us();
 }
 
 int iso_fb_host_init(iso_fb_host *h, iso_link *link, const iso_fb_host_opts *opts,
@@ -70,7 +70,7 @@ int iso_fb_host_init(iso_fb_host *h, iso_link *link, const iso_fb_host_opts *opt
     iso_fb_parser_init(&h->parser);
     iso_err_clear(&h->last_err);
     h->stats.rtt_min_us = UINT32_MAX;
-    h->last_rx_us = iso_fb__now_us();
+    h->last_rx_us = iso_clock_us();
     send_hello(h);
     if (h->state == ISO_FB_HOST_DOWN)
         return iso_err_set(err, ISO_EIO, -1, "fb host: first HELLO failed: %s", h->last_err.msg);
@@ -95,7 +95,7 @@ static void note_rtt(iso_fb_host *h, uint16_t seq)
     unsigned slot = seq % ISO_FB_HOST_RTT_SLOTS;
     if (h->sent_seq[slot] != seq || h->sent_us[slot] == 0)
         return;
-    uint64_t d = iso_fb__now_us() - h->sent_us[slot];
+    uint64_t d = iso_clock_us() - h->sent_us[slot];
     h->sent_us[slot] = 0;
     uint32_t us = d > UINT32_MAX ? UINT32_MAX : (uint32_t)d;
     h->stats.rtt_last_us = us;
@@ -213,7 +213,7 @@ int iso_fb_host_poll(iso_fb_host *h, int timeout_ms)
         for (int i = 0; i < n; i++) {
             iso_fb_view v;
             if (iso_fb_parser_feed(&h->parser, buf[i], &v) == ISO_FB_FRAME) {
-                h->last_rx_us = iso_fb__now_us();
+                h->last_rx_us = iso_clock_us();
                 handle_frame(h, &v);
                 frames++;
             }
@@ -221,7 +221,7 @@ int iso_fb_host_poll(iso_fb_host *h, int timeout_ms)
         h->stats.rx = h->parser.n;
     }
     if (h->state != ISO_FB_HOST_DOWN &&
-        iso_fb__now_us() - h->last_rx_us > (uint64_t)h->opts.link_timeout_ms * 1000u) {
+        iso_clock_us() - h->last_rx_us > (uint64_t)h->opts.link_timeout_ms * 1000u) {
         iso_err_clear(&h->last_err);
         iso_err_set(&h->last_err, ISO_EIO, -1, "fb host: no valid frame for %d ms",
                     h->opts.link_timeout_ms);
@@ -234,7 +234,7 @@ int iso_fb_host_poll(iso_fb_host *h, int timeout_ms)
  * answered within hello_retry_ms. */
 static void service(iso_fb_host *h)
 {
-    uint64_t now = iso_fb__now_us();
+    uint64_t now = iso_clock_us();
     if (h->state == ISO_FB_HOST_DOWN) {
         if (now - h->last_reopen_us < (uint64_t)h->opts.reopen_ms * 1000u)
             return;
@@ -272,7 +272,7 @@ int iso_fb_host_step(iso_fb_host *h, uint32_t tick, const int16_t *values, unsig
                        &h->last_err) == ISO_OK) {
             unsigned slot = seq % ISO_FB_HOST_RTT_SLOTS;
             h->sent_seq[slot] = seq;
-            h->sent_us[slot] = iso_fb__now_us();
+            h->sent_us[slot] = iso_clock_us();
             sent = 1;
         } else {
             link_down(h);

@@ -5,10 +5,9 @@
 
 #include <stdint.h>
 
+#include "iso_clock.h"
 #include "iso_link.h"
 
-/* Monotonic clock in microseconds. */
-uint64_t iso_fb__now_us(void);
 /* read()/write() on a non-blocking fd with poll() and a timeout, shared by
  * the tty and TCP backends. `what` names the link in messages. */
 int iso_fb__fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err);

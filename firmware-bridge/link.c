@@ -43,19 +43,6 @@ void iso_link_close(iso_link *l)
         l->ops->close(l);
 }
 
-uint64_t iso_fb__now_us(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
-}
-
-static int remaining_ms(uint64_t deadline_us)
-{
-    uint64_t now = iso_fb__now_us();
-    return now >= deadline_us ? 0 : (int)((deadline_us - now + 999u) / 1000u);
-}
-
 int iso_fb__fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
     if (fd < 0)
@@ -84,7 +71,7 @@ int iso_fb__fd_write(int fd, const char *what, const uint8_t *buf, size_t n, int
 {
     if (fd < 0)
         return iso_err_set(err, ISO_EIO, -1, "%s: link is closed", what);
-    uint64_t deadline = iso_fb__now_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
+    uint64_t deadline = iso_clock_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     size_t done = 0;
     while (done < n) {
         /* MSG_NOSIGNAL: a vanished peer must be an error here, not SIGPIPE. */
@@ -96,7 +83,7 @@ int iso_fb__fd_write(int fd, const char *what, const uint8_t *buf, size_t n, int
         }
         if (w < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", what, strerror(errno));
-        int left = remaining_ms(deadline);
+        int left = iso_clock_ms_until(deadline);
         if (left == 0)
             return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms (%zu of %zu bytes)",
                                what, timeout_ms, done, n);

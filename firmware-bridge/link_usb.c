@@ -72,7 +72,7 @@ static int usb_out(usb_link *u, const uint8_t *buf, size_t n, uint64_t deadline,
     size_t done = 0;
     int stalls = 0;
     do {
-        uint64_t now = iso_fb__now_us();
+        uint64_t now = iso_clock_us();
         int left = now >= deadline ? 1 : (int)((deadline - now + 999u) / 1000u);
         int got = 0;
         int rc = u->io.bulk(u->io.ctx, u->ep_out, (uint8_t *)(uintptr_t)(buf + done), (int)(n - done),
@@ -88,7 +88,7 @@ static int usb_out(usb_link *u, const uint8_t *buf, size_t n, uint64_t deadline,
         if (rc != ISO_LINK_USB_OK && rc != ISO_LINK_USB_TIMEOUT)
             return iso_err_set(err, ISO_EIO, -1, "usb endpoint 0x%02x: bulk write: %s (%d)",
                                (unsigned)u->ep_out, usb_code_name(rc), rc);
-        if (done < n && iso_fb__now_us() >= deadline)
+        if (done < n && iso_clock_us() >= deadline)
             return iso_err_set(err, ISO_EIO, -1,
                                "usb endpoint 0x%02x: bulk write timed out after %d ms (%zu of %zu bytes)",
                                (unsigned)u->ep_out, timeout_ms, done, n);
@@ -101,7 +101,7 @@ static int usb_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, 
     usb_link *u = (usb_link *)l;
     if (n == 0)
         return ISO_OK;
-    uint64_t deadline = iso_fb__now_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
+    uint64_t deadline = iso_clock_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     int rc = usb_out(u, buf, n, deadline, timeout_ms, err);
     /* A transfer that fills its last packet needs a zero-length packet, or
      * a device that reads until a short packet waits for more. */

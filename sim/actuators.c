@@ -9,6 +9,7 @@
 
 #include "act_internal.h"
 #include "iso_actuators.h"
+#include "iso_clock.h"
 #include "iso_fb_host.h"
 
 #define ECHO_SLOTS 128u      /* sent frames kept for the ACK check, by frame seq */
@@ -114,13 +115,6 @@ struct iso_actuators {
     int break_cause;
     const char *break_what;
 };
-
-static uint64_t now_us(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
-}
 
 static void say(const iso_actuators *a, const char *line)
 {
@@ -316,7 +310,7 @@ static void note_safe(iso_actuators *a, const char *how)
     int confirm = a->await_safe;
     double ms = 0;
     if (confirm) {
-        uint64_t now = now_us();
+        uint64_t now = iso_clock_us();
         a->await_safe = 0;
         ms = now > a->break_us ? (double)(now - a->break_us) / 1000.0 : 0.0;
     }
@@ -387,7 +381,7 @@ static void on_ack(void *ctx, const iso_fb_ack *k)
     int known = s->used && s->seq == k->seq;
     int same = known && s->tick == k->tick && s->n == k->n &&
                memcmp(s->value, k->value, (size_t)k->n * sizeof k->value[0]) == 0;
-    double ms = known ? (double)(now_us() - s->sent_us) / 1000.0 : 0;
+    double ms = known ? (double)(iso_clock_us() - s->sent_us) / 1000.0 : 0;
     pthread_mutex_lock(&a->lock);
     iso_act_stats *st = &a->st;
     st->acks++;
@@ -415,7 +409,7 @@ static void on_fault(void *ctx, const iso_fb_fault *f)
     a->st.last_fault_detail_ms = f->detail;
     if (!a->saw_safe) {
         a->saw_safe = 1;
-        a->safe_us = now_us();
+        a->safe_us = iso_clock_us();
     }
     pthread_mutex_unlock(&a->lock);
     char how[96];
@@ -440,7 +434,7 @@ static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
         a->st.mcu_pos[c] = hb->pos[c];
     if (hb->state != ISO_FB_STATE_ARMED && !a->saw_safe) {
         a->saw_safe = 1;
-        a->safe_us = now_us();
+        a->safe_us = iso_clock_us();
     }
     pthread_mutex_unlock(&a->lock);
     if (hb->state == ISO_FB_STATE_ARMED)
@@ -460,14 +454,14 @@ static void remember(iso_actuators *a, uint16_t seq, uint32_t tick, const int16_
     s->tick = tick;
     s->n = (uint8_t)n;
     s->used = 1;
-    s->sent_us = now_us();
+    s->sent_us = iso_clock_us();
     memcpy(s->value, v, n * sizeof *v);
 }
 
 /* Loss, reopen, re-arm and silence, each said once as it happens. */
 static void watch_link(iso_actuators *a)
 {
-    uint64_t now = now_us();
+    uint64_t now = iso_clock_us();
     int hs = a->host.state, was = a->prev_host_state;
     char line[640];
     if (hs == ISO_FB_HOST_DOWN && was != ISO_FB_HOST_DOWN) {
@@ -567,7 +561,8 @@ static void share_host(iso_actuators *a, int frames)
  * the safe positions would jerk an MCU that was elsewhere. */
 static void keep_armed(iso_actuators *a)
 {
-    if (a->host.state != ISO_FB_HOST_STREAMING || now_us() - a->host.last_hello_us < KEEP_ARMED_US)
+    if (a->host.state != ISO_FB_HOST_STREAMING ||
+        iso_clock_us() - a->host.last_hello_us < KEEP_ARMED_US)
         return;
     iso_fb_host_rehello(&a->host);
     iso_fb_host_step(&a->host, 0, NULL, 0); /* sends the HELLO: no setpoints while handshaking */
@@ -660,7 +655,7 @@ static unsigned holds_now(iso_actuators *a)
     uint64_t last_pub = a->last_publish_us;
     pthread_mutex_unlock(&a->lock);
     unsigned before = a->hold;
-    unsigned h = update_holds(a, now_us(), stopped, last_pub);
+    unsigned h = update_holds(a, iso_clock_us(), stopped, last_pub);
     unsigned fresh = h & ~before;
     uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP) ? ISO_FB_SAFE_ESTOP
                     : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
@@ -708,7 +703,7 @@ static void send_latest(iso_actuators *a)
      * this very step. */
     if (a->host.state == ISO_FB_HOST_STREAMING)
         remember(a, a->host.tx_seq, tick, v, n);
-    uint64_t t_send = now_us();
+    uint64_t t_send = iso_clock_us();
     uint64_t rx0 = a->host.stats.rx_frames;
     int sent = iso_fb_host_step(&a->host, tick, v, n);
     int frames = (int)(a->host.stats.rx_frames - rx0);
@@ -741,23 +736,20 @@ static void to_timespec(uint64_t us, struct timespec *ts)
 static void *sender_main(void *arg)
 {
     iso_actuators *a = arg;
-    uint64_t next = now_us();
+    uint64_t next = iso_clock_us();
     while (!quitting(a)) {
         send_latest(a);
         next += PERIOD_US;
-        uint64_t now = now_us();
+        uint64_t now = iso_clock_us();
         if (next + PERIOD_US < now)
             next = now + PERIOD_US;
-        while ((now = now_us()) < next) {
+        while ((now = iso_clock_us()) < next) {
             uint64_t slice = next - now < HOLD_POLL_US ? next - now : HOLD_POLL_US;
             int frames = 0;
             if (slice >= 1000u && a->host.state != ISO_FB_HOST_DOWN)
                 frames = iso_fb_host_poll(&a->host, (int)(slice / 1000u));
-            else {
-                struct timespec ts;
-                to_timespec(now + slice, &ts);
-                clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL);
-            }
+            else
+                iso_clock_sleep_until((int64_t)(now + slice) * 1000);
             unsigned before = a->hold;
             if (holds_now(a) != before || frames > 0 || a->host.state == ISO_FB_HOST_DOWN)
                 share_host(a, frames);
@@ -1005,7 +997,7 @@ int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_
 {
     if (!a || !x)
         return iso_err_set(err, ISO_EINVAL, -1, "actuators: NULL handle or positions");
-    uint64_t t0 = now_us();
+    uint64_t t0 = iso_clock_us();
     int16_t v[ISO_ACT_MAX_CHANNELS];
     uint8_t clamped[ISO_ACT_MAX_CHANNELS];
     memset(v, 0, sizeof v);
@@ -1021,7 +1013,7 @@ int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_
         a->last_publish_us = t0;
         if (atomic_load_explicit(&a->progress_us, memory_order_relaxed))
             atomic_store_explicit(&a->progress_us, t0, memory_order_relaxed);
-        double ms = (double)(now_us() - t0) / 1000.0;
+        double ms = (double)(iso_clock_us() - t0) / 1000.0;
         if (ms > a->st.publish_max_ms)
             a->st.publish_max_ms = ms;
         a->st.publish_over_1ms += ms > 1.0;
@@ -1050,7 +1042,7 @@ int iso_actuators_poll(iso_actuators *a, int timeout_ms)
     uint64_t f0 = a->frames;
     if (a->link_state != ISO_FB_HOST_DOWN && timeout_ms > 0) {
         struct timespec ts;
-        to_timespec(now_us() + (uint64_t)timeout_ms * 1000u, &ts);
+        to_timespec(iso_clock_us() + (uint64_t)timeout_ms * 1000u, &ts);
         while (a->frames == f0 && a->link_state != ISO_FB_HOST_DOWN)
             if (pthread_cond_timedwait(&a->cond, &a->lock, &ts) != 0)
                 break;
@@ -1066,7 +1058,7 @@ int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms, i
         *safe_ms = -1;
     if (!a || !a->host_up)
         return iso_err_set(err, ISO_EINVAL, -1, "actuators: safe_stop needs a link");
-    uint64_t start = now_us(),
+    uint64_t start = iso_clock_us(),
              deadline = start + (uint64_t)(timeout_ms > 0 ? timeout_ms : 0) * 1000u;
     struct timespec ts;
     to_timespec(deadline, &ts);
@@ -1171,7 +1163,7 @@ void iso_actuators_alive(iso_actuators *a)
 {
     if (!a)
         return;
-    atomic_store_explicit(&a->progress_us, now_us(), memory_order_relaxed);
+    atomic_store_explicit(&a->progress_us, iso_clock_us(), memory_order_relaxed);
     atomic_fetch_add_explicit(&a->alive_calls, 1, memory_order_relaxed);
 }
 
@@ -1185,7 +1177,7 @@ void iso_actuators_estop(iso_actuators *a, int on)
     }
     if (atomic_load(&a->estop_req))
         return;                           /* the edge counts, not the level */
-    atomic_store(&a->estop_us, now_us()); /* before the flag: the sender reads both */
+    atomic_store(&a->estop_us, iso_clock_us()); /* before the flag: the sender reads both */
     atomic_store(&a->estop_req, 1);
 }
 

@@ -15,6 +15,7 @@
  * topology, then frames; when a message is done and a newer frame was
  * published, that frame is copied out and becomes the next message. */
 #include "display_internal.h"
+#include "iso_clock.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -71,9 +72,7 @@ struct iso_display__conn {
 
 static long long now_ms(void)
 {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (long long)t.tv_sec * 1000 + t.tv_nsec / 1000000;
+    return (long long)(iso_clock_ns() / 1000000);
 }
 
 static void set_nonblocking(int fd)

@@ -27,6 +27,7 @@
 #include "act_internal.h"
 #include "fb_test_config.h" /* ISO_FB_FIRMWARE_ELF, ISO_FB_QEMU_PATH: where the build put them */
 #include "iso_actuators.h"
+#include "iso_clock.h"
 
 #define QEMU_CONNECT_MS 5000 /* QEMU connects its UART at start-up; loaded CI is slow */
 
@@ -55,7 +56,7 @@ typedef struct emu_link {
     atomic_int paused;      /* SIGSTOP drill */
     atomic_uint tx_dropped; /* bytes the host did not take in time */
     iso_fb_mcu mcu;         /* touched only by the thread once it runs */
-    struct timespec t0;
+    int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
 
 void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg)
@@ -74,19 +75,6 @@ void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg)
 /* ------------------------------------------------------------------------ */
 /* Socket I/O for the QEMU stream                                            */
 /* ------------------------------------------------------------------------ */
-
-static uint64_t now_us(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
-}
-
-static int ms_left(uint64_t deadline)
-{
-    uint64_t now = now_us();
-    return now >= deadline ? 0 : (int)((deadline - now + 999u) / 1000u);
-}
 
 static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
@@ -112,7 +100,7 @@ static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms,
 {
     if (e->sock < 0 || e->sock_dead)
         return iso_err_set(err, ISO_EIO, -1, "%s: no UART stream (QEMU restarting)", e->what);
-    uint64_t deadline = now_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
+    uint64_t deadline = iso_clock_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     size_t done = 0;
     while (done < n) {
         ssize_t w = send(e->sock, buf + done, n - done, MSG_NOSIGNAL);
@@ -124,7 +112,7 @@ static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms,
             e->sock_dead = 1;
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", e->what, strerror(errno));
         }
-        int left = ms_left(deadline);
+        int left = iso_clock_ms_until(deadline);
         struct pollfd p = {e->sock, POLLOUT, 0};
         if (left == 0 || poll(&p, 1, left) == 0)
             return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms", e->what,
@@ -226,11 +214,7 @@ static emu_link *emu_new(int mode)
 
 static uint32_t mcu_ms(const emu_link *e)
 {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    int64_t ms =
-        (int64_t)(ts.tv_sec - e->t0.tv_sec) * 1000 + (ts.tv_nsec - e->t0.tv_nsec) / 1000000;
-    return (uint32_t)ms;
+    return (uint32_t)((iso_clock_ns() - e->t0_ns) / 1000000);
 }
 
 /* The firmware queues replies in its UART ring and waits for room; here the
@@ -280,8 +264,7 @@ static void *mcu_thread(void *arg)
     uint8_t buf[256];
     while (!atomic_load(&e->stop) && !atomic_load(&e->killed)) {
         if (atomic_load(&e->paused)) { /* a stopped process: no clock, no I/O */
-            struct timespec ts = {0, 1000000};
-            nanosleep(&ts, NULL);
+            iso_clock_sleep_until(iso_clock_ns() + 1000000);
             continue;
         }
         struct pollfd p = {e->master, POLLIN, 0};
@@ -292,8 +275,7 @@ static void *mcu_thread(void *arg)
                 iso_fb_mcu_rx(&e->mcu, buf, (size_t)n);
         } else if (r > 0 && (p.revents & (POLLHUP | POLLERR))) {
             /* no slave open for a moment (a reopen): do not spin */
-            struct timespec ts = {0, 1000000};
-            nanosleep(&ts, NULL);
+            iso_clock_sleep_until(iso_clock_ns() + 1000000);
         }
         uint32_t now = mcu_ms(e);
         if (now != last) {
@@ -342,7 +324,7 @@ static int native_open(emu_link *e, iso_err *err)
         return rc;
     iso_fb_mcu_config cfg;
     iso_act_emu_firmware_config(&cfg);
-    clock_gettime(CLOCK_MONOTONIC, &e->t0);
+    e->t0_ns = iso_clock_ns();
     if (iso_fb_mcu_init(&e->mcu, &cfg, mcu_write, e, mcu_ms(e)) != 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: the firmware configuration is invalid",
                            e->what);
@@ -463,10 +445,14 @@ static int qemu_launch(emu_link *e, iso_err *err)
     char serial[64];
     snprintf(serial, sizeof serial, "tcp:127.0.0.1:%d,nodelay=on", ntohs(a.sin_port));
     /* Everything the child needs is built before fork: after it, only
-     * async-signal-safe calls (this process may have threads). */
-    char *const argv[] = {(char *)qemu, "-M",        "mps2-an385", "-nodefaults", "-display",
-                          "none",       "-monitor",  "none",       "-serial",     serial,
-                          "-kernel",    (char *)elf, NULL};
+     * async-signal-safe calls (this process may have threads). The board's
+     * on-chip Ethernet (lan9118) is created whatever -nodefaults or -nic
+     * none say, and QEMU 7.2 warns that it "has no peer": a user-mode
+     * network with restrict=on gives it one that reaches neither the host
+     * nor the outside (the firmware never drives it). */
+    char *const argv[] = {(char *)qemu,       "-M",       "mps2-an385", "-nodefaults", "-nic",
+                          "user,restrict=on", "-display", "none",       "-monitor",    "none",
+                          "-serial",          serial,     "-kernel",    (char *)elf,   NULL};
     pid_t parent = getpid();
     pid_t pid = fork();
     if (pid == 0) {
@@ -487,7 +473,7 @@ static int qemu_launch(emu_link *e, iso_err *err)
     }
     atomic_store(&e->qemu, pid);
     e->lfd = lfd;
-    e->launched_us = now_us();
+    e->launched_us = iso_clock_us();
     return ISO_OK;
 }
 
@@ -520,7 +506,7 @@ static int qemu_accept(emu_link *e, int wait_ms, iso_err *err)
             return ISO_OK;
         }
     }
-    if (now_us() - e->launched_us > QEMU_CONNECT_MS * 1000u) {
+    if (iso_clock_us() - e->launched_us > QEMU_CONNECT_MS * 1000u) {
         qemu_reap(e);
         return iso_err_set(err, ISO_EIO, -1, "%s: %s did not connect its UART within %d ms",
                            e->what, e->qemu_path, QEMU_CONNECT_MS);

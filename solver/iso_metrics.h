@@ -3,6 +3,9 @@
 #ifndef ISO_METRICS_H
 #define ISO_METRICS_H
 
+#include <stddef.h>
+#include <stdio.h>
+
 #include "iso_mesh.h"
 
 typedef struct iso_metrics {
@@ -15,5 +18,24 @@ typedef struct iso_metrics {
 
 /* x0, x1: 3*nv positions (rest and deformed) over m's connectivity. */
 void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1, iso_metrics *out);
+
+/* The measures by name, so that every output labels them alike: the
+ * paper's name (what text output shows), the JSON key (snake_case, like
+ * every key isoshape writes), and what the figure measures. */
+typedef struct iso_metrics_measure {
+    const char *name; /* "metricErr" */
+    const char *key;  /* "metric_err" */
+    const char *what; /* "sum over edges of (|e'| - |e|)^2" */
+    size_t offset;    /* of the measure's double in iso_metrics */
+    int relative;     /* 1: a ratio, shown as a percentage too */
+} iso_metrics_measure;
+
+/* The table, in iso_metrics' order; *n gets its length. Static storage. */
+const iso_metrics_measure *iso_metrics_measures(size_t *n);
+/* The value of `which` (an entry of the table) in m. */
+double iso_metrics_value(const iso_metrics *m, const iso_metrics_measure *which);
+/* Prints one line per measure, each starting with `indent`: name, value,
+ * and what it measures (e.g. "metricErr      1.234567e-02  sum over ..."). */
+void iso_metrics_print(FILE *f, const char *indent, const iso_metrics *m);
 
 #endif

@@ -8,6 +8,7 @@
 #include "iso_metrics.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 static double edge_length(const double *x, int i, int j)
@@ -67,5 +68,42 @@ void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1, 
         out->area_err += (a1 - a0) * (a1 - a0);
         for (int k = 0; k < 3; k++)
             out->angle_err += (th1[k] - th0[k]) * (th1[k] - th0[k]);
+    }
+}
+
+static const iso_metrics_measure measures[] = {
+    {"metricErr", "metric_err", "sum over edges of (|e'| - |e|)^2, deformed against rest",
+     offsetof(iso_metrics, metric_err), 0},
+    {"areaErr", "area_err", "sum over triangles of (A' - A)^2", offsetof(iso_metrics, area_err), 0},
+    {"angleErr", "angle_err", "sum over triangle corners of (theta' - theta)^2, radians",
+     offsetof(iso_metrics, angle_err), 0},
+    {"maxEdgeStrain", "max_edge_strain", "largest | |e'| - |e| | / |e| over the edges",
+     offsetof(iso_metrics, max_edge_strain), 1},
+    {"rmsEdgeStrain", "rms_edge_strain", "root mean square of (|e'| - |e|) / |e| over the edges",
+     offsetof(iso_metrics, rms_edge_strain), 1},
+};
+
+const iso_metrics_measure *iso_metrics_measures(size_t *n)
+{
+    *n = sizeof measures / sizeof measures[0];
+    return measures;
+}
+
+double iso_metrics_value(const iso_metrics *m, const iso_metrics_measure *which)
+{
+    double v;
+    memcpy(&v, (const char *)m + which->offset, sizeof v);
+    return v;
+}
+
+void iso_metrics_print(FILE *f, const char *indent, const iso_metrics *m)
+{
+    for (size_t i = 0; i < sizeof measures / sizeof measures[0]; i++) {
+        const iso_metrics_measure *k = &measures[i];
+        double v = iso_metrics_value(m, k);
+        char pct[32] = "";
+        if (k->relative)
+            snprintf(pct, sizeof pct, " (%.3f%%)", 100.0 * v);
+        fprintf(f, "%s%-14s %.6e%s  %s\n", indent, k->name, v, pct, k->what);
     }
 }

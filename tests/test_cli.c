@@ -346,16 +346,41 @@ static void bad_values_are_refused_by_name(void **state)
     }
 }
 
+/* Fails when `help` lists one option line ("  --name ARG") twice; the
+ * same option with another argument ("--restore off") is another form. */
+static void assert_options_listed_once(const char *cmd, const char *help)
+{
+    char seen[64][64];
+    int n = 0;
+    for (const char *l = help; l && *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : NULL) {
+        const char *o = l + strspn(l, " ");
+        if (o == l || strncmp(o, "--", 2) != 0)
+            continue;
+        char opt[64];
+        size_t len = strcspn(o, " \n");
+        len += o[len] == ' ' ? strcspn(o + len + 1, " \n") + 1 : 0;
+        snprintf(opt, sizeof opt, "%.*s", (int)len, o);
+        for (int k = 0; k < n; k++)
+            if (strcmp(seen[k], opt) == 0)
+                fail_msg("isoshape %s --help lists '%s' twice", cmd, opt);
+        if (n < 64)
+            snprintf(seen[n++], sizeof seen[0], "%s", opt);
+    }
+}
+
 static void help_works_for_every_subcommand(void **state)
 {
     (void)state;
-    static const char *const args[] = {"--help", "deform --help", "field --help", "metrics --help",
-                                       "bench --help"};
+    static const char *const cmds[] = {"",      "deform", "field",  "metrics", "bench",  "run",
+                                       "check", "replay", "record", "devices", "inspect"};
     result *r = &g.res;
-    for (size_t i = 0; i < sizeof args / sizeof args[0]; i++) {
-        run_iso(args[i], r);
+    for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++) {
+        char args[64];
+        snprintf(args, sizeof args, "%s --help", cmds[i]);
+        run_iso(args, r);
         assert_int_equal(r->status, 0);
         assert_non_null(strstr(r->out, "usage: isoshape"));
+        assert_options_listed_once(cmds[i], r->out);
     }
 }
 

@@ -1,6 +1,7 @@
 /* tests/test_dev_backends.c -- the OS backends against real kernel objects:
  * the POSIX tty backend on a pseudo-terminal (openpty), the TCP client on
- * 127.0.0.1, and the hardware backends up to where hardware is needed. */
+ * 127.0.0.1, and the hardware backends up to where hardware is needed, each
+ * with the exact status that follows from whether it is compiled in. */
 #define _DEFAULT_SOURCE /* openpty */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -138,6 +139,56 @@ static void tcp_client_on_loopback(void **state)
     assert_string_equal(err.msg, "'no-port' is not HOST:PORT");
 }
 
+/* CMake's list of the backends it linked (devices/CMakeLists.txt, through
+ * tests/CMakeLists.txt); the library's own answer must agree with it. */
+#ifndef ISO_TEST_DEV_BACKENDS
+#error "tests/CMakeLists.txt defines ISO_TEST_DEV_BACKENDS"
+#endif
+
+static const char *const optional_backends[] = {"hidapi", "serialport", "gpiod", "libusb", "spnav"};
+#define N_OPTIONAL (sizeof optional_backends / sizeof optional_backends[0])
+
+/* 1 if `word` is one of the space-separated words of `list`. */
+static int has_word(const char *list, const char *word)
+{
+    size_t n = strlen(word);
+    for (const char *p = strstr(list, word); p; p = strstr(p + 1, word))
+        if ((p == list || p[-1] == ' ') && (p[n] == ' ' || p[n] == '\0'))
+            return 1;
+    return 0;
+}
+
+static void backend_list_matches_the_build(void **state)
+{
+    (void)state;
+    char built[256];
+    iso_dev_backends(built, sizeof built);
+    printf("backends: library '%s', CMake '%s'\n", built, ISO_TEST_DEV_BACKENDS);
+    assert_string_equal(built, ISO_TEST_DEV_BACKENDS);
+    for (size_t i = 0; i < N_OPTIONAL; i++)
+        assert_int_equal(iso_dev_backend_built(optional_backends[i]),
+                         has_word(ISO_TEST_DEV_BACKENDS, optional_backends[i]));
+    assert_int_equal(iso_dev_backend_built("tty"), 1);
+    assert_int_equal(iso_dev_backend_built("bluetooth"), -1);
+    char tiny[6];
+    assert_string_equal(iso_dev_backends(tiny, sizeof tiny), "fake"); /* truncated, terminated */
+}
+
+/* The status an open must give without the hardware: built in, the OS's
+ * refusal (ISO_EIO); built out, ISO_ENOTSUP and a sentence that says so. */
+static void expect_no_hardware(const char *backend, int rc, const iso_err *err, const char *names)
+{
+    printf("%s: %s\n", backend, err->msg);
+    if (iso_dev_backend_built(backend) == 1) {
+        assert_int_equal(rc, ISO_EIO);
+        assert_null(strstr(err->msg, "this build has no"));
+    } else {
+        assert_int_equal(rc, ISO_ENOTSUP);
+        assert_non_null(strstr(err->msg, "this build has no"));
+    }
+    assert_non_null(strstr(err->msg, names));
+}
+
 static void hardware_backends_without_hardware(void **state)
 {
     (void)state;
@@ -145,42 +196,51 @@ static void hardware_backends_without_hardware(void **state)
     iso_err err;
     iso_err_clear(&err);
     int rc = iso_dev_hid_open("/dev/hidraw-none", &s, &err);
-    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
+    expect_no_hardware("hidapi", rc, &err, "/dev/hidraw-none");
     assert_null(s);
-    assert_non_null(strstr(err.msg, "/dev/hidraw-none"));
-    iso_err_clear(&err);
-    rc = iso_dev_spnav_open(&s, &err);
-    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP || rc == ISO_OK);
-    if (rc == ISO_OK)
-        iso_dev_source_close(s); /* a spacenavd runs here */
-    else
-        assert_non_null(strstr(err.msg, "spacenavd"));
     iso_err_clear(&err);
     rc = iso_dev_serialport_open("/dev/ttyNONE9", 115200, &s, &err);
-    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
-    assert_non_null(strstr(err.msg, "/dev/ttyNONE9"));
+    expect_no_hardware("serialport", rc, &err, "/dev/ttyNONE9");
+    assert_null(s);
     iso_dev_gpio_opts g = {"gpiochip-none", 3, 4, -1, 1, 2000};
     iso_err_clear(&err);
     rc = iso_dev_gpiod_open(&g, &s, &err);
-    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
-    assert_non_null(strstr(err.msg, "gpiochip-none"));
+    expect_no_hardware("gpiod", rc, &err, "gpiochip-none");
+    assert_null(s);
     g.clutch_line = g.estop_line = -1;
     iso_err_clear(&err);
     assert_int_equal(iso_dev_gpiod_open(&g, &s, &err), ISO_EINVAL);
+    /* spacenavd: where one runs here, opening it succeeds */
+    iso_err_clear(&err);
+    rc = iso_dev_spnav_open(&s, &err);
+    if (rc == ISO_OK && iso_dev_backend_built("spnav") == 1)
+        iso_dev_source_close(s);
+    else
+        expect_no_hardware("spnav", rc, &err, "spacenavd");
+    /* libusb's hotplug watch: built in, it works, cannot reach the bus
+     * (EIO), or this libusb has no hotplug (ENOTSUP, saying so) */
+    iso_dev_usb_watch *w = NULL;
+    iso_err_clear(&err);
+    rc = iso_dev_usb_watch_create(&w, &err);
+    printf("libusb watch: %d %s\n", rc, err.msg);
+    if (iso_dev_backend_built("libusb") == 1) {
+        assert_true(rc == ISO_OK || rc == ISO_EIO || rc == ISO_ENOTSUP);
+        assert_null(strstr(err.msg, "this build has no"));
+        if (rc == ISO_ENOTSUP)
+            assert_non_null(strstr(err.msg, "no hotplug support"));
+    } else {
+        assert_int_equal(rc, ISO_ENOTSUP);
+        assert_non_null(strstr(err.msg, "this build has no libusb backend"));
+    }
+    if (rc == ISO_OK) {
+        assert_int_equal(iso_dev_usb_watch_poll(w), 0);
+        iso_dev_usb_watch_destroy(w);
+    }
     /* discovery never fails, and says why for what it cannot use */
     iso_dev_found f[32];
     size_t n = iso_dev_enumerate(f, 32);
     for (size_t i = 0; i < n; i++)
         assert_true(f[i].usable || f[i].why[0]);
-    iso_dev_usb_watch *w = NULL;
-    iso_err_clear(&err);
-    rc = iso_dev_usb_watch_create(&w, &err);
-    if (rc == ISO_OK) {
-        assert_int_equal(iso_dev_usb_watch_poll(w), 0);
-        iso_dev_usb_watch_destroy(w);
-    } else {
-        assert_true(err.msg[0] != 0);
-    }
     assert_true(iso_dev_is_3dmouse(0x256f, 0xc652));
     assert_true(iso_dev_is_3dmouse(0x046d, 0xc626));
     assert_false(iso_dev_is_3dmouse(0x046d, 0xc077)); /* a Logitech mouse */
@@ -195,6 +255,7 @@ int main(void)
     const struct CMUnitTest t[] = {
         cmocka_unit_test(tty_on_a_pty),
         cmocka_unit_test(tcp_client_on_loopback),
+        cmocka_unit_test(backend_list_matches_the_build),
         cmocka_unit_test(hardware_backends_without_hardware),
     };
     return cmocka_run_group_tests_name("dev_backends", t, NULL, NULL);

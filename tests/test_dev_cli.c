@@ -159,7 +159,8 @@ static void inspect_reports_damage_and_tear(void **state)
     assert_int_equal(run("%s inspect %s --no-bytes", bin(), s), 0);
     assert_non_null(strstr(g_out, "e-stop active"));
     assert_non_null(strstr(g_out, "debounce 2000 us"));
-    assert_int_equal(run("%s inspect %s/../data 2>&1", bin(), ISO_TEST_DATA), 1);
+    assert_int_equal(run("%s inspect %s/no-such.isorec 2>&1", bin(), ISO_TEST_STREAMS), 1);
+    assert_non_null(strstr(g_out, "no-such.isorec"));
     assert_int_equal(run("%s devices", bin()), 0);
     assert_non_null(strstr(g_out, "backends: fake replay tty tcp"));
 }

@@ -4,8 +4,8 @@
  * transfer code against a scripted fake of libusb_bulk_transfer (partial
  * transfers, timeouts, stalls, zero-length packets, unplug) and then the
  * whole host endpoint over it, and libserialport's enumeration and errors.
- * Real USB and serial hardware are not needed; where libserialport cannot
- * open a pty the test says so and goes on. */
+ * Real USB and serial hardware are not needed; where libserialport is not
+ * built in, or cannot open a pty, the test concerned skips and says why. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
@@ -370,6 +370,17 @@ static void host_endpoint_over_usb_transport(void **state)
     iso_link_close(l);
 }
 
+/* CMake says whether it linked libusb and libserialport into the library
+ * (tests/CMakeLists.txt); each test below asserts the status that follows
+ * from that, so a transport compiled in and failing cannot pass as one
+ * compiled out. */
+#ifndef ISO_TEST_FB_LIBUSB
+#error "tests/CMakeLists.txt defines ISO_TEST_FB_LIBUSB (0 or 1)"
+#endif
+#ifndef ISO_TEST_FB_SERIALPORT
+#error "tests/CMakeLists.txt defines ISO_TEST_FB_SERIALPORT (0 or 1)"
+#endif
+
 static void usb_open_without_device(void **state)
 {
     (void)state;
@@ -377,54 +388,85 @@ static void usb_open_without_device(void **state)
     iso_err err;
     iso_err_clear(&err);
     int rc = iso_link_usb_open(0xdead, 0xbeef, &l, &err);
-    assert_true(rc == ISO_EIO || rc == ISO_ENOTSUP);
+    printf("usb open without hardware: %s\n", err.msg);
+    assert_int_equal(rc, ISO_TEST_FB_LIBUSB ? ISO_EIO : ISO_ENOTSUP);
     assert_null(l);
     assert_non_null(strstr(err.msg, "dead:beef"));
-    printf("usb open without hardware: %s\n", err.msg);
 }
 
 /* ---- libserialport ------------------------------------------------------ */
+/* Compiled out, both entry points say so; then the test skips, since
+ * nothing of libserialport's was exercised. */
+static void serialport_compiled_out(void)
+{
+    iso_link_sp_port ports[1];
+    iso_link *l = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_link_sp_list(ports, 1, &err), ISO_ENOTSUP);
+    assert_non_null(strstr(err.msg, "built without libserialport"));
+    iso_err_clear(&err);
+    assert_int_equal(iso_link_sp_open("/dev/ttyFBnonexistent", 115200, &l, &err), ISO_ENOTSUP);
+    assert_null(l);
+    assert_non_null(strstr(err.msg, "/dev/ttyFBnonexistent"));
+    print_message("skipped: libserialport is not built in (%s)\n", err.msg);
+    skip();
+}
+
 static void serialport_list_and_errors(void **state)
 {
     (void)state;
+    if (!ISO_TEST_FB_SERIALPORT)
+        serialport_compiled_out();
     iso_link_sp_port ports[16];
     iso_err err;
     iso_err_clear(&err);
     int n = iso_link_sp_list(ports, 16, &err);
-    if (n == ISO_ENOTSUP) {
-        printf("libserialport not built in: %s\n", err.msg);
-        return;
-    }
-    assert_true(n >= 0);
+    if (n < 0)
+        fail_msg("libserialport is built in, yet listing failed (%d): %s", n, err.msg);
     printf("libserialport sees %d port(s)\n", n);
     for (int i = 0; i < n && i < 16; i++)
         printf("  %s  %s  vid %04x pid %04x\n", ports[i].name, ports[i].description,
                ports[i].usb_vid < 0 ? 0 : ports[i].usb_vid, ports[i].usb_pid < 0 ? 0 : ports[i].usb_pid);
     iso_link *l = NULL;
     iso_err_clear(&err);
-    assert_true(iso_link_sp_open("/dev/ttyFBnonexistent", 115200, &l, &err) < 0);
+    assert_int_equal(iso_link_sp_open("/dev/ttyFBnonexistent", 115200, &l, &err), ISO_EIO);
     assert_null(l);
     assert_non_null(strstr(err.msg, "/dev/ttyFBnonexistent"));
+}
 
-    /* A pty through libserialport, where it accepts one (it may not: it
-     * asks for modem lines a pty does not have). */
+/* A pty through libserialport, where it accepts one (it may not: it looks
+ * ports up in sysfs, where a pty has no entry, and asks for modem lines a
+ * pty does not have); otherwise it skips and says why. */
+static void serialport_on_a_pty(void **state)
+{
+    (void)state;
+    if (!ISO_TEST_FB_SERIALPORT) {
+        print_message("skipped: libserialport is not built in\n");
+        skip();
+    }
     int master, slave;
     char name[128];
     assert_int_equal(openpty(&master, &slave, name, NULL, NULL), 0);
+    iso_link *l = NULL;
+    iso_err err;
     iso_err_clear(&err);
     if (iso_link_sp_open(name, 115200, &l, &err) != ISO_OK) {
-        printf("libserialport cannot drive a pty here (%s); real adapters only\n", err.msg);
-    } else {
-        uint8_t in[4];
-        assert_true(iso_link_poll_fd(l) >= 0);
-        assert_int_equal(write(master, "abcd", 4), 4);
-        assert_int_equal(read_exact(l, in, 4), 4);
-        assert_memory_equal(in, "abcd", 4);
-        assert_int_equal(iso_link_write(l, (const uint8_t *)"wxyz", 4, 500, &err), ISO_OK);
-        assert_int_equal(fd_read_exact(master, in, 4), 4);
-        assert_memory_equal(in, "wxyz", 4);
-        iso_link_close(l);
+        close(master);
+        close(slave);
+        print_message("skipped: libserialport cannot drive a pty here (%s); real adapters only\n",
+                      err.msg);
+        skip();
     }
+    uint8_t in[4];
+    assert_true(iso_link_poll_fd(l) >= 0);
+    assert_int_equal(write(master, "abcd", 4), 4);
+    assert_int_equal(read_exact(l, in, 4), 4);
+    assert_memory_equal(in, "abcd", 4);
+    assert_int_equal(iso_link_write(l, (const uint8_t *)"wxyz", 4, 500, &err), ISO_OK);
+    assert_int_equal(fd_read_exact(master, in, 4), 4);
+    assert_memory_equal(in, "wxyz", 4);
+    iso_link_close(l);
     close(master);
     close(slave);
 }
@@ -439,6 +481,7 @@ int main(void)
         cmocka_unit_test(host_endpoint_over_usb_transport),
         cmocka_unit_test(usb_open_without_device),
         cmocka_unit_test(serialport_list_and_errors),
+        cmocka_unit_test(serialport_on_a_pty),
     };
     return cmocka_run_group_tests_name("fb_link", t, NULL, NULL);
 }

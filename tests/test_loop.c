@@ -33,6 +33,7 @@
 
 #include "iso_integrate.h"
 #include "iso_loop.h"
+#include "iso_metrics.h"
 
 static iso_scene *scene_text(const char *text)
 {
@@ -400,11 +401,65 @@ static void cg_tolerance_follows_the_integrator(void **state)
     free(x);
     free(exact);
     free(fine);
+
+/* ---- the summary for people ------------------------------------------------ */
+
+/* The summary stays within 100 columns whatever the sinks report (the
+ * actuators' counters are some 600 characters), says "actuators" once, and
+ * labels every distortion figure with what it measures. */
+static void summary_is_readable(void **state)
+{
+    (void)state;
+    iso_scene *sc = scene("{screw: {def: builtin, duration: 0.1}}", "", 60);
+    iso_loop_summary *s = calloc(1, sizeof *s);
+    assert_non_null(s);
+    s->ticks = 6;
+    s->metrics.metric_err = 1.5e-3;
+    s->metrics.max_edge_strain = 0.0125;
+    s->n_devices = 1;
+    snprintf(s->device_desc[0], sizeof s->device_desc[0],
+             "hid SpaceMouse Wireless (receiver) (256f:c652, replayed)");
+    snprintf(s->act_line, sizeof s->act_line,
+             "actuators: 1200 ticks, 1200 setpoints sent, 1198 acked, 0 echo mismatches (0 "
+             "unchecked), 3 clamps, rtt avg 0.079 ms (max 0.085), publish max 0.01 ms (0 over 1 "
+             "ms); link up, losses 0, reopens 0, emulation restarts 0, loop stalls 0, e-stops 0, "
+             "silences 0, safe states confirmed 1; fb link: sent 1206 frames (25130 B), received "
+             "1217 (45628 B); dropped 0 (crc 0, cobs 0, too long 0, short 0, seq dup 0, seq order "
+             "0), 0 lost in gaps; acks 1198, naks 0, faults 1, samples 1208; link losses 0, "
+             "reopens 0, handshakes 2; rtt avg 0.08 ms (min 0.05, max 0.31); safe state reported "
+             "101 ms after the last setpoints");
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    assert_non_null(f);
+    iso_loop_print_summary(s, sc, f);
+    assert_int_equal(fclose(f), 0);
+    printf("%s", text);
+    for (const char *l = text; *l; l += strcspn(l, "\n") + (l[strcspn(l, "\n")] != '\0'))
+        if (strcspn(l, "\n") > 100)
+            fail_msg("a summary line of %zu characters: %.*s", strcspn(l, "\n"),
+                     (int)strcspn(l, "\n"), l);
+    assert_null(strstr(text, "actuators: "));
+    assert_non_null(strstr(text, "  actuators   1200 ticks"));
+    assert_non_null(strstr(text, "safe state reported 101 ms")); /* nothing cut */
+    size_t n;
+    const iso_metrics_measure *k = iso_metrics_measures(&n);
+    for (size_t i = 0; i < n; i++) {
+        char line[256];
+        snprintf(line, sizeof line, "%-14s %.6e", k[i].name, iso_metrics_value(&s->metrics, &k[i]));
+        const char *at = strstr(text, line);
+        assert_non_null(at);
+        assert_non_null(strstr(at, k[i].what));
+    }
+    free(text);
+    free(s);
+    iso_scene_destroy(sc);
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(summary_is_readable),
         cmocka_unit_test(scripted_path_ends_on_its_pose),
         cmocka_unit_test(duration_runs_rounded_ticks),
         cmocka_unit_test(loop_converges_at_its_order),

@@ -24,19 +24,12 @@
 #include <time.h>
 
 #include "iso_actuators.h"
+#include "iso_clock.h"
 #include "iso_loop.h"
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
 
 static void sleep_s(double s)
 {
-    struct timespec ts = {(time_t)s, (long)(fmod(s, 1.0) * 1e9)};
-    nanosleep(&ts, NULL);
+    iso_clock_sleep_until(iso_clock_ns() + (int64_t)(s * 1e9));
 }
 
 /* The cactus at resolution 1 (570 vertices) on a 4 s screw at 60 Hz, with
@@ -90,17 +83,17 @@ static void *watch(void *arg)
     iso_actuators *a = iso_loop_actuators(r->l);
     if (r->press_in_stuck) {
         sleep_s(0.05);
-        r->t_press = now_s();
+        r->t_press = iso_clock_now();
         atomic_store(&r->estop, 1);
     }
     iso_act_stats s0;
     iso_actuators_stats(a, &s0);
-    double end = now_s() + r->stuck_s - (r->press_in_stuck ? 0.05 : 0);
-    while (now_s() < end) {
+    double end = iso_clock_now() + r->stuck_s - (r->press_in_stuck ? 0.05 : 0);
+    while (iso_clock_now() < end) {
         iso_act_stats s;
         iso_actuators_stats(a, &s);
         if (s.safe_confirms > s0.safe_confirms && s.last_safe_ms >= 0) {
-            r->t_safe = now_s();
+            r->t_safe = iso_clock_now();
             r->handshakes_at_stall = s.handshakes;
             r->safe_cause = s.last_safe_cause;
             r->fault_reason = s.last_fault_reason;
@@ -118,7 +111,7 @@ static void on_tick(void *ctx, const iso_loop_tick_info *t)
     if (t->tick != r->stuck_at)
         return;
     pthread_t th;
-    r->t_stuck = now_s();
+    r->t_stuck = iso_clock_now();
     assert_int_equal(pthread_create(&th, NULL, watch, r), 0);
     sleep_s(r->stuck_s); /* stuck: no progress reported */
     pthread_join(th, NULL);
@@ -292,7 +285,7 @@ static void hub_estop_probe_reads_lines_from_another_thread(void **state)
     while (p.reads < 1000)
         sleep_s(0.001);
     long before = p.pressed;
-    assert_int_equal(iso_dev_hub_drain(h, iso_dev_now_ns(), ev, 16, &n, &e), ISO_OK);
+    assert_int_equal(iso_dev_hub_drain(h, iso_clock_ns(), ev, 16, &n, &e), ISO_OK);
     while (p.pressed == before)
         sleep_s(0.001);
     atomic_store(&p.stop, 1);

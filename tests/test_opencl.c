@@ -11,8 +11,8 @@
  *   (c) a triangle that degenerates is reported by both paths alike;
  *   (d) a device that does not exist gives the C path and a notice;
  *   (e) whole field evaluations agree.
- * It also prints the median assembly time of each path on the cactus and
- * the bump plane (information, not a pass/fail criterion).
+ * Speed is not a test's business: tests/tools/assembly_bench prints the
+ * median assembly time of each path, measured in the same run.
  *
  * When no OpenCL platform or device is usable, or the build has no OpenCL,
  * it prints why and exits 77 (CTest: skipped). ISO_TEST_CL_DEVICE picks the
@@ -22,7 +22,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_clock.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -388,50 +387,6 @@ static void fields_agree(void **state)
     problem_free(&p);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median_assembly_ms(iso_solver *s, const problem *p, int reps)
-{
-    double t[64];
-    iso_err err;
-    if (reps > 64)
-        reps = 64;
-    assert_int_equal(assemble(s, p, &err), ISO_OK); /* warm up */
-    for (int i = 0; i < reps; i++) {
-        double t0 = iso_clock_now();
-        assert_int_equal(assemble(s, p, &err), ISO_OK);
-        t[i] = 1e3 * (iso_clock_now() - t0);
-    }
-    qsort(t, (size_t)reps, sizeof t[0], cmp_double);
-    return t[reps / 2];
-}
-
-/* Prints the median assembly time of each path (no assertion). */
-static void assembly_timing(void **state)
-{
-    (void)state;
-    problem ps[2];
-    int have = problem_benchmark(&ps[0], BENCH[3][0], BENCH[3][1]);
-    if (!have)
-        problem_shape(&ps[0], "cactus");
-    problem_shape(&ps[1], "bumpplane");
-    for (int i = 0; i < 2; i++) {
-        iso_solver *sc = make_solver(&ps[i], ISO_ASSEMBLY_CPU, ISO_WEIGHT_PARAM, 0);
-        iso_solver *sl = make_solver(&ps[i], ISO_ASSEMBLY_OPENCL, ISO_WEIGHT_PARAM, 0);
-        double tc = median_assembly_ms(sc, &ps[i], 21), tl = median_assembly_ms(sl, &ps[i], 21);
-        print_message("timing %-20s (%d vertices, %d free): median assembly C %.2f ms, "
-                      "OpenCL %.2f ms\n",
-                      ps[i].name, iso_mesh_vertex_count(ps[i].m), sc->nf, tc, tl);
-        iso_solver_destroy(sc);
-        iso_solver_destroy(sl);
-        problem_free(&ps[i]);
-    }
-}
-
 /* Exits 77 with the reason when the OpenCL path cannot start here. */
 static void skip_without_opencl(void)
 {
@@ -468,7 +423,6 @@ int main(void)
         cmocka_unit_test(degenerate_triangle_reported_alike),
         cmocka_unit_test(missing_device_falls_back),
         cmocka_unit_test(fields_agree),
-        cmocka_unit_test(assembly_timing),
     };
     return cmocka_run_group_tests_name("opencl", t, NULL, NULL);
 }

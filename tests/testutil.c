@@ -33,12 +33,6 @@ int iso_test_benchmark(char *buf, size_t cap, const char *rel)
     return stat(buf, &st) == 0;
 }
 
-const char *iso_test_data(char *buf, size_t cap, const char *rel)
-{
-    snprintf(buf, cap, "%s/%s", ISO_TEST_DATA, rel);
-    return buf;
-}
-
 double iso_test_max_abs_diff(const double *a, const double *b, size_t n)
 {
     double m = 0;

@@ -18,8 +18,6 @@ void iso_test_write(const char *path, const char *text, long len);
 /* Path of a benchmark file (e.g. "03-cactus-bend/cactus.off") into buf;
  * returns 1 if the file exists, else 0. */
 int iso_test_benchmark(char *buf, size_t cap, const char *rel);
-/* Path of a file under tests/data. */
-const char *iso_test_data(char *buf, size_t cap, const char *rel);
 
 /* max |a_i - b_i| over n entries. */
 double iso_test_max_abs_diff(const double *a, const double *b, size_t n);

@@ -1,10 +1,11 @@
 /* tests/streams/make_streams.c -- writes the small recordings in this
  * folder from the documented report formats (devices/RECORDING.md). They
- * are committed; rebuild them only when the format changes:
+ * are committed; the build makes this program (build/tests/make_streams)
+ * and CTest's streams_reproduce runs it into a scratch folder and holds
+ * every file to the committed one byte for byte. When the format changes,
+ * rewrite them with
  *
- *   cc -std=c11 -D_POSIX_C_SOURCE=200809L -I devices -I common -I solver \
- *      -I firmware-bridge tests/streams/make_streams.c -L build-dev -lisoshape \
- *      -lm -Wl,-rpath,$PWD/build-dev -o /tmp/make_streams && /tmp/make_streams tests/streams
+ *   build/tests/make_streams tests/streams
  *
  * test_dev_streams.c replays each one and asserts what it decodes to. */
 #include "iso_dev.h"
@@ -17,21 +18,26 @@
 
 #define MS 1000000LL
 
-static FILE *f;
-static char dir[1024];
+/* The file being written, the output folder and the noise generator's
+ * state (a fixed LCG, so that every rebuild writes the same bytes). */
+static struct {
+    FILE *f;
+    char dir[1024];
+    unsigned lcg;
+} g = {NULL, ".", 12345u};
 
 static void start(const char *name, const iso_dev_info *infos, size_t n)
 {
     char path[1200];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    f = fopen(path, "wb");
-    if (!f) {
+    snprintf(path, sizeof path, "%s/%s", g.dir, name);
+    g.f = fopen(path, "wb");
+    if (!g.f) {
         perror(path);
         exit(1);
     }
     static uint8_t buf[80000];
     int len = iso_dev_rec_encode_header(buf, sizeof buf, infos, n, 0);
-    fwrite(buf, 1, (size_t)len, f);
+    fwrite(buf, 1, (size_t)len, g.f);
 }
 
 static void rec(int type, int src, int64_t t, const void *data, size_t len)
@@ -46,7 +52,7 @@ static void rec(int type, int src, int64_t t, const void *data, size_t len)
         memcpy(c.data, data, len);
     uint8_t buf[300];
     int n = iso_dev_rec_encode_record(buf, sizeof buf, &c);
-    fwrite(buf, 1, (size_t)n, f);
+    fwrite(buf, 1, (size_t)n, g.f);
 }
 
 static void tick(int64_t t)
@@ -118,11 +124,10 @@ static size_t sample_frame(uint8_t *dst, uint16_t seq, int kind, unsigned button
  * with a twist (rz). Deflections rise
  * and fall as sin² bumps with a few counts of sensor noise (a fixed LCG, so
  * the file is the same on every rebuild). */
-static unsigned lcg_state = 12345u;
 static int noise(void)
 {
-    lcg_state = lcg_state * 1103515245u + 12345u;
-    return (int)((lcg_state >> 16) % 7u) - 3; /* -3..3 counts, inside the dead zone */
+    g.lcg = g.lcg * 1103515245u + 12345u;
+    return (int)((g.lcg >> 16) % 7u) - 3; /* -3..3 counts, inside the dead zone */
 }
 
 static double bump(double t, double t0, double t1)
@@ -160,12 +165,13 @@ static void session(void)
             next_tick += tick_ns;
         }
     }
-    fclose(f);
+    fclose(g.f);
 }
 
 int main(int argc, char **argv)
 {
-    snprintf(dir, sizeof dir, "%s", argc > 1 ? argv[1] : ".");
+    if (argc > 1)
+        snprintf(g.dir, sizeof g.dir, "%s", argv[1]);
 
     session();
 
@@ -186,7 +192,7 @@ int main(int argc, char **argv)
             hid6(0, t - MS / 2, 0, 0, 0, 0, 0, 0);
         tick(t);
     }
-    fclose(f);
+    fclose(g.f);
 
     /* 2. A button-driven clutch sequence: deflected throughout; button 0
      * (clutch) held over ticks 3..5, button 1 (next handle) at tick 8. */
@@ -205,7 +211,7 @@ int main(int argc, char **argv)
             hid_buttons(0, t - 10, 0x0);
         tick(t);
     }
-    fclose(f);
+    fclose(g.f);
 
     /* 3. An unplug and replug: deflected, gone at tick 4, back at tick 7,
      * deflected again (a fresh device starts from rest). */
@@ -221,7 +227,7 @@ int main(int argc, char **argv)
             hid6(0, t - 10, 0, 0, -350, 0, 0, 0);
         tick(t);
     }
-    fclose(f);
+    fclose(g.f);
 
     /* 4. A serial pose stream with garbage and a bad checksum: four pose
      * samples (x = 1, 2, 3, 4 mm); noise before the first, the second split
@@ -256,7 +262,7 @@ int main(int argc, char **argv)
         n = 0;
         tick(t);
     }
-    fclose(f);
+    fclose(g.f);
 
     /* 5. GPIO: the clutch bounces (three edges within 1 ms), the e-stop is
      * pressed at 5.2 ms and released with a bounce at 8 ms; 2 ms debounce. */
@@ -283,14 +289,18 @@ int main(int argc, char **argv)
         }
         tick(t);
     }
-    fclose(f);
+    fclose(g.f);
 
     /* 6. Torn: the twist stream with record 6 damaged (one byte flipped)
      * and the file cut off 5 bytes into its last record. */
     char src[1200], dst[1200];
-    snprintf(src, sizeof src, "%s/sm_twist.isorec", dir);
-    snprintf(dst, sizeof dst, "%s/torn.isorec", dir);
+    snprintf(src, sizeof src, "%s/sm_twist.isorec", g.dir);
+    snprintf(dst, sizeof dst, "%s/torn.isorec", g.dir);
     FILE *in = fopen(src, "rb");
+    if (!in) {
+        perror(src);
+        return 1;
+    }
     static uint8_t all[100000];
     size_t len = fread(all, 1, sizeof all, in);
     fclose(in);
@@ -306,8 +316,10 @@ int main(int argc, char **argv)
     all[starts[5] + 8] ^= 0x01;      /* inside record 6's timestamp */
     size_t cut = starts[ns - 2] + 5; /* 5 bytes into the last record */
     FILE *o = fopen(dst, "wb");
-    fwrite(all, 1, cut, o);
-    fclose(o);
+    if (!o || fwrite(all, 1, cut, o) != cut || fclose(o) != 0) {
+        perror(dst);
+        return 1;
+    }
     printf("torn.isorec: damaged record at byte %zu, cut at byte %zu of %zu\n", starts[5], cut,
            len);
     return 0;
