@@ -401,6 +401,7 @@ static void cg_tolerance_follows_the_integrator(void **state)
     free(x);
     free(exact);
     free(fine);
+}
 
 /* ---- the summary for people ------------------------------------------------ */
 
