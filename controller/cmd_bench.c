@@ -8,7 +8,9 @@
  *     integrator's own error (the same run at tol and tol/10);
  *   - the machine: dense dgemm's rate (the ceiling for a supernodal
  *     factorization), and one bare CHOLMOD factorization and solve of the
- *     cactus system, with the factorization's achieved rate.
+ *     cactus system, with the factorization's achieved rate;
+ *   - real time: each benchmark scene through the tick engine, its ticks
+ *     per second, median and p99 tick over one bare solve (bench_realtime.c).
  * Timings are medians of --reps runs; nothing here asserts a time. The
  * benchmark uses the paper's method exactly (no isometry restoration). */
 #include "internal.h"
@@ -30,6 +32,7 @@ static const char *const help =
     "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
     "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
     "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
+    "Then runs each problem's scene in real time (as fast as possible) beside one bare solve.\n"
     "  --benchmark-dir DIR  where the problems are (default: as isoshape deform looks);\n"
     "                       a problem that is absent runs as the built-in shape of its name\n"
     "  --quick              under a minute: one rep, dgemm at n = 1000, no bumpplane\n"
@@ -95,6 +98,8 @@ typedef struct bench_result {
     bench_accuracy acc[N_PROBLEMS];
     int n_acc;
     bench_machine mach;
+    iso_cli__rt_row rt[N_PROBLEMS];
+    int n_rt;
     double tol;
     char notice[256]; /* the solver's first notice, printed once */
 } bench_result;
@@ -509,6 +514,7 @@ static void print_text(const bench_args *a, const bench_result *res)
                c->fine, rel_diff(c->adaptive, c->always), rel_diff(c->fine, base));
     }
 
+    iso_cli__bench_realtime_print(res->rt, res->n_rt);
     printf("\nthis machine\n");
     printf("  dense dgemm, n = %d: %.1f GFLOP/s on %d thread%s, %.1f on one (median of %d): "
            "the ceilings for the factorization's dense kernels (below 4 GFLOP per "
@@ -599,6 +605,8 @@ static void print_json(const bench_args *a, const bench_result *res)
         json_num("tolVsTolOver10", rel_diff(c->fine, base), "");
         printf("}%s", i + 1 < res->n_acc ? ", " : "");
     }
+    printf("], \"realtime\": [");
+    iso_cli__bench_realtime_json(res->rt, res->n_rt);
     printf("], \"machine\": {\"dgemmN\": %d, \"dgemmReps\": %d, ", m->dgemm_n, m->dgemm_reps);
     json_num("dgemmGflops", m->dgemm_gflops, ", ");
     printf("\"dgemmThreads\": %d, ", m->dgemm_threads);
@@ -640,6 +648,18 @@ int iso_cli__bench_run(int argc, char **argv)
             continue;
         if (run_problem(&a, k, res, &err) != ISO_OK) {
             iso_cli__fail("bench", "%s: %s", problems[k].name, err.msg);
+            goto out;
+        }
+    }
+    for (int k = 0; k < N_PROBLEMS; k++) {
+        int builtin, res_k = a.quick ? problems[k].small_resolution : 0;
+        if (!wanted(&a, k, &builtin))
+            continue;
+        if (a.tty)
+            fprintf(stderr, "isoshape bench: %s in real time ...\n", problems[k].name);
+        if (iso_cli__bench_realtime(problems[k].name, a.bench_dir, res_k, &a.so, a.quick ? 3 : 5,
+                                    &res->rt[res->n_rt++], &err) != ISO_OK) {
+            iso_cli__fail("bench", "%s in real time: %s", problems[k].name, err.msg);
             goto out;
         }
     }

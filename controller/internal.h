@@ -183,6 +183,29 @@ double iso_cli__factor_flops(const iso_solver *s);
 double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 
 /* ------------------------------------------------------------------------ */
+/* bench's real-time table (bench_realtime.c)                                 */
+/* ------------------------------------------------------------------------ */
+
+typedef struct iso_cli__rt_row {
+    char scene[32];
+    int builtin, vertices, max_step_evaluations;
+    long ticks, evaluations, cg_iterations, factorizations;
+    double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
+    double bare_solve_ms;                  /* one solve of the same system, median */
+} iso_cli__rt_row;
+
+/* Runs the benchmark scene `name` (config/scenes/<name>.yaml as written, the
+ * built-in shape at `resolution` standing in when the problem is absent)
+ * through the tick engine as fast as possible, then times reps bare solves
+ * of its system. so gives the assembly, OpenCL device and CG tolerance. */
+int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolution,
+                            const iso_solver_opts *so, int reps, iso_cli__rt_row *row,
+                            iso_err *err);
+/* The table for people, and the rows as JSON array elements (no brackets). */
+void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n);
+void iso_cli__bench_realtime_json(const iso_cli__rt_row *rows, int n);
+
+/* ------------------------------------------------------------------------ */
 /* Scenes (cli_scene.c)                                                       */
 /* ------------------------------------------------------------------------ */
 

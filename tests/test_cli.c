@@ -510,7 +510,19 @@ static void bench_quick_prints_json_with_finite_figures(void **state)
     int rows = count_of(r->out, "\"refactor\":");
     assert_int_equal(rows, 8);
     assert_int_equal(count_of(r->out, "\"refactor\": \"always\""), 4);
-    assert_int_equal(count_of(r->out, "\"builtin\": true"), 8);
+    /* and each one's scene in real time (bench_realtime.c) */
+    assert_int_equal(count_of(r->out, "\"builtin\": true"), 8 + 4);
+    static const char *const rt_keys[] = {"ticks_per_s", "tick_median_ms", "tick_p99_ms",
+                                          "bare_solve_ms", "median_tick_over_bare_solve"};
+    assert_int_equal(count_of(r->out, "\"ticks_per_s\":"), 4);
+    for (int k = 0; k < 4; k++)
+        for (size_t i = 0; i < sizeof rt_keys / sizeof rt_keys[0]; i++) {
+            double v = json_get_nth(r->out, rt_keys[i], k);
+            if (!(isfinite(v) && v > 0))
+                fail_msg("real-time row %d: %s = %g, not a finite positive number", k, rt_keys[i],
+                         v);
+        }
+    assert_true(json_get_nth(r->out, "max_step_evaluations", 0) <= 2);
     for (int k = 0; k < rows; k++)
         for (size_t i = 0; i < sizeof row_keys / sizeof row_keys[0]; i++) {
             double v = json_get_nth(r->out, row_keys[i], k);

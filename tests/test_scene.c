@@ -140,7 +140,8 @@ static void test_round_trip(void **state)
                        "        keyframes: [{t: 0}, {t: 1.5, translate: [1, 0, 0], rotate: [0, 0, 90]}]\n"
                        "solver: {omega: 0.5, weighting: area, restore: {mu: 2, tau: 0.25},\n"
                        "         refactor: always}\n"
-                       "integrator: {steps_per_tick: 2, restore_kappa: 0.7, abm: pec}\n"
+                       "integrator: {steps_per_tick: 2, restore_kappa: 0.7, abm: pec,\n"
+                       "             cg_share: 0.25}\n"
                        "tick_hz: 120\n"
                        "sinks:\n"
                        "  display: {port: 9000, snapshot_ticks: [10, 20]}\n"
@@ -180,6 +181,7 @@ static void test_round_trip(void **state)
     assert_int_equal(s->solver.refactor, ISO_REFACTOR_ALWAYS);
     assert_int_equal(s->steps_per_tick, 2);
     assert_true(s->integrate.restore_kappa == 0.7);
+    assert_true(s->integrate.cg_share == 0.25);
     assert_int_equal(s->abm_mode, ISO_ABM_PEC);
     assert_true(s->tick_hz == 120);
     assert_string_equal(s->display.host, "127.0.0.1");
@@ -262,6 +264,8 @@ static void test_errors(void **state)
     /* An enum value with a suggestion; a key of another device kind. */
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "solver: {weighting: aera}\n",
                  ISO_EPARSE, "solver.weighting", "did you mean 'area'", NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n",
+                 ISO_EINVAL, "bad.yaml:", "integrator.cg_share", "[0, 1]", "found 2", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {abm: pex}\n",
                  ISO_EPARSE, "integrator.abm", "did you mean 'pec'", NULL);
     expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n"

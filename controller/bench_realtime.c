@@ -1,0 +1,191 @@
+/* controller/bench_realtime.c -- `isoshape bench`'s real-time table: each
+ * benchmark scene through the tick engine as fast as possible, beside one
+ * bare solve of the same system measured in the same run, so that the
+ * tick's cost reads in solves (issue 12: a tick near the cost of one
+ * solve). Kept apart from cmd_bench.c, which only calls it.
+ *
+ * The scenes are config/scenes/{cactus,bar,cylinder,bumpplane}.yaml as
+ * written there (the benchmark problem or the built-in shape of its name,
+ * its screw over 2 s, ABM3 PEC, adaptive refactoring, 60 Hz), built here
+ * from the same text without the live view, so that the command needs no
+ * source tree. The bench's --assembly, --cl-device and --cg-tol apply. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_loop.h"
+#include "iso_scene.h"
+
+/* The scene's benchmark lookup, in --benchmark-dir (ctx) when given. */
+static int find_benchmark(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
+                          size_t why_cap)
+{
+    iso_cli__bench b;
+    if (!iso_cli__bench_find(name, ctx, &b, why, why_cap))
+        return 0;
+    snprintf(mesh, ISO_SCENE_PATH_MAX, "%s", b.mesh);
+    snprintf(sel, ISO_SCENE_PATH_MAX, "%s", b.sel);
+    snprintf(def, ISO_SCENE_PATH_MAX, "%s", b.def);
+    return 1;
+}
+
+static int load_scene(const char *name, const char *bench_dir, int resolution,
+                      const iso_solver_opts *so, iso_scene **out, iso_err *err)
+{
+    char res[32] = "", text[1024];
+    if (resolution > 0)
+        snprintf(res, sizeof res, ", resolution: %d", resolution);
+    snprintf(text, sizeof text,
+             "name: %s\n"
+             "mesh: {benchmark: %s, fallback_shape: %s%s}\n"
+             "regions:\n"
+             "  sel: builtin\n"
+             "  handles:\n"
+             "    - name: top\n"
+             "      driver: {screw: {def: builtin, duration: 2.0}}\n"
+             "solver: {omega: 0.333, weighting: param, restore: off, assembly: %s,\n"
+             "         refactor: adaptive, cg_tol: %.17g}\n"
+             "integrator: {steps_per_tick: 1, abm: pec}\n"
+             "tick_hz: 60\n",
+             name, name, name, res, iso_cli__assembly_name(so->assembly), so->cg_tol);
+    iso_scene_opts opts = {.bench_find = find_benchmark, .bench_ctx = (void *)bench_dir};
+    return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* One bare solve of the scene's system at its rest pose: the median over
+ * reps evaluations of the solve alone (each factors afresh first). */
+static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
+{
+    iso_solver_opts so = sc->solver;
+    so.assembly = ISO_ASSEMBLY_CPU; /* the solve does not depend on who assembled */
+    so.refactor = ISO_REFACTOR_ALWAYS;
+    int nv = iso_mesh_vertex_count(sc->mesh);
+    const double *x = iso_mesh_positions(sc->mesh);
+    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    double t[99];
+    iso_solver *s = NULL;
+    int rc = vc && v ? iso_solver_create(sc->mesh, &sc->regions, &so, &s, err)
+                     : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
+    for (int i = 0; rc == ISO_OK && i < nv; i++)
+        if (sc->regions.kind[i] == ISO_HANDLE)
+            iso_twist_velocity(&sc->handles[0].driver.twist, x + 3 * i, vc + 3 * i);
+    if (rc == ISO_OK)
+        rc = iso_solver_field(s, x, vc, v, err); /* warm caches and workspace */
+    for (int r = 0; rc == ISO_OK && r < reps; r++) {
+        iso_solver_stats a, b;
+        iso_solver_get_stats(s, &a);
+        rc = iso_solver_field(s, x, vc, v, err);
+        iso_solver_get_stats(s, &b);
+        t[r] = b.t_solve - a.t_solve;
+    }
+    if (rc == ISO_OK) {
+        qsort(t, (size_t)reps, sizeof *t, cmp_double);
+        *ms = 1e3 * (reps % 2 ? t[reps / 2] : 0.5 * (t[reps / 2 - 1] + t[reps / 2]));
+    }
+    iso_solver_destroy(s);
+    free(vc);
+    free(v);
+    return rc;
+}
+
+int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolution,
+                            const iso_solver_opts *so, int reps, iso_cli__rt_row *row, iso_err *err)
+{
+    memset(row, 0, sizeof *row);
+    snprintf(row->scene, sizeof row->scene, "%s", name);
+    iso_scene *sc = NULL;
+    iso_loop *l = NULL;
+    int rc = load_scene(name, bench_dir, resolution, so, &sc, err);
+    if (rc == ISO_OK) {
+        iso_loop_opts o;
+        iso_loop_opts_default(&o);
+        o.fast = 1;
+        o.rt = 0;
+        o.display = 0;
+        o.cl_device = so->cl_device;
+        o.cmd = "bench";
+        rc = iso_loop_create(sc, &o, &l, err);
+    }
+    if (rc == ISO_OK)
+        rc = iso_loop_run(l, err);
+    if (rc == ISO_OK) {
+        iso_loop_summary s;
+        iso_loop_get_summary(l, &s);
+        row->builtin = sc->mesh_src.used != ISO_SCENE_MESH_BENCHMARK;
+        row->vertices = iso_mesh_vertex_count(sc->mesh);
+        row->ticks = s.ticks;
+        row->ticks_per_s = s.wall_s > 0 ? (double)s.ticks / s.wall_s : NAN;
+        row->median_ms = s.tick_median;
+        row->p99_ms = s.tick_p99;
+        row->max_step_evaluations = s.integ.max_step_evaluations;
+        row->evaluations = s.solver.evaluations;
+        row->cg_iterations = s.solver.cg_iterations;
+        row->factorizations = s.solver.factorizations;
+        iso_loop_destroy(l); /* frees the engine's solver before the bare one */
+        l = NULL;
+        rc = bare_solve(sc, reps, &row->bare_solve_ms, err);
+    }
+    iso_loop_destroy(l);
+    iso_scene_destroy(sc);
+    return rc;
+}
+
+static double over_solve(const iso_cli__rt_row *r)
+{
+    return r->bare_solve_ms > 0 ? r->median_ms / r->bare_solve_ms : NAN;
+}
+
+void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n)
+{
+    printf("\nreal time: each benchmark scene (its screw over 2 s, ABM3 PEC, adaptive "
+           "refactoring, 60 Hz) through the tick engine, as fast as possible; a tick is "
+           "timed from wake to published; one bare solve of the same system in the same run\n");
+    printf("%-10s %8s %5s %8s %9s %9s | %9s %12s | %8s %6s %5s\n", "scene", "vertices", "ticks",
+           "ticks/s", "median ms", "p99 ms", "solve ms", "median/solve", "ev/tick", "CG/ev",
+           "facts");
+    for (int i = 0; i < n; i++) {
+        const iso_cli__rt_row *r = &rows[i];
+        double ev = r->evaluations > 0 ? (double)r->evaluations : NAN;
+        printf("%-9s%s %8d %5ld %8.1f %9.2f %9.2f | %9.2f %12.1f | %8d %6.2f %5ld\n", r->scene,
+               r->builtin ? "*" : " ", r->vertices, r->ticks, r->ticks_per_s, r->median_ms,
+               r->p99_ms, r->bare_solve_ms, over_solve(r), r->max_step_evaluations,
+               (double)r->cg_iterations / ev, r->factorizations);
+    }
+    printf("ev/tick: the most field evaluations one tick made; CG/ev: PCG iterations per "
+           "evaluation; facts: factorizations; * built-in shape\n");
+}
+
+static void num(const char *key, double v, const char *sep)
+{
+    if (isfinite(v))
+        printf("\"%s\": %.17g%s", key, v, sep);
+    else
+        printf("\"%s\": null%s", key, sep);
+}
+
+void iso_cli__bench_realtime_json(const iso_cli__rt_row *rows, int n)
+{
+    for (int i = 0; i < n; i++) {
+        const iso_cli__rt_row *r = &rows[i];
+        printf("{\"scene\": \"%s\", \"builtin\": %s, \"vertices\": %d, \"ticks\": %ld, ", r->scene,
+               r->builtin ? "true" : "false", r->vertices, r->ticks);
+        num("ticks_per_s", r->ticks_per_s, ", ");
+        num("tick_median_ms", r->median_ms, ", ");
+        num("tick_p99_ms", r->p99_ms, ", ");
+        num("bare_solve_ms", r->bare_solve_ms, ", ");
+        num("median_tick_over_bare_solve", over_solve(r), ", ");
+        printf("\"max_step_evaluations\": %d, \"evaluations\": %ld, \"cg_iterations\": %ld, "
+               "\"factorizations\": %ld}%s",
+               r->max_step_evaluations, r->evaluations, r->cg_iterations, r->factorizations,
+               i + 1 < n ? ", " : "");
+    }
+}
