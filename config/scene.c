@@ -7,6 +7,7 @@
  * reports, so an editor can jump to it. libfyaml's own diagnostics are
  * collected, never printed, and the first one becomes the error. */
 #include "internal.h"
+#include "iso_file.h"
 
 #include <errno.h>
 #include <libfyaml.h>
@@ -1529,31 +1530,15 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
     int rc = ISO_OK;
     char *owned = NULL;
     if (!text) {
-        FILE *f = fopen(path, "rb");
-        if (!f) {
-            rc = iso_err_set(err, ISO_EIO, -1, "%s: cannot open the scene: %s", path, strerror(errno));
+        iso_err fe;
+        iso_err_clear(&fe);
+        rc = iso_file_read(path, 16u << 20, &owned, &len, &fe);
+        if (rc != ISO_OK) {
+            rc = iso_err_set(err, rc, fe.offset, "%s%s", fe.msg,
+                             rc == ISO_EINVAL ? " (16 MiB): not a scene" : "");
             goto out;
         }
-        size_t cap = 0;
-        len = 0;
-        for (;;) {
-            if (len == cap) {
-                char *p = cap < (16u << 20) ? realloc(owned, cap ? 2 * cap : 4096) : NULL;
-                if (!p) {
-                    fclose(f);
-                    rc = iso_err_set(err, ISO_EINVAL, -1, "%s: larger than 16 MiB, not a scene", path);
-                    goto out;
-                }
-                owned = p;
-                cap = cap ? 2 * cap : 4096;
-            }
-            size_t n = fread(owned + len, 1, cap - len, f);
-            len += n;
-            if (n == 0)
-                break;
-        }
-        fclose(f);
-        text = owned ? owned : "";
+        text = owned;
     }
     /* libfyaml 0.7.12 can loop forever scanning a malformed directive
      * (found by fuzz_scene), and scenes have no use for directives: refuse

@@ -6,6 +6,7 @@
  * ended, and a damaged record is skipped by resynchronising on the next
  * sync byte that starts a record whose checksum holds. */
 #include "iso_dev.h"
+#include "iso_file.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -280,34 +281,12 @@ int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const uint8_t *data, size_t l
 int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path, iso_err *err)
 {
     memset(r, 0, sizeof *r);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot open: %s", path, strerror(errno));
-    uint8_t *buf = NULL;
-    size_t len = 0, cap = 0;
-    for (;;) {
-        if (len == cap) {
-            size_t nc = cap ? 2 * cap : 65536;
-            uint8_t *p = realloc(buf, nc);
-            if (!p) {
-                free(buf);
-                fclose(f);
-                return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
-            }
-            buf = p;
-            cap = nc;
-        }
-        size_t got = fread(buf + len, 1, cap - len, f);
-        if (got == 0)
-            break;
-        len += got;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(buf);
-        return iso_err_set(err, ISO_EIO, -1, "%s: read error", path);
-    }
+    char *text;
+    size_t len;
+    int frc = iso_file_read(path, 0, &text, &len, err);
+    if (frc != ISO_OK)
+        return frc;
+    uint8_t *buf = (uint8_t *)text;
     iso_err e2;
     iso_err_clear(&e2);
     int rc = iso_dev_rec_reader_init(r, buf, len, &e2);

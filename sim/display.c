@@ -3,6 +3,7 @@
 #include "iso_display.h"
 
 #include "display_internal.h"
+#include "iso_file.h"
 #include "iso_snapshot.h"
 
 #include <errno.h>
@@ -18,42 +19,7 @@
 
 #define ORBIT_JS "/usr/share/javascript/three/examples/js/controls/OrbitControls.js"
 
-/* ---- file and JSON helpers ---------------------------------------------- */
-
-static int read_file(const char *path, char **out, size_t *len, iso_err *err)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return iso_err_set(err, ISO_EIO, -1, "display: cannot read %s: %s", path, strerror(errno));
-    char *buf = NULL;
-    size_t cap = 0, n = 0;
-    for (;;) {
-        if (n == cap) {
-            size_t ncap = cap ? 2 * cap : 1 << 20;
-            char *nb = realloc(buf, ncap);
-            if (!nb) {
-                free(buf);
-                fclose(f);
-                return iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory reading %s", path);
-            }
-            buf = nb;
-            cap = ncap;
-        }
-        size_t got = fread(buf + n, 1, cap - n, f);
-        n += got;
-        if (got == 0)
-            break;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        free(buf);
-        return iso_err_set(err, ISO_EIO, -1, "display: error reading %s", path);
-    }
-    *out = buf;
-    *len = n;
-    return ISO_OK;
-}
+/* ---- JSON helpers --------------------------------------------------------- */
 
 typedef struct sbuf {
     char *p;
@@ -170,13 +136,13 @@ int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err 
     atomic_init(&d->frames_sent, 0);
     int rc;
     const char *three = opts->three_js ? opts->three_js : ISO_DISPLAY_DEFAULT_THREE;
-    if ((rc = read_file(three, &d->three, &d->three_len, NULL)) < 0) {
+    if ((rc = iso_file_read(three, 0, &d->three, &d->three_len, NULL)) < 0) {
         rc = iso_err_set(err, ISO_EIO, -1,
                          "display: three.js not found at %s: %s (install Debian's libjs-three)",
                          three, strerror(errno));
         goto fail;
     }
-    if (read_file(ORBIT_JS, &d->orbit, &d->orbit_len, NULL) < 0)
+    if (iso_file_read(ORBIT_JS, 0, &d->orbit, &d->orbit_len, NULL) < 0)
         d->orbit = NULL; /* the page has its own orbit control */
     if ((rc = build_topology(d, opts->regions, err)) < 0)
         goto fail;

@@ -2,6 +2,7 @@
  * readers share: the polygon builder (with convex-fan triangulation) and the
  * text scanner. Format specifics live in mesh_io_off.c, mesh_io_obj.c and
  * mesh_io_ply.c. */
+#include "iso_file.h"
 #include "iso_mesh.h"
 #include "mesh_io_internal.h"
 
@@ -429,45 +430,6 @@ int iso_mesh__load_buffer(const char *name, const unsigned char *data, size_t le
     return rc;
 }
 
-int iso_mesh__read_file(const char *path, unsigned char **data, size_t *len, iso_err *err)
-{
-    *data = NULL;
-    *len = 0;
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot open: %s", path, strerror(errno));
-    unsigned char *buf = NULL;
-    size_t n = 0, cap = 0;
-    int rc = ISO_OK;
-    for (;;) {
-        if (n == cap) {
-            void *p = buf;
-            if (grow(&p, &cap, n + 65536, 1)) {
-                rc = iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory reading %zu bytes", path,
-                                 n);
-                break;
-            }
-            buf = p;
-        }
-        size_t got = fread(buf + n, 1, cap - n, f);
-        n += got;
-        if (got == 0) {
-            if (ferror(f))
-                rc = iso_err_set(err, ISO_EIO, (long)n, "%s: read error at byte offset %zu: %s",
-                                 path, n, strerror(errno));
-            break;
-        }
-    }
-    fclose(f);
-    if (rc != ISO_OK) {
-        free(buf);
-        return rc;
-    }
-    *data = buf;
-    *len = n;
-    return ISO_OK;
-}
-
 int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err)
 {
     if (!out)
@@ -480,11 +442,11 @@ int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err)
         return iso_err_set(err, ISO_ENOTSUP, -1,
                            "%s: unknown mesh file extension '.%s' (expected .off, .obj or .ply)",
                            path, ext);
-    unsigned char *data;
+    char *data;
     size_t len;
-    int rc = iso_mesh__read_file(path, &data, &len, err);
+    int rc = iso_file_read(path, 0, &data, &len, err);
     if (rc == ISO_OK)
-        rc = iso_mesh__load_buffer(path, data, len, out, err);
+        rc = iso_mesh__load_buffer(path, (const unsigned char *)data, len, out, err);
     free(data);
     return rc;
 }

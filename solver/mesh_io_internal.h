@@ -18,11 +18,6 @@ int iso_mesh__set_note(iso_mesh *m, const char *note);
 ISO_NODISCARD int iso_mesh__load_buffer(const char *name, const unsigned char *data, size_t len,
                                         iso_mesh **out, iso_err *err);
 
-/* Reads a whole file into a new buffer (*data, freed by the caller; NULL on
- * failure). Also used by regions.c for .sel/.def files. */
-ISO_NODISCARD int iso_mesh__read_file(const char *path, unsigned char **data, size_t *len,
-                                      iso_err *err);
-
 /* ---- the builder every reader fills -------------------------------------
  * Vertices and polygons as read; polygons are range-checked, triangulated
  * (convex fans) and handed to iso_mesh_create_src by _finish. */

@@ -1,6 +1,7 @@
 /* solver/regions.c -- iso_regions and the benchmark's .sel/.def readers (see
  * iso_regions.h). Both files are read whole and scanned with the mesh
  * readers' tokenizer (mesh_io_internal.h), so there is one fuzzed scanner. */
+#include "iso_file.h"
 #include "iso_regions.h"
 #include "mesh_io_internal.h"
 #include "regions_internal.h"
@@ -97,11 +98,11 @@ int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err *err)
     if (!path || !r)
         return iso_err_set(err, ISO_EINVAL, -1, "iso_sel_load: NULL path or regions");
     memset(r, 0, sizeof *r);
-    unsigned char *data;
+    char *data;
     size_t len;
-    int rc = iso_mesh__read_file(path, &data, &len, err);
+    int rc = iso_file_read(path, 0, &data, &len, err);
     if (rc == ISO_OK)
-        rc = iso_sel__parse(path, data, len, nv, r, err);
+        rc = iso_sel__parse(path, (const unsigned char *)data, len, nv, r, err);
     free(data);
     return rc;
 }
@@ -189,11 +190,11 @@ int iso_def_load(const char *path, double M[16], iso_err *err)
 {
     if (!path || !M)
         return iso_err_set(err, ISO_EINVAL, -1, "iso_def_load: NULL path or matrix");
-    unsigned char *data;
+    char *data;
     size_t len;
-    int rc = iso_mesh__read_file(path, &data, &len, err);
+    int rc = iso_file_read(path, 0, &data, &len, err);
     if (rc == ISO_OK)
-        rc = iso_def__parse(path, data, len, M, err);
+        rc = iso_def__parse(path, (const unsigned char *)data, len, M, err);
     free(data);
     return rc;
 }
