@@ -1115,9 +1115,11 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     /* the loop ticks again: HELLO, then its fresh values stream */
     double t_resume = iso_clock_now();
     run_ticks(a, &tick, 5000, NULL, NULL, armed_and_acked);
+    double resumed_ms = (iso_clock_now() - t_resume) * 1000;
+    run_ticks(a, &tick, 100, NULL, NULL, NULL); /* the setpoints follow the HELLO's answer */
     iso_act_stats s2 = stats_of(a);
     printf("%s: the loop resumed: armed and acked again after %.1f ms (handshakes %u -> %u)\n",
-           label, (iso_clock_now() - t_resume) * 1000, (unsigned)s0.handshakes,
+           label, resumed_ms, (unsigned)s0.handshakes,
            (unsigned)s2.handshakes);
     assert_true(armed_and_acked(a, NULL));
     assert_true(s2.handshakes > s0.handshakes);
@@ -1268,6 +1270,9 @@ static int estop_while_stuck(int mode, int probe, const char *label)
     printf("%s: released: armed and acked again after %.1f ms\n", label,
            (iso_clock_now() - t_rel) * 1000);
     assert_true(armed_and_acked(a, NULL));
+    /* armed is the HELLO's answer; the setpoints follow at the sender's next
+     * period (a SAFE brake leaves no FAULT wait in between any more) */
+    run_ticks(a, &tick, 100, NULL, NULL, NULL);
     assert_true(stats_of(a).setpoints_sent > s2.setpoints_sent);
     assert_true(noticed("e-stop released"));
     assert_int_equal(iso_actuators_safe_stop(a, 1000, NULL, &err), ISO_OK);
