@@ -164,28 +164,24 @@ void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n)
            "evaluation; facts: factorizations; * built-in shape\n");
 }
 
-static void num(const char *key, double v, const char *sep)
-{
-    if (isfinite(v))
-        printf("\"%s\": %.17g%s", key, v, sep);
-    else
-        printf("\"%s\": null%s", key, sep);
-}
-
-void iso_cli__bench_realtime_json(const iso_cli__rt_row *rows, int n)
+void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n)
 {
     for (int i = 0; i < n; i++) {
         const iso_cli__rt_row *r = &rows[i];
-        printf("{\"scene\": \"%s\", \"builtin\": %s, \"vertices\": %d, \"ticks\": %ld, ", r->scene,
-               r->builtin ? "true" : "false", r->vertices, r->ticks);
-        num("ticks_per_s", r->ticks_per_s, ", ");
-        num("tick_median_ms", r->median_ms, ", ");
-        num("tick_p99_ms", r->p99_ms, ", ");
-        num("bare_solve_ms", r->bare_solve_ms, ", ");
-        num("median_tick_over_bare_solve", over_solve(r), ", ");
-        printf("\"max_step_evaluations\": %d, \"evaluations\": %ld, \"cg_iterations\": %ld, "
-               "\"factorizations\": %ld}%s",
-               r->max_step_evaluations, r->evaluations, r->cg_iterations, r->factorizations,
-               i + 1 < n ? ", " : "");
+        iso_json_object(j, NULL);
+        iso_json_string(j, "scene", r->scene);
+        iso_json_bool(j, "builtin", r->builtin);
+        iso_json_int(j, "vertices", r->vertices);
+        iso_json_int(j, "ticks", r->ticks);
+        iso_json_number(j, "ticks_per_s", r->ticks_per_s);
+        iso_json_number(j, "tick_median_ms", r->median_ms);
+        iso_json_number(j, "tick_p99_ms", r->p99_ms);
+        iso_json_number(j, "bare_solve_ms", r->bare_solve_ms);
+        iso_json_number(j, "median_tick_over_bare_solve", over_solve(r));
+        iso_json_int(j, "max_step_evaluations", r->max_step_evaluations);
+        iso_json_int(j, "evaluations", r->evaluations);
+        iso_json_int(j, "cg_iterations", r->cg_iterations);
+        iso_json_int(j, "factorizations", r->factorizations);
+        iso_json_close(j);
     }
 }

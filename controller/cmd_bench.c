@@ -24,6 +24,7 @@
 #include <unistd.h>
 
 #include "iso_clock.h"
+#include "iso_json.h"
 #include "iso_metrics.h"
 
 static const char *const help =
@@ -535,90 +536,86 @@ static void print_text(const bench_args *a, const bench_result *res)
     printf(", bare solve %.2f ms (median of %d)\n", 1e3 * m->bare_solve_s, m->bare_reps);
 }
 
-static void json_num(const char *key, double v, const char *sep)
-{
-    if (isfinite(v))
-        printf("\"%s\": %.17g%s", key, v, sep);
-    else
-        printf("\"%s\": null%s", key, sep);
-}
-
-/* A JSON string: quotes, backslashes and control characters escaped. */
-static void json_str(const char *key, const char *v, const char *sep)
-{
-    printf("\"%s\": \"", key);
-    for (const unsigned char *c = (const unsigned char *)v; *c; c++) {
-        if (*c == '"' || *c == '\\')
-            printf("\\%c", *c);
-        else if (*c < 0x20)
-            printf("\\u%04x", *c);
-        else
-            putchar(*c);
-    }
-    printf("\"%s", sep);
-}
-
-static void print_json_row(const bench_row *r, const char *sep)
+static void print_json_row(iso_json *j, const bench_row *r)
 {
     const iso_solver_stats *st = &r->run.sst;
-    printf("{");
-    json_str("problem", r->problem, ", ");
-    printf("\"builtin\": %s, ", r->builtin ? "true" : "false");
-    json_str("refactor", iso_cli__refactor_name(r->scheme), ", ");
-    printf("\"vertices\": %d, \"steps\": %d, \"evaluations\": %ld, \"factorizations\": %ld, "
-           "\"cgIterations\": %ld, \"refactors\": %ld, ",
-           r->vertices, r->run.ist.steps, r->run.ist.evaluations, st->factorizations,
-           st->cg_iterations, st->refactors);
-    json_num("seconds", r->run.seconds, ", ");
-    json_num("assemblyMsPerEvaluation", ms(r, st->t_assembly), ", ");
-    json_num("factorMsPerEvaluation", ms(r, st->t_factor), ", ");
-    json_num("solveMsPerEvaluation", ms(r, st->t_solve), ", ");
-    json_num("factorGflops", row_gflops(r), ", ");
-    json_num("metricErr", r->metric_err, ", ");
-    json_num("referenceMetricErr", r->ref_metric_err, ", ");
-    json_num("referenceRatioMetricErr", ratio_le(r), ", ");
-    json_num("paperSeconds", r->builtin ? NAN : r->paper_seconds, ", ");
-    json_num("speedupOverPaper", speedup(r), ", ");
-    json_num("peakRssMB", r->peak_rss_mb, "");
-    printf("}%s", sep);
+    iso_json_object(j, NULL);
+    iso_json_string(j, "problem", r->problem);
+    iso_json_bool(j, "builtin", r->builtin);
+    iso_json_string(j, "refactor", iso_cli__refactor_name(r->scheme));
+    iso_json_int(j, "vertices", r->vertices);
+    iso_json_int(j, "steps", r->run.ist.steps);
+    iso_json_int(j, "evaluations", r->run.ist.evaluations);
+    iso_json_int(j, "factorizations", st->factorizations);
+    iso_json_int(j, "cg_iterations", st->cg_iterations);
+    iso_json_int(j, "refactors", st->refactors);
+    iso_json_number(j, "seconds", r->run.seconds);
+    iso_json_number(j, "assembly_ms_per_evaluation", ms(r, st->t_assembly));
+    iso_json_number(j, "factor_ms_per_evaluation", ms(r, st->t_factor));
+    iso_json_number(j, "solve_ms_per_evaluation", ms(r, st->t_solve));
+    iso_json_number(j, "factor_gflops", row_gflops(r));
+    iso_json_number(j, "metric_err", r->metric_err);
+    iso_json_number(j, "reference_metric_err", r->ref_metric_err);
+    iso_json_number(j, "reference_ratio_metric_err", ratio_le(r));
+    iso_json_number(j, "paper_seconds", r->builtin ? NAN : r->paper_seconds);
+    iso_json_number(j, "speedup_over_paper", speedup(r));
+    iso_json_number(j, "peak_rss_mb", r->peak_rss_mb);
+    iso_json_close(j);
+}
+
+static void print_json_accuracy(iso_json *j, const bench_accuracy *c)
+{
+    double base = isfinite(c->always) ? c->always : c->adaptive;
+    iso_json_object(j, NULL);
+    iso_json_string(j, "problem", c->problem);
+    iso_json_number(j, "metric_err_always", c->always);
+    iso_json_number(j, "metric_err_adaptive", c->adaptive);
+    iso_json_number(j, "metric_err_tol_over_10", c->fine);
+    iso_json_number(j, "adaptive_vs_always", rel_diff(c->adaptive, c->always));
+    iso_json_number(j, "tol_vs_tol_over_10", rel_diff(c->fine, base));
+    iso_json_close(j);
+}
+
+static void print_json_machine(iso_json *j, const bench_machine *m)
+{
+    iso_json_object(j, "machine");
+    iso_json_int(j, "dgemm_n", m->dgemm_n);
+    iso_json_int(j, "dgemm_reps", m->dgemm_reps);
+    iso_json_number(j, "dgemm_gflops", m->dgemm_gflops);
+    iso_json_int(j, "dgemm_threads", m->dgemm_threads);
+    iso_json_number(j, "dgemm_one_thread_gflops", m->dgemm1_gflops);
+    iso_json_string(j, "blas", iso_cli__blas_config());
+    iso_json_int(j, "cactus_unknowns", m->unknowns);
+    iso_json_int(j, "cactus_nnz_l", m->nnz_l);
+    iso_json_int(j, "bare_reps", m->bare_reps);
+    iso_json_number(j, "cactus_factor_flops", m->flops);
+    iso_json_number(j, "bare_factor_ms", 1e3 * m->bare_factor_s);
+    iso_json_number(j, "bare_solve_ms", 1e3 * m->bare_solve_s);
+    iso_json_number(j, "bare_factor_gflops", m->flops / m->bare_factor_s / 1e9);
+    iso_json_close(j);
 }
 
 static void print_json(const bench_args *a, const bench_result *res)
 {
-    const bench_machine *m = &res->mach;
-    printf("{\"quick\": %s, \"reps\": %d, ", a->quick ? "true" : "false", a->reps);
-    json_str("assembly", iso_cli__assembly_name(a->so.assembly), ", ");
-    json_num("tol", res->tol, ", ");
-    printf("\"rows\": [");
+    iso_json j;
+    iso_json_begin(&j, stdout);
+    iso_json_bool(&j, "quick", a->quick);
+    iso_json_int(&j, "reps", a->reps);
+    iso_json_string(&j, "assembly", iso_cli__assembly_name(a->so.assembly));
+    iso_json_number(&j, "tol", res->tol);
+    iso_json_array(&j, "rows");
     for (int i = 0; i < res->n_rows; i++)
-        print_json_row(&res->rows[i], i + 1 < res->n_rows ? ", " : "");
-    printf("], \"accuracy\": [");
-    for (int i = 0; i < res->n_acc; i++) {
-        const bench_accuracy *c = &res->acc[i];
-        double base = isfinite(c->always) ? c->always : c->adaptive;
-        printf("{");
-        json_str("problem", c->problem, ", ");
-        json_num("metricErrAlways", c->always, ", ");
-        json_num("metricErrAdaptive", c->adaptive, ", ");
-        json_num("metricErrTolOver10", c->fine, ", ");
-        json_num("adaptiveVsAlways", rel_diff(c->adaptive, c->always), ", ");
-        json_num("tolVsTolOver10", rel_diff(c->fine, base), "");
-        printf("}%s", i + 1 < res->n_acc ? ", " : "");
-    }
-    printf("], \"realtime\": [");
-    iso_cli__bench_realtime_json(res->rt, res->n_rt);
-    printf("], \"machine\": {\"dgemmN\": %d, \"dgemmReps\": %d, ", m->dgemm_n, m->dgemm_reps);
-    json_num("dgemmGflops", m->dgemm_gflops, ", ");
-    printf("\"dgemmThreads\": %d, ", m->dgemm_threads);
-    json_num("dgemmOneThreadGflops", m->dgemm1_gflops, ", ");
-    json_str("blas", iso_cli__blas_config(), ", ");
-    printf("\"cactusUnknowns\": %d, \"cactusNnzL\": %ld, \"bareReps\": %d, ", m->unknowns, m->nnz_l,
-           m->bare_reps);
-    json_num("cactusFactorFlops", m->flops, ", ");
-    json_num("bareFactorMs", 1e3 * m->bare_factor_s, ", ");
-    json_num("bareSolveMs", 1e3 * m->bare_solve_s, ", ");
-    json_num("bareFactorGflops", m->flops / m->bare_factor_s / 1e9, "");
-    printf("}}\n");
+        print_json_row(&j, &res->rows[i]);
+    iso_json_close(&j);
+    iso_json_array(&j, "accuracy");
+    for (int i = 0; i < res->n_acc; i++)
+        print_json_accuracy(&j, &res->acc[i]);
+    iso_json_close(&j);
+    iso_json_array(&j, "realtime");
+    iso_cli__bench_realtime_json(&j, res->rt, res->n_rt);
+    iso_json_close(&j);
+    print_json_machine(&j, &res->mach);
+    iso_json_end(&j);
 }
 
 /* ------------------------------------------------------------------------ */

@@ -12,6 +12,7 @@
 
 #include "iso_clock.h"
 #include "iso_integrate.h"
+#include "iso_json.h"
 #include "iso_mesh.h"
 #include "iso_metrics.h"
 #include "iso_motion.h"
@@ -220,55 +221,63 @@ typedef struct report {
     iso_cli__run run;
 } report;
 
-static void json_number(const char *key, double v, int last)
-{
-    if (isfinite(v))
-        printf("\"%s\": %.17g%s", key, v, last ? "" : ", ");
-    else
-        printf("\"%s\": null%s", key, last ? "" : ", ");
-}
-
 static double ratio(double ref, double ours)
 {
     return ours > 0 ? ref / ours : (ref > 0 ? INFINITY : NAN);
 }
 
+/* Each distortion measure under its key, prefixed (e.g. "reference_"). */
+static void json_measures(iso_json *j, const char *prefix, const iso_metrics *m)
+{
+    size_t n;
+    const iso_metrics_measure *k = iso_metrics_measures(&n);
+    for (size_t i = 0; i < n; i++) {
+        char key[64];
+        snprintf(key, sizeof key, "%s%s", prefix, k[i].key);
+        iso_json_number(j, key, iso_metrics_value(m, &k[i]));
+    }
+}
+
 static void print_json(const deform_args *a, const report *r)
 {
-    printf("{");
-    json_number("metricErr", r->ours.metric_err, 0);
-    json_number("areaErr", r->ours.area_err, 0);
-    json_number("angleErr", r->ours.angle_err, 0);
-    json_number("maxEdgeStrain", r->ours.max_edge_strain, 0);
     const iso_integrate_stats *ist = &r->run.ist;
     const iso_solver_stats *sst = &r->run.sst;
-    printf("\"steps\": %d, \"rk4Steps\": %d, \"rejected\": %d, \"evaluations\": %ld, ", ist->steps,
-           ist->rk4_steps, ist->rejected, ist->evaluations);
-    printf("\"assembly\": \"%s\", \"refactor\": \"%s\", ", iso_cli__assembly_name(a->so.assembly),
-           iso_cli__refactor_name(a->so.refactor));
-    printf("\"factorizations\": %ld, \"cgIterations\": %ld, \"refactors\": %ld, ",
-           sst->factorizations, sst->cg_iterations, sst->refactors);
-    json_number("seconds", r->run.seconds, 0);
-    json_number("assemblySeconds", sst->t_assembly, 0);
-    json_number("factorSeconds", sst->t_factor, 0);
-    json_number("solveSeconds", sst->t_solve, 0);
-    json_number("assemblyMsPerEvaluation",
-                iso_cli__per_evaluation_ms(sst->t_assembly, sst->evaluations), 0);
-    json_number("factorMsPerEvaluation",
-                iso_cli__per_evaluation_ms(sst->t_factor, sst->evaluations), 0);
-    json_number("solveMsPerEvaluation", iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations),
-                0);
-    json_number("otherSeconds", r->run.other, !r->has_ref);
+    iso_json j;
+    iso_json_begin(&j, stdout);
+    json_measures(&j, "", &r->ours);
+    iso_json_int(&j, "steps", ist->steps);
+    iso_json_int(&j, "rk4_steps", ist->rk4_steps);
+    iso_json_int(&j, "rejected", ist->rejected);
+    iso_json_int(&j, "evaluations", ist->evaluations);
+    iso_json_string(&j, "assembly", iso_cli__assembly_name(a->so.assembly));
+    iso_json_string(&j, "refactor", iso_cli__refactor_name(a->so.refactor));
+    iso_json_int(&j, "factorizations", sst->factorizations);
+    iso_json_int(&j, "cg_iterations", sst->cg_iterations);
+    iso_json_int(&j, "refactors", sst->refactors);
+    iso_json_number(&j, "seconds", r->run.seconds);
+    iso_json_number(&j, "assembly_seconds", sst->t_assembly);
+    iso_json_number(&j, "factor_seconds", sst->t_factor);
+    iso_json_number(&j, "solve_seconds", sst->t_solve);
+    iso_json_number(&j, "assembly_ms_per_evaluation",
+                    iso_cli__per_evaluation_ms(sst->t_assembly, sst->evaluations));
+    iso_json_number(&j, "factor_ms_per_evaluation",
+                    iso_cli__per_evaluation_ms(sst->t_factor, sst->evaluations));
+    iso_json_number(&j, "solve_ms_per_evaluation",
+                    iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations));
+    iso_json_number(&j, "other_seconds", r->run.other);
     if (r->has_ref) {
-        json_number("referenceMetricErr", r->ref.metric_err, 0);
-        json_number("referenceAreaErr", r->ref.area_err, 0);
-        json_number("referenceAngleErr", r->ref.angle_err, 0);
-        json_number("referenceMaxEdgeStrain", r->ref.max_edge_strain, 0);
-        json_number("referenceRatioMetricErr", ratio(r->ref.metric_err, r->ours.metric_err), 0);
-        json_number("referenceRatioAreaErr", ratio(r->ref.area_err, r->ours.area_err), 0);
-        json_number("referenceRatioAngleErr", ratio(r->ref.angle_err, r->ours.angle_err), 1);
+        json_measures(&j, "reference_", &r->ref);
+        size_t n;
+        const iso_metrics_measure *k = iso_metrics_measures(&n);
+        for (size_t i = 0; i < n; i++) {
+            char key[64];
+            snprintf(key, sizeof key, "reference_ratio_%s", k[i].key);
+            iso_json_number(
+                &j, key,
+                ratio(iso_metrics_value(&r->ref, &k[i]), iso_metrics_value(&r->ours, &k[i])));
+        }
     }
-    printf("}\n");
+    iso_json_end(&j);
 }
 
 static void print_text(const iso_cli__problem *p, const deform_args *a, const report *r)

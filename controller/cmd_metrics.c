@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "iso_json.h"
 #include "iso_mesh.h"
 #include "iso_metrics.h"
 
@@ -12,12 +13,11 @@ static const char *const help =
     "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
     "\n"
     "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
-    "triangles in the same order):\n"
-    "  metricErr      sum over edges of (|e'| - |e|)^2\n"
-    "  areaErr        sum over triangles of (A' - A)^2\n"
-    "  angleErr       sum over triangle corners of (theta' - theta)^2, radians\n"
-    "  maxEdgeStrain  largest relative edge length change\n"
-    "  --json         print one JSON object instead of text\n";
+    "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
+    "the largest and the root-mean-square relative edge length change, each printed\n"
+    "with what it measures.\n"
+    "  --json         print one JSON object instead of text (keys metric_err,\n"
+    "                 area_err, angle_err, max_edge_strain, rms_edge_strain)\n";
 
 int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, size_t why_cap)
 {
@@ -76,11 +76,15 @@ int iso_cli__metrics(int argc, char **argv)
     }
     iso_metrics mt;
     iso_metrics_compute(m[0], iso_mesh_positions(m[0]), iso_mesh_positions(m[1]), &mt);
-    if (json)
-        printf("{\"metricErr\": %.17g, \"areaErr\": %.17g, \"angleErr\": %.17g, "
-               "\"maxEdgeStrain\": %.17g, \"rmsEdgeStrain\": %.17g}\n",
-               mt.metric_err, mt.area_err, mt.angle_err, mt.max_edge_strain, mt.rms_edge_strain);
-    else
+    if (json) {
+        iso_json j;
+        iso_json_begin(&j, stdout);
+        size_t n;
+        const iso_metrics_measure *k = iso_metrics_measures(&n);
+        for (size_t i = 0; i < n; i++)
+            iso_json_number(&j, k[i].key, iso_metrics_value(&mt, &k[i]));
+        iso_json_end(&j);
+    } else
         iso_metrics_print(stdout, "", &mt);
     status = 0;
 out:

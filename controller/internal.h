@@ -9,6 +9,7 @@
 #include "iso_dev.h"
 #include "iso_err.h"
 #include "iso_integrate.h"
+#include "iso_json.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -201,9 +202,10 @@ typedef struct iso_cli__rt_row {
 int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolution,
                             const iso_solver_opts *so, int reps, iso_cli__rt_row *row,
                             iso_err *err);
-/* The table for people, and the rows as JSON array elements (no brackets). */
+/* The table for people, and the rows as JSON objects into the array j has
+ * open. */
 void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n);
-void iso_cli__bench_realtime_json(const iso_cli__rt_row *rows, int n);
+void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n);
 
 /* ------------------------------------------------------------------------ */
 /* Scenes (cli_scene.c)                                                       */

@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_json.h"
+
 void iso_loop__stats_init(iso_loop_stats *s)
 {
     memset(s, 0, sizeof *s);
@@ -176,28 +178,107 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     fprintf(f, "  vertices checksum %016llx\n", (unsigned long long)s->checksum);
 }
 
-/* JSON numbers: non-finite values become null (JSON has no NaN). */
-static void num(FILE *f, const char *key, double v, int comma)
+static void json_device(iso_json *j, const char *desc, const iso_dev_source_stats *d)
 {
-    if (isfinite(v))
-        fprintf(f, "\"%s\": %.17g%s", key, v, comma ? ", " : "");
-    else
-        fprintf(f, "\"%s\": null%s", key, comma ? ", " : "");
+    const iso_dev_frame_drops *x = &d->drops;
+    iso_json_object(j, NULL);
+    iso_json_string(j, "device", desc);
+    iso_json_int(j, "events", d->events);
+    iso_json_int(j, "reports", d->dec.reports);
+    iso_json_int(j, "bad_frames", d->dec.bad_frames);
+    iso_json_int(j, "garbage", d->dec.garbage);
+    iso_json_int(j, "short_reports", d->dec.short_reports);
+    iso_json_int(j, "unknown_ids", d->dec.unknown_ids);
+    iso_json_int(j, "bad_payloads", d->dec.bad_payloads);
+    iso_json_object(j, "drops");
+    iso_json_int(j, "too_long", x->too_long);
+    iso_json_int(j, "bad_cobs", x->bad_cobs);
+    iso_json_int(j, "too_short", x->too_short);
+    iso_json_int(j, "bad_crc", x->bad_crc);
+    iso_json_int(j, "bad_version", x->bad_version);
+    iso_json_int(j, "bad_length", x->bad_length);
+    iso_json_int(j, "unknown_type", x->unknown_type);
+    iso_json_int(j, "duplicate", x->duplicate);
+    iso_json_int(j, "out_of_order", x->out_of_order);
+    iso_json_int(j, "seq_gaps", x->seq_gaps);
+    iso_json_close(j);
+    iso_json_int(j, "gone", d->gone);
+    iso_json_int(j, "back", d->back);
+    iso_json_int(j, "stale", d->stale);
+    iso_json_close(j);
 }
 
-static void json_string(FILE *f, const char *s)
+/* median, p99 and max of one distribution, in an object of its own */
+static void json_spread(iso_json *j, const char *key, double med, double p99, double max)
 {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\')
-            fprintf(f, "\\%c", c);
-        else if (c < 0x20)
-            fprintf(f, "\\u%04x", c);
-        else
-            fputc(c, f);
+    iso_json_object(j, key);
+    iso_json_number(j, "median", med);
+    iso_json_number(j, "p99", p99);
+    iso_json_number(j, "max", max);
+    iso_json_close(j);
+}
+
+static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene *sc)
+{
+    iso_json_string(j, "scene", sc->name);
+    iso_json_int(j, "ticks", s->ticks);
+    iso_json_number(j, "stream_s", s->stream_s);
+    iso_json_number(j, "wall_s", s->wall_s);
+    iso_json_number(j, "period_ms", s->period_ms);
+    json_spread(j, "tick_ms", s->tick_median, s->tick_p99, s->tick_max);
+    json_spread(j, "latency_ms", s->latency_median, s->latency_p99, s->latency_max);
+    iso_json_int(j, "misses", s->misses);
+    iso_json_int(j, "skipped", s->skipped);
+    iso_json_int(j, "restarts", s->restarts);
+    iso_json_int(j, "steps", s->integ.steps);
+    iso_json_int(j, "rk4_steps", s->integ.rk4_steps);
+    iso_json_string(j, "abm", iso_abm_mode_name((iso_abm_mode)sc->abm_mode));
+    iso_json_int(j, "evaluations", s->integ.evaluations);
+    iso_json_int(j, "low_order_steps", s->integ.low_order_steps);
+    iso_json_int(j, "max_step_evaluations", s->integ.max_step_evaluations);
+    iso_json_int(j, "max_step_cg_iterations", s->integ.max_step_cg_iterations);
+    iso_json_object(j, "solver");
+    iso_json_int(j, "factorizations", s->solver.factorizations);
+    iso_json_int(j, "cg_iterations", s->solver.cg_iterations);
+    iso_json_int(j, "cg_capped", s->solver.cg_capped);
+    iso_json_number(j, "assembly_s", s->solver.t_assembly);
+    iso_json_number(j, "factor_s", s->solver.t_factor);
+    iso_json_number(j, "solve_s", s->solver.t_solve);
+    iso_json_close(j);
+    iso_json_object(j, "metrics");
+    size_t n;
+    const iso_metrics_measure *k = iso_metrics_measures(&n);
+    for (size_t i = 0; i < n; i++)
+        iso_json_number(j, k[i].key, iso_metrics_value(&s->metrics, &k[i]));
+    iso_json_close(j);
+    iso_json_array(j, "handles");
+    for (int h = 0; h < s->n_handles; h++) {
+        iso_json_object(j, NULL);
+        iso_json_string(j, "name", sc->handles[h].name);
+        iso_json_array(j, "p");
+        for (int c = 0; c < 3; c++)
+            iso_json_number(j, NULL, s->handle_p[h][c]);
+        iso_json_close(j);
+        iso_json_close(j);
     }
-    fputc('"', f);
+    iso_json_close(j);
+    iso_json_array(j, "devices");
+    for (int i = 0; i < s->n_devices; i++)
+        json_device(j, s->device_desc[i], &s->device[i]);
+    iso_json_close(j);
+    iso_json_object(j, "late_ticks");
+    iso_json_int(j, "substeps", s->substeps);
+    iso_json_int(j, "coarse", s->coarse);
+    iso_json_close(j);
+    iso_json_int(j, "frames_sent", s->frames_sent);
+    iso_json_int(j, "ply_frames", s->ply_frames);
+    iso_json_int(j, "snapshots", s->snapshots);
+    iso_json_bool(j, "realtime", s->rt_active);
+    iso_json_bool(j, "memory_locked", s->mem_locked);
+    iso_json_string(j, "actuators", s->act_line);
+    char sum[17];
+    snprintf(sum, sizeof sum, "%016llx", (unsigned long long)s->checksum);
+    iso_json_string(j, "checksum", sum);
 }
 
 int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const char *path,
@@ -206,75 +287,11 @@ int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc, const ch
     FILE *f = fopen(path, "w");
     if (!f)
         return iso_err_set(err, ISO_EIO, -1, "--stats-json %s: cannot write it", path);
-    fprintf(f, "{\"scene\": ");
-    json_string(f, sc->name);
-    fprintf(f, ", \"ticks\": %ld, ", s->ticks);
-    num(f, "stream_s", s->stream_s, 1);
-    num(f, "wall_s", s->wall_s, 1);
-    num(f, "period_ms", s->period_ms, 1);
-    fprintf(f, "\n \"tick_ms\": {");
-    num(f, "median", s->tick_median, 1);
-    num(f, "p99", s->tick_p99, 1);
-    num(f, "max", s->tick_max, 0);
-    fprintf(f, "},\n \"latency_ms\": {");
-    num(f, "median", s->latency_median, 1);
-    num(f, "p99", s->latency_p99, 1);
-    num(f, "max", s->latency_max, 0);
-    fprintf(f, "},\n \"misses\": %ld, \"skipped\": %ld, \"restarts\": %ld, ", s->misses, s->skipped,
-            s->restarts);
-    fprintf(f, "\"steps\": %d, \"rk4_steps\": %d, \"abm\": \"%s\", \"evaluations\": %ld,\n",
-            s->integ.steps, s->integ.rk4_steps, iso_abm_mode_name((iso_abm_mode)sc->abm_mode),
-            s->integ.evaluations);
-    fprintf(f, " \"low_order_steps\": %d, \"max_step_evaluations\": %d, ", s->integ.low_order_steps,
-            s->integ.max_step_evaluations);
-    fprintf(f, "\"max_step_cg_iterations\": %ld,\n", s->integ.max_step_cg_iterations);
-    fprintf(f, " \"solver\": {\"factorizations\": %ld, \"cg_iterations\": %ld, ",
-            s->solver.factorizations, s->solver.cg_iterations);
-    fprintf(f, "\"cg_capped\": %ld, ", s->solver.cg_capped);
-    num(f, "assembly_s", s->solver.t_assembly, 1);
-    num(f, "factor_s", s->solver.t_factor, 1);
-    num(f, "solve_s", s->solver.t_solve, 0);
-    fprintf(f, "},\n \"metrics\": {");
-    num(f, "metric_err", s->metrics.metric_err, 1);
-    num(f, "area_err", s->metrics.area_err, 1);
-    num(f, "angle_err", s->metrics.angle_err, 1);
-    num(f, "max_edge_strain", s->metrics.max_edge_strain, 1);
-    num(f, "rms_edge_strain", s->metrics.rms_edge_strain, 0);
-    fprintf(f, "},\n \"handles\": [");
-    for (int h = 0; h < s->n_handles; h++) {
-        fprintf(f, "%s{\"name\": ", h ? ", " : "");
-        json_string(f, sc->handles[h].name);
-        fprintf(f, ", \"p\": [%.17g, %.17g, %.17g]}", s->handle_p[h][0], s->handle_p[h][1],
-                s->handle_p[h][2]);
-    }
-    fprintf(f, "],\n \"devices\": [");
-    for (int i = 0; i < s->n_devices; i++) {
-        const iso_dev_source_stats *d = &s->device[i];
-        const iso_dev_frame_drops *x = &d->drops;
-        fprintf(f, "%s{\"device\": ", i ? ", " : "");
-        json_string(f, s->device_desc[i]);
-        fprintf(f,
-                ", \"events\": %u, \"reports\": %u, \"bad_frames\": %u, \"garbage\": %u, "
-                "\"short_reports\": %u, \"unknown_ids\": %u, \"bad_payloads\": %u, "
-                "\"drops\": {\"too_long\": %u, \"bad_cobs\": %u, \"too_short\": %u, "
-                "\"bad_crc\": %u, \"bad_version\": %u, \"bad_length\": %u, "
-                "\"unknown_type\": %u, \"duplicate\": %u, \"out_of_order\": %u, "
-                "\"seq_gaps\": %u}, \"gone\": %u, \"back\": %u, \"stale\": %u}",
-                d->events, d->dec.reports, d->dec.bad_frames, d->dec.garbage, d->dec.short_reports,
-                d->dec.unknown_ids, d->dec.bad_payloads, x->too_long, x->bad_cobs, x->too_short,
-                x->bad_crc, x->bad_version, x->bad_length, x->unknown_type, x->duplicate,
-                x->out_of_order, x->seq_gaps, d->gone, d->back, d->stale);
-    }
-    fprintf(f, "],\n \"late_ticks\": {\"substeps\": %ld, \"coarse\": %ld}, ", s->substeps,
-            s->coarse);
-    fprintf(f, "\"frames_sent\": %ld, \"ply_frames\": %ld, \"snapshots\": %ld, ", s->frames_sent,
-            s->ply_frames, s->snapshots);
-    fprintf(f, "\"realtime\": %s, \"memory_locked\": %s, ", s->rt_active ? "true" : "false",
-            s->mem_locked ? "true" : "false");
-    fprintf(f, "\"actuators\": ");
-    json_string(f, s->act_line);
-    fprintf(f, ",\n \"checksum\": \"%016llx\"}\n", (unsigned long long)s->checksum);
-    if (fclose(f) != 0)
+    iso_json j;
+    iso_json_begin(&j, f);
+    json_summary(&j, s, sc);
+    int bad = iso_json_end(&j);
+    if (fclose(f) != 0 || bad)
         return iso_err_set(err, ISO_EIO, -1, "--stats-json %s: write failed", path);
     return ISO_OK;
 }

@@ -190,6 +190,14 @@ static double json_get(const char *text, const char *key)
     return p ? strtod(p + strlen(pat), NULL) : NAN;
 }
 
+/* Every key of a command's JSON is snake_case (common/iso_json.h). */
+static void assert_keys_snake_case(const char *json)
+{
+    char bad[128];
+    if (!iso_test_json_keys_snake_case(json, bad, sizeof bad))
+        fail_msg("key '%s' is not snake_case in %s", bad, json);
+}
+
 /* ---- fixtures ------------------------------------------------------------ */
 
 /* A 5x5 grid in the plane z = 0: left column fixed, right column handle. */
@@ -238,29 +246,32 @@ static void version_names_cholmod_and_blas(void **state)
 static void deform_prints_json_with_every_key(void **state)
 {
     (void)state;
-    static const char *const keys[] = {"metricErr",
-                                       "areaErr",
-                                       "angleErr",
-                                       "maxEdgeStrain",
+    static const char *const keys[] = {"metric_err",
+                                       "area_err",
+                                       "angle_err",
+                                       "max_edge_strain",
+                                       "rms_edge_strain",
                                        "steps",
+                                       "rk4_steps",
                                        "evaluations",
                                        "seconds",
-                                       "assemblySeconds",
-                                       "factorSeconds",
-                                       "solveSeconds",
-                                       "otherSeconds",
+                                       "assembly_seconds",
+                                       "factor_seconds",
+                                       "solve_seconds",
+                                       "other_seconds",
                                        "factorizations",
-                                       "cgIterations",
+                                       "cg_iterations",
                                        "refactors",
-                                       "assemblyMsPerEvaluation",
-                                       "factorMsPerEvaluation",
-                                       "solveMsPerEvaluation"};
+                                       "assembly_ms_per_evaluation",
+                                       "factor_ms_per_evaluation",
+                                       "solve_ms_per_evaluation"};
     result *r = &g.res;
     run_iso("deform --shape cylinder --steps 4 --json", r);
     if (r->status != 0)
         fail_msg("deform failed (%d): %s", r->status, r->err);
     if (!json_valid(r->out))
         fail_msg("not valid JSON: %s", r->out);
+    assert_keys_snake_case(r->out);
     for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++) {
         char pat[64];
         snprintf(pat, sizeof pat, "\"%s\":", keys[i]);
@@ -269,8 +280,8 @@ static void deform_prints_json_with_every_key(void **state)
     }
     assert_true(json_get(r->out, "steps") == 4);
     assert_true(json_get(r->out, "evaluations") >= 8);
-    assert_true(json_get(r->out, "metricErr") > 0);
-    assert_true(json_get(r->out, "seconds") >= json_get(r->out, "factorSeconds"));
+    assert_true(json_get(r->out, "metric_err") > 0);
+    assert_true(json_get(r->out, "seconds") >= json_get(r->out, "factor_seconds"));
     assert_null(strstr(r->out, "reference"));
 }
 
@@ -285,7 +296,7 @@ static void deform_writes_the_deformed_mesh(void **state)
     run_iso(args, r);
     if (r->status != 0)
         fail_msg("deform failed (%d): %s", r->status, r->err);
-    assert_non_null(strstr(r->out, "metricErr"));
+    assert_non_null(strstr(r->out, "metricErr      ")); /* text: the paper's names */
     assert_non_null(strstr(r->out, "factorization"));
     /* the result against itself through `metrics`, and a reference of it */
     snprintf(args, sizeof args,
@@ -294,7 +305,8 @@ static void deform_writes_the_deformed_mesh(void **state)
     if (r->status != 0)
         fail_msg("deform --reference failed (%d): %s", r->status, r->err);
     assert_true(json_valid(r->out));
-    assert_true(fabs(json_get(r->out, "referenceRatioMetricErr") - 1.0) < 1e-6);
+    assert_keys_snake_case(r->out);
+    assert_true(fabs(json_get(r->out, "reference_ratio_metric_err") - 1.0) < 1e-6);
 }
 
 static void bad_values_are_refused_by_name(void **state)
@@ -439,10 +451,12 @@ static void metrics_of_a_mesh_against_itself_are_zero(void **state)
     if (r->status != 0)
         fail_msg("metrics failed (%d): %s", r->status, r->err);
     assert_true(json_valid(r->out));
-    assert_true(json_get(r->out, "metricErr") == 0);
-    assert_true(json_get(r->out, "areaErr") == 0);
-    assert_true(json_get(r->out, "angleErr") == 0);
-    assert_true(json_get(r->out, "maxEdgeStrain") == 0);
+    assert_keys_snake_case(r->out);
+    assert_true(json_get(r->out, "metric_err") == 0);
+    assert_true(json_get(r->out, "area_err") == 0);
+    assert_true(json_get(r->out, "angle_err") == 0);
+    assert_true(json_get(r->out, "max_edge_strain") == 0);
+    assert_true(json_get(r->out, "rms_edge_strain") == 0);
 }
 
 /* The number after the n-th (0-based) "key": in text, or NAN. */
@@ -477,22 +491,23 @@ static void bench_quick_prints_json_with_finite_figures(void **state)
                                            "factorizations",
                                            "steps",
                                            "vertices",
-                                           "assemblyMsPerEvaluation",
-                                           "factorMsPerEvaluation",
-                                           "solveMsPerEvaluation",
-                                           "metricErr",
-                                           "peakRssMB"};
-    static const char *const positive[] = {"dgemmGflops",    "bareFactorMs", "bareSolveMs",
-                                           "cactusUnknowns", "cactusNnzL",   "tolVsTolOver10"};
+                                           "assembly_ms_per_evaluation",
+                                           "factor_ms_per_evaluation",
+                                           "solve_ms_per_evaluation",
+                                           "metric_err",
+                                           "peak_rss_mb"};
+    static const char *const positive[] = {"dgemm_gflops",  "bare_factor_ms",
+                                           "bare_solve_ms", "cactus_unknowns",
+                                           "cactus_nnz_l",  "tol_vs_tol_over_10"};
     static const char *const present[] = {"\"rows\":",
                                           "\"accuracy\":",
                                           "\"machine\":",
-                                          "\"cgIterations\":",
+                                          "\"cg_iterations\":",
                                           "\"refactors\":",
-                                          "\"speedupOverPaper\":",
-                                          "\"referenceRatioMetricErr\":",
-                                          "\"adaptiveVsAlways\":",
-                                          "\"factorGflops\":"};
+                                          "\"speedup_over_paper\":",
+                                          "\"reference_ratio_metric_err\":",
+                                          "\"adaptive_vs_always\":",
+                                          "\"factor_gflops\":"};
     char dir[PATH_MAX], args[PATH_MAX * 2];
     result *r = &g.res;
     iso_test_tmp(dir, sizeof dir, "empty-benchmark");
@@ -503,6 +518,7 @@ static void bench_quick_prints_json_with_finite_figures(void **state)
         fail_msg("bench failed (%d): %s", r->status, r->err);
     if (!json_valid(r->out))
         fail_msg("not valid JSON: %s", r->out);
+    assert_keys_snake_case(r->out);
     for (size_t i = 0; i < sizeof present / sizeof present[0]; i++)
         if (!strstr(r->out, present[i]))
             fail_msg("%s missing from %s", present[i], r->out);
@@ -535,7 +551,8 @@ static void bench_quick_prints_json_with_finite_figures(void **state)
             fail_msg("%s = %g, not a finite positive number", positive[i], v);
     }
     /* adaptive reuse moves metricErr far less than the integrator's own error */
-    double reuse = json_get(r->out, "adaptiveVsAlways"), integ = json_get(r->out, "tolVsTolOver10");
+    double reuse = json_get(r->out, "adaptive_vs_always"),
+           integ = json_get(r->out, "tol_vs_tol_over_10");
     assert_true(isfinite(reuse) && reuse >= 0 && reuse < integ);
     /* the stand-ins are announced, one line each */
     assert_non_null(strstr(r->err, "using the built-in cactus"));

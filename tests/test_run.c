@@ -256,6 +256,9 @@ static void each_stream_replays_deterministically_to_its_golden(void **state)
         slurp(jb, j2, sizeof j2);
         assert_non_null(strstr(j1, "\"checksum\""));
         assert_string_equal(strstr(j1, "\"checksum\""), strstr(j2, "\"checksum\""));
+        char bad[128];
+        if (!iso_test_json_keys_snake_case(j1, bad, sizeof bad))
+            fail_msg("--stats-json key '%s' is not snake_case", bad);
         assert_true(json_num(j1, "ticks") >= 4);
         if (update)
             write_golden(s, j1, a);

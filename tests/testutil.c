@@ -49,6 +49,39 @@ double iso_test_max_abs(const double *a, size_t n)
     return m;
 }
 
+/* The end of the JSON string that starts at s (at its opening quote). */
+static const char *string_end(const char *s)
+{
+    for (s++; *s && *s != '"'; s++)
+        if (*s == '\\' && s[1])
+            s++;
+    return s;
+}
+
+int iso_test_json_keys_snake_case(const char *json, char *bad, size_t cap)
+{
+    for (const char *p = json; *p; p++) {
+        if (*p != '"')
+            continue;
+        const char *end = string_end(p);
+        const char *after = end + (*end != '\0');
+        after += strspn(after, " \t\r\n");
+        if (*after == ':') {
+            int ok = p[1] >= 'a' && p[1] <= 'z';
+            for (const char *c = p + 1; c < end; c++)
+                ok = ok && ((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') || *c == '_');
+            if (!ok) {
+                snprintf(bad, cap, "%.*s", (int)(end - p - 1), p + 1);
+                return 0;
+            }
+        }
+        if (!*end)
+            break;
+        p = end;
+    }
+    return 1;
+}
+
 static void slurp(const char *path, char *buf, size_t cap)
 {
     FILE *f = fopen(path, "rb");

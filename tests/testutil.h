@@ -24,6 +24,11 @@ double iso_test_max_abs_diff(const double *a, const double *b, size_t n);
 /* max |a_i| */
 double iso_test_max_abs(const double *a, size_t n);
 
+/* Every object key in the JSON text is snake_case ([a-z][a-z0-9_]*, the
+ * key style of every command's output, common/iso_json.h). Returns 1, or 0
+ * with the first key that is not in bad. */
+int iso_test_json_keys_snake_case(const char *json, char *bad, size_t cap);
+
 /* Runs `sh -c "<cmd>"` with stdin from /dev/null and stdout and stderr
  * captured into out and err (NUL-terminated, truncated to cap). Returns the
  * exit status, or -1 when it did not exit normally. */

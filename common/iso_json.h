@@ -1,0 +1,48 @@
+/* common/iso_json.h -- the one JSON writer every command uses (deform,
+ * bench, metrics, run --stats-json).
+ *
+ * Key style: every key isoshape writes is snake_case ("metric_err",
+ * "cg_iterations", "assembly_ms_per_evaluation"); tests/test_cli.c and
+ * tests/test_run.c hold each command's output to it. Numbers are written
+ * with 17 significant digits, so a double reads back to the same bits; a
+ * number that is not finite is written as null (JSON has no NaN or
+ * infinity). Strings are escaped here and nowhere else.
+ *
+ * A writer streams to a FILE: begin, then values (a key for each one inside
+ * an object, NULL inside an array), nested objects and arrays closed in
+ * order, then end. Nesting deeper than ISO_JSON_MAX_DEPTH is a caller's
+ * bug: such an object or array does not open (its values go to the level
+ * above) and its close pairs with it. */
+#ifndef ISO_JSON_H
+#define ISO_JSON_H
+
+#include <stdio.h>
+
+#define ISO_JSON_MAX_DEPTH 16
+
+typedef struct iso_json { /* caller-owned; iso_json_begin fills it */
+    FILE *f;
+    int depth;                               /* open objects and arrays */
+    char close[ISO_JSON_MAX_DEPTH];          /* '}' or ']' for each */
+    unsigned long items[ISO_JSON_MAX_DEPTH]; /* values written in each */
+    int too_deep;                            /* opens refused past the limit */
+} iso_json;
+
+/* Starts the top-level object on f. */
+void iso_json_begin(iso_json *j, FILE *f);
+/* Closes whatever is open, ends the line; returns 0, or -1 when f reports
+ * a write error. */
+int iso_json_end(iso_json *j);
+
+/* Opens an object or an array as the value of `key` (NULL inside an array). */
+void iso_json_object(iso_json *j, const char *key);
+void iso_json_array(iso_json *j, const char *key);
+/* Closes the innermost open object or array. */
+void iso_json_close(iso_json *j);
+
+void iso_json_number(iso_json *j, const char *key, double v); /* non-finite: null */
+void iso_json_int(iso_json *j, const char *key, long long v);
+void iso_json_bool(iso_json *j, const char *key, int v);
+void iso_json_string(iso_json *j, const char *key, const char *s); /* NULL: null */
+
+#endif
