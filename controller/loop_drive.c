@@ -47,33 +47,13 @@ static void key_pose(const iso_scene_driver *d, const double c[3], double t, iso
         w.w[j] = rv[j] * (3.14159265358979323846 / 180.0);
     iso_pose rot;
     iso_twist_exp(&w, 1.0, &rot); /* v = 0: a pure rotation about the origin */
-    memcpy(P->R, rot.R, sizeof P->R);
-    double Rc[3];
-    iso_pose_apply(&rot, c, Rc);
-    for (int j = 0; j < 3; j++)
-        P->p[j] = c[j] + tr[j] - Rc[j];
+    iso_pose_about(rot.R, c, tr, P);
 }
 
 int iso_loop__twist_between(const iso_pose *G, const iso_pose *P, double h, iso_twist *xi,
                             iso_err *err)
 {
-    double M[16] = {0};
-    for (int i = 0; i < 3; i++) {
-        for (int j = 0; j < 3; j++) {
-            double s = 0;
-            for (int q = 0; q < 3; q++)
-                s += P->R[3 * i + q] * G->R[3 * j + q]; /* R_P R_Gᵀ */
-            M[4 * i + j] = s;
-        }
-    }
-    for (int i = 0; i < 3; i++) {
-        double s = P->p[i];
-        for (int j = 0; j < 3; j++)
-            s -= M[4 * i + j] * G->p[j];
-        M[4 * i + 3] = s;
-    }
-    M[15] = 1;
-    int rc = iso_twist_from_matrix(M, xi, err);
+    int rc = iso_twist_between(G, P, xi, err);
     if (rc != ISO_OK)
         return rc;
     for (int j = 0; j < 3; j++) {

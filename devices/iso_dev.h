@@ -21,7 +21,7 @@
 
 #include "iso_clock.h" /* iso_clock_ns(): the time base of every live chunk */
 #include "iso_err.h"
-#include "iso_motion.h"
+#include "iso_geom.h"
 
 /* ====================================================================== */
 /* Chunks and source descriptions                                          */

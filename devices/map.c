@@ -92,12 +92,6 @@ static void cross(const double a[3], const double b[3], double c[3])
     c[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static void rot_apply(const double R[9], const double x[3], double y[3])
-{
-    for (int i = 0; i < 3; i++)
-        y[i] = R[3 * i] * x[0] + R[3 * i + 1] * x[1] + R[3 * i + 2] * x[2];
-}
-
 /* (v, w) at the handle's centre c, in world axes, to the world twist whose
  * velocity at y is v0 + w × y: v0 = v − w × c. */
 static void twist_about(const double v[3], const double w[3], const double c[3], iso_twist *out)
@@ -144,26 +138,10 @@ void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const is
         u[0] = u[1] = u[2] = 0;
     double v[3] = {u[0], u[1], u[2]}, w[3] = {u[3], u[4], u[5]};
     if (o->frame == ISO_DEV_FRAME_DEVICE) {
-        rot_apply(g->R, u, v);
-        rot_apply(g->R, u + 3, w);
+        iso_pose_rotate(g, u, v);
+        iso_pose_rotate(g, u + 3, w);
     }
     twist_about(v, w, g->p, out);
-}
-
-/* Rodrigues: rotation vector r to R (row-major). */
-static void rotvec_to_matrix(const double r[3], double R[9])
-{
-    double th = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-    double a = th < 1e-12 ? 1 : sin(th) / th;
-    double b = th < 1e-6 ? 0.5 : (1 - cos(th)) / (th * th);
-    double K[9] = {0, -r[2], r[1], r[2], 0, -r[0], -r[1], r[0], 0};
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            double kk = 0;
-            for (int k = 0; k < 3; k++)
-                kk += K[3 * i + k] * K[3 * k + j];
-            R[3 * i + j] = (i == j) + a * K[3 * i + j] + b * kk;
-        }
 }
 
 /* The twist that carries g toward the target pose T in one tick of dt:
@@ -175,29 +153,14 @@ static void twist_toward(const iso_dev_map_opts *o, const double tgt[6], const i
     memset(out, 0, sizeof *out);
     if (!(dt > 0))
         return;
-    double RT[9], p[3];
-    double rv[3] = {tgt[3], tgt[4], tgt[5]};
-    rotvec_to_matrix(rv, RT);
+    /* the target: its rotation vector's exponential, its scaled position */
+    iso_twist rv = {{tgt[3], tgt[4], tgt[5]}, {0, 0, 0}};
+    iso_pose T;
+    iso_twist_exp(&rv, 1.0, &T);
     for (int i = 0; i < 3; i++)
-        p[i] = tgt[i] * o->pose_scale;
-    double M[16] = {0};
-    for (int i = 0; i < 3; i++) {
-        for (int j = 0; j < 3; j++) {
-            double s = 0; /* (RT · Rgᵀ)ij */
-            for (int k = 0; k < 3; k++)
-                s += RT[3 * i + k] * g->R[3 * j + k];
-            M[4 * i + j] = s;
-        }
-    }
-    for (int i = 0; i < 3; i++) {
-        double s = 0;
-        for (int j = 0; j < 3; j++)
-            s += M[4 * i + j] * g->p[j];
-        M[4 * i + 3] = p[i] - s;
-    }
-    M[15] = 1;
+        T.p[i] = tgt[i] * o->pose_scale;
     iso_twist xi;
-    if (iso_twist_from_matrix(M, &xi, NULL) != ISO_OK)
+    if (iso_twist_between(g, &T, &xi, NULL) != ISO_OK)
         return;
     double k = o->pose_gain / dt;
     for (int i = 0; i < 3; i++) {

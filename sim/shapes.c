@@ -10,6 +10,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_geom.h"
+
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
 #endif
@@ -99,16 +101,9 @@ static void rotation_about(double M[16], const double u[3], double deg, const do
         cs + u[0] * u[0] * k,        u[0] * u[1] * k - u[2] * sn, u[0] * u[2] * k + u[1] * sn,
         u[1] * u[0] * k + u[2] * sn, cs + u[1] * u[1] * k,        u[1] * u[2] * k - u[0] * sn,
         u[2] * u[0] * k - u[1] * sn, u[2] * u[1] * k + u[0] * sn, cs + u[2] * u[2] * k};
-    memset(M, 0, 16 * sizeof *M);
-    for (int i = 0; i < 3; i++) {
-        double rc = 0;
-        for (int j = 0; j < 3; j++) {
-            M[4 * i + j] = R[3 * i + j];
-            rc += R[3 * i + j] * c[j];
-        }
-        M[4 * i + 3] = c[i] - rc; /* the centre stays put */
-    }
-    M[15] = 1.0;
+    iso_pose g;
+    iso_pose_about(R, c, NULL, &g); /* the centre stays put */
+    iso_pose_to_matrix(&g, M);
 }
 
 static void translation(double M[16], double tx, double ty, double tz)
