@@ -7,7 +7,6 @@
  * reports, so an editor can jump to it. libfyaml's own diagnostics are
  * collected, never printed, and the first one becomes the error. */
 #include "internal.h"
-#include "iso_file.h"
 
 #include <errno.h>
 #include <libfyaml.h>
@@ -17,6 +16,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#include "iso_actuators.h" /* iso_act_emu_names */
+#include "iso_file.h"
+#include "iso_names.h"
 
 /* Key paths ("regions.handles[0].select[2].box.min") are built into fixed
  * buffers for messages; a path longer than KEY_MAX is cut, by design. */
@@ -138,11 +141,7 @@ static const char *nearest(const char *word, const char *const *known)
 
 static void list_keys(char *buf, size_t cap, const char *const *known)
 {
-    buf[0] = '\0';
-    for (size_t i = 0; known[i]; i++) {
-        size_t len = strlen(buf);
-        snprintf(buf + len, cap - len, "%s%s", i ? ", " : "", known[i]);
-    }
+    iso_names_list(known, ", ", buf, cap);
 }
 
 static const char *scalar(sctx *c, fnode *n);
@@ -575,49 +574,46 @@ static int parse_region(sctx *c, fnode *n, const char *key, iso_scene_region *r)
 
 /* ---- drivers -------------------------------------------------------------- */
 
-static const char *const axis_names[] = {"tx", "ty", "tz", "rx", "ry", "rz", NULL};
+/* A mapping option's value in the range devices/ holds it to
+ * (iso_dev_map_check), reported at the value. */
+static int map_value(sctx *c, fnode *n, const char *key, const char *field, double *out)
+{
+    char why[128];
+    int rc = to_double(c, n, key, out);
+    if (rc == ISO_OK && iso_dev_map_check(field, *out, why, sizeof why) != 0)
+        rc = fail(c, n, ISO_EINVAL, key, "%s", why);
+    return rc;
+}
 
 /* A per-axis value: one number for all six axes, a list of six, or a
  * mapping of some of tx..rz. */
-static int parse_axes(sctx *c, fnode *n, const char *key, double lo, double hi, double out[6])
+static int parse_axes(sctx *c, fnode *n, const char *key, const char *field, double out[6])
 {
     int rc;
     double v;
     if (n && fy_node_is_scalar(n)) {
-        if ((rc = to_double(c, n, key, &v)))
+        if ((rc = map_value(c, n, key, field, &v)))
             return rc;
-        if (v < lo || v > hi)
-            return fail(c, n, ISO_EINVAL, key, "expected a value in [%g, %g], found %g", lo, hi, v);
         for (int i = 0; i < 6; i++)
             out[i] = v;
         return ISO_OK;
     }
     if (n && fy_node_is_sequence(n) && fy_node_sequence_item_count(n) == 6) {
         void *it = NULL;
-        for (int i = 0; i < 6; i++) {
-            fnode *e = fy_node_sequence_iterate(n, &it);
-            if ((rc = to_double(c, e, key, &out[i])))
+        for (int i = 0; i < 6; i++)
+            if ((rc = map_value(c, fy_node_sequence_iterate(n, &it), key, field, &out[i])))
                 return rc;
-            if (out[i] < lo || out[i] > hi)
-                return fail(c, e, ISO_EINVAL, key, "expected values in [%g, %g], found %g", lo, hi,
-                            out[i]);
-        }
         return ISO_OK;
     }
     if (n && fy_node_is_mapping(n)) {
-        if ((rc = check_keys(c, n, key, axis_names)))
+        if ((rc = check_keys(c, n, key, iso_dev_axis_names)))
             return rc;
         for (int i = 0; i < 6; i++) {
-            fnode *e = get(n, axis_names[i]);
+            fnode *e = get(n, iso_dev_axis_names[i]);
             char sub[KEY_MAX];
-            join(sub, sizeof sub, key, axis_names[i]);
-            if (!e)
-                continue;
-            if ((rc = to_double(c, e, sub, &out[i])))
+            if (e && (rc = map_value(c, e, join(sub, sizeof sub, key, iso_dev_axis_names[i]), field,
+                                     &out[i])))
                 return rc;
-            if (out[i] < lo || out[i] > hi)
-                return fail(c, e, ISO_EINVAL, sub, "expected a value in [%g, %g], found %g", lo, hi,
-                            out[i]);
         }
         return ISO_OK;
     }
@@ -635,32 +631,28 @@ static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o
         return rc;
     char sub[KEY_MAX];
     fnode *v;
-    if ((v = get(n, "full_scale"))) {
-        join(sub, sizeof sub, key, "full_scale");
-        if ((rc = to_double(c, v, sub, &o->full_scale)))
+    if ((v = get(n, "full_scale")) &&
+        (rc = map_value(c, v, join(sub, sizeof sub, key, "full_scale"), "full_scale",
+                        &o->full_scale)))
+        return rc;
+    static const char *const axis_fields[] = {"sensitivity", "dead_zone", "curve"};
+    double *const per_axis[] = {o->sensitivity, o->dead_zone, o->curve};
+    for (size_t i = 0; i < 3; i++)
+        if ((v = get(n, axis_fields[i])) &&
+            (rc = parse_axes(c, v, join(sub, sizeof sub, key, axis_fields[i]), axis_fields[i],
+                             per_axis[i])))
             return rc;
-        if (!(o->full_scale > 0))
-            return fail(c, v, ISO_EINVAL, sub, "expected > 0, found %g", o->full_scale);
-    }
-    if ((v = get(n, "sensitivity")) &&
-        (rc = parse_axes(c, v, join(sub, sizeof sub, key, "sensitivity"), 0, 1e6, o->sensitivity)))
-        return rc;
-    if ((v = get(n, "dead_zone")) &&
-        (rc = parse_axes(c, v, join(sub, sizeof sub, key, "dead_zone"), 0, 0.99, o->dead_zone)))
-        return rc;
-    if ((v = get(n, "curve")) &&
-        (rc = parse_axes(c, v, join(sub, sizeof sub, key, "curve"), 0.1, 10, o->curve)))
-        return rc;
     if ((v = get(n, "remap"))) {
         join(sub, sizeof sub, key, "remap");
-        if ((rc = want_map(c, v, sub, "a mapping output axis: input axis, e.g. {ty: tz, tz: ty}")) ||
-            (rc = check_keys(c, v, sub, axis_names)))
+        if ((rc =
+                 want_map(c, v, sub, "a mapping output axis: input axis, e.g. {ty: tz, tz: ty}")) ||
+            (rc = check_keys(c, v, sub, iso_dev_axis_names)))
             return rc;
         for (int i = 0; i < 6; i++) {
-            fnode *e = get(v, axis_names[i]);
+            fnode *e = get(v, iso_dev_axis_names[i]);
             char sub2[KEY_MAX];
-            if (e && (rc = to_enum(c, e, join(sub2, sizeof sub2, sub, axis_names[i]), axis_names,
-                                   &o->remap[i])))
+            if (e && (rc = to_enum(c, e, join(sub2, sizeof sub2, sub, iso_dev_axis_names[i]),
+                                   iso_dev_axis_names, &o->remap[i])))
                 return rc;
         }
     }
@@ -672,7 +664,7 @@ static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o
         fnode *e;
         while ((e = fy_node_sequence_iterate(v, &it))) {
             int a;
-            if ((rc = to_enum(c, e, sub, axis_names, &a)))
+            if ((rc = to_enum(c, e, sub, iso_dev_axis_names, &a)))
                 return rc;
             o->invert[a] = 1;
         }
@@ -680,20 +672,16 @@ static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o
     if ((v = get(n, "dominant")) &&
         (rc = to_bool(c, v, join(sub, sizeof sub, key, "dominant"), &o->dominant)))
         return rc;
-    static const char *const locks[] = {"none", "translation", "rotation", NULL};
-    if ((v = get(n, "lock")) && (rc = to_enum(c, v, join(sub, sizeof sub, key, "lock"), locks, &o->lock)))
+    if ((v = get(n, "lock")) &&
+        (rc = to_enum(c, v, join(sub, sizeof sub, key, "lock"), iso_dev_lock_names, &o->lock)))
         return rc;
-    static const char *const frames[] = {"world", "device", NULL};
     if ((v = get(n, "frame")) &&
-        (rc = to_enum(c, v, join(sub, sizeof sub, key, "frame"), frames, &o->frame)))
+        (rc = to_enum(c, v, join(sub, sizeof sub, key, "frame"), iso_dev_frame_names, &o->frame)))
         return rc;
-    static const char *const clutch[] = {"hold", "deadman", NULL};
-    if ((v = get(n, "clutch")) &&
-        (rc = to_enum(c, v, join(sub, sizeof sub, key, "clutch"), clutch, &o->clutch_is_deadman)))
+    if ((v = get(n, "clutch")) && (rc = to_enum(c, v, join(sub, sizeof sub, key, "clutch"),
+                                                iso_dev_clutch_names, &o->clutch_is_deadman)))
         return rc;
     if ((v = get(n, "buttons"))) {
-        static const char *const acts[] = {"none", "clutch", "next_handle", "reset_pose", "record",
-                                           NULL};
         join(sub, sizeof sub, key, "buttons");
         if (!fy_node_is_sequence(v) || fy_node_sequence_item_count(v) > 32)
             return fail(c, v, ISO_EPARSE, sub, "expected a list of at most 32 actions, by button "
@@ -703,25 +691,18 @@ static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o
         memset(o->button_action, 0, sizeof o->button_action);
         for (int i = 0; (e = fy_node_sequence_iterate(v, &it)); i++) {
             int a;
-            if ((rc = to_enum(c, e, sub, acts, &a)))
+            if ((rc = to_enum(c, e, sub, iso_dev_action_names, &a)))
                 return rc;
             o->button_action[i] = (uint8_t)a;
         }
     }
-    if ((v = get(n, "pose_gain"))) {
-        join(sub, sizeof sub, key, "pose_gain");
-        if ((rc = to_double(c, v, sub, &o->pose_gain)))
-            return rc;
-        if (!(o->pose_gain > 0 && o->pose_gain <= 1))
-            return fail(c, v, ISO_EINVAL, sub, "expected a value in (0, 1], found %g", o->pose_gain);
-    }
-    if ((v = get(n, "pose_scale"))) {
-        join(sub, sizeof sub, key, "pose_scale");
-        if ((rc = to_double(c, v, sub, &o->pose_scale)))
-            return rc;
-        if (!(o->pose_scale > 0))
-            return fail(c, v, ISO_EINVAL, sub, "expected > 0, found %g", o->pose_scale);
-    }
+    if ((v = get(n, "pose_gain")) &&
+        (rc = map_value(c, v, join(sub, sizeof sub, key, "pose_gain"), "pose_gain", &o->pose_gain)))
+        return rc;
+    if ((v = get(n, "pose_scale")) &&
+        (rc = map_value(c, v, join(sub, sizeof sub, key, "pose_scale"), "pose_scale",
+                        &o->pose_scale)))
+        return rc;
     return ISO_OK;
 }
 
@@ -928,19 +909,17 @@ static int parse_solver(sctx *c, fnode *n)
             return fail(c, v, ISO_EINVAL, "solver.omega", "expected a value in (0, 1], found %g",
                         o->omega);
     }
-    static const char *const wn[] = {"param", "area", NULL};
     int w = (int)o->weighting;
-    if ((v = get(n, "weighting")) && (rc = to_enum(c, v, "solver.weighting", wn, &w)))
+    if ((v = get(n, "weighting")) &&
+        (rc = to_enum(c, v, "solver.weighting", iso_weighting_names, &w)))
         return rc;
     o->weighting = w ? ISO_WEIGHT_AREA : ISO_WEIGHT_PARAM;
-    static const char *const an[] = {"cpu", "opencl", NULL};
     int a = (int)o->assembly;
-    if ((v = get(n, "assembly")) && (rc = to_enum(c, v, "solver.assembly", an, &a)))
+    if ((v = get(n, "assembly")) && (rc = to_enum(c, v, "solver.assembly", iso_assembly_names, &a)))
         return rc;
     o->assembly = a ? ISO_ASSEMBLY_OPENCL : ISO_ASSEMBLY_CPU;
-    static const char *const rn[] = {"adaptive", "always", NULL};
     int r = (int)o->refactor;
-    if ((v = get(n, "refactor")) && (rc = to_enum(c, v, "solver.refactor", rn, &r)))
+    if ((v = get(n, "refactor")) && (rc = to_enum(c, v, "solver.refactor", iso_refactor_names, &r)))
         return rc;
     o->refactor = r ? ISO_REFACTOR_ALWAYS : ISO_REFACTOR_ADAPTIVE;
     if ((v = get(n, "cg_tol"))) {
@@ -986,7 +965,6 @@ static int parse_solver(sctx *c, fnode *n)
 static int parse_integrator(sctx *c, fnode *n)
 {
     static const char *const keys[] = {"steps_per_tick", "restore_kappa", "abm", "cg_share", NULL};
-    static const char *const modes[] = {"pece", "pec", NULL}; /* iso_abm_mode order */
     int rc;
     fnode *v;
     if ((rc = want_map(c, n, "integrator", "a mapping of integrator settings")) ||
@@ -995,7 +973,8 @@ static int parse_integrator(sctx *c, fnode *n)
     if ((v = get(n, "steps_per_tick")) &&
         (rc = to_int(c, v, "integrator.steps_per_tick", 1, 1000, &c->s->steps_per_tick)))
         return rc;
-    if ((v = get(n, "abm")) && (rc = to_enum(c, v, "integrator.abm", modes, &c->s->abm_mode)))
+    if ((v = get(n, "abm")) &&
+        (rc = to_enum(c, v, "integrator.abm", iso_abm_mode_names, &c->s->abm_mode)))
         return rc;
     if ((v = get(n, "restore_kappa"))) {
         double *k = &c->s->integrate.restore_kappa;
@@ -1024,7 +1003,7 @@ static const char *const backend_names[] = {"", "hid", "spnav", "tty", "tcp", "s
 
 const char *iso_scene_backend_name(int b)
 {
-    return b >= 1 && b <= ISO_SCENE_DEV_REPLAY ? backend_names[b] : "?";
+    return b >= 1 ? iso_names_get(backend_names, b) : "?";
 }
 
 /* "host:port" with a port in 1..65535. */
@@ -1254,10 +1233,10 @@ static int parse_display(sctx *c, fnode *n)
 /* `link: emulated` is short for {emulated: auto}. */
 static int parse_emulated(sctx *c, fnode *n, iso_scene_actuators *a)
 {
-    static const char *const modes[] = {"auto", "qemu", "native", NULL};
     a->link = ISO_SCENE_LINK_EMULATED;
     a->emulation = ISO_SCENE_EMU_AUTO;
-    return n ? to_enum(c, n, "sinks.actuators.link.emulated", modes, &a->emulation) : ISO_OK;
+    return n ? to_enum(c, n, "sinks.actuators.link.emulated", iso_act_emu_names, &a->emulation)
+             : ISO_OK;
 }
 
 static int parse_link(sctx *c, fnode *n, iso_scene_actuators *a)
@@ -1633,22 +1612,12 @@ void iso_scene_destroy(iso_scene *s)
 
 const char *iso_scene_driver_name(int kind)
 {
-    switch (kind) {
-    case ISO_SCENE_DRIVE_NONE: return "none";
-    case ISO_SCENE_DRIVE_DEVICE: return "device";
-    case ISO_SCENE_DRIVE_SCREW: return "screw";
-    case ISO_SCENE_DRIVE_KEYFRAMES: return "keyframes";
-    }
-    return "?";
+    static const char *const names[] = {"none", "device", "screw", "keyframes", NULL};
+    return iso_names_get(names, kind);
 }
 
 const char *iso_scene_link_name(int link)
 {
-    switch (link) {
-    case ISO_SCENE_LINK_TTY: return "tty";
-    case ISO_SCENE_LINK_TCP: return "tcp";
-    case ISO_SCENE_LINK_SERIAL: return "serial";
-    case ISO_SCENE_LINK_EMULATED: return "emulated";
-    }
-    return "?";
+    static const char *const names[] = {"?", "tty", "tcp", "serial", "emulated", NULL};
+    return iso_names_get(names, link);
 }

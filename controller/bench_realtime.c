@@ -50,7 +50,7 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
              "         refactor: adaptive, cg_tol: %.17g}\n"
              "integrator: {steps_per_tick: 1, abm: pec}\n"
              "tick_hz: 60\n",
-             name, name, name, res, iso_cli__assembly_name(so->assembly), so->cg_tol);
+             name, name, name, res, iso_names_get(iso_assembly_names, so->assembly), so->cg_tol);
     iso_scene_opts opts = {.bench_find = find_benchmark, .bench_ctx = (void *)bench_dir};
     return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
 }

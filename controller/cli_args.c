@@ -97,16 +97,17 @@ int iso_cli__omega(const char *cmd, const char *val, double *omega)
     return 0;
 }
 
-int iso_cli__weighting(const char *cmd, const char *val, int *weighting)
+int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char *const *names,
+                  int *out)
 {
-    if (strcmp(val, "param") == 0)
-        *weighting = ISO_WEIGHT_PARAM;
-    else if (strcmp(val, "area") == 0)
-        *weighting = ISO_WEIGHT_AREA;
-    else {
-        iso_cli__fail(cmd, "--weighting '%s' is unknown: use param or area.", val);
+    int v = iso_names_find(names, val);
+    if (v < 0) {
+        char all[256];
+        iso_cli__fail(cmd, "%s %s: use %s.", opt, val,
+                      iso_names_list(names, " or ", all, sizeof all));
         return -1;
     }
+    *out = v;
     return 0;
 }
 

@@ -18,42 +18,6 @@ void iso_cli__solver_opts_default(iso_solver_opts *so)
     so->cg_tol = ISO_CLI_DEFAULT_CG_TOL;
 }
 
-const char *iso_cli__assembly_name(iso_assembly a)
-{
-    return a == ISO_ASSEMBLY_OPENCL ? "opencl" : "cpu";
-}
-
-const char *iso_cli__refactor_name(iso_refactor r)
-{
-    return r == ISO_REFACTOR_ALWAYS ? "always" : "adaptive";
-}
-
-int iso_cli__refactor(const char *cmd, const char *val, iso_refactor *out)
-{
-    if (strcmp(val, "always") == 0)
-        *out = ISO_REFACTOR_ALWAYS;
-    else if (strcmp(val, "adaptive") == 0)
-        *out = ISO_REFACTOR_ADAPTIVE;
-    else {
-        iso_cli__fail(cmd, "--refactor '%s' is unknown: use always or adaptive.", val);
-        return -1;
-    }
-    return 0;
-}
-
-static int parse_assembly(const char *cmd, const char *val, iso_assembly *out)
-{
-    if (strcmp(val, "cpu") == 0)
-        *out = ISO_ASSEMBLY_CPU;
-    else if (strcmp(val, "opencl") == 0)
-        *out = ISO_ASSEMBLY_OPENCL;
-    else {
-        iso_cli__fail(cmd, "--assembly '%s' is unknown: use cpu or opencl.", val);
-        return -1;
-    }
-    return 0;
-}
-
 static int parse_cg_tol(const char *cmd, const char *val, double *out)
 {
     double t;
@@ -73,10 +37,19 @@ int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_s
 {
     const char *val = NULL;
     int r;
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--assembly", &val)) != 0)
-        return r < 0 || parse_assembly(cmd, val, &so->assembly) != 0 ? -1 : 1;
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--refactor", &val)) != 0)
-        return r < 0 || iso_cli__refactor(cmd, val, &so->refactor) != 0 ? -1 : 1;
+    int v;
+    if ((r = iso_cli__value(cmd, argc, argv, i, "--assembly", &val)) != 0) {
+        if (r < 0 || iso_cli__enum(cmd, "--assembly", val, iso_assembly_names, &v) != 0)
+            return -1;
+        so->assembly = (iso_assembly)v;
+        return 1;
+    }
+    if ((r = iso_cli__value(cmd, argc, argv, i, "--refactor", &val)) != 0) {
+        if (r < 0 || iso_cli__enum(cmd, "--refactor", val, iso_refactor_names, &v) != 0)
+            return -1;
+        so->refactor = (iso_refactor)v;
+        return 1;
+    }
     if ((r = iso_cli__value(cmd, argc, argv, i, "--cg-tol", &val)) != 0)
         return r < 0 || parse_cg_tol(cmd, val, &so->cg_tol) != 0 ? -1 : 1;
     if ((r = iso_cli__value(cmd, argc, argv, i, "--cl-device", &val)) != 0) {

@@ -165,8 +165,8 @@ static int parse_args(int argc, char **argv, bench_args *a)
             continue;
         }
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--refactor", &val)) != 0) {
-            iso_refactor only;
-            if (r < 0 || iso_cli__refactor(cmd, val, &only) != 0)
+            int only;
+            if (r < 0 || iso_cli__enum(cmd, "--refactor", val, iso_refactor_names, &only) != 0)
                 return 2;
             a->scheme_on[ISO_REFACTOR_ALWAYS] = only == ISO_REFACTOR_ALWAYS;
             a->scheme_on[ISO_REFACTOR_ADAPTIVE] = only == ISO_REFACTOR_ADAPTIVE;
@@ -471,8 +471,8 @@ static void print_text(const bench_args *a, const bench_result *res)
     const bench_machine *m = &res->mach;
     printf("isoshape bench%s: the paper's method, adaptive steps at tol %.0e, assembly %s; "
            "times are medians of %d run%s\n\n",
-           a->quick ? " --quick" : "", res->tol, iso_cli__assembly_name(a->so.assembly), a->reps,
-           a->reps > 1 ? "s" : "");
+           a->quick ? " --quick" : "", res->tol, iso_names_get(iso_assembly_names, a->so.assembly),
+           a->reps, a->reps > 1 ? "s" : "");
     printf("%-10s %-8s %8s %5s %5s %8s | %-25s | %-12s | %-17s | %-16s | %s\n", "", "", "", "", "",
            "", "ms per evaluation", "CG", "", "paper", "factor  peak");
     printf("%-10s %-8s %8s %5s %5s %8s | %8s %8s %7s | %6s %5s | %9s %7s | %7s %8s | %7s %7s\n",
@@ -483,8 +483,9 @@ static void print_text(const bench_args *a, const bench_result *res)
         const iso_solver_stats *st = &r->run.sst;
         char name[32];
         snprintf(name, sizeof name, "%s%s", r->problem, r->builtin ? "*" : "");
-        printf("%-10s %-8s %8d %5d %5ld %8.2f |", name, iso_cli__refactor_name(r->scheme),
-               r->vertices, r->run.ist.steps, r->run.ist.evaluations, r->run.seconds);
+        printf("%-10s %-8s %8d %5d %5ld %8.2f |", name,
+               iso_names_get(iso_refactor_names, r->scheme), r->vertices, r->run.ist.steps,
+               r->run.ist.evaluations, r->run.seconds);
         print_cell(ms(r, st->t_assembly), 8, 2);
         print_cell(ms(r, st->t_factor), 8, 2);
         print_cell(ms(r, st->t_solve), 7, 2);
@@ -542,7 +543,7 @@ static void print_json_row(iso_json *j, const bench_row *r)
     iso_json_object(j, NULL);
     iso_json_string(j, "problem", r->problem);
     iso_json_bool(j, "builtin", r->builtin);
-    iso_json_string(j, "refactor", iso_cli__refactor_name(r->scheme));
+    iso_json_string(j, "refactor", iso_names_get(iso_refactor_names, r->scheme));
     iso_json_int(j, "vertices", r->vertices);
     iso_json_int(j, "steps", r->run.ist.steps);
     iso_json_int(j, "evaluations", r->run.ist.evaluations);
@@ -601,7 +602,7 @@ static void print_json(const bench_args *a, const bench_result *res)
     iso_json_begin(&j, stdout);
     iso_json_bool(&j, "quick", a->quick);
     iso_json_int(&j, "reps", a->reps);
-    iso_json_string(&j, "assembly", iso_cli__assembly_name(a->so.assembly));
+    iso_json_string(&j, "assembly", iso_names_get(iso_assembly_names, a->so.assembly));
     iso_json_number(&j, "tol", res->tol);
     iso_json_array(&j, "rows");
     for (int i = 0; i < res->n_rows; i++)

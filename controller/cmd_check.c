@@ -44,7 +44,7 @@ static void print_summary(const iso_scene *s)
         printf("\n");
     }
     printf("  solver: omega %g, %s weighting, restore %s; tick %g Hz, ABM3 %s\n", s->solver.omega,
-           s->solver.weighting == ISO_WEIGHT_AREA ? "area" : "param",
+           iso_names_get(iso_weighting_names, s->solver.weighting),
            s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz,
            iso_abm_mode_name((iso_abm_mode)s->abm_mode));
     printf("  sinks:");

@@ -122,7 +122,8 @@ static int parse_args(int argc, char **argv, deform_args *a)
             if (r > 0 && iso_cli__omega(cmd, val, &a->so.omega) != 0)
                 return 2;
         } else if (VALUE("--weighting")) {
-            if (r > 0 && iso_cli__weighting(cmd, val, &weighting) != 0)
+            if (r > 0 &&
+                iso_cli__enum(cmd, "--weighting", val, iso_weighting_names, &weighting) != 0)
                 return 2;
         } else if (VALUE("--restore")) {
             if (r > 0 && iso_cli__restore(cmd, val, &a->so.restore_mu, &a->so.restore_tau) != 0)
@@ -249,8 +250,8 @@ static void print_json(const deform_args *a, const report *r)
     iso_json_int(&j, "rk4_steps", ist->rk4_steps);
     iso_json_int(&j, "rejected", ist->rejected);
     iso_json_int(&j, "evaluations", ist->evaluations);
-    iso_json_string(&j, "assembly", iso_cli__assembly_name(a->so.assembly));
-    iso_json_string(&j, "refactor", iso_cli__refactor_name(a->so.refactor));
+    iso_json_string(&j, "assembly", iso_names_get(iso_assembly_names, a->so.assembly));
+    iso_json_string(&j, "refactor", iso_names_get(iso_refactor_names, a->so.refactor));
     iso_json_int(&j, "factorizations", sst->factorizations);
     iso_json_int(&j, "cg_iterations", sst->cg_iterations);
     iso_json_int(&j, "refactors", sst->refactors);
@@ -287,7 +288,7 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
     printf("problem        %s: %d vertices, %d triangles, %d free\n", p->label,
            iso_mesh_vertex_count(p->mesh), iso_mesh_triangle_count(p->mesh), sst->n_free);
     printf("settings       omega %.6g, weighting %s, ", a->so.omega,
-           a->so.weighting == ISO_WEIGHT_AREA ? "area" : "param");
+           iso_names_get(iso_weighting_names, a->so.weighting));
     if (a->so.restore_mu > 0)
         printf("restore mu %.6g tau %.6g, ", a->so.restore_mu, a->so.restore_tau);
     else
@@ -296,8 +297,9 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
         printf("%d fixed steps\n", a->steps);
     else
         printf("adaptive, tol %.3g\n", a->tol);
-    printf("solver         assembly %s, refactor %s", iso_cli__assembly_name(a->so.assembly),
-           iso_cli__refactor_name(a->so.refactor));
+    printf("solver         assembly %s, refactor %s",
+           iso_names_get(iso_assembly_names, a->so.assembly),
+           iso_names_get(iso_refactor_names, a->so.refactor));
     if (a->so.refactor == ISO_REFACTOR_ADAPTIVE)
         printf(", CG tolerance %.3g", a->so.cg_tol);
     printf("\n");

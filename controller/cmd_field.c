@@ -160,7 +160,8 @@ int iso_cli__field(int argc, char **argv)
             if (r > 0 && iso_cli__omega(cmd, val, &so.omega) != 0)
                 return 2;
         } else if (VALUE("--weighting")) {
-            if (r > 0 && iso_cli__weighting(cmd, val, &weighting) != 0)
+            if (r > 0 &&
+                iso_cli__enum(cmd, "--weighting", val, iso_weighting_names, &weighting) != 0)
                 return 2;
         } else
             return iso_cli__unknown(cmd, argv[i]);

@@ -24,19 +24,32 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
     "  --sensitivity L,A  at full deflection: L m/s and A rad/s (default 0.1,0.5)\n"               \
     "  --dead-zone F      fraction of full scale that maps to 0 (default 0.05)\n"                  \
     "  --curve E          response exponent (1 linear, 2 quadratic; default 1)\n"                  \
-    "  --remap A,B,C,D,E,F  output axis i reads input axis (0..5: x y z rx ry rz)\n"               \
-    "  --invert AXES      comma list of axes to negate: x,y,z,rx,ry,rz\n"                          \
+    "  --remap A,B,C,D,E,F  output axis i reads input axis (0..5: tx ty tz rx ry rz)\n"            \
+    "  --invert AXES      comma list of axes to negate: tx,ty,tz,rx,ry,rz (or x,y,z)\n"            \
     "  --dominant         keep only the largest axis\n"                                            \
     "  --lock L           none, translation (translation only) or rotation (rotation only)\n"      \
     "  --frame F          world (default) or device: axes along the handle's own\n"                \
     "  --deadman          move only while the clutch is held (default: held = hold still)\n"
 
+/* An axis of iso_dev_axis_names ("tx" .. "rz"); "x", "y" and "z" stand
+ * for "tx", "ty" and "tz" (what this option took before scenes named them). */
 static int axis_index(const char *s, size_t n)
 {
-    static const char *names[6] = {"x", "y", "z", "rx", "ry", "rz"};
-    for (int i = 0; i < 6; i++)
-        if (strlen(names[i]) == n && strncmp(s, names[i], n) == 0)
-            return i;
+    char word[4];
+    if (n < 1 || n > 2)
+        return -1;
+    snprintf(word, sizeof word, "%s%.*s", n == 1 ? "t" : "", (int)n, s);
+    return iso_names_find(iso_dev_axis_names, word);
+}
+
+/* A mapping number in the range devices/ holds it to (iso_dev_map_check). */
+static int map_number(const char *cmd, const char *opt, const char *text, const char *field,
+                      double v)
+{
+    char why[128];
+    if (iso_dev_map_check(field, v, why, sizeof why) == 0)
+        return 0;
+    iso_cli__fail(cmd, "%s %s: %s.", opt, text, why);
     return -1;
 }
 
@@ -66,6 +79,9 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
             iso_cli__fail(cmd, "--sensitivity %s: give L,A (m/s and rad/s at full scale).", v);
             return -1;
         }
+        if (map_number(cmd, "--sensitivity", v, "sensitivity", l) != 0 ||
+            map_number(cmd, "--sensitivity", v, "sensitivity", a) != 0)
+            return -1;
         for (int k = 0; k < 3; k++) {
             o->sensitivity[k] = l;
             o->sensitivity[k + 3] = a;
@@ -74,7 +90,8 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
     }
     if ((r = iso_cli__value(cmd, argc, argv, i, "--dead-zone", &v)) != 0) {
         double d;
-        if (r < 0 || iso_cli__double(cmd, "--dead-zone", v, &d) != 0)
+        if (r < 0 || iso_cli__double(cmd, "--dead-zone", v, &d) != 0 ||
+            map_number(cmd, "--dead-zone", v, "dead_zone", d) != 0)
             return -1;
         for (int k = 0; k < 6; k++)
             o->dead_zone[k] = d;
@@ -82,7 +99,8 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
     }
     if ((r = iso_cli__value(cmd, argc, argv, i, "--curve", &v)) != 0) {
         double e;
-        if (r < 0 || iso_cli__double(cmd, "--curve", v, &e) != 0)
+        if (r < 0 || iso_cli__double(cmd, "--curve", v, &e) != 0 ||
+            map_number(cmd, "--curve", v, "curve", e) != 0)
             return -1;
         for (int k = 0; k < 6; k++)
             o->curve[k] = e;
@@ -108,8 +126,8 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
             size_t n = strcspn(p, ",");
             int a = axis_index(p, n);
             if (a < 0) {
-                iso_cli__fail(cmd, "--invert %s: '%.*s' is not one of x,y,z,rx,ry,rz.", v, (int)n,
-                              p);
+                iso_cli__fail(cmd, "--invert %s: '%.*s' is not one of tx,ty,tz,rx,ry,rz.", v,
+                              (int)n, p);
                 return -1;
             }
             o->invert[a] = 1;
@@ -120,30 +138,12 @@ int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_
     if ((r = iso_cli__value(cmd, argc, argv, i, "--lock", &v)) != 0) {
         if (r < 0)
             return -1;
-        if (strcmp(v, "none") == 0)
-            o->lock = ISO_DEV_LOCK_NONE;
-        else if (strcmp(v, "translation") == 0)
-            o->lock = ISO_DEV_LOCK_TRANSLATION;
-        else if (strcmp(v, "rotation") == 0)
-            o->lock = ISO_DEV_LOCK_ROTATION;
-        else {
-            iso_cli__fail(cmd, "--lock %s: use none, translation or rotation.", v);
-            return -1;
-        }
-        return 1;
+        return iso_cli__enum(cmd, "--lock", v, iso_dev_lock_names, &o->lock) != 0 ? -1 : 1;
     }
     if ((r = iso_cli__value(cmd, argc, argv, i, "--frame", &v)) != 0) {
         if (r < 0)
             return -1;
-        if (strcmp(v, "world") == 0)
-            o->frame = ISO_DEV_FRAME_WORLD;
-        else if (strcmp(v, "device") == 0)
-            o->frame = ISO_DEV_FRAME_DEVICE;
-        else {
-            iso_cli__fail(cmd, "--frame %s: use world or device.", v);
-            return -1;
-        }
-        return 1;
+        return iso_cli__enum(cmd, "--frame", v, iso_dev_frame_names, &o->frame) != 0 ? -1 : 1;
     }
     return 0;
 }

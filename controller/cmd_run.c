@@ -136,29 +136,17 @@ static int parse(int argc, char **argv, run_args *a)
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--abm", &v)) != 0) {
             if (r < 0)
                 return 2;
-            a->abm = -1; /* the last --abm wins */
-            for (int m = ISO_ABM_PECE; m <= ISO_ABM_PEC && a->abm < 0; m++)
-                if (strcmp(v, iso_abm_mode_name((iso_abm_mode)m)) == 0)
-                    a->abm = m;
-            if (a->abm >= 0)
-                continue;
-            iso_cli__fail(cmd,
-                          "--abm %s: use pece (two field evaluations a step, the paper's) or "
-                          "pec (one).",
-                          v);
-            return 2;
+            if (iso_cli__enum(cmd, "--abm", v, iso_abm_mode_names, &a->abm) != 0)
+                return 2;
+            continue;
         }
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--assembly", &v)) != 0) {
             if (r < 0)
                 return 2;
-            if (strcmp(v, "cpu") == 0)
-                a->lo.assembly = ISO_ASSEMBLY_CPU;
-            else if (strcmp(v, "opencl") == 0)
-                a->lo.assembly = ISO_ASSEMBLY_OPENCL;
-            else {
-                iso_cli__fail(cmd, "--assembly %s: use cpu or opencl.", v);
+            int as;
+            if (iso_cli__enum(cmd, "--assembly", v, iso_assembly_names, &as) != 0)
                 return 2;
-            }
+            a->lo.assembly = as;
             continue;
         }
         if ((r = iso_cli__value(cmd, argc, argv, &i, "--cl-device", &a->lo.cl_device)) != 0 ||

@@ -11,6 +11,7 @@
 #include "iso_integrate.h"
 #include "iso_json.h"
 #include "iso_mesh.h"
+#include "iso_names.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
 #include "iso_solver.h"
@@ -40,10 +41,15 @@ int iso_cli__int(const char *cmd, const char *opt, const char *val, int *out);
 /* Reports an unknown option or a stray argument; always returns 2. */
 int iso_cli__unknown(const char *cmd, const char *arg);
 
-/* Parses --omega and --weighting values into solver options (see
- * iso_solver.h); returns 0 or -1 after reporting. */
+/* Parses an --omega value (see iso_solver.h); returns 0 or -1 after
+ * reporting. */
 int iso_cli__omega(const char *cmd, const char *val, double *omega);
-int iso_cli__weighting(const char *cmd, const char *val, int *weighting);
+
+/* Parses `val` as one of `names`, an enum's name table owned by its module
+ * (common/iso_names.h: iso_weighting_names, iso_dev_lock_names, ...), into
+ * *out; returns 0, or -1 after reporting "--OPT VAL: use a, b or c." */
+int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char *const *names,
+                  int *out);
 
 /* Parses --restore: "MU,TAU" (MU >= 0, TAU > 0 when MU > 0) or "off"
  * (MU = 0: the paper's method exactly); returns 0 or -1 after reporting. */
@@ -114,13 +120,6 @@ void iso_cli__solver_opts_default(iso_solver_opts *so);
  * after reporting a missing or bad value, naming the option; returns 0 if
  * argv[*i] is none of them. so->cl_device then points into argv. */
 int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_solver_opts *so);
-
-/* Parses a --refactor value; returns 0 or -1 after reporting. */
-int iso_cli__refactor(const char *cmd, const char *val, iso_refactor *out);
-
-/* The option values' names: "cpu"/"opencl", "always"/"adaptive". */
-const char *iso_cli__assembly_name(iso_assembly a);
-const char *iso_cli__refactor_name(iso_refactor r);
 
 /* Prints iso_solver_notice() as "isoshape <cmd>: <notice>" on stderr, one
  * line; nothing when the notice is empty. */

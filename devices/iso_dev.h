@@ -307,6 +307,17 @@ enum {
     ISO_DEV_ACT_RESET_POSE = 3,  /* press: the loop resets the active handle */
     ISO_DEV_ACT_RECORD = 4       /* press: the loop starts or stops recording */
 };
+/* The names scenes and options use, indexed by value (common/iso_names.h):
+ * locks "none", "translation", "rotation"; frames "world", "device";
+ * clutch "hold", "deadman" (clutch_is_deadman 0, 1); button actions "none",
+ * "clutch", "next_handle", "reset_pose", "record"; axes "tx", "ty", "tz",
+ * "rx", "ry", "rz" (index 0..5, as in remap, invert and the per-axis
+ * arrays). */
+extern const char *const iso_dev_lock_names[];
+extern const char *const iso_dev_frame_names[];
+extern const char *const iso_dev_clutch_names[];
+extern const char *const iso_dev_action_names[];
+extern const char *const iso_dev_axis_names[];
 
 typedef struct iso_dev_map_opts {
     double full_scale;         /* raw counts at full deflection (350) */
@@ -379,6 +390,16 @@ typedef struct iso_dev_map {
      * device rotations turn about, carried along by the handle's pose. */
     double centre[ISO_DEV_MAX_HANDLES][3];
 } iso_dev_map;
+
+/* The range each numeric mapping option must lie in, held in one table and
+ * checked here for scene files, the command line and iso_dev_map_init
+ * alike. `field` is the option's scene key: "full_scale" (> 0),
+ * "sensitivity" [0, 1e6], "dead_zone" [0, 0.99], "curve" [0.1, 10],
+ * "pose_gain" (0, 1], "pose_scale" (> 0). Returns 0 when v lies in its
+ * field's range; else -1 and a phrase for the caller's message in why,
+ * e.g. "expected a value in [0, 0.99], found 1.5" (NaN is never in range;
+ * an unknown field says so). */
+int iso_dev_map_check(const char *field, double v, char *why, size_t cap);
 
 ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
 /* Sets source `source`'s stale time for twist streams (see above), in

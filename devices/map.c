@@ -8,7 +8,15 @@
 #include "iso_dev.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
+
+const char *const iso_dev_lock_names[] = {"none", "translation", "rotation", NULL};
+const char *const iso_dev_frame_names[] = {"world", "device", NULL};
+const char *const iso_dev_clutch_names[] = {"hold", "deadman", NULL};
+const char *const iso_dev_action_names[] = {"none",       "clutch", "next_handle",
+                                            "reset_pose", "record", NULL};
+const char *const iso_dev_axis_names[] = {"tx", "ty", "tz", "rx", "ry", "rz", NULL};
 
 void iso_dev_map_opts_default(iso_dev_map_opts *o)
 {
@@ -27,33 +35,70 @@ void iso_dev_map_opts_default(iso_dev_map_opts *o)
     o->pose_scale = 1;
 }
 
+static const struct {
+    const char *field;
+    double lo, hi;        /* hi = INFINITY: no upper bound */
+    int lo_open, hi_open; /* 1: the bound itself is out */
+} ranges[] = {
+    {"full_scale", 0, INFINITY, 1, 1}, {"sensitivity", 0, 1e6, 0, 0},
+    {"dead_zone", 0, 0.99, 0, 0},      {"curve", 0.1, 10, 0, 0},
+    {"pose_gain", 0, 1, 1, 0},         {"pose_scale", 0, INFINITY, 1, 1},
+};
+
+int iso_dev_map_check(const char *field, double v, char *why, size_t cap)
+{
+    for (size_t i = 0; i < sizeof ranges / sizeof ranges[0]; i++) {
+        if (strcmp(ranges[i].field, field) != 0)
+            continue;
+        double lo = ranges[i].lo, hi = ranges[i].hi;
+        int above = ranges[i].lo_open ? v > lo : v >= lo;
+        int below = ranges[i].hi_open ? v < hi : v <= hi;
+        if (above && below)
+            return 0;
+        if (isinf(hi))
+            snprintf(why, cap, "expected a value %s %g, found %g",
+                     ranges[i].lo_open ? ">" : ">=", lo, v);
+        else
+            snprintf(why, cap, "expected a value in %c%g, %g%c, found %g",
+                     ranges[i].lo_open ? '(' : '[', lo, hi, ranges[i].hi_open ? ')' : ']', v);
+        return -1;
+    }
+    snprintf(why, cap, "'%s' is not a numeric mapping option", field);
+    return -1;
+}
+
+/* iso_dev_map_check for one option (axis >= 0: one of its six values). */
+static int check_option(const char *field, int axis, double v, iso_err *err)
+{
+    char why[128];
+    if (iso_dev_map_check(field, v, why, sizeof why) == 0)
+        return ISO_OK;
+    if (axis < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: %s: %s", field, why);
+    return iso_err_set(err, ISO_EINVAL, -1, "device mapping: %s.%s: %s", field,
+                       iso_dev_axis_names[axis], why);
+}
+
 int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err)
 {
     memset(m, 0, sizeof *m);
+    int rc;
     if (o->n_handles < 1 || o->n_handles > (int)ISO_DEV_MAX_HANDLES)
         return iso_err_set(err, ISO_EINVAL, -1, "device mapping: %d handles (must be 1 to %u)",
                            o->n_handles, ISO_DEV_MAX_HANDLES);
-    if (!(o->full_scale > 0))
-        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: full scale %g must be > 0",
-                           o->full_scale);
-    if (!(o->pose_gain >= 0 && o->pose_gain <= 1))
-        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: pose gain %g must be in [0, 1]",
-                           o->pose_gain);
+    if ((rc = check_option("full_scale", -1, o->full_scale, err)) ||
+        (rc = check_option("pose_gain", -1, o->pose_gain, err)) ||
+        (rc = check_option("pose_scale", -1, o->pose_scale, err)))
+        return rc;
     for (int i = 0; i < 6; i++) {
         if (o->remap[i] < 0 || o->remap[i] > 5)
             return iso_err_set(err, ISO_EINVAL, -1,
                                "device mapping: axis %d remapped to %d (must be 0 to 5)", i,
                                o->remap[i]);
-        if (!(o->dead_zone[i] >= 0 && o->dead_zone[i] < 1))
-            return iso_err_set(err, ISO_EINVAL, -1,
-                               "device mapping: axis %d dead zone %g must be in [0, 1)", i,
-                               o->dead_zone[i]);
-        if (!(o->curve[i] > 0))
-            return iso_err_set(err, ISO_EINVAL, -1, "device mapping: axis %d curve %g must be > 0",
-                               i, o->curve[i]);
-        if (!isfinite(o->sensitivity[i]))
-            return iso_err_set(err, ISO_EINVAL, -1,
-                               "device mapping: axis %d sensitivity is not finite", i);
+        if ((rc = check_option("sensitivity", i, o->sensitivity[i], err)) ||
+            (rc = check_option("dead_zone", i, o->dead_zone[i], err)) ||
+            (rc = check_option("curve", i, o->curve[i], err)))
+            return rc;
     }
     for (int b = 0; b < 32; b++)
         if (o->button_action[b] > ISO_DEV_ACT_RECORD)

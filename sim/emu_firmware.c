@@ -29,6 +29,8 @@
 #include "iso_actuators.h"
 #include "iso_clock.h"
 
+const char *const iso_act_emu_names[] = {"auto", "qemu", "native", NULL};
+
 #define QEMU_CONNECT_MS 5000 /* QEMU connects its UART at start-up; loaded CI is slow */
 
 /* Threads: the link's owner (the sink's sender) reads, writes and reopens;

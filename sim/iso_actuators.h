@@ -127,6 +127,8 @@ typedef enum iso_act_emu_mode {
     ISO_ACT_EMU_QEMU = 1,  /* QEMU or an error saying what is missing */
     ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread behind a pty pair */
 } iso_act_emu_mode;
+/* "auto", "qemu", "native", indexed by iso_act_emu_mode (iso_names.h) */
+extern const char *const iso_act_emu_names[];
 
 typedef struct iso_act_link_spec {
     int kind;                    /* iso_act_link_kind */

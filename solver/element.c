@@ -8,6 +8,8 @@
 #include <math.h>
 #include <string.h>
 
+const char *const iso_weighting_names[] = {"param", "area", NULL};
+
 /* GCC at -O2 keeps 3-trip loops as loops; unrolled in the assembly's hot
  * paths, their indices and branches fold to constants (at up to three
  * times fewer instructions). */

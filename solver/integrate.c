@@ -17,6 +17,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_names.h"
+
 void iso_integrate_opts_default(iso_integrate_opts *o)
 {
     memset(o, 0, sizeof *o);
@@ -515,9 +517,11 @@ void iso_stepper_destroy(iso_stepper *st)
     free(st);
 }
 
+const char *const iso_abm_mode_names[] = {"pece", "pec", NULL};
+
 const char *iso_abm_mode_name(iso_abm_mode mode)
 {
-    return mode == ISO_ABM_PECE ? "pece" : mode == ISO_ABM_PEC ? "pec" : "?";
+    return iso_names_get(iso_abm_mode_names, (int)mode);
 }
 
 int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kappa, iso_err *err)

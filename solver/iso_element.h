@@ -18,6 +18,8 @@ typedef enum iso_weighting {
     ISO_WEIGHT_PARAM = 0, /* N_T = (1/24) J⊗I: integral over the parameter triangle */
     ISO_WEIGHT_AREA = 1   /* N_T = (A_T/12) J⊗I: integral over the surface */
 } iso_weighting;
+/* "param", "area": iso_weighting's names (common/iso_names.h) */
+extern const char *const iso_weighting_names[];
 
 /* Centroid c and size s of a triangle (x: 3 corners, 9 doubles). */
 void iso_elem_frame(const double x[9], double c[3], double *s);

@@ -146,7 +146,8 @@ typedef enum iso_abm_mode { ISO_ABM_PECE = 0, ISO_ABM_PEC = 1 } iso_abm_mode;
 #define ISO_INTEGRATE_RESTORE_KAPPA_PEC 6.0
 
 /* "pece" or "pec", as scenes, the command line and the JSON summary write
- * it; "?" for anything else. */
+ * it; "?" for anything else. The table: iso_abm_mode_names (iso_names.h). */
+extern const char *const iso_abm_mode_names[];
 const char *iso_abm_mode_name(iso_abm_mode mode);
 
 /* Sets the mode and restoration's κ for the steps that follow; κ < 0 takes

@@ -38,6 +38,11 @@ typedef enum iso_refactor {
     ISO_REFACTOR_ALWAYS,       /* factor every evaluation: the paper's scheme */
 } iso_refactor;
 
+/* The enums' names, indexed by value (common/iso_names.h): "cpu",
+ * "opencl"; "adaptive", "always". Scenes, options and output use these. */
+extern const char *const iso_assembly_names[];
+extern const char *const iso_refactor_names[];
+
 typedef struct iso_solver_opts {
     double omega;            /* in (0, 1]; default 1/3 */
     iso_weighting weighting; /* default ISO_WEIGHT_PARAM */

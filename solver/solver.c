@@ -21,6 +21,9 @@
 #include "iso_clock.h"
 #include "solver_internal.h"
 
+const char *const iso_assembly_names[] = {"cpu", "opencl", NULL};
+const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
+
 typedef iso_solver__element element;
 #define local_count iso_solver__local_count
 

@@ -339,12 +339,48 @@ static void map_init_errors(void **state)
     o.dead_zone[1] = 1;
     iso_err_clear(&err);
     assert_int_equal(iso_dev_map_init(&m, &o, &err), ISO_EINVAL);
-    assert_string_equal(err.msg, "device mapping: axis 1 dead zone 1 must be in [0, 1)");
+    assert_string_equal(err.msg,
+                        "device mapping: dead_zone.ty: expected a value in [0, 0.99], found 1");
     iso_dev_map_opts_default(&o);
     o.curve[5] = 0;
     iso_err_clear(&err);
     assert_int_equal(iso_dev_map_init(&m, &o, &err), ISO_EINVAL);
-    assert_string_equal(err.msg, "device mapping: axis 5 curve 0 must be > 0");
+    assert_string_equal(err.msg,
+                        "device mapping: curve.rz: expected a value in [0.1, 10], found 0");
+    iso_dev_map_opts_default(&o);
+    o.pose_gain = 0;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_map_init(&m, &o, &err), ISO_EINVAL);
+    assert_string_equal(err.msg, "device mapping: pose_gain: expected a value in (0, 1], found 0");
+}
+
+/* One range per mapping option (iso_dev_map_check), whoever reads it: the
+ * bounds themselves, just outside them, NaN, and a name that is none. */
+static void map_ranges_are_one_table(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *field;
+        double in, out;
+    } cases[] = {
+        {"full_scale", 1e-9, 0},    {"sensitivity", 1e6, -1e-9}, {"sensitivity", 0, 1.000001e6},
+        {"dead_zone", 0.99, 0.991}, {"dead_zone", 0, -0.001},    {"curve", 0.1, 0.099},
+        {"curve", 10, 10.001},      {"pose_gain", 1, 1.001},     {"pose_gain", 1e-9, 0},
+        {"pose_scale", 1e-9, 0},
+    };
+    char why[128];
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        assert_int_equal(iso_dev_map_check(cases[i].field, cases[i].in, why, sizeof why), 0);
+        assert_int_equal(iso_dev_map_check(cases[i].field, cases[i].out, why, sizeof why), -1);
+        assert_non_null(strstr(why, "expected a value"));
+        assert_int_equal(iso_dev_map_check(cases[i].field, NAN, why, sizeof why), -1);
+    }
+    assert_int_equal(iso_dev_map_check("curve", 11, why, sizeof why), -1);
+    assert_string_equal(why, "expected a value in [0.1, 10], found 11");
+    assert_int_equal(iso_dev_map_check("full_scale", -2, why, sizeof why), -1);
+    assert_string_equal(why, "expected a value > 0, found -2");
+    assert_int_equal(iso_dev_map_check("gain", 1, why, sizeof why), -1);
+    assert_string_equal(why, "'gain' is not a numeric mapping option");
 }
 
 int main(void)
@@ -358,6 +394,7 @@ int main(void)
         cmocka_unit_test(map_frames),
         cmocka_unit_test(map_tick_buttons_estop_pose),
         cmocka_unit_test(map_init_errors),
+        cmocka_unit_test(map_ranges_are_one_table),
     };
     return cmocka_run_group_tests_name("dev_decode", t, NULL, NULL);
 }

@@ -239,6 +239,16 @@ static void test_errors(void **state)
                  "bad.yaml:7:17:", "solver.omega", "(0, 1]", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: -5\n", ISO_EINVAL,
                  "bad.yaml:7:10:", "tick_hz", NULL);
+    /* A device mapping's ranges are devices/'s (iso_dev_map_check), as on the
+     * command line. */
+    expect_error(BASE "devices:\n  - {name: m, kind: tcp, address: 'localhost:4000'}\n"
+                      "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                      "      driver: {device: m, mapping: {dead_zone: {ry: 0.995}}}\n",
+                 ISO_EINVAL, "bad.yaml:8:53:", "regions.handles[0].driver.mapping.dead_zone.ry",
+                 "expected a value in [0, 0.99], found 0.995", NULL);
+    /* Names come from the enum's own module: a near miss is suggested. */
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "solver: {assembly: openlc}\n",
+                 ISO_EPARSE, "solver.assembly", "did you mean 'opencl'", "cpu, opencl", NULL);
     /* Missing keys. */
     expect_error("regions: {}\n", ISO_EPARSE, "bad.yaml:1:1:", "mesh", "missing required key",
                  NULL);

@@ -1,0 +1,34 @@
+/* common/iso_names.c -- see iso_names.h. */
+#include "iso_names.h"
+
+#include <stdio.h>
+#include <string.h>
+
+int iso_names_find(const char *const *names, const char *word)
+{
+    for (int i = 0; word && names[i]; i++)
+        if (strcmp(names[i], word) == 0)
+            return i;
+    return -1;
+}
+
+const char *iso_names_get(const char *const *names, int value)
+{
+    for (int i = 0; names[i]; i++)
+        if (i == value)
+            return names[i];
+    return "?";
+}
+
+const char *iso_names_list(const char *const *names, const char *last, char *buf, size_t cap)
+{
+    size_t len = 0;
+    if (cap)
+        buf[0] = '\0';
+    for (int i = 0; names[i] && len < cap; i++) {
+        const char *sep = i == 0 ? "" : names[i + 1] ? ", " : last;
+        int n = snprintf(buf + len, cap - len, "%s%s", sep, names[i]);
+        len += n > 0 ? (size_t)n : 0;
+    }
+    return buf;
+}

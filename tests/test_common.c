@@ -1,0 +1,170 @@
+/* tests/test_common.c -- the helpers every part shares (common/): the
+ * clock and its absolute-deadline sleep, the whole-file reader, the JSON
+ * writer and enum name tables. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_clock.h"
+#include "iso_file.h"
+#include "iso_json.h"
+#include "iso_names.h"
+#include "testutil.h"
+
+static void clock_sleeps_to_its_deadline(void **state)
+{
+    (void)state;
+    int64_t t0 = iso_clock_ns();
+    assert_true(t0 > 0);
+    for (int i = 0; i < 5; i++) {
+        int64_t deadline = iso_clock_ns() + 2000000; /* 2 ms */
+        assert_int_equal(iso_clock_sleep_until(deadline), 0);
+        assert_true(iso_clock_ns() >= deadline); /* never early */
+    }
+    assert_int_equal(iso_clock_sleep_until(t0), 0); /* already past: at once */
+    /* the derived forms read the same clock */
+    int64_t ns = iso_clock_ns();
+    uint64_t us = iso_clock_us();
+    double s = iso_clock_now();
+    assert_true((int64_t)us * 1000 >= ns && fabs(s - 1e-9 * (double)ns) < 0.5);
+    /* ms until a deadline rounds up, and 0 once it has passed */
+    uint64_t now = iso_clock_us();
+    int ms = iso_clock_ms_until(now + 1500);
+    assert_true(ms == 2 || ms == 1); /* 1 only if 500+ us passed in between */
+    assert_int_equal(iso_clock_ms_until(now > 10 ? now - 10 : 0), 0);
+}
+
+static void file_reads_whole_and_terminated(void **state)
+{
+    (void)state;
+    char path[512], *data = NULL;
+    size_t len = 0;
+    iso_test_tmp(path, sizeof path, "common_file.bin");
+    iso_test_write(path, "ab\0cd", 5);
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_file_read(path, 0, &data, &len, &err), ISO_OK);
+    assert_int_equal(len, 5);
+    assert_memory_equal(data, "ab\0cd", 5);
+    assert_int_equal(data[5], '\0');
+    free(data);
+    /* larger than 200 000 bytes: grows past the first buffer */
+    char *big = malloc(200001);
+    assert_non_null(big);
+    memset(big, 'x', 200000);
+    big[200000] = '\0';
+    iso_test_write(path, big, 200000);
+    assert_int_equal(iso_file_read(path, 0, &data, &len, &err), ISO_OK);
+    assert_int_equal(len, 200000);
+    assert_string_equal(data, big);
+    free(data);
+    free(big);
+    /* a limit, and a file that is not there: errors that name the path */
+    iso_err_clear(&err);
+    assert_int_equal(iso_file_read(path, 1000, &data, &len, &err), ISO_EINVAL);
+    assert_null(data);
+    assert_non_null(strstr(err.msg, "larger than 1000 bytes"));
+    assert_non_null(strstr(err.msg, path));
+    iso_err_clear(&err);
+    assert_int_equal(iso_file_read("/nonexistent/f", 0, &data, &len, &err), ISO_EIO);
+    assert_string_equal(err.msg, "/nonexistent/f: cannot open: No such file or directory");
+}
+
+/* Writes with iso_json into a string. */
+static char *json_of(void (*write)(iso_json *))
+{
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    assert_non_null(f);
+    iso_json j;
+    iso_json_begin(&j, f);
+    write(&j);
+    assert_int_equal(iso_json_end(&j), 0);
+    assert_int_equal(fclose(f), 0);
+    return text;
+}
+
+static void write_sample(iso_json *j)
+{
+    iso_json_number(j, "pi", 3.141592653589793);
+    iso_json_number(j, "nan", NAN);
+    iso_json_number(j, "inf", -INFINITY);
+    iso_json_int(j, "n", -42);
+    iso_json_bool(j, "ok", 1);
+    iso_json_string(j, "s", "quote \" back \\ tab\t nl\n é");
+    iso_json_string(j, "none", NULL);
+    iso_json_array(j, "list");
+    iso_json_number(j, NULL, 1);
+    iso_json_object(j, NULL);
+    iso_json_int(j, "k", 2);
+    iso_json_close(j);
+    iso_json_array(j, NULL);
+    iso_json_close(j);
+    iso_json_close(j);
+    iso_json_object(j, "open"); /* left open: end closes it */
+    iso_json_int(j, "last", 3);
+}
+
+static void write_too_deep(iso_json *j)
+{
+    for (int i = 0; i < ISO_JSON_MAX_DEPTH + 3; i++)
+        iso_json_array(j, i ? NULL : "deep");
+    iso_json_int(j, NULL, 1);
+    for (int i = 0; i < ISO_JSON_MAX_DEPTH + 3; i++)
+        iso_json_close(j);
+    iso_json_int(j, "after", 2);
+}
+
+static void json_writer_is_valid_and_null_for_non_finite(void **state)
+{
+    (void)state;
+    char *t = json_of(write_sample);
+    assert_string_equal(t, "{\"pi\": 3.1415926535897931, \"nan\": null, \"inf\": null, \"n\": -42, "
+                           "\"ok\": true, \"s\": \"quote \\\" back \\\\ tab\\u0009 nl\\n é\", "
+                           "\"none\": null, \"list\": [1, {\"k\": 2}, []], "
+                           "\"open\": {\"last\": 3}}\n");
+    assert_true(strtod(strstr(t, "\"pi\": ") + 6, NULL) == 3.141592653589793); /* 17 digits */
+    char bad[64];
+    assert_int_equal(iso_test_json_keys_snake_case(t, bad, sizeof bad), 1);
+    free(t);
+    /* past the depth limit nothing opens, and every close still pairs */
+    t = json_of(write_too_deep);
+    size_t opens = 0, closes = 0;
+    for (const char *c = t; *c; c++) {
+        opens += *c == '[' || *c == '{';
+        closes += *c == ']' || *c == '}';
+    }
+    assert_int_equal(opens, closes);
+    assert_int_equal(opens, ISO_JSON_MAX_DEPTH);
+    assert_non_null(strstr(t, ", \"after\": 2}"));
+    free(t);
+}
+
+static void names_find_get_and_list(void **state)
+{
+    (void)state;
+    static const char *const names[] = {"cpu", "opencl", "gpu", NULL};
+    char buf[64];
+    assert_int_equal(iso_names_find(names, "opencl"), 1);
+    assert_int_equal(iso_names_find(names, "OpenCL"), -1);
+    assert_int_equal(iso_names_find(names, NULL), -1);
+    assert_string_equal(iso_names_get(names, 2), "gpu");
+    assert_string_equal(iso_names_get(names, 3), "?");
+    assert_string_equal(iso_names_get(names, -1), "?");
+    assert_string_equal(iso_names_list(names, " or ", buf, sizeof buf), "cpu, opencl or gpu");
+    assert_string_equal(iso_names_list(names, ", ", buf, sizeof buf), "cpu, opencl, gpu");
+    assert_string_equal(iso_names_list(names, " or ", buf, 8), "cpu, op"); /* cut, terminated */
+}
+
+int main(void)
+{
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(clock_sleeps_to_its_deadline),
+        cmocka_unit_test(file_reads_whole_and_terminated),
+        cmocka_unit_test(json_writer_is_valid_and_null_for_non_finite),
+        cmocka_unit_test(names_find_get_and_list),
+    };
+    return cmocka_run_group_tests_name("common", t, NULL, NULL);
+}
