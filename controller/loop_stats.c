@@ -4,6 +4,7 @@
 #include "loop_internal.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -178,33 +179,45 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     fprintf(f, "  vertices checksum %016llx\n", (unsigned long long)s->checksum);
 }
 
+/* A struct's uint32_t counters by name: the JSON key is the field's. */
+typedef struct counter {
+    const char *key;
+    size_t at; /* offsetof */
+} counter;
+#define COUNTER(type, field) #field, offsetof(type, field) /* a counter's row, in braces */
+
+static void json_counters(iso_json *j, const void *base, const counter *c, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        uint32_t v;
+        memcpy(&v, (const char *)base + c[i].at, sizeof v);
+        iso_json_int(j, c[i].key, v);
+    }
+}
+
+#define DEC(f) COUNTER(iso_dev_counters, f)
+#define DROP(f) COUNTER(iso_dev_frame_drops, f)
+#define SRC(f) COUNTER(iso_dev_source_stats, f)
+static const counter dec_counters[] = {{DEC(reports)},     {DEC(bad_frames)},
+                                       {DEC(garbage)},     {DEC(short_reports)},
+                                       {DEC(unknown_ids)}, {DEC(bad_payloads)}};
+static const counter drop_counters[] = {
+    {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
+    {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},
+    {DROP(out_of_order)}, {DROP(seq_gaps)}};
+static const counter src_counters[] = {{SRC(gone)}, {SRC(back)}, {SRC(stale)}};
+#define N_OF(a) (sizeof(a) / sizeof(a)[0])
+
 static void json_device(iso_json *j, const char *desc, const iso_dev_source_stats *d)
 {
-    const iso_dev_frame_drops *x = &d->drops;
     iso_json_object(j, NULL);
     iso_json_string(j, "device", desc);
     iso_json_int(j, "events", d->events);
-    iso_json_int(j, "reports", d->dec.reports);
-    iso_json_int(j, "bad_frames", d->dec.bad_frames);
-    iso_json_int(j, "garbage", d->dec.garbage);
-    iso_json_int(j, "short_reports", d->dec.short_reports);
-    iso_json_int(j, "unknown_ids", d->dec.unknown_ids);
-    iso_json_int(j, "bad_payloads", d->dec.bad_payloads);
+    json_counters(j, &d->dec, dec_counters, N_OF(dec_counters));
     iso_json_object(j, "drops");
-    iso_json_int(j, "too_long", x->too_long);
-    iso_json_int(j, "bad_cobs", x->bad_cobs);
-    iso_json_int(j, "too_short", x->too_short);
-    iso_json_int(j, "bad_crc", x->bad_crc);
-    iso_json_int(j, "bad_version", x->bad_version);
-    iso_json_int(j, "bad_length", x->bad_length);
-    iso_json_int(j, "unknown_type", x->unknown_type);
-    iso_json_int(j, "duplicate", x->duplicate);
-    iso_json_int(j, "out_of_order", x->out_of_order);
-    iso_json_int(j, "seq_gaps", x->seq_gaps);
+    json_counters(j, &d->drops, drop_counters, N_OF(drop_counters));
     iso_json_close(j);
-    iso_json_int(j, "gone", d->gone);
-    iso_json_int(j, "back", d->back);
-    iso_json_int(j, "stale", d->stale);
+    json_counters(j, d, src_counters, N_OF(src_counters));
     iso_json_close(j);
 }
 
