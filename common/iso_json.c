@@ -108,3 +108,33 @@ void iso_json_string(iso_json *j, const char *key, const char *s)
     else
         fputs("null", j->f);
 }
+
+/* An integer member (int, long, uint32_t or an int read as a bool). */
+static long long member_int(const char *at, iso_json_type type)
+{
+    int v;
+    long l;
+    uint32_t u;
+    if (type == ISO_JSON_LONG)
+        return memcpy(&l, at, sizeof l), l;
+    if (type == ISO_JSON_U32)
+        return memcpy(&u, at, sizeof u), u;
+    return memcpy(&v, at, sizeof v), v;
+}
+
+void iso_json_fields(iso_json *j, const void *base, const iso_json_field *f, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        const char *at = (const char *)base + f[i].at;
+        double d;
+        switch (f[i].type) {
+        case ISO_JSON_TEXT: iso_json_string(j, f[i].key, at); break;
+        case ISO_JSON_DOUBLE:
+            memcpy(&d, at, sizeof d);
+            iso_json_number(j, f[i].key, d);
+            break;
+        case ISO_JSON_BOOL: iso_json_bool(j, f[i].key, member_int(at, f[i].type) != 0); break;
+        default: iso_json_int(j, f[i].key, member_int(at, f[i].type)); break;
+        }
+    }
+}

@@ -16,6 +16,8 @@
 #ifndef ISO_JSON_H
 #define ISO_JSON_H
 
+#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #define ISO_JSON_MAX_DEPTH 16
@@ -44,5 +46,25 @@ void iso_json_number(iso_json *j, const char *key, double v); /* non-finite: nul
 void iso_json_int(iso_json *j, const char *key, long long v);
 void iso_json_bool(iso_json *j, const char *key, int v);
 void iso_json_string(iso_json *j, const char *key, const char *s); /* NULL: null */
+
+/* A struct's members as values, by a table: each row names the key, the
+ * member's type and its offset ({ISO_JSON_FIELD(T, m, type)} for a member
+ * written under its own name). Tables keep long records from being runs of look-alike
+ * calls, and say in one place what a record holds. */
+typedef enum iso_json_type {
+    ISO_JSON_DOUBLE, /* double */
+    ISO_JSON_INT,    /* int */
+    ISO_JSON_LONG,   /* long */
+    ISO_JSON_U32,    /* uint32_t */
+    ISO_JSON_BOOL,   /* int, written true or false */
+    ISO_JSON_TEXT    /* char array, NUL-terminated */
+} iso_json_type;
+typedef struct iso_json_field {
+    const char *key;
+    iso_json_type type;
+    size_t at; /* offsetof */
+} iso_json_field;
+#define ISO_JSON_FIELD(type_name, member, json_type) #member, json_type, offsetof(type_name, member)
+void iso_json_fields(iso_json *j, const void *base, const iso_json_field *f, size_t n);
 
 #endif

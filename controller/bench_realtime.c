@@ -12,6 +12,7 @@
 #include "internal.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -164,24 +165,31 @@ void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n)
            "evaluation; facts: factorizations; * built-in shape\n");
 }
 
+#define RT(key, type, member) key, type, offsetof(iso_cli__rt_row, member)
+static const iso_json_field rt_fields[] = {
+    {RT("scene", ISO_JSON_TEXT, scene)},
+    {RT("builtin", ISO_JSON_BOOL, builtin)},
+    {RT("vertices", ISO_JSON_INT, vertices)},
+    {RT("ticks", ISO_JSON_LONG, ticks)},
+    {RT("ticks_per_s", ISO_JSON_DOUBLE, ticks_per_s)},
+    {RT("tick_median_ms", ISO_JSON_DOUBLE, median_ms)},
+    {RT("tick_p99_ms", ISO_JSON_DOUBLE, p99_ms)},
+    {RT("bare_solve_ms", ISO_JSON_DOUBLE, bare_solve_ms)},
+};
+static const iso_json_field rt_counts[] = {
+    {RT("max_step_evaluations", ISO_JSON_INT, max_step_evaluations)},
+    {RT("evaluations", ISO_JSON_LONG, evaluations)},
+    {RT("cg_iterations", ISO_JSON_LONG, cg_iterations)},
+    {RT("factorizations", ISO_JSON_LONG, factorizations)},
+};
+
 void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n)
 {
     for (int i = 0; i < n; i++) {
-        const iso_cli__rt_row *r = &rows[i];
         iso_json_object(j, NULL);
-        iso_json_string(j, "scene", r->scene);
-        iso_json_bool(j, "builtin", r->builtin);
-        iso_json_int(j, "vertices", r->vertices);
-        iso_json_int(j, "ticks", r->ticks);
-        iso_json_number(j, "ticks_per_s", r->ticks_per_s);
-        iso_json_number(j, "tick_median_ms", r->median_ms);
-        iso_json_number(j, "tick_p99_ms", r->p99_ms);
-        iso_json_number(j, "bare_solve_ms", r->bare_solve_ms);
-        iso_json_number(j, "median_tick_over_bare_solve", over_solve(r));
-        iso_json_int(j, "max_step_evaluations", r->max_step_evaluations);
-        iso_json_int(j, "evaluations", r->evaluations);
-        iso_json_int(j, "cg_iterations", r->cg_iterations);
-        iso_json_int(j, "factorizations", r->factorizations);
+        iso_json_fields(j, &rows[i], rt_fields, sizeof rt_fields / sizeof rt_fields[0]);
+        iso_json_number(j, "median_tick_over_bare_solve", over_solve(&rows[i]));
+        iso_json_fields(j, &rows[i], rt_counts, sizeof rt_counts / sizeof rt_counts[0]);
         iso_json_close(j);
     }
 }

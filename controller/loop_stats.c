@@ -179,33 +179,18 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     fprintf(f, "  vertices checksum %016llx\n", (unsigned long long)s->checksum);
 }
 
-/* A struct's uint32_t counters by name: the JSON key is the field's. */
-typedef struct counter {
-    const char *key;
-    size_t at; /* offsetof */
-} counter;
-#define COUNTER(type, field) #field, offsetof(type, field) /* a counter's row, in braces */
-
-static void json_counters(iso_json *j, const void *base, const counter *c, size_t n)
-{
-    for (size_t i = 0; i < n; i++) {
-        uint32_t v;
-        memcpy(&v, (const char *)base + c[i].at, sizeof v);
-        iso_json_int(j, c[i].key, v);
-    }
-}
-
-#define DEC(f) COUNTER(iso_dev_counters, f)
-#define DROP(f) COUNTER(iso_dev_frame_drops, f)
-#define SRC(f) COUNTER(iso_dev_source_stats, f)
-static const counter dec_counters[] = {{DEC(reports)},     {DEC(bad_frames)},
-                                       {DEC(garbage)},     {DEC(short_reports)},
-                                       {DEC(unknown_ids)}, {DEC(bad_payloads)}};
-static const counter drop_counters[] = {
+/* The devices' counters, each under its field's name. */
+#define DEC(f) ISO_JSON_FIELD(iso_dev_counters, f, ISO_JSON_U32)
+#define DROP(f) ISO_JSON_FIELD(iso_dev_frame_drops, f, ISO_JSON_U32)
+#define SRC(f) ISO_JSON_FIELD(iso_dev_source_stats, f, ISO_JSON_U32)
+static const iso_json_field dec_counters[] = {{DEC(reports)},     {DEC(bad_frames)},
+                                              {DEC(garbage)},     {DEC(short_reports)},
+                                              {DEC(unknown_ids)}, {DEC(bad_payloads)}};
+static const iso_json_field drop_counters[] = {
     {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},
     {DROP(out_of_order)}, {DROP(seq_gaps)}};
-static const counter src_counters[] = {{SRC(gone)}, {SRC(back)}, {SRC(stale)}};
+static const iso_json_field src_counters[] = {{SRC(gone)}, {SRC(back)}, {SRC(stale)}};
 #define N_OF(a) (sizeof(a) / sizeof(a)[0])
 
 static void json_device(iso_json *j, const char *desc, const iso_dev_source_stats *d)
@@ -213,11 +198,11 @@ static void json_device(iso_json *j, const char *desc, const iso_dev_source_stat
     iso_json_object(j, NULL);
     iso_json_string(j, "device", desc);
     iso_json_int(j, "events", d->events);
-    json_counters(j, &d->dec, dec_counters, N_OF(dec_counters));
+    iso_json_fields(j, &d->dec, dec_counters, N_OF(dec_counters));
     iso_json_object(j, "drops");
-    json_counters(j, &d->drops, drop_counters, N_OF(drop_counters));
+    iso_json_fields(j, &d->drops, drop_counters, N_OF(drop_counters));
     iso_json_close(j);
-    json_counters(j, d, src_counters, N_OF(src_counters));
+    iso_json_fields(j, d, src_counters, N_OF(src_counters));
     iso_json_close(j);
 }
 

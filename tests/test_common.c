@@ -2,6 +2,8 @@
  * clock and its absolute-deadline sleep, the whole-file reader, the JSON
  * writer and enum name tables. */
 #include <math.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -142,6 +144,40 @@ static void json_writer_is_valid_and_null_for_non_finite(void **state)
     free(t);
 }
 
+typedef struct record {
+    char name[8];
+    int on, n;
+    long big;
+    uint32_t u;
+    double x;
+} record;
+
+static void write_record(iso_json *j)
+{
+    static const iso_json_field fields[] = {{ISO_JSON_FIELD(record, name, ISO_JSON_TEXT)},
+                                            {ISO_JSON_FIELD(record, on, ISO_JSON_BOOL)},
+                                            {ISO_JSON_FIELD(record, n, ISO_JSON_INT)},
+                                            {"long", ISO_JSON_LONG, offsetof(record, big)},
+                                            {ISO_JSON_FIELD(record, u, ISO_JSON_U32)},
+                                            {ISO_JSON_FIELD(record, x, ISO_JSON_DOUBLE)}};
+    record r = {"a\"b", 1, -3, 1L << 40, 4000000000u, 0.1};
+    iso_json_fields(j, &r, fields, sizeof fields / sizeof fields[0]);
+    r.x = NAN;
+    iso_json_fields(j, &r, fields + 5, 1);
+}
+
+/* A record through a table of its members: each type as its own call
+ * would write it. */
+static void json_fields_write_members_by_table(void **state)
+{
+    (void)state;
+    char *t = json_of(write_record);
+    assert_string_equal(t, "{\"name\": \"a\\\"b\", \"on\": true, \"n\": -3, "
+                           "\"long\": 1099511627776, \"u\": 4000000000, "
+                           "\"x\": 0.10000000000000001, \"x\": null}\n");
+    free(t);
+}
+
 static void names_find_get_and_list(void **state)
 {
     (void)state;
@@ -164,6 +200,7 @@ int main(void)
         cmocka_unit_test(clock_sleeps_to_its_deadline),
         cmocka_unit_test(file_reads_whole_and_terminated),
         cmocka_unit_test(json_writer_is_valid_and_null_for_non_finite),
+        cmocka_unit_test(json_fields_write_members_by_table),
         cmocka_unit_test(names_find_get_and_list),
     };
     return cmocka_run_group_tests_name("common", t, NULL, NULL);
