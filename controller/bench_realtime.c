@@ -20,19 +20,6 @@
 #include "iso_loop.h"
 #include "iso_scene.h"
 
-/* The scene's benchmark lookup, in --benchmark-dir (ctx) when given. */
-static int find_benchmark(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
-                          size_t why_cap)
-{
-    iso_cli__bench b;
-    if (!iso_cli__bench_find(name, ctx, &b, why, why_cap))
-        return 0;
-    snprintf(mesh, ISO_SCENE_PATH_MAX, "%s", b.mesh);
-    snprintf(sel, ISO_SCENE_PATH_MAX, "%s", b.sel);
-    snprintf(def, ISO_SCENE_PATH_MAX, "%s", b.def);
-    return 1;
-}
-
 static int load_scene(const char *name, const char *bench_dir, int resolution,
                       const iso_solver_opts *so, iso_scene **out, iso_err *err)
 {
@@ -52,7 +39,7 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
              "integrator: {steps_per_tick: 1, abm: pec}\n"
              "tick_hz: 60\n",
              name, name, name, res, iso_names_get(iso_assembly_names, so->assembly), so->cg_tol);
-    iso_scene_opts opts = {.bench_find = find_benchmark, .bench_ctx = (void *)bench_dir};
+    iso_scene_opts opts = {.bench_find = iso_cli__scene_bench_find, .bench_ctx = (void *)bench_dir};
     return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
 }
 

@@ -8,12 +8,11 @@
 
 #include "iso_scene.h"
 
-static int bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
-                      size_t why_cap)
+int iso_cli__scene_bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def,
+                              char *why, size_t why_cap)
 {
-    (void)ctx;
     iso_cli__bench b;
-    if (!iso_cli__bench_find(name, NULL, &b, why, why_cap))
+    if (!iso_cli__bench_find(name, ctx, &b, why, why_cap))
         return 0;
     snprintf(mesh, ISO_SCENE_PATH_MAX, "%s", b.mesh);
     snprintf(sel, ISO_SCENE_PATH_MAX, "%s", b.sel);
@@ -25,7 +24,7 @@ int iso_cli__scene_load(const char *cmd, const char *path, iso_scene **out)
 {
     iso_err err;
     iso_err_clear(&err);
-    iso_scene_opts opts = {.bench_find = bench_find};
+    iso_scene_opts opts = {.bench_find = iso_cli__scene_bench_find};
     if (iso_scene_load_opts(path, &opts, out, &err) != ISO_OK) {
         fprintf(stderr, "isoshape %s: %s\n", cmd, err.msg);
         return 1;

@@ -215,6 +215,11 @@ struct iso_scene;
  * prints the fallback notice, or the error as "isoshape <cmd>: ...".
  * Returns 0 with *out set, or 1. */
 int iso_cli__scene_load(const char *cmd, const char *path, struct iso_scene **out);
+/* The scene layer's benchmark lookup (iso_scene_opts.bench_find) through
+ * iso_cli__bench_find: ctx is the --benchmark-dir (a const char *), NULL
+ * for where --benchmark looks. */
+int iso_cli__scene_bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def,
+                              char *why, size_t why_cap);
 /* A scene of the device side alone (no mesh), for `record` and `replay`:
  * mo->n_handles handles driven through the map options mo, ticking at hz.
  * The caller adds the devices and frees it with free(). NULL when out of
