@@ -73,19 +73,26 @@ static void file_reads_whole_and_terminated(void **state)
     assert_string_equal(err.msg, "/nonexistent/f: cannot open: No such file or directory");
 }
 
-/* Writes with iso_json into a string. */
-static char *json_of(void (*write)(iso_json *))
+/* The test program's state (the SQLite manner): the last JSON written. */
+static struct {
+    char *text;
+    size_t len;
+} g;
+
+/* Writes with iso_json into g.text and returns it (valid until the next
+ * call; main frees the last). */
+static const char *json_of(void (*write)(iso_json *))
 {
-    char *text = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&text, &len);
+    free(g.text);
+    g.text = NULL;
+    FILE *f = open_memstream(&g.text, &g.len);
     assert_non_null(f);
     iso_json j;
     iso_json_begin(&j, f);
     write(&j);
     assert_int_equal(iso_json_end(&j), 0);
     assert_int_equal(fclose(f), 0);
-    return text;
+    return g.text;
 }
 
 static void write_sample(iso_json *j)
@@ -122,7 +129,7 @@ static void write_too_deep(iso_json *j)
 static void json_writer_is_valid_and_null_for_non_finite(void **state)
 {
     (void)state;
-    char *t = json_of(write_sample);
+    const char *t = json_of(write_sample);
     assert_string_equal(t, "{\"pi\": 3.1415926535897931, \"nan\": null, \"inf\": null, \"n\": -42, "
                            "\"ok\": true, \"s\": \"quote \\\" back \\\\ tab\\u0009 nl\\n é\", "
                            "\"none\": null, \"list\": [1, {\"k\": 2}, []], "
@@ -130,7 +137,6 @@ static void json_writer_is_valid_and_null_for_non_finite(void **state)
     assert_true(strtod(strstr(t, "\"pi\": ") + 6, NULL) == 3.141592653589793); /* 17 digits */
     char bad[64];
     assert_int_equal(iso_test_json_keys_snake_case(t, bad, sizeof bad), 1);
-    free(t);
     /* past the depth limit nothing opens, and every close still pairs */
     t = json_of(write_too_deep);
     size_t opens = 0, closes = 0;
@@ -141,7 +147,6 @@ static void json_writer_is_valid_and_null_for_non_finite(void **state)
     assert_int_equal(opens, closes);
     assert_int_equal(opens, ISO_JSON_MAX_DEPTH);
     assert_non_null(strstr(t, ", \"after\": 2}"));
-    free(t);
 }
 
 typedef struct record {
@@ -171,11 +176,9 @@ static void write_record(iso_json *j)
 static void json_fields_write_members_by_table(void **state)
 {
     (void)state;
-    char *t = json_of(write_record);
-    assert_string_equal(t, "{\"name\": \"a\\\"b\", \"on\": true, \"n\": -3, "
-                           "\"long\": 1099511627776, \"u\": 4000000000, "
-                           "\"x\": 0.10000000000000001, \"x\": null}\n");
-    free(t);
+    assert_string_equal(json_of(write_record), "{\"name\": \"a\\\"b\", \"on\": true, \"n\": -3, "
+                                               "\"long\": 1099511627776, \"u\": 4000000000, "
+                                               "\"x\": 0.10000000000000001, \"x\": null}\n");
 }
 
 static void names_find_get_and_list(void **state)
@@ -203,5 +206,7 @@ int main(void)
         cmocka_unit_test(json_fields_write_members_by_table),
         cmocka_unit_test(names_find_get_and_list),
     };
-    return cmocka_run_group_tests_name("common", t, NULL, NULL);
+    int failed = cmocka_run_group_tests_name("common", t, NULL, NULL);
+    free(g.text);
+    return failed;
 }
