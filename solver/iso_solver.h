@@ -51,8 +51,8 @@ typedef struct iso_solver_opts {
                                 (PoCL), else "P:D" platform/device indices or
                                 a substring of the device or platform name */
     iso_refactor refactor;   /* default ISO_REFACTOR_ALWAYS in the library */
-    double cg_tol;           /* adaptive: relative residual, default 1e-10, unless the
-                                integrator sets a target (iso_solver_set_cg_target) */
+    double cg_tol;           /* adaptive: relative residual, default 1e-10; with a target
+                                (iso_solver_set_cg_target) whichever is met first ends CG */
     int cg_max_iter;         /* adaptive: PCG iterations a solve may spend, or a tick
                                 (iso_solver_budget_begin); beyond them it refactors and
                                 solves directly; default 12 */
@@ -130,9 +130,12 @@ ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err 
  * young factor, M = LLᵀ close to A, the error e = A⁻¹ r = z + (M⁻¹(M − A)) e.
  * On stopping, z is added to the solution (one preconditioned Richardson
  * step; z was computed for the test, so it is free), which leaves an error
- * smaller than z by the factor's quality. A relative residual of
- * ISO_SOLVER_CG_FLOOR also ends it (rounding leaves nothing to gain).
- * target ≤ 0 (or NaN) goes back to cg_tol. Direct solves are exact anyway.
+ * smaller than z by the factor's quality. The relative residual cg_tol
+ * still ends it if it comes first: it is the floor below which no accuracy
+ * is asked, for the steps whose error is far below anything that matters
+ * (a slow or still handle: there a tenth of the step's error would ask CG
+ * for 1e-13 of the diagonal, and fail to the fallback). target ≤ 0 (or NaN)
+ * leaves cg_tol alone. Direct solves are exact anyway.
  *
  * Budget. Between iso_solver_budget_begin() and iso_solver_budget_end() the
  * solves share one budget of cg_max_iter PCG iterations (the real-time
@@ -142,8 +145,6 @@ ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err 
  * solve; that factorization refills the budget, as the fresh factor starts
  * the count again. So a tick costs at most cg_max_iter iterations before
  * its first factorization. Outside a budget each solve has cg_max_iter. */
-#define ISO_SOLVER_CG_FLOOR 1e-14
-
 void iso_solver_set_cg_target(iso_solver *s, double target);
 void iso_solver_budget_begin(iso_solver *s);
 void iso_solver_budget_end(iso_solver *s);

@@ -218,12 +218,12 @@ static double vertex_max(const double *z, int nf)
     return m;
 }
 
-/* PCG's stopping test. Without a target: the residual against cg_tol,
- * before preconditioning. With one: z's largest vertex, after it (z is the
- * next iteration's preconditioned residual anyway); on success z is added
- * to x. The residual floor ends either. */
+/* PCG's stopping test: the residual against cg_tol, before
+ * preconditioning, and with a target also z's largest vertex, after it (z
+ * is the next iteration's preconditioned residual anyway), whichever comes
+ * first; when z ends it, z is added to x. */
 typedef struct cg_goal {
-    double res_target; /* ‖r‖ at which to stop: cg_tol or the floor */
+    double res_target; /* ‖r‖ at which to stop: cg_tol × ‖b‖ */
     double z_target;   /* > 0: stop when vertex_max(z) reaches it */
     double z0;         /* vertex_max of the first z, for the rate */
 } cg_goal;
@@ -245,15 +245,15 @@ static int reached_z(iso_solver *s, cg_goal *g, const double *z, int iters)
 
 /* Hopeless: at the rate seen so far the cap would not suffice, so stop now
  * rather than spend it (the common case when the factor is older than a few
- * small steps). The rate is read from what the test measures. */
+ * small steps). The rate is read from what the tests measure: hopeless
+ * only if neither would end within the cap. */
 static int hopeless(const cg_goal *g, double r0, double r, const double *z, int nf, int iters,
                     int cap)
 {
-    if (iters < 3)
+    if (iters < 3 || predicted_iterations(r0, r, iters, g->res_target) <= (double)cap)
         return 0;
-    if (g->z_target > 0)
-        return predicted_iterations(g->z0, vertex_max(z, nf), iters, g->z_target) > (double)cap;
-    return predicted_iterations(r0, r, iters, g->res_target) > (double)cap;
+    return !(g->z_target > 0) ||
+           predicted_iterations(g->z0, vertex_max(z, nf), iters, g->z_target) > (double)cap;
 }
 
 /* PCG from the current X. Returns 1 if converged, 0 if it should give up
@@ -272,7 +272,7 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
     for (int i = 0; i < n; i++)
         r[i] = b[i] - ap[i];
     double bnorm = sqrt(dot(b, b, n)), scale = bnorm > 0 ? bnorm : 1.0;
-    cg_goal g = {(s->cg_target > 0 ? ISO_SOLVER_CG_FLOOR : s->o.cg_tol) * scale, s->cg_target, 0};
+    cg_goal g = {s->o.cg_tol * scale, s->cg_target, 0};
     double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
     if (rnorm <= g.res_target)
         return 1;
