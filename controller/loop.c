@@ -274,8 +274,6 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         rc = open_devices(l, err);
     if (rc == ISO_OK && l->hub)
         rc = devices_ready(l, err);
-    if (rc == ISO_OK && l->hub)
-        l->hub_estop = iso_dev_hub_has_estop(l->hub);
     if (rc == ISO_OK && sc->mesh)
         rc = iso_loop__sinks_open(l, err);
     const char *rec = l->o.record ? l->o.record : sc->recording;

@@ -51,7 +51,6 @@ struct iso_loop {
 
     /* devices */
     iso_dev_hub *hub;
-    int hub_estop; /* the hub has e-stop inputs the actuators' sender reads */
     iso_dev_rec_reader reader; /* the replayed recording */
     int replay;                /* 1: the devices are one replayed recording */
     long damaged_seen;

@@ -77,7 +77,7 @@ static int estop_inputs(void *ctx)
     const iso_loop *l = ctx;
     if (l->o.estop_probe && l->o.estop_probe(l->o.estop_ctx))
         return 1;
-    return l->hub && l->hub_estop && iso_dev_hub_estop_probe(l->hub);
+    return l->hub && iso_dev_hub_estop_probe(l->hub); /* 0 without e-stop inputs */
 }
 
 static int open_actuators(iso_loop *l, iso_err *err)

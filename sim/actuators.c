@@ -661,11 +661,10 @@ static unsigned holds_now(iso_actuators *a)
                     : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
                     : (fresh & ISO_ACT_HOLD_STOP) ? ISO_FB_SAFE_STOP
                                                   : 0;
-    if (cause && iso_fb_host_can_safe(&a->host) && a->host.state != ISO_FB_HOST_DOWN) {
-        iso_err e;
-        if (iso_fb_host_send_safe(&a->host, cause, &e) == ISO_OK)
-            count_event(a, &a->st.safe_requests);
-    }
+    /* refused without a word when the MCU offers no SAFE or the link is
+     * down: brake_how's notice has said how the MCU gets safe then */
+    if (cause && iso_fb_host_send_safe(&a->host, cause, NULL) == ISO_OK)
+        count_event(a, &a->st.safe_requests);
     return h;
 }
 

@@ -65,15 +65,6 @@ static int iso(const char *fmt, ...)
     return iso_test_sh(cmd, g_out, sizeof g_out, g_err, sizeof g_err);
 }
 
-static double json_num(const char *json, const char *key)
-{
-    char k[128];
-    snprintf(k, sizeof k, "\"%s\": ", key);
-    const char *p = strstr(json, k);
-    assert_non_null(p);
-    return strtod(p + strlen(k), NULL);
-}
-
 static void json_handle_p(const char *json, double p[3])
 {
     const char *q = strstr(json, "\"p\": [");
@@ -184,8 +175,8 @@ static void write_golden(const char *stream, const char *json, const char *off)
             "# isoshape run: built-in cactus (resolution 1) driven by %s.isorec, C assembly.\n"
             "# Written by tests/test_run.c with ISO_UPDATE_GOLDEN=1.\n",
             stream);
-    fprintf(f, "ticks %.0f\nmetric_err %.17g\n", json_num(json, "ticks"),
-            json_num(json, "metric_err"));
+    fprintf(f, "ticks %.0f\nmetric_err %.17g\n", iso_test_json_num(json, "ticks"),
+            iso_test_json_num(json, "metric_err"));
     const double *x = iso_mesh_positions(m);
     for (int v = 0; v < iso_mesh_vertex_count(m); v += 10)
         fprintf(f, "v %d %.17g %.17g %.17g\n", v, x[3 * v], x[3 * v + 1], x[3 * v + 2]);
@@ -209,9 +200,9 @@ static void check_golden(const char *stream, const char *json, const char *off)
         double a, b, c;
         int v;
         if (sscanf(line, "ticks %lf", &a) == 1)
-            assert_int_equal((long)a, (long)json_num(json, "ticks"));
+            assert_int_equal((long)a, (long)iso_test_json_num(json, "ticks"));
         if (sscanf(line, "metric_err %lf", &a) == 1)
-            assert_true(fabs(json_num(json, "metric_err") - a) <= 1e-6 * a + 1e-300);
+            assert_true(fabs(iso_test_json_num(json, "metric_err") - a) <= 1e-6 * a + 1e-300);
         if (sscanf(line, "v %d %lf %lf %lf", &v, &a, &b, &c) == 4) {
             worst = fmax(worst, fmax(fabs(x[3 * v] - a),
                                      fmax(fabs(x[3 * v + 1] - b), fabs(x[3 * v + 2] - c))));
@@ -259,7 +250,7 @@ static void each_stream_replays_deterministically_to_its_golden(void **state)
         char bad[128];
         if (!iso_test_json_keys_snake_case(j1, bad, sizeof bad))
             fail_msg("--stats-json key '%s' is not snake_case", bad);
-        assert_true(json_num(j1, "ticks") >= 4);
+        assert_true(iso_test_json_num(j1, "ticks") >= 4);
         if (update)
             write_golden(s, j1, a);
         else
@@ -337,9 +328,9 @@ static void pec_takes_half_the_evaluations(void **state)
     assert_int_equal(
         iso("run '%s' --fast --quiet --abm pec --out '%s' --stats-json '%s'", scene, b, jb), 0);
     slurp(ja, j, sizeof j);
-    long ea = (long)json_num(j, "evaluations");
+    long ea = (long)iso_test_json_num(j, "evaluations");
     slurp(jb, j, sizeof j);
-    long eb = (long)json_num(j, "evaluations");
+    long eb = (long)iso_test_json_num(j, "evaluations");
     assert_non_null(strstr(j, "\"abm\": \"pec\""));
     double diag, d = max_diff(a, b, &diag);
     printf("screw: %ld evaluations under PECE, %ld under PEC; results %.3g of the diagonal apart\n",
@@ -378,11 +369,11 @@ static void keyframes_end_at_their_pose(void **state)
     assert_int_equal(iso("run '%s' --fast --quiet --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
     json_handle_p(j, p);
-    assert_int_equal((long)json_num(j, "ticks"), 40);
+    assert_int_equal((long)iso_test_json_num(j, "ticks"), 40);
     const double T[3] = {0.02, 0.1, -0.05};
     for (int k = 0; k < 3; k++) /* rotation about the centroid keeps it: centre = c + T */
         assert_true(fabs(p[k] - (c[k] + T[k])) < 1e-9);
-    assert_true(json_num(j, "restarts") >= 1); /* the key at 0.5 s is a velocity jump */
+    assert_true(iso_test_json_num(j, "restarts") >= 1); /* the key at 0.5 s is a velocity jump */
 }
 
 /* ---- time ------------------------------------------------------------------------ */
@@ -402,9 +393,9 @@ static void overruns_are_counted_and_skipped(void **state)
     iso_test_tmp(json, sizeof json, "overrun.json");
     assert_int_equal(iso("run '%s' --no-rt --quiet --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
-    double ticks = json_num(j, "ticks"), misses = json_num(j, "misses");
-    double skipped = json_num(j, "skipped"), stream = json_num(j, "stream_s");
-    double wall = json_num(j, "wall_s");
+    double ticks = iso_test_json_num(j, "ticks"), misses = iso_test_json_num(j, "misses");
+    double skipped = iso_test_json_num(j, "skipped"), stream = iso_test_json_num(j, "stream_s");
+    double wall = iso_test_json_num(j, "wall_s");
     printf("overrun: %.0f ticks, %.0f misses, %.0f skipped, stream %.6f s, wall %.2f s\n", ticks,
            misses, skipped, stream, wall);
     assert_true(ticks < 100);
@@ -415,9 +406,9 @@ static void overruns_are_counted_and_skipped(void **state)
      * wake to the next publish is at most two tick times */
     const char *lat = strstr(j, "\"latency_ms\"");
     assert_non_null(lat);
-    double lat_max = json_num(lat, "max");
+    double lat_max = iso_test_json_num(lat, "max");
     const char *tk = strstr(j, "\"tick_ms\"");
-    double tick_max = json_num(tk, "max");
+    double tick_max = iso_test_json_num(tk, "max");
     assert_true(lat_max <= 2 * tick_max + 5);
 }
 
@@ -431,8 +422,8 @@ static void pacing_follows_speed(void **state)
     assert_int_equal(
         iso("run '%s' --no-rt --quiet --duration 1 --speed 2 --stats-json '%s'", scene, json), 0);
     slurp(json, j, sizeof j);
-    double wall = json_num(j, "wall_s"), stream = json_num(j, "stream_s");
-    double ticks = json_num(j, "ticks"), skipped = json_num(j, "skipped");
+    double wall = iso_test_json_num(j, "wall_s"), stream = iso_test_json_num(j, "stream_s");
+    double ticks = iso_test_json_num(j, "ticks"), skipped = iso_test_json_num(j, "skipped");
     printf("paced: %.3f s of stream in %.3f s wall at speed 2, %.0f ticks, %.0f skipped\n", stream,
            wall, ticks, skipped);
     /* every period is covered once: by its own tick, or by a late tick that
@@ -650,7 +641,7 @@ static void chromium_watches_a_replay_run(void **state)
     assert_non_null(tk);
     long tick = atol(tk + strlen("data-tick=\""));
     slurp(json, j, sizeof j);
-    double sent = json_num(j, "frames_sent");
+    double sent = iso_test_json_num(j, "frames_sent");
     print_message(
         "chromium: %d frames received, last tick %ld; the loop sent %.0f; screenshot %s\n", frames,
         tick, sent, shot);

@@ -46,16 +46,6 @@ static void nap_ms(int ms)
     nanosleep(&ts, NULL);
 }
 
-static double json_num(const char *json, const char *key)
-{
-    char k[128];
-    snprintf(k, sizeof k, "\"%s\": ", key);
-    const char *p = strstr(json, k);
-    if (!p)
-        fail_msg("no \"%s\" in the stats JSON", key);
-    return strtod(p + strlen(k), NULL);
-}
-
 typedef struct run_result {
     double wall_s, tick_median;
     long ticks, skipped, good_frames;
@@ -153,11 +143,11 @@ static void run_view(const char *scene, int with_bad, run_result *r)
     size_t n = fread(j, 1, sizeof j - 1, f);
     j[n] = 0;
     fclose(f);
-    r->ticks = (long)json_num(j, "ticks");
-    r->skipped = (long)json_num(j, "skipped");
+    r->ticks = (long)iso_test_json_num(j, "ticks");
+    r->skipped = (long)iso_test_json_num(j, "skipped");
     const char *tk = strstr(j, "\"tick_ms\": {");
     assert_non_null(tk);
-    r->tick_median = json_num(tk, "median");
+    r->tick_median = iso_test_json_num(tk, "median");
 }
 
 static void a_browser_that_stops_reading_does_not_stall_the_loop(void **state)

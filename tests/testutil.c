@@ -58,6 +58,16 @@ static const char *string_end(const char *s)
     return s;
 }
 
+double iso_test_json_num(const char *json, const char *key)
+{
+    char k[128];
+    snprintf(k, sizeof k, "\"%s\": ", key);
+    const char *p = strstr(json, k);
+    if (!p)
+        fail_msg("no \"%s\" in the JSON", key);
+    return strtod(p + strlen(k), NULL);
+}
+
 int iso_test_json_keys_snake_case(const char *json, char *bad, size_t cap)
 {
     for (const char *p = json; *p; p++) {

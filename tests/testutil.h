@@ -28,6 +28,9 @@ double iso_test_max_abs(const double *a, size_t n);
  * key style of every command's output, common/iso_json.h). Returns 1, or 0
  * with the first key that is not in bad. */
 int iso_test_json_keys_snake_case(const char *json, char *bad, size_t cap);
+/* The number after the first "key": in the JSON text; fails the test when
+ * the key is absent. */
+double iso_test_json_num(const char *json, const char *key);
 
 /* Runs `sh -c "<cmd>"` with stdin from /dev/null and stdout and stderr
  * captured into out and err (NUL-terminated, truncated to cap). Returns the
