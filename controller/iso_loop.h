@@ -153,7 +153,7 @@ typedef struct iso_loop_summary {
     int rt_active; /* 1: SCHED_FIFO held */
     int mem_locked;
     char rt_note[400];   /* why not, "" when it is */
-    char act_line[1200]; /* the actuator link's counters, "" without one */
+    char act_line[1700]; /* the actuator link's counters, "" without one */
     int n_devices;       /* the hub's sources (a replay: its recorded ones) */
     char device_desc[ISO_DEV_MAX_SOURCES][192];       /* iso_dev_hub_describe */
     iso_dev_source_stats device[ISO_DEV_MAX_SOURCES]; /* events, bad frames by reason, gone,

@@ -16,7 +16,7 @@
 struct iso_loop_sinks {
     iso_display *display;
     iso_actuators *act;
-    char act_line[560]; /* kept when the actuators close */
+    char act_line[1000]; /* kept when the actuators close (the counters run ~650) */
     char act_stop[600]; /* how the safe stop went */
     iso_ply_frames *ply;
     long ply_written, snapshots;
