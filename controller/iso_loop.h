@@ -91,6 +91,10 @@ typedef struct iso_loop_opts {
     int status_line;             /* 1: a live status line on `log` (a terminal) */
     int assembly;                /* -1: the scene's, else iso_assembly */
     const char *cl_device;       /* OpenCL device spec or NULL */
+    /* The solver's thread settings: the program's, not the scene's (a scene
+     * file has no say over process-wide settings). Default: the library's
+     * (iso_solver_opts_default), which change nothing process-wide. */
+    iso_solver_threads threads;
     const char *record;          /* record the devices here (overrides the scene), or NULL */
     volatile sig_atomic_t *stop; /* set by a signal handler: stop after this tick */
     FILE *log;                   /* notices and the status line; NULL = stderr */

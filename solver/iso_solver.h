@@ -5,7 +5,10 @@
  * One iso_solver owns a CHOLMOD Common, the free-free pattern (built once
  * from connectivity and regions, analysed once), the numeric factor and the
  * solve workspace. Per evaluation it refills values, factorizes and solves.
- * Not thread-safe: one solver per thread.
+ * Not thread-safe: one solver per thread. Solvers in different threads are
+ * independent and give bit for bit what they give one at a time, as long as
+ * none is asked to set the BLAS's process-wide thread count
+ * (iso_solver_threads; tests/test_solver_threads.c).
  *
  * Creation refuses ill-posed problems before any solve: ω outside (0, 1], a
  * connected part of the mesh with free vertices but no fixed or handle
@@ -38,6 +41,48 @@ typedef enum iso_refactor {
     ISO_REFACTOR_ALWAYS,       /* factor every evaluation: the paper's scheme */
 } iso_refactor;
 
+/* Threads. Debian's CHOLMOD asks OpenMP for a team of 4 in its supernodal
+ * loops and calls OpenBLAS, which keeps a pool of its own. On systems the
+ * size of the benchmark's (under ISO_SOLVER_BLAS_THREADED_FLOPS a
+ * factorization) neither pays: on two cores the cactus factorization takes
+ * twice as long with them, and the spinning pool steals the core the
+ * OpenCL assembly wants (solver/linsolve.c has the figures). The library
+ * never changes a process-wide setting unless asked to here. */
+typedef enum iso_solver_omp {
+    /* Each CHOLMOD call runs its OpenMP regions on the calling thread: the
+     * solver sets the calling thread's max-active-levels to 0 for the call
+     * and restores it after. That setting belongs to the calling thread
+     * alone (an OpenMP 5 data-environment ICV; libgomp 12 keeps it per
+     * thread), so no other thread, and none of the caller's own OpenMP
+     * code, ever sees it. The library default. */
+    ISO_SOLVER_OMP_CALLER = 0,
+    ISO_SOLVER_OMP_LEAVE, /* leave OpenMP as the process has it */
+} iso_solver_omp;
+
+typedef enum iso_solver_blas {
+    ISO_SOLVER_BLAS_LEAVE = 0, /* never touch the BLAS's thread count (library default) */
+    /* Process-wide, for the solver's lifetime: when one factorization costs
+     * less than ISO_SOLVER_BLAS_THREADED_FLOPS, iso_solver_create sets
+     * OpenBLAS to one thread and iso_solver_destroy restores the count it
+     * found; a larger system leaves the count alone. OpenBLAS has one count
+     * for the whole process, so this is for a program that runs one solver
+     * at a time (the isoshape command), never for solvers in several
+     * threads or with overlapping lifetimes: those leave the BLAS alone and
+     * the program sets the count once (OPENBLAS_NUM_THREADS). A fixed count
+     * also keeps results bit-identical across machines: OpenBLAS's threaded
+     * and single-threaded kernels round differently. */
+    ISO_SOLVER_BLAS_SIZED,
+} iso_solver_blas;
+
+/* Below this many flops per factorization a second BLAS thread gained
+ * nothing measurable (cactus: 0.47 GFLOP, 33 ms on one thread or two). */
+#define ISO_SOLVER_BLAS_THREADED_FLOPS 4e9
+
+typedef struct iso_solver_threads {
+    iso_solver_omp omp;   /* default ISO_SOLVER_OMP_CALLER */
+    iso_solver_blas blas; /* default ISO_SOLVER_BLAS_LEAVE */
+} iso_solver_threads;
+
 typedef struct iso_solver_opts {
     double omega;            /* in (0, 1]; default 1/3 */
     iso_weighting weighting; /* default ISO_WEIGHT_PARAM */
@@ -60,6 +105,7 @@ typedef struct iso_solver_opts {
      * edge length)², μ is independent of the mesh's size and resolution. */
     double restore_mu;  /* ≥ 0 */
     double restore_tau; /* > 0 when restore_mu > 0; in the path's time units */
+    iso_solver_threads threads; /* what the solver may do to thread settings */
 } iso_solver_opts;
 
 void iso_solver_opts_default(iso_solver_opts *o);

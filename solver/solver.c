@@ -36,6 +36,8 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->refactor = ISO_REFACTOR_ALWAYS;
     o->cg_tol = 1e-10;
     o->cg_max_iter = 12;
+    o->threads.omp = ISO_SOLVER_OMP_CALLER;
+    o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
 
 static int check_opts(const iso_solver_opts *o, iso_err *err)
@@ -53,6 +55,12 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
     if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
         return iso_err_set(err, ISO_EINVAL, -1,
                            "restoration time constant tau = %g must be > 0", o->restore_tau);
+    if (o->threads.omp != ISO_SOLVER_OMP_CALLER && o->threads.omp != ISO_SOLVER_OMP_LEAVE)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown OpenMP thread policy %d",
+                           (int)o->threads.omp);
+    if (o->threads.blas != ISO_SOLVER_BLAS_LEAVE && o->threads.blas != ISO_SOLVER_BLAS_SIZED)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown BLAS thread policy %d",
+                           (int)o->threads.blas);
     return ISO_OK;
 }
 
@@ -550,6 +558,7 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         iso_solver_destroy(s);
         return rc;
     }
+    iso_solver__threads_begin(s);
     s->st.n_free = s->nf;
     *out = s;
     return ISO_OK;
@@ -559,6 +568,7 @@ void iso_solver_destroy(iso_solver *s)
 {
     if (!s)
         return;
+    iso_solver__threads_end(s);
 #ifdef ISO_WITH_OPENCL
     iso_solver__cl_destroy(s->cl);
 #endif

@@ -93,10 +93,12 @@ struct iso_solver {
     int factor_age;         /* evaluations since L was computed (this one included) */
     int reuse_horizon;      /* oldest factor age PCG is tried at; 0: not learned yet */
     int horizon_probe;      /* factorizations left until the horizon is probed */
-    int omp_serialised;     /* linsolve.c has capped CHOLMOD's OpenMP teams */
-    int blas_looked_up;     /* linsolve.c has decided on OpenBLAS threads: */
-    int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */
+    /* Thread controls (linsolve.c), looked up once at creation; NULL where
+     * the option leaves them alone or the process has no such library. */
+    int (*omp_get_levels)(void);
+    void (*omp_set_levels)(int);
     void (*blas_set_threads)(int);
+    int blas_restore; /* OpenBLAS count to restore at destroy; 0: none */
     iso_solver_stats st;
 };
 
@@ -105,6 +107,11 @@ struct iso_solver {
  * positions x; −1 if its triangle is degenerate. */
 int iso_solver__element_matrix(const iso_solver_opts *o, const iso_solver__element *e,
                                const double *x, double *Q);
+
+/* Applies opts.threads at creation (after the analysis, which knows the
+ * factorization's flops) and undoes its process-wide part at destroy. */
+void iso_solver__threads_begin(iso_solver *s);
+void iso_solver__threads_end(iso_solver *s);
 
 /* Solves A_ff X = B with the current values: a fresh factorization, or
  * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates
