@@ -2,7 +2,9 @@
 #ifndef ISO_CLOCK_H
 #define ISO_CLOCK_H
 
+#include "iso_api.h"
+
 /* Seconds on CLOCK_MONOTONIC; only differences are meaningful. */
-double iso_clock_now(void);
+ISO_API double iso_clock_now(void);
 
 #endif

@@ -12,6 +12,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "iso_api.h"
+
 /* ---- sizes ------------------------------------------------------------- */
 #define ISO_FB_VERSION 1u         /* protocol version, first header byte */
 #define ISO_FB_MAX_PAYLOAD 64u    /* message payload bytes, compile-time bound */
@@ -50,7 +52,7 @@ enum {
     ISO_FB_EPAYLOAD = -31   /* message payload does not match its type's layout */
 };
 /* A short constant name for any ISO_FB_* result; never NULL. */
-const char *iso_fb_strerror(int code);
+ISO_API const char *iso_fb_strerror(int code);
 
 /* ---- message types ----------------------------------------------------- */
 enum {
@@ -68,16 +70,16 @@ enum {
 /* ---- CRC and COBS ------------------------------------------------------- */
 /* CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no xorout.
  * Check value over "123456789" is 0x29B1. */
-uint16_t iso_fb_crc16(const uint8_t *data, size_t len);
+ISO_API uint16_t iso_fb_crc16(const uint8_t *data, size_t len);
 
 /* COBS-encodes len bytes into dst (no delimiter). Returns the encoded length,
  * or ISO_FB_ENOSPACE if dst_cap < ISO_FB_COBS_MAX(len); never writes past
  * dst_cap. src and dst must not overlap. */
-int iso_fb_cobs_encode(uint8_t *dst, size_t dst_cap, const uint8_t *src, size_t len);
+ISO_API int iso_fb_cobs_encode(uint8_t *dst, size_t dst_cap, const uint8_t *src, size_t len);
 /* Decodes len COBS bytes (no delimiter) into dst. Returns the decoded length,
  * ISO_FB_ECOBS if the input holds a 0x00 or a code runs past its end, or
  * ISO_FB_ENOSPACE if the result would not fit dst_cap. dst may equal src. */
-int iso_fb_cobs_decode(uint8_t *dst, size_t dst_cap, const uint8_t *src, size_t len);
+ISO_API int iso_fb_cobs_decode(uint8_t *dst, size_t dst_cap, const uint8_t *src, size_t len);
 
 /* ---- frames ------------------------------------------------------------ */
 typedef struct iso_fb_view {
@@ -90,8 +92,8 @@ typedef struct iso_fb_view {
 /* Writes one wire frame (0x00, COBS(header, payload, CRC), 0x00) into dst.
  * Returns its length, ISO_FB_EARG if len > ISO_FB_MAX_PAYLOAD, or
  * ISO_FB_ENOSPACE if dst_cap < ISO_FB_WIRE_MAX(len). */
-int iso_fb_frame_encode(uint8_t *dst, size_t dst_cap, uint8_t type, uint16_t seq,
-                        const uint8_t *payload, size_t len);
+ISO_API int iso_fb_frame_encode(uint8_t *dst, size_t dst_cap, uint8_t type, uint16_t seq,
+                                const uint8_t *payload, size_t len);
 
 typedef struct iso_fb_counters {
     uint32_t frames_ok;
@@ -111,15 +113,15 @@ typedef struct iso_fb_parser {         /* caller allocates (stack, static or str
     iso_fb_counters n;
 } iso_fb_parser;
 
-void iso_fb_parser_init(iso_fb_parser *p);
+ISO_API void iso_fb_parser_init(iso_fb_parser *p);
 /* Forgets the last sequence number, so the next frame is accepted whatever
  * its number (after a reconnect, or when the peer rebooted). HELLO frames do
  * this by themselves. */
-void iso_fb_parser_reset_seq(iso_fb_parser *p);
+ISO_API void iso_fb_parser_reset_seq(iso_fb_parser *p);
 /* Feeds one byte. Returns ISO_FB_MORE, ISO_FB_FRAME (*out is valid), or a
  * negative ISO_FB_E* saying why a frame was dropped (also counted). The
  * parser always recovers at the next 0x00 and never writes out of bounds. */
-int iso_fb_parser_feed(iso_fb_parser *p, uint8_t byte, iso_fb_view *out);
+ISO_API int iso_fb_parser_feed(iso_fb_parser *p, uint8_t byte, iso_fb_view *out);
 
 /* ---- messages ---------------------------------------------------------- */
 /* Setpoints and positions are signed 16-bit fixed point in milli-units of the
@@ -204,21 +206,21 @@ typedef struct iso_fb_diag {
  * or ISO_FB_EARG (a count over ISO_FB_MAX_CHANNELS) / ISO_FB_ENOSPACE.
  * Unpack: parses a payload; returns 0, or ISO_FB_EPAYLOAD if its length or
  * a count is wrong (m is then unspecified). All fields little-endian. */
-int iso_fb_hello_pack(uint8_t *dst, size_t cap, const iso_fb_hello *m);
-int iso_fb_hello_unpack(iso_fb_hello *m, const uint8_t *src, size_t len);
-int iso_fb_sample_pack(uint8_t *dst, size_t cap, const iso_fb_sample *m);
-int iso_fb_sample_unpack(iso_fb_sample *m, const uint8_t *src, size_t len);
-int iso_fb_setpoints_pack(uint8_t *dst, size_t cap, const iso_fb_setpoints *m);
-int iso_fb_setpoints_unpack(iso_fb_setpoints *m, const uint8_t *src, size_t len);
-int iso_fb_heartbeat_pack(uint8_t *dst, size_t cap, const iso_fb_heartbeat *m);
-int iso_fb_heartbeat_unpack(iso_fb_heartbeat *m, const uint8_t *src, size_t len);
-int iso_fb_ack_pack(uint8_t *dst, size_t cap, const iso_fb_ack *m);
-int iso_fb_ack_unpack(iso_fb_ack *m, const uint8_t *src, size_t len);
-int iso_fb_nak_pack(uint8_t *dst, size_t cap, const iso_fb_nak *m);
-int iso_fb_nak_unpack(iso_fb_nak *m, const uint8_t *src, size_t len);
-int iso_fb_fault_pack(uint8_t *dst, size_t cap, const iso_fb_fault *m);
-int iso_fb_fault_unpack(iso_fb_fault *m, const uint8_t *src, size_t len);
-int iso_fb_diag_pack(uint8_t *dst, size_t cap, const iso_fb_diag *m);
-int iso_fb_diag_unpack(iso_fb_diag *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_hello_pack(uint8_t *dst, size_t cap, const iso_fb_hello *m);
+ISO_API int iso_fb_hello_unpack(iso_fb_hello *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_sample_pack(uint8_t *dst, size_t cap, const iso_fb_sample *m);
+ISO_API int iso_fb_sample_unpack(iso_fb_sample *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_setpoints_pack(uint8_t *dst, size_t cap, const iso_fb_setpoints *m);
+ISO_API int iso_fb_setpoints_unpack(iso_fb_setpoints *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_heartbeat_pack(uint8_t *dst, size_t cap, const iso_fb_heartbeat *m);
+ISO_API int iso_fb_heartbeat_unpack(iso_fb_heartbeat *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_ack_pack(uint8_t *dst, size_t cap, const iso_fb_ack *m);
+ISO_API int iso_fb_ack_unpack(iso_fb_ack *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_nak_pack(uint8_t *dst, size_t cap, const iso_fb_nak *m);
+ISO_API int iso_fb_nak_unpack(iso_fb_nak *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_fault_pack(uint8_t *dst, size_t cap, const iso_fb_fault *m);
+ISO_API int iso_fb_fault_unpack(iso_fb_fault *m, const uint8_t *src, size_t len);
+ISO_API int iso_fb_diag_pack(uint8_t *dst, size_t cap, const iso_fb_diag *m);
+ISO_API int iso_fb_diag_unpack(iso_fb_diag *m, const uint8_t *src, size_t len);
 
 #endif

@@ -68,30 +68,31 @@ typedef struct iso_fb_host {
 
 /* Sets up h over link (borrowed) and sends the first HELLO. opts and cb may
  * be NULL (defaults, no callbacks). */
-ISO_NODISCARD int iso_fb_host_init(iso_fb_host *h, iso_link *link, const iso_fb_host_opts *opts,
-                                   const iso_fb_host_callbacks *cb, iso_err *err);
-void iso_fb_host_deinit(iso_fb_host *h); /* does not close the link */
+ISO_API ISO_NODISCARD int iso_fb_host_init(iso_fb_host *h, iso_link *link,
+                                           const iso_fb_host_opts *opts,
+                                           const iso_fb_host_callbacks *cb, iso_err *err);
+ISO_API void iso_fb_host_deinit(iso_fb_host *h); /* does not close the link */
 
 /* Reads and handles what arrived within timeout_ms. Returns the number of
  * frames handled (>= 0). A lost link is not an error here: the host goes
  * DOWN, remembers why in last_err, and step() brings it back. */
-int iso_fb_host_poll(iso_fb_host *h, int timeout_ms);
+ISO_API int iso_fb_host_poll(iso_fb_host *h, int timeout_ms);
 
 /* One control tick: services reopen/HELLO as needed, sends SETPOINTS(tick,
  * values[n]) when STREAMING, and polls without waiting. Returns 1 if the
  * setpoints went out, 0 if not streaming, or ISO_EINVAL for bad arguments. */
-int iso_fb_host_step(iso_fb_host *h, uint32_t tick, const int16_t *values, unsigned n);
+ISO_API int iso_fb_host_step(iso_fb_host *h, uint32_t tick, const int16_t *values, unsigned n);
 
 /* Sends a DIAG hang request (proves the MCU's hardware watchdog). */
-ISO_NODISCARD int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err);
+ISO_API ISO_NODISCARD int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err);
 
 /* Drops to HANDSHAKE so the next step sends HELLO again. */
-void iso_fb_host_rehello(iso_fb_host *h);
+ISO_API void iso_fb_host_rehello(iso_fb_host *h);
 
 /* One line of counters, e.g. for `isoshape` to print. Returns snprintf's
  * result. The _stats_ form takes a copy of the counters (a caller whose
  * host lives on another thread). */
-int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap);
-int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap);
+ISO_API int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap);
+ISO_API int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap);
 
 #endif

@@ -14,6 +14,7 @@ typedef struct iso_metrics {
 } iso_metrics;
 
 /* x0, x1: 3*nv positions (rest and deformed) over m's connectivity. */
-void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1, iso_metrics *out);
+ISO_API void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1,
+                                 iso_metrics *out);
 
 #endif

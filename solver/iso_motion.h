@@ -20,20 +20,20 @@ typedef struct iso_twist {
     double v[3]; /* velocity of the point at the world origin */
 } iso_twist;
 
-void iso_pose_identity(iso_pose *g);
+ISO_API void iso_pose_identity(iso_pose *g);
 /* y = R x + p */
-void iso_pose_apply(const iso_pose *g, const double x[3], double y[3]);
+ISO_API void iso_pose_apply(const iso_pose *g, const double x[3], double y[3]);
 /* g = a ∘ b: first b, then a (g may alias neither). */
-void iso_pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g);
+ISO_API void iso_pose_compose(const iso_pose *a, const iso_pose *b, iso_pose *g);
 /* Velocity at point y: v + w × y. */
-void iso_twist_velocity(const iso_twist *xi, const double y[3], double vel[3]);
+ISO_API void iso_twist_velocity(const iso_twist *xi, const double y[3], double vel[3]);
 
 /* Projects M's 3x3 part to the nearest rotation (via its quaternion) and
  * takes the matrix logarithm: the constant twist whose exp(1·ξ) is M. Fails
  * for a rotation of exactly π (the axis sign is ambiguous there: say so). */
-ISO_NODISCARD int iso_twist_from_matrix(const double M[16], iso_twist *xi, iso_err *err);
+ISO_API ISO_NODISCARD int iso_twist_from_matrix(const double M[16], iso_twist *xi, iso_err *err);
 /* g = exp(t ξ), evaluated in closed form (Rodrigues and the screw's V matrix). */
-void iso_twist_exp(const iso_twist *xi, double t, iso_pose *g);
+ISO_API void iso_twist_exp(const iso_twist *xi, double t, iso_pose *g);
 
 /* What drives the handles: for handle h at time t, its pose (relative to the
  * rest pose) and its world twist. Returning non-zero aborts integration with
@@ -49,6 +49,6 @@ typedef struct iso_screw_path {
     const iso_twist *twists;
     int n;
 } iso_screw_path;
-iso_path iso_screw_path_make(iso_screw_path *sp);
+ISO_API iso_path iso_screw_path_make(iso_screw_path *sp);
 
 #endif

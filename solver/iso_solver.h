@@ -108,13 +108,13 @@ typedef struct iso_solver_opts {
     iso_solver_threads threads; /* what the solver may do to thread settings */
 } iso_solver_opts;
 
-void iso_solver_opts_default(iso_solver_opts *o);
+ISO_API void iso_solver_opts_default(iso_solver_opts *o);
 
 /* The solver keeps pointers to mesh and regions: both must outlive it. */
-ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
-                                    const iso_solver_opts *opts, /* NULL = defaults */
-                                    iso_solver **out, iso_err *err);
-void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
+                                            const iso_solver_opts *opts, /* NULL = defaults */
+                                            iso_solver **out, iso_err *err);
+ISO_API void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
 
 /* One field evaluation.
  * input:  x  (3*nv) current positions of all vertices;
@@ -124,26 +124,26 @@ void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
  *            entries copied from vc, fixed and unreferenced set to zero.
  * A system that is not positive definite is ISO_ENUMERIC naming the row and
  * its vertex, never a silent wrong answer. */
-ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v,
-                                   iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc,
+                                           double *v, iso_err *err);
 
 /* As iso_solver_field, but conjugate gradients (the adaptive scheme's
  * reuse of a cached factor) start from the free entries of guess (3*nv;
  * may be v itself) instead of the previous solution: the integrator
  * extrapolates its history to the new time, which starts closer. The
  * result meets the same tolerance either way; a direct solve ignores it. */
-ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
-                                        const double *guess, double *v, iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
+                                                const double *guess, double *v, iso_err *err);
 
 /* The restoration term's settings (iso_solver_opts): μ and the τ now in use.
  * Defined in restore.c. */
-void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */
+ISO_API void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */
 
 /* Sets the τ of the next evaluations (> 0, finite), e.g. the integrator's
  * per-step τ_eff = max(τ, κ h), which keeps the explicit step inside its
  * stability region (iso_integrate.h). Only τ changes: the pattern, the
  * elements and μ stay. With μ = 0 it is accepted and changes nothing. */
-ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
 
 typedef struct iso_solver_stats {
     long evaluations;
@@ -154,26 +154,15 @@ typedef struct iso_solver_stats {
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
 } iso_solver_stats;
-void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
+ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 
 /* Floating-point operations of one numeric factorization, as CHOLMOD's
  * analysis counts them (Common->fl); 0 when there are no free vertices. For
  * reporting a factorization's achieved rate beside the machine's dgemm. */
-double iso_solver_factor_flops(const iso_solver *s);
+ISO_API double iso_solver_factor_flops(const iso_solver *s);
 
 /* One line about a choice the solver made that the user should hear of
  * (e.g. "OpenCL: no platform found; using the C assembly"), or "". */
-const char *iso_solver_notice(const iso_solver *s);
-
-/* Assembles the whole 3nv x 3nv matrix A(x) (all vertices, no constraints)
- * as dense row-major into `A` (caller-owned, (3nv)^2 doubles). For tests and
- * small meshes only. */
-ISO_NODISCARD int iso_assemble_dense(const iso_mesh *m, const double *x,
-                                     const iso_solver_opts *opts, double *A, iso_err *err);
-
-/* d(v) = (1−ω) d1 + ω d2 at positions x, evaluated element by element
- * (no global matrix); d1 and d2 separately if the pointers are non-NULL. */
-double iso_distortion(const iso_mesh *m, const double *x, const double *v,
-                      const iso_solver_opts *opts, double *d1, double *d2);
+ISO_API const char *iso_solver_notice(const iso_solver *s);
 
 #endif
