@@ -123,15 +123,6 @@ ISO_API int iso_dev_fake_writes(iso_dev_source *s, int *last_level);
 
 /* ---- OS backends without optional libraries (always built) ------------ */
 
-/* Opens a terminal device (a serial adapter, a pseudo-terminal, an
- * emulator's UART) non-blocking in raw 8N1 mode at a standard baud rate and
- * stores the descriptor in *fd. Shared by the tty input source below and
- * the firmware bridge's tty link, so both treat a port the same way. Errors
- * name the path: a rate that is not standard, a failed open (with the
- * dialout-group hint on EACCES), "not a terminal", a failed tcsetattr. */
-ISO_API ISO_NODISCARD int iso_dev_tty_open_raw(const char *path, uint32_t baud, int *fd,
-                                               iso_err *err);
-
 /* A POSIX tty (pseudo-terminal, emulator, /dev/ttyUSB0) in raw 8N1 at baud. */
 ISO_API ISO_NODISCARD int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out,
                                            iso_err *err);
