@@ -359,11 +359,12 @@ typedef struct iso_act_emu_info {
 ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
 
 /* Starts an emulated MCU and opens a link to it. AUTO tries QEMU (found as
- * $ISO_FB_QEMU, "" meaning none, then the build's path, then PATH; the ELF
- * as $ISO_FB_FIRMWARE, then the build's fb_firmware.elf, then next to the
- * running program and in its ../share/isoshape/) and falls back to native,
- * saying why in info->line. The returned link owns the emulation:
- * iso_link_close() kills and reaps QEMU or stops and joins the thread.
+ * $ISO_FB_QEMU, "" meaning none, then on PATH; the ELF as $ISO_FB_FIRMWARE,
+ * then next to the running program (where a build puts it, beside the
+ * isoshape command), in its ../share/isoshape/, then where `cmake --install`
+ * put it) and falls back to native, saying why in info->line. The returned
+ * link owns the emulation: iso_link_close() kills and reaps QEMU or stops
+ * and joins the thread.
  * Its reopen is a no-op while the emulation lives (the host's loss recovery
  * then shakes hands again on the same stream); when the emulation died it
  * restarts it: QEMU is relaunched without blocking (each reopen checks
