@@ -47,7 +47,10 @@ typedef enum iso_refactor {
  * factorization) neither pays: on two cores the cactus factorization takes
  * twice as long with them, and the spinning pool steals the core the
  * OpenCL assembly wants (solver/linsolve.c has the figures). The library
- * never changes a process-wide setting unless asked to here. */
+ * never changes a process-wide setting unless asked to here, and reads no
+ * environment variable for it: a program that wants OMP_MAX_ACTIVE_LEVELS
+ * or OPENBLAS_NUM_THREADS to win passes the LEAVE policies (the isoshape
+ * command does when they are set). */
 typedef enum iso_solver_omp {
     /* Each CHOLMOD call runs its OpenMP regions on the calling thread: the
      * solver sets the calling thread's max-active-levels to 0 for the call
