@@ -8,18 +8,20 @@
 
 #include <stdint.h>
 
+#include "iso_api.h"
+
 /* Nanoseconds on CLOCK_MONOTONIC. */
-int64_t iso_clock_ns(void);
+ISO_API int64_t iso_clock_ns(void);
 /* The same in microseconds and in seconds. */
-uint64_t iso_clock_us(void);
-double iso_clock_now(void);
+ISO_API uint64_t iso_clock_us(void);
+ISO_API double iso_clock_now(void);
 /* Milliseconds from now until deadline_us (iso_clock_us's scale), rounded
  * up so that a poll() for it never wakes early; 0 once it has passed. */
-int iso_clock_ms_until(uint64_t deadline_us);
+ISO_API int iso_clock_ms_until(uint64_t deadline_us);
 
 /* Sleeps until iso_clock_ns() reaches deadline_ns (at once when it has).
  * Returns 0 at the deadline, or 1 when a signal woke it first (the caller
  * decides whether to sleep again). */
-int iso_clock_sleep_until(int64_t deadline_ns);
+ISO_API int iso_clock_sleep_until(int64_t deadline_ns);
 
 #endif

@@ -10,6 +10,8 @@
 
 #include <stdarg.h>
 
+#include "iso_api.h"
+
 enum {
     ISO_OK = 0,
     ISO_EINVAL = -1,   /* caller bug or bad option value */
@@ -32,15 +34,15 @@ typedef struct iso_err {
 #define ISO_PRINTF(a, b) __attribute__((format(printf, a, b)))
 
 /* Resets *err to "no error". NULL is a no-op. */
-void iso_err_clear(iso_err *err);
+ISO_API void iso_err_clear(iso_err *err);
 
 /* Records an error unless one is already recorded (first wins). Returns
  * `code`, so a caller can write `return iso_err_set(err, ISO_EINVAL, ...)`.
  * err may be NULL. */
-int iso_err_set(iso_err *err, int code, long offset, const char *fmt, ...) ISO_PRINTF(4, 5);
-int iso_err_setv(iso_err *err, int code, long offset, const char *fmt, va_list ap);
+ISO_API int iso_err_set(iso_err *err, int code, long offset, const char *fmt, ...) ISO_PRINTF(4, 5);
+ISO_API int iso_err_setv(iso_err *err, int code, long offset, const char *fmt, va_list ap);
 
 /* A short name for a code; never NULL. */
-const char *iso_strerror(int code);
+ISO_API const char *iso_strerror(int code);
 
 #endif

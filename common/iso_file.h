@@ -15,7 +15,7 @@
  * path: ISO_EIO "PATH: cannot open: <why>" or "PATH: read error at byte
  * offset N: <why>" (offset N), ISO_ENOMEM, ISO_EINVAL "PATH: larger than
  * N bytes". */
-ISO_NODISCARD int iso_file_read(const char *path, size_t max, char **out, size_t *len,
-                                iso_err *err);
+ISO_API ISO_NODISCARD int iso_file_read(const char *path, size_t max, char **out, size_t *len,
+                                        iso_err *err);
 
 #endif

@@ -20,6 +20,8 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "iso_api.h"
+
 #define ISO_JSON_MAX_DEPTH 16
 
 typedef struct iso_json { /* caller-owned; iso_json_begin fills it */
@@ -31,21 +33,21 @@ typedef struct iso_json { /* caller-owned; iso_json_begin fills it */
 } iso_json;
 
 /* Starts the top-level object on f. */
-void iso_json_begin(iso_json *j, FILE *f);
+ISO_API void iso_json_begin(iso_json *j, FILE *f);
 /* Closes whatever is open, ends the line; returns 0, or -1 when f reports
  * a write error. */
-int iso_json_end(iso_json *j);
+ISO_API int iso_json_end(iso_json *j);
 
 /* Opens an object or an array as the value of `key` (NULL inside an array). */
-void iso_json_object(iso_json *j, const char *key);
-void iso_json_array(iso_json *j, const char *key);
+ISO_API void iso_json_object(iso_json *j, const char *key);
+ISO_API void iso_json_array(iso_json *j, const char *key);
 /* Closes the innermost open object or array. */
-void iso_json_close(iso_json *j);
+ISO_API void iso_json_close(iso_json *j);
 
-void iso_json_number(iso_json *j, const char *key, double v); /* non-finite: null */
-void iso_json_int(iso_json *j, const char *key, long long v);
-void iso_json_bool(iso_json *j, const char *key, int v);
-void iso_json_string(iso_json *j, const char *key, const char *s); /* NULL: null */
+ISO_API void iso_json_number(iso_json *j, const char *key, double v); /* non-finite: null */
+ISO_API void iso_json_int(iso_json *j, const char *key, long long v);
+ISO_API void iso_json_bool(iso_json *j, const char *key, int v);
+ISO_API void iso_json_string(iso_json *j, const char *key, const char *s); /* NULL: null */
 
 /* A struct's members as values, by a table: each row names the key, the
  * member's type and its offset ({ISO_JSON_FIELD(T, m, type)} for a member
@@ -65,6 +67,6 @@ typedef struct iso_json_field {
     size_t at; /* offsetof */
 } iso_json_field;
 #define ISO_JSON_FIELD(type_name, member, json_type) #member, json_type, offsetof(type_name, member)
-void iso_json_fields(iso_json *j, const void *base, const iso_json_field *f, size_t n);
+ISO_API void iso_json_fields(iso_json *j, const void *base, const iso_json_field *f, size_t n);
 
 #endif

@@ -10,12 +10,15 @@
 
 #include <stddef.h>
 
+#include "iso_api.h"
+
 /* The value whose name is `word`, or -1. */
-int iso_names_find(const char *const *names, const char *word);
+ISO_API int iso_names_find(const char *const *names, const char *word);
 /* The name of `value`, or "?" when the table has none. */
-const char *iso_names_get(const char *const *names, int value);
+ISO_API const char *iso_names_get(const char *const *names, int value);
 /* The names as a phrase into buf: "a, b or c" with last = " or ", or
  * "a, b, c" with last = ", ". Returns buf. */
-const char *iso_names_list(const char *const *names, const char *last, char *buf, size_t cap);
+ISO_API const char *iso_names_list(const char *const *names, const char *last, char *buf,
+                                   size_t cap);
 
 #endif

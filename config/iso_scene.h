@@ -264,18 +264,19 @@ typedef struct iso_scene_opts {
 /* Loads and validates the scene at `path`. On success returns ISO_OK and a
  * new scene in *out (iso_scene_destroy frees it); on failure a negative
  * ISO_E* code, *out NULL and err filled ("FILE:LINE:COL: KEY: ..."). */
-ISO_NODISCARD int iso_scene_load(const char *path, iso_scene **out, iso_err *err);
-ISO_NODISCARD int iso_scene_load_opts(const char *path, const iso_scene_opts *opts,
-                                      iso_scene **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_scene_load(const char *path, iso_scene **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_scene_load_opts(const char *path, const iso_scene_opts *opts,
+                                              iso_scene **out, iso_err *err);
 /* The same from text in memory; `name` is the file name used in messages
  * and for relative paths. */
-ISO_NODISCARD int iso_scene_load_mem(const char *text, size_t len, const char *name,
-                                     const iso_scene_opts *opts, iso_scene **out, iso_err *err);
-void iso_scene_destroy(iso_scene *s); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_scene_load_mem(const char *text, size_t len, const char *name,
+                                             const iso_scene_opts *opts, iso_scene **out,
+                                             iso_err *err);
+ISO_API void iso_scene_destroy(iso_scene *s); /* NULL is a no-op */
 
 /* Names used in the schema, for summaries. Never NULL. */
-const char *iso_scene_driver_name(int kind);
-const char *iso_scene_backend_name(int backend);
-const char *iso_scene_link_name(int link);
+ISO_API const char *iso_scene_driver_name(int kind);
+ISO_API const char *iso_scene_backend_name(int backend);
+ISO_API const char *iso_scene_link_name(int link);
 
 #endif

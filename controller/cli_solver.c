@@ -8,6 +8,7 @@
 #include "internal.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 void iso_cli__solver_opts_default(iso_solver_opts *so)
@@ -16,6 +17,14 @@ void iso_cli__solver_opts_default(iso_solver_opts *so)
     so->assembly = ISO_ASSEMBLY_OPENCL;
     so->refactor = ISO_REFACTOR_ADAPTIVE;
     so->cg_tol = ISO_CLI_DEFAULT_CG_TOL;
+    iso_cli__solver_threads(&so->threads);
+}
+
+void iso_cli__solver_threads(iso_solver_threads *t)
+{
+    int omp_user = getenv("OMP_MAX_ACTIVE_LEVELS") || getenv("OMP_THREAD_LIMIT");
+    t->omp = omp_user ? ISO_SOLVER_OMP_LEAVE : ISO_SOLVER_OMP_CALLER;
+    t->blas = getenv("OPENBLAS_NUM_THREADS") ? ISO_SOLVER_BLAS_LEAVE : ISO_SOLVER_BLAS_SIZED;
 }
 
 static int parse_cg_tol(const char *cmd, const char *val, double *out)

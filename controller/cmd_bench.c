@@ -274,6 +274,7 @@ static int bare_cholmod(const iso_cli__problem *p, int reps, bench_machine *m, i
 {
     iso_solver_opts so;
     iso_solver_opts_default(&so);
+    iso_cli__solver_threads(&so.threads);
     so.assembly = ISO_ASSEMBLY_CPU;
     so.refactor = ISO_REFACTOR_ALWAYS;
     iso_twist xi;

@@ -251,6 +251,7 @@ int iso_cli__record(int argc, char **argv)
     record_ctx ctx = {quiet, (long)llround(1000.0 / tick_ms), 0, tick_ms};
     iso_loop_opts lo;
     iso_loop_opts_default(&lo);
+    iso_cli__solver_threads(&lo.threads);
     lo.cmd = cmd;
     lo.rt = 0;
     lo.display = 0;

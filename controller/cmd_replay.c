@@ -431,6 +431,7 @@ int iso_cli__replay(int argc, char **argv)
         snprintf(label, sizeof label, "%s", a.src.mesh ? a.src.mesh : "");
     iso_loop_opts lo;
     iso_loop_opts_default(&lo);
+    iso_cli__solver_threads(&lo.threads);
     lo.cmd = cmd;
     lo.fast = a.fast;
     lo.speed = a.speed;

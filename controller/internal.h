@@ -112,8 +112,16 @@ const char *iso_cli__blas_config(void);
 #define ISO_CLI_SOLVER_HELP ISO_CLI_ASSEMBLY_HELP ISO_CLI_REFACTOR_HELP ISO_CLI_CG_TOL_HELP
 
 /* The library's defaults with the command's: OpenCL assembly, adaptive
- * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL. */
+ * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL, and the command's
+ * thread settings (iso_cli__solver_threads). */
 void iso_cli__solver_opts_default(iso_solver_opts *so);
+
+/* What the command asks of threads, since it runs one solver at a time:
+ * CHOLMOD's OpenMP regions on the calling thread, and OpenBLAS on one
+ * thread while a solver of a small system exists (ISO_SOLVER_BLAS_SIZED).
+ * A user who sets OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT, or
+ * OPENBLAS_NUM_THREADS, keeps that choice: the solver then leaves it. */
+void iso_cli__solver_threads(iso_solver_threads *t);
 
 /* If argv[*i] is --assembly, --cl-device, --refactor or --cg-tol (either
  * form of iso_cli__value), stores its value in so and returns 1; returns -1

@@ -94,16 +94,20 @@ typedef struct iso_loop_tick_info {
 } iso_loop_tick_info;
 
 typedef struct iso_loop_opts {
-    int fast;                    /* 1: no waiting, as fast as possible on stream time */
-    double speed;                /* wall pacing: stream seconds per wall second (1) */
-    double duration_s;           /* stop after this much stream time; 0: when the stream ends */
-    long max_ticks;              /* stop after this many ticks; 0: no limit */
-    int rt;                      /* 1: ask for SCHED_FIFO and locked memory (real-time mode only) */
-    int display;                 /* -1: as the scene says, 0: off, 1: on */
-    int port;                    /* display port override; -1: the scene's; 0: any free port */
-    int status_line;             /* 1: a live status line on `log` (a terminal) */
-    int assembly;                /* -1: the scene's, else iso_assembly */
-    const char *cl_device;       /* OpenCL device spec or NULL */
+    int fast;              /* 1: no waiting, as fast as possible on stream time */
+    double speed;          /* wall pacing: stream seconds per wall second (1) */
+    double duration_s;     /* stop after this much stream time; 0: when the stream ends */
+    long max_ticks;        /* stop after this many ticks; 0: no limit */
+    int rt;                /* 1: ask for SCHED_FIFO and locked memory (real-time mode only) */
+    int display;           /* -1: as the scene says, 0: off, 1: on */
+    int port;              /* display port override; -1: the scene's; 0: any free port */
+    int status_line;       /* 1: a live status line on `log` (a terminal) */
+    int assembly;          /* -1: the scene's, else iso_assembly */
+    const char *cl_device; /* OpenCL device spec or NULL */
+    /* The solver's thread settings: the program's, not the scene's (a scene
+     * file has no say over process-wide settings). Default: the library's
+     * (iso_solver_opts_default), which change nothing process-wide. */
+    iso_solver_threads threads;
     const char *record;          /* record the devices here (overrides the scene), or NULL */
     volatile sig_atomic_t *stop; /* set by a signal handler: stop after this tick */
     FILE *log;                   /* notices and the status line; NULL = stderr */
@@ -124,7 +128,7 @@ typedef struct iso_loop_opts {
     void *estop_ctx;
 } iso_loop_opts;
 
-void iso_loop_opts_default(iso_loop_opts *o);
+ISO_API void iso_loop_opts_default(iso_loop_opts *o);
 
 /* Tick figures, all in milliseconds except counts. */
 typedef struct iso_loop_summary {
@@ -162,42 +166,42 @@ typedef struct iso_loop_summary {
 
 /* Builds the loop for scene sc (which must outlive it): solver, stepper,
  * devices, sinks. Errors name the part that failed. */
-ISO_NODISCARD int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
-                                  iso_err *err);
-void iso_loop_destroy(iso_loop *l); /* closes the recording whole; NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o,
+                                          iso_loop **out, iso_err *err);
+ISO_API void iso_loop_destroy(iso_loop *l); /* closes the recording whole; NULL is a no-op */
 
 /* Runs until the stream or duration ends, max_ticks, or *stop. Returns
  * ISO_OK, or the error that stopped it (the mesh stays at its last good
  * tick). */
-ISO_NODISCARD int iso_loop_run(iso_loop *l, iso_err *err);
+ISO_API ISO_NODISCARD int iso_loop_run(iso_loop *l, iso_err *err);
 
 /* Brings the sinks to rest: closes the recording, sends the actuators to
  * their safe state. Safe to call twice; destroy calls it. */
-ISO_NODISCARD int iso_loop_shutdown(iso_loop *l, iso_err *err);
+ISO_API ISO_NODISCARD int iso_loop_shutdown(iso_loop *l, iso_err *err);
 
 /* The figures so far; the metrics and checksum are of the current mesh. */
-void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s);
+ISO_API void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s);
 /* The current positions (3*nv) and the mesh. */
-const double *iso_loop_positions(const iso_loop *l);
-const iso_mesh *iso_loop_mesh(const iso_loop *l);
+ISO_API const double *iso_loop_positions(const iso_loop *l);
+ISO_API const iso_mesh *iso_loop_mesh(const iso_loop *l);
 
 /* Writes the summary as JSON to path; ISO_EIO naming the path on failure. */
-ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,
-                                      const char *path, iso_err *err);
+ISO_API ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,
+                                              const char *path, iso_err *err);
 /* Prints the summary for people. */
-void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f);
+ISO_API void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f);
 
 /* Handle h's commanded pose (rest to current): where its device commands
  * or its scripted path have put it; the mesh's handle reaches it at the end
  * of each tick. NULL for h out of range. */
-const iso_pose *iso_loop_commanded_pose(const iso_loop *l, int h);
+ISO_API const iso_pose *iso_loop_commanded_pose(const iso_loop *l, int h);
 /* The device hub (NULL without devices) and, for a replay, its recording's
  * reader (records, damage, tear); NULL otherwise. Read-only. */
-const iso_dev_hub *iso_loop_hub(const iso_loop *l);
+ISO_API const iso_dev_hub *iso_loop_hub(const iso_loop *l);
 /* The actuator sink (NULL without one), for a status display or a safety
  * monitor on another thread: its stats, state and link state are safe to
  * read from any thread (iso_actuators.h). */
-struct iso_actuators *iso_loop_actuators(const iso_loop *l);
-const iso_dev_rec_reader *iso_loop_replay_reader(const iso_loop *l);
+ISO_API struct iso_actuators *iso_loop_actuators(const iso_loop *l);
+ISO_API const iso_dev_rec_reader *iso_loop_replay_reader(const iso_loop *l);
 
 #endif

@@ -22,6 +22,9 @@ void iso_loop_opts_default(iso_loop_opts *o)
     o->display = -1;
     o->port = -1;
     o->assembly = -1;
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    o->threads = so.threads;
 }
 
 /* ======================================================================== */
@@ -183,6 +186,7 @@ static int build_solver(iso_loop *l, iso_err *err)
     if (l->o.assembly >= 0)
         so.assembly = (iso_assembly)l->o.assembly;
     so.cl_device = l->o.cl_device;
+    so.threads = l->o.threads;
     int rc = iso_solver_create(sc->mesh, &sc->regions, &so, &l->solver, err);
     if (rc != ISO_OK)
         return rc;

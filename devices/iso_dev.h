@@ -70,7 +70,7 @@ typedef struct iso_dev_info {
     uint8_t desc[ISO_DEV_DESC_MAX];
 } iso_dev_info;
 
-const char *iso_dev_kind_name(int kind); /* "hid", "spnav", "serial", "gpio"; never NULL */
+ISO_API const char *iso_dev_kind_name(int kind); /* "hid", "spnav", "serial", "gpio"; never NULL */
 
 /* ====================================================================== */
 /* Sources: one interface, one backend per file                            */
@@ -106,61 +106,55 @@ struct iso_dev_source {
     char detail[ISO_DEV_NAME_MAX];
 };
 
-int iso_dev_source_fd(iso_dev_source *s);
-ISO_NODISCARD int iso_dev_source_read(iso_dev_source *s, int64_t until_ns, iso_dev_chunk *out,
-                                      iso_err *err);
-void iso_dev_source_close(iso_dev_source *s); /* NULL is a no-op */
+ISO_API int iso_dev_source_fd(iso_dev_source *s);
+ISO_API ISO_NODISCARD int iso_dev_source_read(iso_dev_source *s, int64_t until_ns,
+                                              iso_dev_chunk *out, iso_err *err);
+ISO_API void iso_dev_source_close(iso_dev_source *s); /* NULL is a no-op */
 
 /* ---- simulated backends (always built) --------------------------------- */
 
 /* A scripted source for tests: chunks and "gone" marks queued by the test,
  * handed out in order once until_ns reaches their time. */
-ISO_NODISCARD int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out,
+                                            iso_err *err);
 /* Queues bytes (len <= ISO_DEV_CHUNK_MAX) at time t. */
-ISO_NODISCARD int iso_dev_fake_push(iso_dev_source *s, int64_t t_ns, const void *data, size_t len);
+ISO_API ISO_NODISCARD int iso_dev_fake_push(iso_dev_source *s, int64_t t_ns, const void *data,
+                                            size_t len);
 /* Queues a device failure at time t: read then returns ISO_EIO. */
-ISO_NODISCARD int iso_dev_fake_push_gone(iso_dev_source *s, int64_t t_ns);
+ISO_API ISO_NODISCARD int iso_dev_fake_push_gone(iso_dev_source *s, int64_t t_ns);
 /* How many times write_level was called, and the last level written. */
-int iso_dev_fake_writes(iso_dev_source *s, int *last_level);
+ISO_API int iso_dev_fake_writes(iso_dev_source *s, int *last_level);
 /* Gives the fake an e-stop line at this level (1 pressed, 0 released, or a
  * negative ISO_E* its estop_level then returns); any thread. Until the first
  * call it has none (ISO_ENOTSUP). */
-void iso_dev_fake_set_estop(iso_dev_source *s, int level);
+ISO_API void iso_dev_fake_set_estop(iso_dev_source *s, int level);
 
 /* ---- OS backends without optional libraries (always built) ------------ */
 
-/* Opens a terminal device (a serial adapter, a pseudo-terminal, an
- * emulator's UART) non-blocking in raw 8N1 mode at a standard baud rate and
- * stores the descriptor in *fd. Shared by the tty input source below and
- * the firmware bridge's tty link, so both treat a port the same way. Errors
- * name the path: a rate that is not standard, a failed open (with the
- * dialout-group hint on EACCES), "not a terminal", a failed tcsetattr. */
-ISO_NODISCARD int iso_dev_tty_open_raw(const char *path, uint32_t baud, int *fd, iso_err *err);
-
 /* A POSIX tty (pseudo-terminal, emulator, /dev/ttyUSB0) in raw 8N1 at baud. */
-ISO_NODISCARD int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out,
-                                   iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out,
+                                           iso_err *err);
 /* A TCP client to a serial-over-network bridge, "host:port". Connects before
  * it returns (timeout_ms), then reads without blocking. */
-ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_dev_source **out,
-                                   iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms,
+                                           iso_dev_source **out, iso_err *err);
 
 /* ---- hardware backends (compiled when their -dev package is present) -- */
 /* Each returns ISO_ENOTSUP with a sentence when its library was not built in. */
 
 /* hidapi (hidraw): path as hidapi enumerates it ("/dev/hidraw3"), or NULL
  * for the first known 3D mouse. */
-ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
 /* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. The
  * socket is found as libspnav finds it: $SPNAV_SOCKET, then `socket =` in
  * /etc/spnavrc, then /var/run/spnav.sock (the first that accepts; it goes
  * into detail). When the daemon closes the connection (stopped, killed,
  * restarted) read reports the source gone, so the hub emits GONE and
  * retries; libspnav itself would only see "no events". */
-ISO_NODISCARD int iso_dev_spnav_open(iso_dev_source **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_spnav_open(iso_dev_source **out, iso_err *err);
 /* libserialport: a real serial adapter by name ("/dev/ttyUSB0"). */
-ISO_NODISCARD int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **out,
-                                          iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_serialport_open(const char *name, uint32_t baud,
+                                                  iso_dev_source **out, iso_err *err);
 /* libgpiod v1: chip ("gpiochip0"), clutch and e-stop line offsets (-1 none),
  * active_low, debounce, and an optional output line for a per-tick pulse. */
 typedef struct iso_dev_gpio_opts {
@@ -169,8 +163,8 @@ typedef struct iso_dev_gpio_opts {
     int active_low;
     uint32_t debounce_us;
 } iso_dev_gpio_opts;
-ISO_NODISCARD int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out,
-                                     iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out,
+                                             iso_err *err);
 
 /* ---- discovery ---------------------------------------------------------- */
 
@@ -185,28 +179,28 @@ typedef struct iso_dev_found {
 
 /* Lists what every built-in backend sees. Returns the count written (at most
  * cap); never fails: a backend that cannot look says so in an entry. */
-size_t iso_dev_enumerate(iso_dev_found *out, size_t cap);
+ISO_API size_t iso_dev_enumerate(iso_dev_found *out, size_t cap);
 /* 1 if (vid, pid) is a known 3D mouse (3Dconnexion 0x046d / 0x256f). */
-int iso_dev_is_3dmouse(uint16_t vid, uint16_t pid);
+ISO_API int iso_dev_is_3dmouse(uint16_t vid, uint16_t pid);
 /* The udev rule that grants the logged-in user a device (uaccess). */
-void iso_dev_udev_rule(uint16_t vid, char *buf, size_t cap);
+ISO_API void iso_dev_udev_rule(uint16_t vid, char *buf, size_t cap);
 /* Which backends were compiled in, e.g. "fake replay tty tcp hidapi
  * serialport gpiod libusb spnav", written into buf (the names that fit in
  * cap, whole); returns buf. */
-const char *iso_dev_backends(char *buf, size_t cap);
+ISO_API const char *iso_dev_backends(char *buf, size_t cap);
 /* 1 if the backend `name` ("hidapi", "serialport", "gpiod", "libusb",
  * "spnav", or one always built: "fake", "replay", "tty", "tcp") was compiled
  * in, 0 if it was compiled out (its open function then returns ISO_ENOTSUP),
  * -1 if there is no backend of that name. */
-int iso_dev_backend_built(const char *name);
+ISO_API int iso_dev_backend_built(const char *name);
 
 /* libusb hotplug: a watcher whose fd set wakes the loop on arrival and
  * removal of known devices. iso_dev_usb_watch_poll returns how many events
  * arrived since the last call (each sets the hub's retry to "now"). */
 typedef struct iso_dev_usb_watch iso_dev_usb_watch;
-ISO_NODISCARD int iso_dev_usb_watch_create(iso_dev_usb_watch **out, iso_err *err);
-int iso_dev_usb_watch_poll(iso_dev_usb_watch *w);
-void iso_dev_usb_watch_destroy(iso_dev_usb_watch *w);
+ISO_API ISO_NODISCARD int iso_dev_usb_watch_create(iso_dev_usb_watch **out, iso_err *err);
+ISO_API int iso_dev_usb_watch_poll(iso_dev_usb_watch *w);
+ISO_API void iso_dev_usb_watch_destroy(iso_dev_usb_watch *w);
 
 /* ====================================================================== */
 /* Decoded events                                                         */
@@ -273,26 +267,28 @@ typedef struct iso_dev_decoder {
 
 /* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown
  * kind; ISO_ENOTSUP for serial when the firmware bridge was not built. */
-ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t source,
-                                       iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info,
+                                               uint8_t source, iso_err *err);
 /* Decodes one chunk into at most cap events appended at ev. Returns the
  * number written. Bad bytes are counted and skipped, never fatal. Events
  * beyond cap are dropped and counted as garbage (size ev for a chunk:
  * ISO_DEV_EVENTS_PER_CHUNK is always enough). */
 #define ISO_DEV_EVENTS_PER_CHUNK 130u
-size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev, size_t cap);
+ISO_API size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev,
+                              size_t cap);
 /* The serial parser's drops by reason; all zero for other kinds. */
-void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out);
+ISO_API void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops *out);
 /* Time passes without a chunk: confirms GPIO levels that have been stable
  * for the debounce time. Returns the events written. */
-size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now_ns, iso_dev_event *ev, size_t cap);
+ISO_API size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now_ns, iso_dev_event *ev,
+                                   size_t cap);
 
 /* The SpaceMouse family (3Dconnexion 0x046d and 0x256f): one HID input
  * report, report ID first. Told apart by length: ID 1 with 7 bytes is
  * translation, ID 1 with 13 bytes translation and rotation, ID 2 with 7
  * bytes rotation, ID 3 buttons (little-endian bit mask). Axes are LE int16. */
-size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t *r, size_t len,
-                         iso_dev_event *ev, size_t cap);
+ISO_API size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t *r, size_t len,
+                                 iso_dev_event *ev, size_t cap);
 
 /* ====================================================================== */
 /* Mapping: events to one command per tick                                */
@@ -313,11 +309,11 @@ enum {
  * "clutch", "next_handle", "reset_pose", "record"; axes "tx", "ty", "tz",
  * "rx", "ry", "rz" (index 0..5, as in remap, invert and the per-axis
  * arrays). */
-extern const char *const iso_dev_lock_names[];
-extern const char *const iso_dev_frame_names[];
-extern const char *const iso_dev_clutch_names[];
-extern const char *const iso_dev_action_names[];
-extern const char *const iso_dev_axis_names[];
+ISO_API extern const char *const iso_dev_lock_names[];
+ISO_API extern const char *const iso_dev_frame_names[];
+ISO_API extern const char *const iso_dev_clutch_names[];
+ISO_API extern const char *const iso_dev_action_names[];
+ISO_API extern const char *const iso_dev_axis_names[];
 
 typedef struct iso_dev_map_opts {
     double full_scale;         /* raw counts at full deflection (350) */
@@ -339,7 +335,7 @@ typedef struct iso_dev_map_opts {
 /* Defaults: 350 counts, 0.1 m/s and 0.5 rad/s, 5 % dead zone, linear,
  * identity remap, no lock, world frame, button 0 clutch, button 1 next
  * handle, one handle, pose gain 1. */
-void iso_dev_map_opts_default(iso_dev_map_opts *o);
+ISO_API void iso_dev_map_opts_default(iso_dev_map_opts *o);
 
 typedef struct iso_dev_tick {
     int64_t t_ns;
@@ -399,29 +395,30 @@ typedef struct iso_dev_map {
  * field's range; else -1 and a phrase for the caller's message in why,
  * e.g. "expected a value in [0, 0.99], found 1.5" (NaN is never in range;
  * an unknown field says so). */
-int iso_dev_map_check(const char *field, double v, char *why, size_t cap);
+ISO_API int iso_dev_map_check(const char *field, double v, char *why, size_t cap);
 
-ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opts *o, iso_err *err);
 /* Sets source `source`'s stale time for twist streams (see above), in
  * stream nanoseconds. ISO_EINVAL with a sentence for a source index past
  * ISO_DEV_MAX_SOURCES or a time outside [ISO_DEV_STALE_MIN_NS,
  * ISO_DEV_STALE_MAX_NS]. Set it after iso_dev_map_init (which sets every
  * source to the default). */
-ISO_NODISCARD int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns,
+                                                iso_err *err);
 /* Sets handle h's centre (rest coordinates): a twist of the device then
  * turns the handle about R c + p, where it is now, instead of about p. */
-void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);
+ISO_API void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);
 /* The mapping of one device reading (6 raw axes) to a twist for a handle
  * at pose g (rotation about its centre g->p). Pure: no state. */
-void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const iso_pose *g,
-                      iso_twist *out);
+ISO_API void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const iso_pose *g,
+                              iso_twist *out);
 /* Applies this tick's events in order and writes the tick's command.
  * poses[h] is handle h's current pose, rest to current (for the device
  * frame, rotation about the handle's centre, and pose streams, whose
  * samples are poses in the same sense); dt_s the tick length.
  * Deterministic. */
-void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
-                      double dt_s, const iso_pose *poses, iso_dev_tick *out);
+ISO_API void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
+                              double dt_s, const iso_pose *poses, iso_dev_tick *out);
 
 /* ====================================================================== */
 /* Recordings (devices/RECORDING.md)                                       */
@@ -435,19 +432,20 @@ typedef struct iso_dev_rec_writer {
     char path[ISO_DEV_NAME_MAX * 2];
 } iso_dev_rec_writer;
 
-ISO_NODISCARD int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const char *path,
-                                          const iso_dev_info *infos, size_t n, int64_t t0_ns,
-                                          iso_err *err);
-ISO_NODISCARD int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const char *path,
+                                                  const iso_dev_info *infos, size_t n,
+                                                  int64_t t0_ns, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c,
+                                            iso_err *err);
 /* Writes a TICK record and flushes to the kernel (kill -9 then loses nothing). */
-ISO_NODISCARD int iso_dev_rec_tick(iso_dev_rec_writer *w, int64_t t_ns, iso_err *err);
-ISO_NODISCARD int iso_dev_rec_writer_close(iso_dev_rec_writer *w, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_tick(iso_dev_rec_writer *w, int64_t t_ns, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_writer_close(iso_dev_rec_writer *w, iso_err *err);
 
 /* Encodes a header or a record into memory (what the writer writes).
  * Return the length, or ISO_EINVAL if it does not fit cap. */
-int iso_dev_rec_encode_header(uint8_t *dst, size_t cap, const iso_dev_info *infos, size_t n,
-                              int64_t t0_ns);
-int iso_dev_rec_encode_record(uint8_t *dst, size_t cap, const iso_dev_chunk *c);
+ISO_API int iso_dev_rec_encode_header(uint8_t *dst, size_t cap, const iso_dev_info *infos, size_t n,
+                                      int64_t t0_ns);
+ISO_API int iso_dev_rec_encode_record(uint8_t *dst, size_t cap, const iso_dev_chunk *c);
 
 typedef struct iso_dev_rec_reader {
     const uint8_t *data; /* the whole recording (owned when loaded from a file) */
@@ -467,28 +465,30 @@ typedef struct iso_dev_rec_reader {
 
 /* Parses the header of a recording in memory (not copied: data must
  * outlive the reader). ISO_EPARSE with the byte offset for a bad header. */
-ISO_NODISCARD int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const uint8_t *data, size_t len,
-                                          iso_err *err);
-ISO_NODISCARD int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const uint8_t *data,
+                                                  size_t len, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path,
+                                                  iso_err *err);
 /* Next complete record: returns 1 and fills *c, or 0 at the end (r->torn
  * and r->note then say where it stopped). Damaged records are counted,
  * described in r->note and skipped; *damaged_now tells the caller (may be NULL). */
-int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now);
-void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r);
+ISO_API int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now);
+ISO_API void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r);
 
 /* The replay backend: a multiplexed source over a reader (which it does not
  * own and which must outlive it). Hands out records stamped <= until_ns;
  * TICK records are returned too (the player uses them as tick boundaries). */
-ISO_NODISCARD int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out,
+                                              iso_err *err);
 /* Time of the next record, or INT64_MAX at the end. */
-int64_t iso_dev_replay_peek(iso_dev_source *s);
+ISO_API int64_t iso_dev_replay_peek(iso_dev_source *s);
 /* Time of the next TICK record, or INT64_MAX if none is left. */
-int64_t iso_dev_replay_next_tick(iso_dev_source *s);
+ISO_API int64_t iso_dev_replay_next_tick(iso_dev_source *s);
 /* The reader under a replay source; NULL for any other source. */
-const iso_dev_rec_reader *iso_dev_replay_reader(iso_dev_source *s);
+ISO_API const iso_dev_rec_reader *iso_dev_replay_reader(iso_dev_source *s);
 
 /* CRC-32 (IEEE 802.3, reflected 0xEDB88320); check value 0xCBF43926. */
-uint32_t iso_dev_crc32(const uint8_t *p, size_t len);
+ISO_API uint32_t iso_dev_crc32(const uint8_t *p, size_t len);
 
 /* ====================================================================== */
 /* The hub: sources + decoders + recording + reconnects                    */
@@ -502,14 +502,14 @@ typedef int (*iso_dev_reopen_fn)(void *ctx, const iso_dev_info *info, iso_dev_so
 /* One sentence per state change (gone, back, damaged record), no newline. */
 typedef void (*iso_dev_notify_fn)(void *ctx, const char *msg);
 
-ISO_NODISCARD int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub **out,
-                                     iso_err *err);
-void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx,
+                                             iso_dev_hub **out, iso_err *err);
+ISO_API void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is a no-op */
 /* Adds a source (the hub owns it from now, even on failure). A multiplexed
  * source (replay) brings every source of its recording and must be alone. */
-ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
-                                  void *reopen_ctx, iso_err *err);
-size_t iso_dev_hub_sources(const iso_dev_hub *h);
+ISO_API ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s,
+                                          iso_dev_reopen_fn reopen, void *reopen_ctx, iso_err *err);
+ISO_API size_t iso_dev_hub_sources(const iso_dev_hub *h);
 /* The e-stop inputs (sources whose estop_level answers, e.g. a GPIO e-stop
  * line), read now: 1 when any is pressed, or is gone or unreadable (an
  * e-stop circuit that cannot be read is not trusted), else 0. Safe to call
@@ -519,9 +519,9 @@ size_t iso_dev_hub_sources(const iso_dev_hub *h);
  * calls it every 2 ms, so an e-stop edge acts while a tick computes. The
  * decoded e-stop (debounced, recorded) still goes through the mapping;
  * this probe only ever stops sooner. */
-int iso_dev_hub_estop_probe(void *hub);
-int iso_dev_hub_has_estop(const iso_dev_hub *h); /* any source with an e-stop input */
-const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
+ISO_API int iso_dev_hub_estop_probe(void *hub);
+ISO_API int iso_dev_hub_has_estop(const iso_dev_hub *h); /* any source with an e-stop input */
+ISO_API const iso_dev_decoder *iso_dev_hub_decoder(const iso_dev_hub *h, size_t i);
 
 /* What the loop's summary and --stats-json report per source: counted
  * since the source was added, across reconnects. */
@@ -536,7 +536,7 @@ typedef struct iso_dev_source_stats {
 } iso_dev_source_stats;
 /* Fills *out for source i. ISO_EINVAL (and *out zeroed) if i is not a
  * source. The stale counts are kept by iso_dev_hub_tick. */
-int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stats *out);
+ISO_API int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stats *out);
 /* One line for people (the loop's start-up line), no newline: kind, name,
  * then in parentheses what else identifies it, e.g.
  *   hid /dev/hidraw3 (256f:c635 SpaceMouse Compact)
@@ -545,31 +545,32 @@ int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stat
  *   gpio gpiochip0 (debounce 2000 us)        ... (replayed) for a replay.
  * Truncated to cap (NUL-terminated when cap > 0). ISO_EINVAL and "" if i
  * is not a source. */
-int iso_dev_hub_describe(const iso_dev_hub *h, size_t i, char *buf, size_t cap);
-void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns); /* default 500 ms */
-void iso_dev_hub_retry_now(iso_dev_hub *h);                   /* hotplug arrival */
+ISO_API int iso_dev_hub_describe(const iso_dev_hub *h, size_t i, char *buf, size_t cap);
+ISO_API void iso_dev_hub_set_retry(iso_dev_hub *h, int64_t retry_ns); /* default 500 ms */
+ISO_API void iso_dev_hub_retry_now(iso_dev_hub *h);                   /* hotplug arrival */
 /* Records every chunk from now on (header: the current sources). */
-ISO_NODISCARD int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err);
-ISO_NODISCARD int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err);
 
 /* Once per tick: drains every source up to now_ns, records and decodes what
  * came, handles unplug and replug, and returns the events (at most cap; the
  * rest wait for the next call). Only a recording write error fails. */
-ISO_NODISCARD int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev, size_t cap,
-                                    size_t *n, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_hub_drain(iso_dev_hub *h, int64_t now_ns, iso_dev_event *ev,
+                                            size_t cap, size_t *n, iso_err *err);
 /* drain + iso_dev_map_tick + a TICK record: what the real-time loop calls.
  * Also says (notify) when a source's twist stream goes stale and when it
  * resumes, and counts it (iso_dev_hub_source_stats): use one map with it. */
-ISO_NODISCARD int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
-                                   const iso_pose *poses, iso_dev_tick *out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns,
+                                           double dt_s, const iso_pose *poses, iso_dev_tick *out,
+                                           iso_err *err);
 /* Replay: when the next tick is. The recording's next TICK record if it
  * has one; INT64_MAX after the last TICK record of a recording that has
  * them (records after it are input the recorded loop never ticked); for a
  * recording without TICK records, last + fallback_dt_ns (the first
  * record's time for the first tick), INT64_MAX when every record has been
  * drained. */
-int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns);
+ISO_API int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns);
 /* Replay: 1 once every record has been drained. */
-int iso_dev_hub_replay_done(iso_dev_hub *h);
+ISO_API int iso_dev_hub_replay_done(iso_dev_hub *h);
 
 #endif

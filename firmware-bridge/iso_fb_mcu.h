@@ -41,29 +41,29 @@ typedef struct iso_fb_mcu {
 
 /* Fills a config with n channels of limits [-1000, 1000], rate 2000/s,
  * safe position 0, and the default periods. */
-void iso_fb_mcu_config_default(iso_fb_mcu_config *cfg, uint8_t n_channels);
+ISO_API void iso_fb_mcu_config_default(iso_fb_mcu_config *cfg, uint8_t n_channels);
 
 /* Starts the node in the IDLE state (every channel at its safe position) and
  * announces it with an unasked HELLO carrying ISO_FB_HELLO_BOOT. Returns 0 or
  * ISO_FB_EARG for a bad config. */
-int iso_fb_mcu_init(iso_fb_mcu *m, const iso_fb_mcu_config *cfg, iso_fb_mcu_write_fn write,
-                    void *write_ctx, uint32_t now_ms);
+ISO_API int iso_fb_mcu_init(iso_fb_mcu *m, const iso_fb_mcu_config *cfg, iso_fb_mcu_write_fn write,
+                            void *write_ctx, uint32_t now_ms);
 
 /* Feeds received bytes; complete frames are handled at once (replies are
  * written through the write callback). */
-void iso_fb_mcu_rx(iso_fb_mcu *m, const uint8_t *bytes, size_t n);
+ISO_API void iso_fb_mcu_rx(iso_fb_mcu *m, const uint8_t *bytes, size_t n);
 
 /* Advances the clock to now_ms (wraps after 49 days; differences are taken
  * modulo 2^32): moves actuators, runs the link watchdog, sends HEARTBEAT and
  * HANDLE_SAMPLE when due. Call at least every millisecond for the watchdog to
  * hold its "watchdog time plus one frame" bound. */
-void iso_fb_mcu_tick(iso_fb_mcu *m, uint32_t now_ms);
+ISO_API void iso_fb_mcu_tick(iso_fb_mcu *m, uint32_t now_ms);
 
 /* Current position of channel ch in milli-units (rounded toward zero). */
-int16_t iso_fb_mcu_position(const iso_fb_mcu *m, unsigned ch);
+ISO_API int16_t iso_fb_mcu_position(const iso_fb_mcu *m, unsigned ch);
 
 /* The simulated sensor on the MCU: a deterministic pose as a function of its
  * timestamp, so tests on the host can check every decoded sample. */
-void iso_fb_mcu_synth_sample(uint32_t t_us, iso_fb_sample *out);
+ISO_API void iso_fb_mcu_synth_sample(uint32_t t_us, iso_fb_sample *out);
 
 #endif

@@ -41,21 +41,24 @@ struct iso_link {
     const iso_link_ops *ops; /* every backend struct starts with this */
 };
 
-ISO_NODISCARD int iso_link_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err);
-ISO_NODISCARD int iso_link_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err);
-int iso_link_poll_fd(iso_link *l);
+ISO_API ISO_NODISCARD int iso_link_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms,
+                                        iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms,
+                                         iso_err *err);
+ISO_API int iso_link_poll_fd(iso_link *l);
 /* ISO_ENOTSUP where the backend cannot reopen. */
-ISO_NODISCARD int iso_link_reopen(iso_link *l, iso_err *err);
-void iso_link_close(iso_link *l); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_link_reopen(iso_link *l, iso_err *err);
+ISO_API void iso_link_close(iso_link *l); /* NULL is a no-op */
 
 /* ---- POSIX tty ---------------------------------------------------------- */
 /* Opens path raw (8N1, no flow control, no echo) at baud (e.g. 115200; a
  * pty ignores it). */
-ISO_NODISCARD int iso_link_tty_open(const char *path, int baud, iso_link **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_tty_open(const char *path, int baud, iso_link **out,
+                                            iso_err *err);
 
 /* ---- TCP client --------------------------------------------------------- */
-ISO_NODISCARD int iso_link_tcp_open(const char *host, int port, int timeout_ms, iso_link **out,
-                                    iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_tcp_open(const char *host, int port, int timeout_ms,
+                                            iso_link **out, iso_err *err);
 
 /* ---- libserialport ------------------------------------------------------ */
 typedef struct iso_link_sp_port {
@@ -65,8 +68,9 @@ typedef struct iso_link_sp_port {
 } iso_link_sp_port;
 /* Lists serial ports into ports[cap]; returns how many exist (may exceed
  * cap), or ISO_EIO / ISO_ENOTSUP (built without libserialport). */
-ISO_NODISCARD int iso_link_sp_list(iso_link_sp_port *ports, size_t cap, iso_err *err);
-ISO_NODISCARD int iso_link_sp_open(const char *name, int baud, iso_link **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_sp_list(iso_link_sp_port *ports, size_t cap, iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_sp_open(const char *name, int baud, iso_link **out,
+                                           iso_err *err);
 
 /* ---- USB bulk ----------------------------------------------------------- */
 /* The transfer primitive the USB backend runs on: libusb_bulk_transfer's
@@ -93,11 +97,13 @@ typedef struct iso_link_usb_io {
  * endpoints' wMaxPacketSize (64 full speed, 512 high speed). Reads ask for
  * whole packets (no overflow); a write whose length is a multiple of
  * max_packet ends with a zero-length packet. */
-ISO_NODISCARD int iso_link_usb_open_io(const iso_link_usb_io *io, uint8_t ep_in, uint8_t ep_out,
-                                       uint16_t max_packet, iso_link **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_usb_open_io(const iso_link_usb_io *io, uint8_t ep_in,
+                                               uint8_t ep_out, uint16_t max_packet, iso_link **out,
+                                               iso_err *err);
 /* Opens the first device with vid:pid through libusb, claims its first
  * vendor-class interface and finds its bulk endpoints. ISO_ENOTSUP without
  * libusb. */
-ISO_NODISCARD int iso_link_usb_open(uint16_t vid, uint16_t pid, iso_link **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_link_usb_open(uint16_t vid, uint16_t pid, iso_link **out,
+                                            iso_err *err);
 
 #endif

@@ -7,7 +7,7 @@
 #include <unistd.h>
 
 #include "internal.h"
-#include "iso_dev.h"
+#include "iso_tty.h"
 
 typedef struct tty_link {
     iso_link base;
@@ -17,14 +17,14 @@ typedef struct tty_link {
     char what[280]; /* "tty /dev/ttyUSB0" for messages */
 } tty_link;
 
-/* Opening and raw configuration are the devices layer's, so a port behaves
+/* Opening and raw configuration are common/iso_tty.c's, so a port behaves
  * the same whether it feeds an input source or this link. */
 static int tty_connect(tty_link *t, iso_err *err)
 {
     if (t->baud <= 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: baud rate %d is not positive", t->what,
                            t->baud);
-    return iso_dev_tty_open_raw(t->path, (uint32_t)t->baud, &t->fd, err);
+    return iso_tty_open_raw(t->path, (uint32_t)t->baud, &t->fd, err);
 }
 
 static int tty_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)

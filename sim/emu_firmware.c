@@ -25,11 +25,17 @@
 #include <unistd.h>
 
 #include "act_internal.h"
-#include "fb_test_config.h" /* ISO_FB_FIRMWARE_ELF, ISO_FB_QEMU_PATH: where the build put them */
 #include "iso_actuators.h"
 #include "iso_clock.h"
 
 const char *const iso_act_emu_names[] = {"auto", "qemu", "native", NULL};
+
+/* Where `cmake --install` puts the firmware ELF (sim/CMakeLists.txt); the
+ * build tree is never looked in: a build puts the ELF next to the isoshape
+ * command, and its tests name it in $ISO_FB_FIRMWARE. */
+#ifndef ISO_FB_FIRMWARE_INSTALLED
+#define ISO_FB_FIRMWARE_INSTALLED ""
+#endif
 
 #define QEMU_CONNECT_MS 5000 /* QEMU connects its UART at start-up; loaded CI is slow */
 
@@ -379,10 +385,6 @@ static int find_qemu(char *out, size_t cap, char *why, size_t why_cap)
         snprintf(why, why_cap, "ISO_FB_QEMU='%s' is %s", env, env[0] ? "not executable" : "empty");
         return executable(env);
     }
-    if (executable(ISO_FB_QEMU_PATH)) {
-        snprintf(out, cap, "%s", ISO_FB_QEMU_PATH);
-        return 1;
-    }
     const char *path = getenv("PATH");
     char dirs[4096];
     snprintf(dirs, sizeof dirs, "%s", path ? path : "/usr/bin:/bin");
@@ -402,10 +404,6 @@ static int find_elf(char *out, size_t cap, char *why, size_t why_cap)
         snprintf(why, why_cap, "ISO_FB_FIRMWARE='%s' is not a file", env);
         return readable(env);
     }
-    if (readable(ISO_FB_FIRMWARE_ELF)) {
-        snprintf(out, cap, "%s", ISO_FB_FIRMWARE_ELF);
-        return 1;
-    }
     char exe[PATH_MAX];
     ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
     if (n > 0) {
@@ -420,9 +418,14 @@ static int find_elf(char *out, size_t cap, char *why, size_t why_cap)
                     return 1;
         }
     }
+    if (readable(ISO_FB_FIRMWARE_INSTALLED)) {
+        snprintf(out, cap, "%s", ISO_FB_FIRMWARE_INSTALLED);
+        return 1;
+    }
     snprintf(why, why_cap,
-             "the firmware ELF was not built (no arm-none-eabi-gcc at configure "
-             "time) nor found next to the program");
+             "no firmware ELF next to the program, in its ../share/isoshape/ or at '%s' "
+             "(built where arm-none-eabi-gcc is installed; ISO_FB_FIRMWARE names one)",
+             ISO_FB_FIRMWARE_INSTALLED);
     return 0;
 }
 

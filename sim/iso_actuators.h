@@ -128,7 +128,7 @@ typedef enum iso_act_emu_mode {
     ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread behind a pty pair */
 } iso_act_emu_mode;
 /* "auto", "qemu", "native", indexed by iso_act_emu_mode (iso_names.h) */
-extern const char *const iso_act_emu_names[];
+ISO_API extern const char *const iso_act_emu_names[];
 
 typedef struct iso_act_link_spec {
     int kind;                    /* iso_act_link_kind */
@@ -248,34 +248,35 @@ typedef struct iso_actuators iso_actuators; /* opaque */
  * (ISO_ENOTSUP for a transport this build lacks).
  * On success stores a new handle in *out (iso_actuators_destroy frees it);
  * on failure leaves *out NULL and fills err. */
-ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, /* in */
-                                       int nv, const iso_regions *regions,  /* in, may be NULL */
-                                       const iso_act_link_spec *link,       /* in, NULL = NONE */
-                                       const iso_act_opts *opts, /* in, NULL = defaults */
-                                       iso_actuators **out,      /* out */
-                                       iso_err *err);            /* out, may be NULL */
+ISO_API ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, /* in */
+                                               int nv,
+                                               const iso_regions *regions,    /* in, may be NULL */
+                                               const iso_act_link_spec *link, /* in, NULL = NONE */
+                                               const iso_act_opts *opts, /* in, NULL = defaults */
+                                               iso_actuators **out,      /* out */
+                                               iso_err *err);            /* out, may be NULL */
 /* Closes the link (and ends an emulation) without waiting for the MCU: call
  * iso_actuators_safe_stop() first for a clean stop. NULL is a no-op. */
-void iso_actuators_destroy(iso_actuators *a);
+ISO_API void iso_actuators_destroy(iso_actuators *a);
 
 /* iso_actuators_create with the safety options; create() is this with
  * safety = NULL (loop watchdog at 250 ms once alive() is first called, no
  * e-stop probe). Errors as create's, plus ISO_EINVAL for a loop_timeout_ms
  * of 1..9. */
-ISO_NODISCARD int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, /* in */
-                                          int nv, const iso_regions *regions,  /* in */
-                                          const iso_act_link_spec *link,       /* in */
-                                          const iso_act_opts *opts,            /* in */
-                                          const iso_act_safety_opts *safety,   /* in */
-                                          iso_actuators **out,                 /* out */
-                                          iso_err *err);                       /* out */
+ISO_API ISO_NODISCARD int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, /* in */
+                                                  int nv, const iso_regions *regions,  /* in */
+                                                  const iso_act_link_spec *link,       /* in */
+                                                  const iso_act_opts *opts,            /* in */
+                                                  const iso_act_safety_opts *safety,   /* in */
+                                                  iso_actuators **out,                 /* out */
+                                                  iso_err *err);                       /* out */
 
 /* Computes the channel values for positions x (3*nv, xyz interleaved) into
  * values[ch] for every configured channel (others are left alone), counting
  * clamps. ISO_ENUMERIC, naming the channel, when a coordinate is not finite.
  * Sends nothing. */
-ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
-                                        int16_t values[ISO_ACT_MAX_CHANNELS], iso_err *err);
+ISO_API ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
+                                                int16_t values[ISO_ACT_MAX_CHANNELS], iso_err *err);
 
 /* One control tick: computes the values and hands them to the sender
  * thread, which streams them from its next period on (until a later publish
@@ -287,13 +288,13 @@ ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *x,
  * ISO_ENUMERIC for non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
  * lacks a channel the spec drives or after safe_stop. With
  * ISO_ACT_LINK_NONE it only computes (returns 0). */
-ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
-                                        iso_err *err);
+ISO_API ISO_NODISCARD int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x,
+                                                iso_err *err);
 
 /* Waits up to timeout_ms for the sender thread to handle incoming frames
  * (ACKs, HEARTBEATs, ...); for tests and tools that watch the link. Returns
  * the frames handled meanwhile, at once (0) while the link is down. */
-int iso_actuators_poll(iso_actuators *a, int timeout_ms);
+ISO_API int iso_actuators_poll(iso_actuators *a, int timeout_ms);
 
 /* Stops streaming for good and waits up to timeout_ms for the MCU to report
  * its safe state: FAULT(watchdog), or a HEARTBEAT whose state is safe or
@@ -302,20 +303,20 @@ int iso_actuators_poll(iso_actuators *a, int timeout_ms);
  * saying it was not or that the link is down (ISO_EINVAL without a link).
  * Allow at least 150 ms:
  * the watchdog needs 100 ms plus a frame. Later publish calls fail. */
-ISO_NODISCARD int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms,
-                                          iso_err *err);
+ISO_API ISO_NODISCARD int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms,
+                                                  iso_err *err);
 
 /* A snapshot of the counters. */
-void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
+ISO_API void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
 
 /* The MCU's last HELLO answer (channel limits, rates, safe positions).
  * Returns 1 when there is one, else 0. */
-int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);
+ISO_API int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);
 
 /* One line of counters: this sink's (with the safety counts: link losses,
  * reopens, emulation restarts, loop stalls, e-stops, safe states confirmed),
  * then the link's (iso_fb_host_format_stats). Returns snprintf's result. */
-int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
+ISO_API int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
 
 /* ---- safety (issue #14); all lock-free, any thread, NULL a is a no-op ---- */
 
@@ -323,30 +324,30 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
  * the solver advances (every iteration, or at least every loop_timeout/2).
  * One clock read and two relaxed atomic stores. The first call arms the
  * loop watchdog; publish() also counts as progress after that. */
-void iso_actuators_alive(iso_actuators *a);
+ISO_API void iso_actuators_alive(iso_actuators *a);
 
 /* Presses (on != 0) or releases the e-stop. The sender stops streaming at
  * its next cycle; see "Safety" above for the time to the safe state. After
  * a release, streaming resumes with the next publish(). */
-void iso_actuators_estop(iso_actuators *a, int on);
+ISO_API void iso_actuators_estop(iso_actuators *a, int on);
 
 /* The sink's state (ISO_ACT_STATE_*) and, if holds is not NULL, why
  * setpoints are withheld (ISO_ACT_HOLD_* bits). Updated by the sender every
  * cycle. */
-int iso_actuators_state(const iso_actuators *a, unsigned *holds);
+ISO_API int iso_actuators_state(const iso_actuators *a, unsigned *holds);
 
 /* The same as one constant word or two for a status line: "armed",
  * "connecting", "silent", "stopping (e-stop)", "safe (e-stop)",
  * "safe (loop stalled)", "safe (stopped)", "safe (waiting for a tick)",
  * "lost", "reconnecting", "off". Never NULL. */
-const char *iso_actuators_link_state(const iso_actuators *a);
+ISO_API const char *iso_actuators_link_state(const iso_actuators *a);
 
 /* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
  * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
  * ends the MCU thread and closes its end of the pty (as a dying process
  * closes its UART), SIGSTOP pauses its clock and I/O, SIGCONT resumes.
  * ISO_EINVAL without an emulated link or for another signal (native). */
-ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
+ISO_API ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
 
 /* ---- emulated firmware (emu_firmware.c) ---------------------------------- */
 typedef struct iso_act_emu_info {
@@ -358,14 +359,15 @@ typedef struct iso_act_emu_info {
  * main.c): 4 channels, limits [-1000, 1000] except channel 1 [-1500, 1500]
  * and channel 3 [0, 2000], rate 2000/s except channel 2 at 500/s, safe
  * position 0. The native emulation runs with this, so both behave alike. */
-void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
+ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
 
 /* Starts an emulated MCU and opens a link to it. AUTO tries QEMU (found as
- * $ISO_FB_QEMU, "" meaning none, then the build's path, then PATH; the ELF
- * as $ISO_FB_FIRMWARE, then the build's fb_firmware.elf, then next to the
- * running program and in its ../share/isoshape/) and falls back to native,
- * saying why in info->line. The returned link owns the emulation:
- * iso_link_close() kills and reaps QEMU or stops and joins the thread.
+ * $ISO_FB_QEMU, "" meaning none, then on PATH; the ELF as $ISO_FB_FIRMWARE,
+ * then next to the running program (where a build puts it, beside the
+ * isoshape command), in its ../share/isoshape/, then where `cmake --install`
+ * put it) and falls back to native, saying why in info->line. The returned
+ * link owns the emulation: iso_link_close() kills and reaps QEMU or stops
+ * and joins the thread.
  * Its reopen is a no-op while the emulation lives (the host's loss recovery
  * then shakes hands again on the same stream); when the emulation died it
  * restarts it: QEMU is relaunched without blocking (each reopen checks
@@ -374,6 +376,7 @@ void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * MCU thread asks for SCHED_FIFO (lowest priority) and goes on without it
  * where that is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
  * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */
-ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err);
+ISO_API ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
+                                           iso_err *err);
 
 #endif

@@ -118,30 +118,31 @@ typedef struct iso_display_stats {
  * ISO_EIO (three.js missing or unreadable, naming the path and the package;
  * the address cannot be bound) or ISO_ENOMEM; *out is then NULL and err says
  * which. */
-ISO_NODISCARD int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_display_create(const iso_display_opts *opts, iso_display **out,
+                                             iso_err *err);
 
 /* The TCP port actually bound (useful with opts.port = 0). */
-int iso_display_port(const iso_display *d);
+ISO_API int iso_display_port(const iso_display *d);
 
 /* Number of browsers connected to /ws right now (0 for NULL). Takes no
  * lock: an atomic the server thread updates. */
-int iso_display_clients(const iso_display *d);
+ISO_API int iso_display_clients(const iso_display *d);
 
 /* Number of published frames the server has written whole to at least one
  * browser (0 for NULL). Takes no lock. */
-long iso_display_frames_sent(const iso_display *d);
+ISO_API long iso_display_frames_sent(const iso_display *d);
 
 /* Hands the positions x (3*nv, as the mesh) of `tick` to the display and
  * returns at once: no network I/O, no allocation, one copy under a lock the
  * server holds only for a memcpy of its own, and at most one write of a byte
  * to a non-blocking pipe to wake the server. stats may be NULL. Returns
  * ISO_EINVAL for NULL d or x; non-finite positions are sent as they are. */
-int iso_display_publish(iso_display *d, long tick, const double *x, const iso_display_stats *stats,
-                        iso_err *err);
+ISO_API int iso_display_publish(iso_display *d, long tick, const double *x,
+                                const iso_display_stats *stats, iso_err *err);
 
 /* Stops the server thread, closes every connection and frees everything.
  * Never waits on a browser: returns within one pass of the server's loop
  * even when a browser stopped reading. NULL is a no-op. */
-void iso_display_destroy(iso_display *d);
+ISO_API void iso_display_destroy(iso_display *d);
 
 #endif

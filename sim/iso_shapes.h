@@ -38,7 +38,7 @@ typedef struct iso_shape {
 } iso_shape;
 
 /* The built-in names, NULL-terminated, in a fixed order. Never NULL. */
-const char *const *iso_shape_names(void);
+ISO_API const char *const *iso_shape_names(void);
 
 /* Builds shape `name` into *out (which need not be initialised).
  * resolution: 0 for the default (a few thousand vertices), else a
@@ -50,13 +50,14 @@ const char *const *iso_shape_names(void);
  * On failure returns a negative ISO_E* code (ISO_EINVAL names the unknown
  * shape or the out-of-range resolution), leaves *out empty and fills err.
  * The caller releases *out with iso_shape_deinit(). */
-ISO_NODISCARD int iso_shape_init(iso_shape *out, const char *name, int resolution, iso_err *err);
+ISO_API ISO_NODISCARD int iso_shape_init(iso_shape *out, const char *name, int resolution,
+                                         iso_err *err);
 
 /* Frees the arrays and zeroes the struct; a zeroed or deinited struct is fine. */
-void iso_shape_deinit(iso_shape *s);
+ISO_API void iso_shape_deinit(iso_shape *s);
 
 /* Initialises r (which the caller deinits with iso_regions_deinit()) from
  * the shape's labels; all handle vertices are on handle 0. */
-ISO_NODISCARD int iso_shape_regions(const iso_shape *s, iso_regions *r, iso_err *err);
+ISO_API ISO_NODISCARD int iso_shape_regions(const iso_shape *s, iso_regions *r, iso_err *err);
 
 #endif

@@ -39,16 +39,16 @@ typedef struct iso_snapshot_view {
 
 /* Colour of a relative strain s >= 0 on the distortion scale, as 0..1 RGB.
  * The page uses the same scale. */
-void iso_display_strain_color(double s, double rgb[3]);
+ISO_API void iso_display_strain_color(double s, double rgb[3]);
 
 /* Renders mesh m at positions x (3*nv; NULL = rest) to an RGB PNG of
  * width x height pixels at `path`. regions may be NULL (no tint), view may
  * be NULL (defaults). Errors: ISO_EINVAL (sizes outside 16..8192, NULL mesh,
  * regions of another size), ISO_ENOMEM, ISO_EIO (naming the path and
  * libpng's reason), ISO_ENOTSUP when built without libpng. */
-ISO_NODISCARD int iso_snapshot_png(const iso_mesh *m, const double *x, const iso_regions *regions,
-                                   const char *path, int width, int height,
-                                   const iso_snapshot_view *view, iso_err *err);
+ISO_API ISO_NODISCARD int iso_snapshot_png(const iso_mesh *m, const double *x,
+                                           const iso_regions *regions, const char *path, int width,
+                                           int height, const iso_snapshot_view *view, iso_err *err);
 
 typedef struct iso_ply_frames iso_ply_frames; /* opaque */
 
@@ -56,18 +56,18 @@ typedef struct iso_ply_frames iso_ply_frames; /* opaque */
  * the writer) into folder dir, creating dir (one level) if it is missing.
  * ISO_EINVAL for every_n < 1 or NULL arguments, ISO_EIO if dir cannot be
  * made or is not a folder. */
-ISO_NODISCARD int iso_ply_frames_create(const char *dir, const iso_mesh *m, int every_n,
-                                        iso_ply_frames **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_ply_frames_create(const char *dir, const iso_mesh *m, int every_n,
+                                                iso_ply_frames **out, iso_err *err);
 
 /* Writes dir/frame_<tick>.ply with positions x if tick % every_n == 0 (else
  * does nothing and returns ISO_OK). Returns 1 when a file was written, 0 when
  * skipped, or the negative code from iso_mesh_save. ISO_EINVAL for a
  * negative tick. */
-int iso_ply_frames_write(iso_ply_frames *f, long tick, const double *x, iso_err *err);
+ISO_API int iso_ply_frames_write(iso_ply_frames *f, long tick, const double *x, iso_err *err);
 
 /* The path the frame for `tick` has (or would have), into buf. */
-const char *iso_ply_frames_path(const iso_ply_frames *f, long tick, char *buf, size_t cap);
+ISO_API const char *iso_ply_frames_path(const iso_ply_frames *f, long tick, char *buf, size_t cap);
 
-void iso_ply_frames_destroy(iso_ply_frames *f); /* NULL is a no-op */
+ISO_API void iso_ply_frames_destroy(iso_ply_frames *f); /* NULL is a no-op */
 
 #endif

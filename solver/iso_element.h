@@ -14,27 +14,29 @@
 #ifndef ISO_ELEMENT_H
 #define ISO_ELEMENT_H
 
+#include "iso_api.h"
+
 typedef enum iso_weighting {
     ISO_WEIGHT_PARAM = 0, /* N_T = (1/24) J⊗I: integral over the parameter triangle */
     ISO_WEIGHT_AREA = 1   /* N_T = (A_T/12) J⊗I: integral over the surface */
 } iso_weighting;
 /* "param", "area": iso_weighting's names (common/iso_names.h) */
-extern const char *const iso_weighting_names[];
+ISO_API extern const char *const iso_weighting_names[];
 
 /* Centroid c and size s of a triangle (x: 3 corners, 9 doubles). */
-void iso_elem_frame(const double x[9], double c[3], double *s);
+ISO_API void iso_elem_frame(const double x[9], double c[3], double *s);
 
 /* N_T's scale: 1/24 (param) or area/12 (area); N_T = scale * (J ⊗ I3). */
-double iso_elem_n_scale(const double x[9], iso_weighting w);
+ISO_API double iso_elem_n_scale(const double x[9], iso_weighting w);
 
 /* E (9x6): evaluates the rigid field p, parametrised about (c, s), at the
  * three points x (9 doubles). */
-void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double E[54]);
+ISO_API void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double E[54]);
 
 /* Best rigid fit R (6x9) of triangle x: p̂ = R v_T, in the (c, s) frame of
  * iso_elem_frame. Independent of the weighting. Returns 0, or -1 if the 6x6
  * normal matrix is not positive definite (degenerate triangle). */
-int iso_elem_rigid_fit(const double x[9], double R[54]);
+ISO_API int iso_elem_rigid_fit(const double x[9], double R[54]);
 
 /* A triangle's best rigid fit with its frame, computed once per evaluation
  * and shared by its Q1 and the Q2 of every pair it is the source of. */
@@ -49,7 +51,7 @@ typedef struct iso_elem_fit {
 } iso_elem_fit;
 
 /* Fills f for triangle x. Returns 0, or -1 for a degenerate triangle. */
-int iso_elem_fit_compute(const double x[9], iso_elem_fit *f);
+ISO_API int iso_elem_fit_compute(const double x[9], iso_elem_fit *f);
 
 /* What an edge block reads of a fit: its frame and W, 14 doubles against
  * iso_elem_fit's 68 (the assembly keeps one per triangle, and the memory it
@@ -60,13 +62,13 @@ typedef struct iso_elem_fit_core {
 } iso_elem_fit_core;
 
 /* Copies f's frame and W into k. */
-void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k);
+ISO_API void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k);
 /* Q1 and Q2 from a precomputed fit of triangle x (Q1) or Ti (Q2): the same
  * values as iso_elem_q1 / iso_elem_q2, with the fit not recomputed. */
-void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
-                          double Q[81]);
-void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
-                          const int jmap[3], iso_weighting w, double Q[144]);
+ISO_API void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
+                                  double Q[81]);
+ISO_API void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const double xo[3],
+                                  const int jmap[3], iso_weighting w, double Q[144]);
 
 /* The smoothness block of one interior edge, both ordered pairs summed,
  * and optionally the distortion blocks of its two triangles:
@@ -80,18 +82,18 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
  * triangle (12x12, row-major) is added to. Equal to the sum of
  * iso_elem_q2_from_fit's two blocks (and iso_elem_q1_from_fit's) up to
  * rounding, at about half their arithmetic. */
-void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
-                             const double xl[12], double wi, double wj, double qi, double qj,
-                             double Q[144]);
+ISO_API void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
+                                     const double xl[12], double wi, double wj, double qi,
+                                     double qj, double Q[144]);
 
 /* Q1 (9x9) with d_T(v) = v_Tᵀ Q1 v_T. */
-int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);
+ISO_API int iso_elem_q1(const double x[9], iso_weighting w, double Q[81]);
 
 /* Q2 (12x12) of the ordered pair (Ti, Tj): f_{i,j}(v) = v4ᵀ Q2 v4, where the
  * four local vertices are Ti's corners in Ti's order followed by Tj's corner
  * that is not in Ti. xi: Ti's 3 corners; xo: that fourth vertex; jmap: for
  * each corner of Tj (in any order) its local index 0..3. N is Tj's. */
-int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_weighting w,
-                double Q[144]);
+ISO_API int iso_elem_q2(const double xi[9], const double xo[3], const int jmap[3], iso_weighting w,
+                        double Q[144]);
 
 #endif

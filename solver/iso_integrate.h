@@ -62,13 +62,13 @@ typedef struct iso_integrate_opts {
  *          the two: Adams steps of order 1, 2, then 3. */
 enum { ISO_INTEGRATE_START_RK4 = 0, ISO_INTEGRATE_START_ADAMS = 1 };
 
-void iso_integrate_opts_default(iso_integrate_opts *o);
+ISO_API void iso_integrate_opts_default(iso_integrate_opts *o);
 
 typedef struct iso_integrate_stats {
-    int steps;        /* accepted steps, RK4 start included */
+    int steps; /* accepted steps, RK4 start included */
     int rk4_steps;
-    int rejected;     /* adaptive steps redone with a smaller step */
-    long evaluations; /* field evaluations */
+    int rejected;                /* adaptive steps redone with a smaller step */
+    long evaluations;            /* field evaluations */
     double max_err_estimate;     /* largest accepted Milne estimate (third-order steps), relative */
     int low_order_steps;         /* Adams steps of order 1 or 2 (an Adams start or restart) */
     int adams_order;             /* the last step's predictor order k (0 after RK4) */
@@ -80,9 +80,9 @@ typedef struct iso_integrate_stats {
  * mesh's, or any pose consistent with the path at t0) and the result on exit.
  * Handle h's vertices are placed at pose(t) applied to the mesh's rest
  * positions. */
-ISO_NODISCARD int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r,
-                                const iso_path *path, const iso_integrate_opts *opts,
-                                double *x, iso_integrate_stats *st, iso_err *err);
+ISO_API ISO_NODISCARD int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r,
+                                        const iso_path *path, const iso_integrate_opts *opts,
+                                        double *x, iso_integrate_stats *st, iso_err *err);
 
 /* ===== real time: one step per tick =====================================
  *
@@ -125,9 +125,9 @@ typedef struct iso_stepper iso_stepper; /* opaque */
  * positions and is advanced in place; handles start at the identity pose
  * (x's handle vertices are placed from the mesh's rest positions).
  * s, m and r must outlive the stepper. */
-ISO_NODISCARD int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r,
-                                     double *x, iso_stepper **out, iso_err *err);
-void iso_stepper_destroy(iso_stepper *st); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r,
+                                             double *x, iso_stepper **out, iso_err *err);
+ISO_API void iso_stepper_destroy(iso_stepper *st); /* NULL is a no-op */
 
 /* How an ABM3 step of the stepper ends.
  *   PECE (the default, the paper's): predict, evaluate, correct, evaluate
@@ -151,31 +151,31 @@ typedef enum iso_abm_mode { ISO_ABM_PECE = 0, ISO_ABM_PEC = 1 } iso_abm_mode;
 
 /* "pece" or "pec", as scenes, the command line and the JSON summary write
  * it; "?" for anything else. The table: iso_abm_mode_names (iso_names.h). */
-extern const char *const iso_abm_mode_names[];
-const char *iso_abm_mode_name(iso_abm_mode mode);
+ISO_API extern const char *const iso_abm_mode_names[];
+ISO_API const char *iso_abm_mode_name(iso_abm_mode mode);
 
 /* Sets the mode and restoration's κ for the steps that follow; κ < 0 takes
  * the mode's default (ISO_INTEGRATE_RESTORE_KAPPA, _PEC), 0 uses τ as given.
  * The history stays valid across a change. ISO_EINVAL for an unknown mode. */
-ISO_NODISCARD int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kappa,
-                                        iso_err *err);
+ISO_API ISO_NODISCARD int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode,
+                                                double restore_kappa, iso_err *err);
 
 /* CG's share of a step's local error (iso_integrate.h), default
  * ISO_INTEGRATE_CG_SHARE; 0 = the solver's cg_tol always. ISO_EINVAL for a
  * negative or non-finite share. */
-ISO_NODISCARD int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err);
+ISO_API ISO_NODISCARD int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err);
 
 /* Advances by h > 0 with twists[k] (one per handle) held over the step.
  * restart != 0 drops the multistep history first. The step's order and
  * evaluations follow the sequence above: at most two evaluations a step.
  * On error x is left at the last completed step, and the next step restarts
  * the history. */
-ISO_NODISCARD int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists,
-                                   int restart, iso_err *err);
+ISO_API ISO_NODISCARD int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists,
+                                           int restart, iso_err *err);
 
 /* Current time (sum of steps), handle k's pose, and counters. */
-double iso_stepper_time(const iso_stepper *st);
-const iso_pose *iso_stepper_pose(const iso_stepper *st, int handle);
-void iso_stepper_stats(const iso_stepper *st, iso_integrate_stats *out);
+ISO_API double iso_stepper_time(const iso_stepper *st);
+ISO_API const iso_pose *iso_stepper_pose(const iso_stepper *st, int handle);
+ISO_API void iso_stepper_stats(const iso_stepper *st, iso_integrate_stats *out);
 
 #endif

@@ -41,33 +41,33 @@ typedef struct iso_mesh iso_mesh; /* opaque */
  * a well-formed but unusable mesh (too few vertices, no triangle, duplicated,
  * degenerate or non-manifold triangles). err->offset is the offending
  * triangle's tri_src entry, or -1. On failure *out is NULL. */
-ISO_NODISCARD int iso_mesh_create(int nv, const double *x, int nt, const int *tri,
-                                  const char *origin, iso_mesh **out, iso_err *err);
-ISO_NODISCARD int iso_mesh_create_src(int nv, const double *x, int nt, const int *tri,
-                                      const char *origin, const long *tri_src,
-                                      int src_is_offset, iso_mesh **out, iso_err *err);
-void iso_mesh_destroy(iso_mesh *m); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_mesh_create(int nv, const double *x, int nt, const int *tri,
+                                          const char *origin, iso_mesh **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_mesh_create_src(int nv, const double *x, int nt, const int *tri,
+                                              const char *origin, const long *tri_src,
+                                              int src_is_offset, iso_mesh **out, iso_err *err);
+ISO_API void iso_mesh_destroy(iso_mesh *m); /* NULL is a no-op */
 
-int iso_mesh_vertex_count(const iso_mesh *m);
-int iso_mesh_triangle_count(const iso_mesh *m);
-const double *iso_mesh_positions(const iso_mesh *m); /* 3*nv, rest pose */
-const int *iso_mesh_triangles(const iso_mesh *m);    /* 3*nt */
-const char *iso_mesh_origin(const iso_mesh *m);
+ISO_API int iso_mesh_vertex_count(const iso_mesh *m);
+ISO_API int iso_mesh_triangle_count(const iso_mesh *m);
+ISO_API const double *iso_mesh_positions(const iso_mesh *m); /* 3*nv, rest pose */
+ISO_API const int *iso_mesh_triangles(const iso_mesh *m);    /* 3*nt */
+ISO_API const char *iso_mesh_origin(const iso_mesh *m);
 
 /* Undirected edges, each as (i, j) with i < j, sorted. */
-int iso_mesh_edge_count(const iso_mesh *m);
-const int *iso_mesh_edges(const iso_mesh *m); /* 2*ne */
+ISO_API int iso_mesh_edge_count(const iso_mesh *m);
+ISO_API const int *iso_mesh_edges(const iso_mesh *m); /* 2*ne */
 /* For edge e: its triangles (t0, t1); t1 = -1 on a boundary edge. */
-const int *iso_mesh_edge_triangles(const iso_mesh *m); /* 2*ne */
-int iso_mesh_unreferenced_count(const iso_mesh *m);
+ISO_API const int *iso_mesh_edge_triangles(const iso_mesh *m); /* 2*ne */
+ISO_API int iso_mesh_unreferenced_count(const iso_mesh *m);
 /* 1 if vertex i belongs to at least one triangle. */
-int iso_mesh_vertex_used(const iso_mesh *m, int i);
+ISO_API int iso_mesh_vertex_used(const iso_mesh *m, int i);
 /* Axis-aligned bounding-box diagonal of the referenced vertices. */
-double iso_mesh_bbox_diagonal(const iso_mesh *m);
+ISO_API double iso_mesh_bbox_diagonal(const iso_mesh *m);
 
 /* A human-readable note about repairs made while loading (polygons
  * triangulated); "" when there were none. */
-const char *iso_mesh_note(const iso_mesh *m);
+ISO_API const char *iso_mesh_note(const iso_mesh *m);
 
 typedef enum iso_mesh_format {
     ISO_MESH_FMT_AUTO = 0, /* from the file name's extension */
@@ -82,7 +82,7 @@ typedef enum iso_mesh_format {
  * ISO_EIO, malformed content ISO_EPARSE (also for a header count larger than
  * the file can hold, and for content after the announced elements), a
  * non-convex polygon or an unusable mesh ISO_EMESH. */
-ISO_NODISCARD int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err);
+ISO_API ISO_NODISCARD int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err);
 
 /* Writes m's triangles with positions `x` (3*nv; NULL = rest positions).
  * Coordinates are written with 17 significant digits in text formats, so a
@@ -90,7 +90,7 @@ ISO_NODISCARD int iso_mesh_load(const char *path, iso_mesh **out, iso_err *err);
  * not, so indices survive. ISO_MESH_FMT_AUTO with ".ply" writes binary
  * little endian. Non-finite positions are refused (ISO_EINVAL) rather than
  * written into a file that could not be read back. */
-ISO_NODISCARD int iso_mesh_save(const iso_mesh *m, const double *x, const char *path,
-                                iso_mesh_format fmt, iso_err *err);
+ISO_API ISO_NODISCARD int iso_mesh_save(const iso_mesh *m, const double *x, const char *path,
+                                        iso_mesh_format fmt, iso_err *err);
 
 #endif

@@ -17,7 +17,8 @@ typedef struct iso_metrics {
 } iso_metrics;
 
 /* x0, x1: 3*nv positions (rest and deformed) over m's connectivity. */
-void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1, iso_metrics *out);
+ISO_API void iso_metrics_compute(const iso_mesh *m, const double *x0, const double *x1,
+                                 iso_metrics *out);
 
 /* The measures by name, so that every output labels them alike: the
  * paper's name (what text output shows), the JSON key (snake_case, like
@@ -31,11 +32,11 @@ typedef struct iso_metrics_measure {
 } iso_metrics_measure;
 
 /* The table, in iso_metrics' order; *n gets its length. Static storage. */
-const iso_metrics_measure *iso_metrics_measures(size_t *n);
+ISO_API const iso_metrics_measure *iso_metrics_measures(size_t *n);
 /* The value of `which` (an entry of the table) in m. */
-double iso_metrics_value(const iso_metrics *m, const iso_metrics_measure *which);
+ISO_API double iso_metrics_value(const iso_metrics *m, const iso_metrics_measure *which);
 /* Prints one line per measure, each starting with `indent`: name, value,
  * and what it measures (e.g. "metricErr      1.234567e-02  sum over ..."). */
-void iso_metrics_print(FILE *f, const char *indent, const iso_metrics *m);
+ISO_API void iso_metrics_print(FILE *f, const char *indent, const iso_metrics *m);
 
 #endif

@@ -20,6 +20,6 @@ typedef struct iso_screw_path {
     const iso_twist *twists;
     int n;
 } iso_screw_path;
-iso_path iso_screw_path_make(iso_screw_path *sp);
+ISO_API iso_path iso_screw_path_make(iso_screw_path *sp);
 
 #endif

@@ -19,8 +19,8 @@ typedef struct iso_regions {
 } iso_regions;
 
 /* Allocates for nv vertices, all ISO_FREE. */
-ISO_NODISCARD int iso_regions_init(iso_regions *r, int nv, iso_err *err);
-void iso_regions_deinit(iso_regions *r); /* zeroed or deinited struct is fine */
+ISO_API ISO_NODISCARD int iso_regions_init(iso_regions *r, int nv, iso_err *err);
+ISO_API void iso_regions_deinit(iso_regions *r); /* zeroed or deinited struct is fine */
 
 /* Reads a .sel file: '#' comments, then exactly nv integers in {0,1,2}
  * (whitespace separated). Errors name the file, line, and what is wrong: a
@@ -28,7 +28,7 @@ void iso_regions_deinit(iso_regions *r); /* zeroed or deinited struct is fine */
  * Initialises r itself (do not pass an initialised struct: it would leak);
  * on success the caller deinits it, on failure it is left zeroed. Bad
  * content is ISO_EPARSE, an unreadable file ISO_EIO. */
-ISO_NODISCARD int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err *err);
+ISO_API ISO_NODISCARD int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err *err);
 
 /* Largest deviation |RᵀR − I| (max abs entry) and |det R − 1| accepted for a
  * .def rotation. The benchmark files print 6 decimals, so their rotations are
@@ -41,6 +41,6 @@ ISO_NODISCARD int iso_sel_load(const char *path, int nv, iso_regions *r, iso_err
  * other than (0 0 0 1), and a matrix whose 3x3 part is not a rotation within
  * ISO_DEF_RIGID_TOL (it names the deviation). All content errors are
  * ISO_EPARSE; M is written only on success. */
-ISO_NODISCARD int iso_def_load(const char *path, double M[16], iso_err *err);
+ISO_API ISO_NODISCARD int iso_def_load(const char *path, double M[16], iso_err *err);
 
 #endif

@@ -5,7 +5,10 @@
  * One iso_solver owns a CHOLMOD Common, the free-free pattern (built once
  * from connectivity and regions, analysed once), the numeric factor and the
  * solve workspace. Per evaluation it refills values, factorizes and solves.
- * Not thread-safe: one solver per thread.
+ * Not thread-safe: one solver per thread. Solvers in different threads are
+ * independent and give bit for bit what they give one at a time, as long as
+ * none is asked to set the BLAS's process-wide thread count
+ * (iso_solver_threads; tests/test_solver_threads.c).
  *
  * Creation refuses ill-posed problems before any solve: ω outside (0, 1], a
  * connected part of the mesh with free vertices but no fixed or handle
@@ -40,8 +43,53 @@ typedef enum iso_refactor {
 
 /* The enums' names, indexed by value (common/iso_names.h): "cpu",
  * "opencl"; "adaptive", "always". Scenes, options and output use these. */
-extern const char *const iso_assembly_names[];
-extern const char *const iso_refactor_names[];
+ISO_API extern const char *const iso_assembly_names[];
+ISO_API extern const char *const iso_refactor_names[];
+
+/* Threads. Debian's CHOLMOD asks OpenMP for a team of 4 in its supernodal
+ * loops and calls OpenBLAS, which keeps a pool of its own. On systems the
+ * size of the benchmark's (under ISO_SOLVER_BLAS_THREADED_FLOPS a
+ * factorization) neither pays: on two cores the cactus factorization takes
+ * twice as long with them, and the spinning pool steals the core the
+ * OpenCL assembly wants (solver/linsolve.c has the figures). The library
+ * never changes a process-wide setting unless asked to here, and reads no
+ * environment variable for it: a program that wants OMP_MAX_ACTIVE_LEVELS
+ * or OPENBLAS_NUM_THREADS to win passes the LEAVE policies (the isoshape
+ * command does when they are set). */
+typedef enum iso_solver_omp {
+    /* Each CHOLMOD call runs its OpenMP regions on the calling thread: the
+     * solver sets the calling thread's max-active-levels to 0 for the call
+     * and restores it after. That setting belongs to the calling thread
+     * alone (an OpenMP 5 data-environment ICV; libgomp 12 keeps it per
+     * thread), so no other thread, and none of the caller's own OpenMP
+     * code, ever sees it. The library default. */
+    ISO_SOLVER_OMP_CALLER = 0,
+    ISO_SOLVER_OMP_LEAVE, /* leave OpenMP as the process has it */
+} iso_solver_omp;
+
+typedef enum iso_solver_blas {
+    ISO_SOLVER_BLAS_LEAVE = 0, /* never touch the BLAS's thread count (library default) */
+    /* Process-wide, for the solver's lifetime: when one factorization costs
+     * less than ISO_SOLVER_BLAS_THREADED_FLOPS, iso_solver_create sets
+     * OpenBLAS to one thread and iso_solver_destroy restores the count it
+     * found; a larger system leaves the count alone. OpenBLAS has one count
+     * for the whole process, so this is for a program that runs one solver
+     * at a time (the isoshape command), never for solvers in several
+     * threads or with overlapping lifetimes: those leave the BLAS alone and
+     * the program sets the count once (OPENBLAS_NUM_THREADS). A fixed count
+     * also keeps results bit-identical across machines: OpenBLAS's threaded
+     * and single-threaded kernels round differently. */
+    ISO_SOLVER_BLAS_SIZED,
+} iso_solver_blas;
+
+/* Below this many flops per factorization a second BLAS thread gained
+ * nothing measurable (cactus: 0.47 GFLOP, 33 ms on one thread or two). */
+#define ISO_SOLVER_BLAS_THREADED_FLOPS 4e9
+
+typedef struct iso_solver_threads {
+    iso_solver_omp omp;   /* default ISO_SOLVER_OMP_CALLER */
+    iso_solver_blas blas; /* default ISO_SOLVER_BLAS_LEAVE */
+} iso_solver_threads;
 
 typedef struct iso_solver_opts {
     double omega;            /* in (0, 1]; default 1/3 */
@@ -66,17 +114,18 @@ typedef struct iso_solver_opts {
      * turns param into area weighting for triangles, so μ means the same
      * under both. Since d_T and the edge term both scale with (strain rate ×
      * edge length)², μ is independent of the mesh's size and resolution. */
-    double restore_mu;  /* ≥ 0 */
-    double restore_tau; /* > 0 when restore_mu > 0; in the path's time units */
+    double restore_mu;          /* ≥ 0 */
+    double restore_tau;         /* > 0 when restore_mu > 0; in the path's time units */
+    iso_solver_threads threads; /* what the solver may do to thread settings */
 } iso_solver_opts;
 
-void iso_solver_opts_default(iso_solver_opts *o);
+ISO_API void iso_solver_opts_default(iso_solver_opts *o);
 
 /* The solver keeps pointers to mesh and regions: both must outlive it. */
-ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
-                                    const iso_solver_opts *opts, /* NULL = defaults */
-                                    iso_solver **out, iso_err *err);
-void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
+ISO_API ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
+                                            const iso_solver_opts *opts, /* NULL = defaults */
+                                            iso_solver **out, iso_err *err);
+ISO_API void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
 
 /* One field evaluation.
  * input:  x  (3*nv) current positions of all vertices;
@@ -86,16 +135,16 @@ void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
  *            entries copied from vc, fixed and unreferenced set to zero.
  * A system that is not positive definite is ISO_ENUMERIC naming the row and
  * its vertex, never a silent wrong answer. */
-ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v,
-                                   iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_field(iso_solver *s, const double *x, const double *vc,
+                                           double *v, iso_err *err);
 
 /* As iso_solver_field, but conjugate gradients (the adaptive scheme's
  * reuse of a cached factor) start from the free entries of guess (3*nv;
  * may be v itself) instead of the previous solution: the integrator
  * extrapolates its history to the new time, which starts closer. The
  * result meets the same tolerance either way; a direct solve ignores it. */
-ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
-                                        const double *guess, double *v, iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const double *vc,
+                                                const double *guess, double *v, iso_err *err);
 
 /* Progress inside a field evaluation, for a watchdog that must tell a slow
  * evaluation from a stuck one (the actuators' loop watchdog, issue #14).
@@ -105,17 +154,17 @@ ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, const do
  * bumpplane: 0.1-0.3 s assembly or factorization). It must be quick and
  * must not call back into the solver. NULL fn stops the calls. */
 typedef void (*iso_solver_progress_fn)(void *ctx);
-void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx);
+ISO_API void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx);
 
 /* The restoration term's settings (iso_solver_opts): μ and the τ now in use.
  * Defined in restore.c. */
-void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */
+ISO_API void iso_solver_get_restore(const iso_solver *s, double *mu, double *tau); /* out */
 
 /* Sets the τ of the next evaluations (> 0, finite), e.g. the integrator's
  * per-step τ_eff = max(τ, κ h), which keeps the explicit step inside its
  * stability region (iso_integrate.h). Only τ changes: the pattern, the
  * elements and μ stay. With μ = 0 it is accepted and changes nothing. */
-ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
+ISO_API ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err *err);
 
 /* ===== what an integrator asks of conjugate gradients (adaptive refactor)
  *
@@ -145,40 +194,29 @@ ISO_NODISCARD int iso_solver_set_restore_tau(iso_solver *s, double tau, iso_err 
  * solve; that factorization refills the budget, as the fresh factor starts
  * the count again. So a tick costs at most cg_max_iter iterations before
  * its first factorization. Outside a budget each solve has cg_max_iter. */
-void iso_solver_set_cg_target(iso_solver *s, double target);
-void iso_solver_budget_begin(iso_solver *s);
-void iso_solver_budget_end(iso_solver *s);
+ISO_API void iso_solver_set_cg_target(iso_solver *s, double target);
+ISO_API void iso_solver_budget_begin(iso_solver *s);
+ISO_API void iso_solver_budget_end(iso_solver *s);
 
 typedef struct iso_solver_stats {
     long evaluations;
-    long factorizations;  /* numeric factorizations */
-    long cg_iterations;   /* adaptive refactor: PCG iterations, summed */
-    long refactors;       /* adaptive: factorizations forced by slow/stalled CG */
-    long cg_capped;       /* of those, forced by the iteration cap or budget */
+    long factorizations;                  /* numeric factorizations */
+    long cg_iterations;                   /* adaptive refactor: PCG iterations, summed */
+    long refactors;                       /* adaptive: factorizations forced by slow/stalled CG */
+    long cg_capped;                       /* of those, forced by the iteration cap or budget */
     double t_assembly, t_factor, t_solve; /* seconds, summed */
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
 } iso_solver_stats;
-void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
+ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 
 /* Floating-point operations of one numeric factorization, as CHOLMOD's
  * analysis counts them (Common->fl); 0 when there are no free vertices. For
  * reporting a factorization's achieved rate beside the machine's dgemm. */
-double iso_solver_factor_flops(const iso_solver *s);
+ISO_API double iso_solver_factor_flops(const iso_solver *s);
 
 /* One line about a choice the solver made that the user should hear of
  * (e.g. "OpenCL: no platform found; using the C assembly"), or "". */
-const char *iso_solver_notice(const iso_solver *s);
-
-/* Assembles the whole 3nv x 3nv matrix A(x) (all vertices, no constraints)
- * as dense row-major into `A` (caller-owned, (3nv)^2 doubles). For tests and
- * small meshes only. */
-ISO_NODISCARD int iso_assemble_dense(const iso_mesh *m, const double *x,
-                                     const iso_solver_opts *opts, double *A, iso_err *err);
-
-/* d(v) = (1−ω) d1 + ω d2 at positions x, evaluated element by element
- * (no global matrix); d1 and d2 separately if the pointers are non-NULL. */
-double iso_distortion(const iso_mesh *m, const double *x, const double *v,
-                      const iso_solver_opts *opts, double *d1, double *d2);
+ISO_API const char *iso_solver_notice(const iso_solver *s);
 
 #endif

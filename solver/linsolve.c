@@ -29,82 +29,94 @@
  * beside OpenBLAS's own spinning threads, spends most of the factorization
  * waking and parking threads (futex): the cactus factorization took 90-110
  * ms with the team and 43-55 ms without, and the process used 3x the CPU.
- * So, once, before the first factorization, cap OpenMP at no active
- * parallel level: every region then runs on the calling thread. The
- * setting is process-wide (an OpenMP ICV); a user who sets
- * OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT keeps their choice. Looked up
- * rather than linked, so that a CHOLMOD without OpenMP needs nothing. */
-static void serialise_cholmod_openmp(iso_solver *s)
-{
-    if (s->omp_serialised)
-        return;
-    s->omp_serialised = 1;
-    if (getenv("OMP_MAX_ACTIVE_LEVELS") || getenv("OMP_THREAD_LIMIT"))
-        return;
-    void (*set_levels)(int) = NULL;
-    void *sym = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels");
-    if (!sym)
-        return;
-    memcpy(&set_levels, &sym, sizeof set_levels);
-    set_levels(0);
-}
-
-/* OpenBLAS threads pay only on large supernodes. On the benchmark meshes
+ * Capping max-active-levels at 0 runs every region on the calling thread.
+ * That ICV is per thread (libgomp 12): a cap set on one thread does not
+ * reach threads started later, and CHOLMOD in a new thread ran 100-330 ms
+ * per cactus factorization until that thread set it itself. So the cap is
+ * set on whichever thread makes the call, for the call, and put back after:
+ * nothing outside the call sees it (ISO_SOLVER_OMP_CALLER).
+ *
+ * OpenBLAS threads pay only on large supernodes. On the benchmark meshes
  * of a few thousand vertices (0.5 GFLOP factorizations, supernodes of tens
  * of columns) a second thread gained nothing measurable (cactus: 33 ms with
  * one thread or two), and after every call it spins in sched_yield for
  * ~0.1 s, on the core the OpenCL assembly of the next evaluation wants:
- * the PoCL assembly took 28 ms beside it and 17 ms without it. So below
- * ISO_LINSOLVE_THREADED_FLOPS per factorization CHOLMOD's BLAS calls run on
- * one thread, and the count in force before is restored after each call, so
- * nothing else in the process sees the change. A user who sets
- * OPENBLAS_NUM_THREADS keeps their choice. A fixed thread count also keeps
- * the results bit-identical on machines with more cores: OpenBLAS's
- * threaded and single-threaded kernels round differently. */
-#define ISO_LINSOLVE_THREADED_FLOPS 4e9
+ * the PoCL assembly took 28 ms beside it and 17 ms without it. OpenBLAS
+ * 0.3.21 has one count for the whole process, so the solver changes it
+ * only when asked (ISO_SOLVER_BLAS_SIZED), once for its lifetime; toggling
+ * it around each call raced when two solvers ran in two threads.
+ *
+ * Both libraries are looked up rather than linked, so that a CHOLMOD
+ * without OpenMP, or another BLAS, needs nothing. */
 
-static void look_up_blas_threads(iso_solver *s)
+/* dlsym returns an object pointer; memcpy turns it into a function pointer
+ * without the cast ISO C forbids. */
+static void look_up(const char *name, void *fn, size_t fn_size)
 {
-    s->blas_looked_up = 1;
-    if (getenv("OPENBLAS_NUM_THREADS") || s->factor_flops >= ISO_LINSOLVE_THREADED_FLOPS)
-        return;
-    void *get = dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
-    void *set = dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
-    if (!get || !set)
-        return;
-    memcpy(&s->blas_get_threads, &get, sizeof get);
-    memcpy(&s->blas_set_threads, &set, sizeof set);
+    void *sym = dlsym(RTLD_DEFAULT, name);
+    if (sym)
+        memcpy(fn, &sym, fn_size);
 }
 
-/* Enters a CHOLMOD call: returns the thread count to restore, 0 if none. */
-static int blas_begin(iso_solver *s)
+void iso_solver__threads_begin(iso_solver *s)
 {
-    if (!s->blas_looked_up)
-        look_up_blas_threads(s);
-    if (!s->blas_set_threads)
-        return 0;
-    int before = s->blas_get_threads();
-    if (before == 1)
-        return 0;
-    s->blas_set_threads(1);
+    if (s->o.threads.omp == ISO_SOLVER_OMP_CALLER) {
+        look_up("omp_get_max_active_levels", &s->omp_get_levels, sizeof s->omp_get_levels);
+        look_up("omp_set_max_active_levels", &s->omp_set_levels, sizeof s->omp_set_levels);
+        if (!s->omp_get_levels || !s->omp_set_levels) {
+            s->omp_get_levels = NULL;
+            s->omp_set_levels = NULL;
+        }
+    }
+    if (s->o.threads.blas != ISO_SOLVER_BLAS_SIZED || s->nf == 0 ||
+        s->factor_flops >= ISO_SOLVER_BLAS_THREADED_FLOPS)
+        return;
+    int (*get_threads)(void) = NULL;
+    look_up("openblas_get_num_threads", &get_threads, sizeof get_threads);
+    look_up("openblas_set_num_threads", &s->blas_set_threads, sizeof s->blas_set_threads);
+    if (!get_threads || !s->blas_set_threads)
+        return;
+    int before = get_threads();
+    if (before > 1) {
+        s->blas_set_threads(1);
+        s->blas_restore = before;
+    }
+}
+
+void iso_solver__threads_end(iso_solver *s)
+{
+    if (s->blas_restore > 0)
+        s->blas_set_threads(s->blas_restore);
+    s->blas_restore = 0;
+}
+
+/* Enters a CHOLMOD call: returns the calling thread's OpenMP level cap to
+ * put back after it, or -1 if there is nothing to put back. */
+static int omp_begin(const iso_solver *s)
+{
+    if (!s->omp_set_levels)
+        return -1;
+    int before = s->omp_get_levels();
+    if (before == 0)
+        return -1;
+    s->omp_set_levels(0);
     return before;
 }
 
-static void blas_end(iso_solver *s, int before)
+static void omp_end(const iso_solver *s, int before)
 {
-    if (before > 0)
-        s->blas_set_threads(before);
+    if (before >= 0)
+        s->omp_set_levels(before);
 }
 
 /* ===== factor and solve ================================================= */
 
 static int factorize(iso_solver *s, iso_err *err)
 {
-    serialise_cholmod_openmp(s);
     double t0 = iso_clock_now();
-    int threads = blas_begin(s);
+    int levels = omp_begin(s);
     int ok = cholmod_factorize(s->A, s->L, &s->c);
-    blas_end(s, threads);
+    omp_end(s, levels);
     s->st.t_factor += iso_clock_now() - t0;
     s->have_factor = 0;
     if (!ok || s->c.status < CHOLMOD_OK)
@@ -128,9 +140,9 @@ static int factorize(iso_solver *s, iso_err *err)
 /* Z = L⁻ᵀL⁻¹ R with the cached factor, reusing CHOLMOD's workspace. */
 static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_err *err)
 {
-    int threads = blas_begin(s);
+    int levels = omp_begin(s);
     int ok = cholmod_solve2(CHOLMOD_A, s->L, R, NULL, Z, NULL, &s->Y, &s->E, &s->c);
-    blas_end(s, threads);
+    omp_end(s, levels);
     if (!ok || s->c.status < CHOLMOD_OK)
         return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)",
                            s->c.status);

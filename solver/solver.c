@@ -39,6 +39,8 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->refactor = ISO_REFACTOR_ALWAYS;
     o->cg_tol = 1e-10;
     o->cg_max_iter = 12;
+    o->threads.omp = ISO_SOLVER_OMP_CALLER;
+    o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
 
 static int check_opts(const iso_solver_opts *o, iso_err *err)
@@ -56,6 +58,12 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
     if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
         return iso_err_set(err, ISO_EINVAL, -1,
                            "restoration time constant tau = %g must be > 0", o->restore_tau);
+    if (o->threads.omp != ISO_SOLVER_OMP_CALLER && o->threads.omp != ISO_SOLVER_OMP_LEAVE)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown OpenMP thread policy %d",
+                           (int)o->threads.omp);
+    if (o->threads.blas != ISO_SOLVER_BLAS_LEAVE && o->threads.blas != ISO_SOLVER_BLAS_SIZED)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown BLAS thread policy %d",
+                           (int)o->threads.blas);
     return ISO_OK;
 }
 
@@ -553,6 +561,7 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         iso_solver_destroy(s);
         return rc;
     }
+    iso_solver__threads_begin(s);
     s->st.n_free = s->nf;
     *out = s;
     return ISO_OK;
@@ -562,6 +571,7 @@ void iso_solver_destroy(iso_solver *s)
 {
     if (!s)
         return;
+    iso_solver__threads_end(s);
 #ifdef ISO_WITH_OPENCL
     iso_solver__cl_destroy(s->cl);
 #endif
@@ -656,114 +666,4 @@ int iso_solver_field_from(iso_solver *s, const double *x, const double *vc, cons
         }
     }
     return ISO_OK;
-}
-
-/* ===== whole-mesh forms (tests, small meshes) =========================== */
-
-/* Calls fn for every element of the whole mesh (no region filtering). */
-typedef void (*element_fn)(void *ctx, const element *e, const double *Q, double w);
-
-static int for_each_element(const iso_mesh *m, const double *x, const iso_solver_opts *o,
-                            element_fn fn, void *ctx, iso_err *err)
-{
-    int nt = iso_mesh_triangle_count(m), ne = iso_mesh_edge_count(m);
-    const int *tri = iso_mesh_triangles(m), *edges = iso_mesh_edges(m),
-              *et = iso_mesh_edge_triangles(m);
-    double Q[144];
-    element e;
-    for (int t = 0; t < nt; t++) {
-        memset(&e, 0, sizeof e);
-        e.kind = 1;
-        e.tri = t;
-        memcpy(e.v, tri + 3 * t, 3 * sizeof(int));
-        if (iso_solver__element_matrix(o, &e, x, Q) != 0)
-            return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", t);
-        fn(ctx, &e, Q, 1.0 - o->omega);
-    }
-    for (int k = 0; k < ne; k++) {
-        if (et[2 * k + 1] < 0)
-            continue;
-        for (int side = 0; side < 2; side++) {
-            make_pair(tri, et[2 * k + side], et[2 * k + 1 - side], edges[2 * k],
-                      edges[2 * k + 1], &e);
-            if (iso_solver__element_matrix(o, &e, x, Q) != 0)
-                return iso_err_set(err, ISO_ENUMERIC, -1, "triangle %d is degenerate", e.tri);
-            fn(ctx, &e, Q, o->omega);
-        }
-    }
-    return ISO_OK;
-}
-
-typedef struct dense_ctx {
-    double *A;
-    int n3;
-} dense_ctx;
-
-static void add_dense(void *ctx, const element *e, const double *Q, double w)
-{
-    dense_ctx *d = ctx;
-    int nl = local_count(e), dim = 3 * nl;
-    for (int a = 0; a < dim; a++)
-        for (int b = 0; b < dim; b++)
-            d->A[(size_t)(3 * e->v[a / 3] + a % 3) * (size_t)d->n3 + 3 * e->v[b / 3] + b % 3] +=
-                w * Q[a * dim + b];
-}
-
-int iso_assemble_dense(const iso_mesh *m, const double *x, const iso_solver_opts *opts,
-                       double *A, iso_err *err)
-{
-    iso_solver_opts o;
-    if (opts)
-        o = *opts;
-    else
-        iso_solver_opts_default(&o);
-    int rc = check_opts(&o, err);
-    if (rc != ISO_OK)
-        return rc;
-    dense_ctx d = {A, 3 * iso_mesh_vertex_count(m)};
-    memset(A, 0, (size_t)d.n3 * (size_t)d.n3 * sizeof(double));
-    return for_each_element(m, x, &o, add_dense, &d, err);
-}
-
-typedef struct energy_ctx {
-    const double *v;
-    double d1, d2;
-} energy_ctx;
-
-static void add_energy(void *ctx, const element *e, const double *Q, double w)
-{
-    (void)w;
-    energy_ctx *c = ctx;
-    int nl = local_count(e), dim = 3 * nl;
-    double acc = 0;
-    for (int a = 0; a < dim; a++) {
-        double va = c->v[3 * e->v[a / 3] + a % 3], row = 0;
-        for (int b = 0; b < dim; b++)
-            row += Q[a * dim + b] * c->v[3 * e->v[b / 3] + b % 3];
-        acc += va * row;
-    }
-    if (e->kind == 1)
-        c->d1 += acc;
-    else
-        c->d2 += acc;
-}
-
-double iso_distortion(const iso_mesh *m, const double *x, const double *v,
-                      const iso_solver_opts *opts, double *d1, double *d2)
-{
-    iso_solver_opts o;
-    if (opts)
-        o = *opts;
-    else
-        iso_solver_opts_default(&o);
-    energy_ctx c = {v, 0, 0};
-    iso_err e;
-    iso_err_clear(&e);
-    if (for_each_element(m, x, &o, add_energy, &c, &e) != ISO_OK)
-        return NAN;
-    if (d1)
-        *d1 = c.d1;
-    if (d2)
-        *d2 = c.d2;
-    return (1.0 - o.omega) * c.d1 + o.omega * c.d2;
 }

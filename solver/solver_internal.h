@@ -96,10 +96,12 @@ struct iso_solver {
     double cg_target;       /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
     int budget_on;          /* a shared iteration budget is open */
     int budget_used;        /* its iterations spent since it opened or since a factorization */
-    int omp_serialised;     /* linsolve.c has capped CHOLMOD's OpenMP teams */
-    int blas_looked_up;     /* linsolve.c has decided on OpenBLAS threads: */
-    int (*blas_get_threads)(void); /* NULL: leave OpenBLAS's count alone */
+    /* Thread controls (linsolve.c), looked up once at creation; NULL where
+     * the option leaves them alone or the process has no such library. */
+    int (*omp_get_levels)(void);
+    void (*omp_set_levels)(int);
     void (*blas_set_threads)(int);
+    int blas_restore; /* OpenBLAS count to restore at destroy; 0: none */
     iso_solver_stats st;
     iso_solver_progress_fn progress; /* iso_solver_set_progress; NULL: none */
     void *progress_ctx;
@@ -117,6 +119,11 @@ static inline void iso_solver__progress(const struct iso_solver *s)
  * positions x; −1 if its triangle is degenerate. */
 int iso_solver__element_matrix(const iso_solver_opts *o, const iso_solver__element *e,
                                const double *x, double *Q);
+
+/* Applies opts.threads at creation (after the analysis, which knows the
+ * factorization's flops) and undoes its process-wide part at destroy. */
+void iso_solver__threads_begin(iso_solver *s);
+void iso_solver__threads_end(iso_solver *s);
 
 /* Solves A_ff X = B with the current values: a fresh factorization, or
  * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates

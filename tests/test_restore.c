@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "geom_fixtures.c"
+#include "iso_dense.h"
 #include "iso_integrate.h"
 #include "iso_metrics.h"
 #include "testutil.h"

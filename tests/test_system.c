@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "geom_fixtures.c"
+#include "iso_dense.h"
 #include "iso_solver.h"
 #include "testutil.h"
 

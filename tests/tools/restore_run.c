@@ -39,6 +39,7 @@ int main(int argc, char **argv)
     int status = 1;
     iso_solver_opts so;
     iso_solver_opts_default(&so);
+    so.threads.blas = ISO_SOLVER_BLAS_SIZED; /* one solver at a time, as the command */
     so.restore_mu = atof(argv[2]);
     so.restore_tau = atof(argv[3]);
     iso_integrate_opts io;

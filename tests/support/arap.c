@@ -1,4 +1,4 @@
-/* solver/arap.c -- as-rigid-as-possible deformation (iso_arap.h).
+/* tests/support/arap.c -- as-rigid-as-possible deformation (iso_arap.h).
  *
  * Everything runs over the edge list: each edge (i, j) with weight w
  * contributes to both one-rings, with the same rest vector p_ij and deformed

@@ -1,5 +1,7 @@
-/* solver/iso_arap.h -- as-rigid-as-possible deformation (Sorkine & Alexa 2007),
+/* tests/support/iso_arap.h -- as-rigid-as-possible deformation (Sorkine & Alexa 2007),
  * run to convergence: the baseline the isometry solver is compared with.
+ * Part of the test-support library (tests/CMakeLists.txt), not of
+ * libisoshape: the tests and tests/tools/arap_reference link it.
  *
  * Energy (classic "spokes" ARAP, CGAL's ORIGINAL_ARAP):
  *

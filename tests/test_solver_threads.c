@@ -1,0 +1,282 @@
+/* tests/test_solver_threads.c -- solvers in two threads are independent,
+ * and the library leaves the process's thread settings alone unless asked.
+ *
+ * Two deformations (a cactus and a bar, each with the adaptive scheme so
+ * that factorizations and PCG solves interleave) are integrated one at a
+ * time, then both at once in two threads, then the cactus twice at once on
+ * one shared mesh: every result must be bit-identical to the one-at-a-time
+ * run. The BLAS runs on one thread, as the solver's header asks of a
+ * program that runs solvers in several threads (CTest also sets
+ * OPENBLAS_NUM_THREADS=1): OpenBLAS's threaded kernels round differently.
+ *
+ * The same program is built with ThreadSanitizer as test_solver_threads_tsan
+ * (tests/CMakeLists.txt). */
+#include <dlfcn.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_integrate.h"
+#include "iso_shapes.h"
+#include "iso_solver.h"
+#include "testutil.h"
+
+/* ---- one deformation ---------------------------------------------------- */
+
+typedef struct problem {
+    const char *shape;
+    int resolution;
+    iso_shape sh;
+    iso_mesh *mesh;
+    iso_regions reg;
+    iso_twist xi;
+} problem;
+
+typedef struct run {
+    const problem *p;
+    double *x; /* final positions, 3 nv */
+    iso_solver_stats st;
+    int rc;
+    iso_err err;
+} run;
+
+static void problem_init(problem *p, const char *shape, int resolution)
+{
+    iso_err err;
+    iso_err_clear(&err);
+    memset(p, 0, sizeof *p);
+    p->shape = shape;
+    p->resolution = resolution;
+    if (iso_shape_init(&p->sh, shape, resolution, &err) != ISO_OK ||
+        iso_mesh_create(p->sh.nv, p->sh.x, p->sh.nt, p->sh.tri, shape, &p->mesh, &err) != ISO_OK ||
+        iso_shape_regions(&p->sh, &p->reg, &err) != ISO_OK ||
+        iso_twist_from_matrix(p->sh.M, &p->xi, &err) != ISO_OK)
+        fail_msg("%s: %s", shape, err.msg);
+}
+
+static void problem_deinit(problem *p)
+{
+    iso_mesh_destroy(p->mesh);
+    iso_regions_deinit(&p->reg);
+    iso_shape_deinit(&p->sh);
+}
+
+/* Six fixed ABM steps along the shape's screw path, adaptive refactoring. */
+static void *run_main(void *arg)
+{
+    run *r = arg;
+    const problem *p = r->p;
+    iso_err_clear(&r->err);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.refactor = ISO_REFACTOR_ADAPTIVE;
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    io.steps = 6;
+    iso_twist tw[1] = {p->xi};
+    iso_screw_path sp = {tw, 1};
+    iso_path path = iso_screw_path_make(&sp);
+    int nv = iso_mesh_vertex_count(p->mesh);
+    iso_solver *s = NULL;
+    iso_integrate_stats ist;
+    r->x = malloc((size_t)nv * 3 * sizeof *r->x);
+    if (!r->x) {
+        r->rc = ISO_ENOMEM;
+        return NULL;
+    }
+    memcpy(r->x, iso_mesh_positions(p->mesh), (size_t)nv * 3 * sizeof *r->x);
+    r->rc = iso_solver_create(p->mesh, &p->reg, &so, &s, &r->err);
+    if (r->rc == ISO_OK)
+        r->rc = iso_integrate(s, p->mesh, &p->reg, &path, &io, r->x, &ist, &r->err);
+    if (s)
+        iso_solver_get_stats(s, &r->st);
+    iso_solver_destroy(s);
+    return NULL;
+}
+
+static void run_now(run *r, const problem *p)
+{
+    memset(r, 0, sizeof *r);
+    r->p = p;
+    run_main(r);
+    if (r->rc != ISO_OK)
+        fail_msg("%s: %s", p->shape, r->err.msg);
+}
+
+/* Runs a and b at the same time, each in a thread of its own. */
+static void run_pair(run *a, const problem *pa, run *b, const problem *pb)
+{
+    memset(a, 0, sizeof *a);
+    memset(b, 0, sizeof *b);
+    a->p = pa;
+    b->p = pb;
+    pthread_t ta, tb;
+    assert_int_equal(pthread_create(&ta, NULL, run_main, a), 0);
+    assert_int_equal(pthread_create(&tb, NULL, run_main, b), 0);
+    assert_int_equal(pthread_join(ta, NULL), 0);
+    assert_int_equal(pthread_join(tb, NULL), 0);
+    if (a->rc != ISO_OK || b->rc != ISO_OK)
+        fail_msg("%s: %s / %s: %s", pa->shape, a->err.msg, pb->shape, b->err.msg);
+}
+
+static void assert_same(const run *alone, const run *beside)
+{
+    int nv = iso_mesh_vertex_count(alone->p->mesh);
+    if (memcmp(alone->x, beside->x, (size_t)nv * 3 * sizeof(double)) != 0)
+        fail_msg("%s: in a thread beside another solver the result differs by %g", alone->p->shape,
+                 iso_test_max_abs_diff(alone->x, beside->x, (size_t)nv * 3));
+    assert_int_equal(alone->st.evaluations, beside->st.evaluations);
+    assert_int_equal(alone->st.factorizations, beside->st.factorizations);
+    assert_int_equal(alone->st.cg_iterations, beside->st.cg_iterations);
+}
+
+/* ---- the process's thread controls, looked up as the solver does -------- */
+
+typedef struct controls {
+    int (*blas_get)(void);
+    void (*blas_set)(int);
+    int (*omp_get)(void);
+} controls;
+
+static void look_up(const char *name, void *fn, size_t size)
+{
+    void *sym = dlsym(RTLD_DEFAULT, name);
+    if (sym)
+        memcpy(fn, &sym, size);
+}
+
+static controls find_controls(void)
+{
+    controls c = {0};
+    look_up("openblas_get_num_threads", &c.blas_get, sizeof c.blas_get);
+    look_up("openblas_set_num_threads", &c.blas_set, sizeof c.blas_set);
+    look_up("omp_get_max_active_levels", &c.omp_get, sizeof c.omp_get);
+    if (!c.blas_get || !c.blas_set) {
+        c.blas_get = NULL;
+        c.blas_set = NULL;
+    }
+    return c;
+}
+
+/* ---- tests -------------------------------------------------------------- */
+
+static void two_solvers_match_one_at_a_time(void **state)
+{
+    (void)state;
+    problem cactus, bar;
+    problem_init(&cactus, "cactus", 1);
+    problem_init(&bar, "bar", 6);
+    run cactus_alone, bar_alone, cactus_beside, bar_beside, again;
+    run_now(&cactus_alone, &cactus);
+    run_now(&bar_alone, &bar);
+    assert_true(cactus_alone.st.factorizations > 0);
+    assert_true(cactus_alone.st.cg_iterations > 0); /* PCG ran, not only factorizations */
+
+    run_pair(&cactus_beside, &cactus, &bar_beside, &bar);
+    assert_same(&cactus_alone, &cactus_beside);
+    assert_same(&bar_alone, &bar_beside);
+    free(cactus_beside.x);
+    free(bar_beside.x);
+
+    /* Both threads on one mesh and one set of regions: the solver only
+     * reads them. */
+    run_pair(&cactus_beside, &cactus, &again, &cactus);
+    assert_same(&cactus_alone, &cactus_beside);
+    assert_same(&cactus_alone, &again);
+
+    free(cactus_beside.x);
+    free(again.x);
+    free(cactus_alone.x);
+    free(bar_alone.x);
+    problem_deinit(&cactus);
+    problem_deinit(&bar);
+}
+
+/* The defaults change nothing the caller could see: OpenBLAS's count and
+ * the calling thread's OpenMP level cap are what they were. */
+static void defaults_leave_settings_alone(void **state)
+{
+    (void)state;
+    controls c = find_controls();
+    if (!c.blas_get && !c.omp_get)
+        skip(); /* neither OpenBLAS nor OpenMP in this process: nothing to watch */
+    problem bar;
+    problem_init(&bar, "bar", 4);
+    int blas_before = c.blas_get ? c.blas_get() : 0;
+    if (c.blas_set)
+        c.blas_set(2);
+    int omp_before = c.omp_get ? c.omp_get() : 0;
+    run r;
+    run_now(&r, &bar);
+    if (c.blas_get)
+        assert_int_equal(c.blas_get(), 2);
+    if (c.omp_get)
+        assert_int_equal(c.omp_get(), omp_before);
+    if (c.blas_set)
+        c.blas_set(blas_before);
+    free(r.x);
+    problem_deinit(&bar);
+}
+
+/* ISO_SOLVER_BLAS_SIZED: one thread while a small system's solver exists,
+ * the count it found once it is gone. */
+static void sized_blas_lasts_the_solver_lifetime(void **state)
+{
+    (void)state;
+    controls c = find_controls();
+    if (!c.blas_get) {
+        printf("SKIP: this process's BLAS is not OpenBLAS (no openblas_set_num_threads)\n");
+        skip();
+    }
+    problem bar;
+    problem_init(&bar, "bar", 4);
+    int before = c.blas_get();
+    c.blas_set(2);
+    iso_err err;
+    iso_err_clear(&err);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.threads.blas = ISO_SOLVER_BLAS_SIZED;
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(bar.mesh, &bar.reg, &so, &s, &err), ISO_OK);
+    assert_true(iso_solver_factor_flops(s) < ISO_SOLVER_BLAS_THREADED_FLOPS);
+    assert_int_equal(c.blas_get(), 1);
+    iso_solver_destroy(s);
+    assert_int_equal(c.blas_get(), 2);
+    c.blas_set(before);
+    problem_deinit(&bar);
+}
+
+static void bad_thread_policy_is_refused(void **state)
+{
+    (void)state;
+    problem bar;
+    problem_init(&bar, "bar", 4);
+    iso_err err;
+    iso_err_clear(&err);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.threads.blas = (iso_solver_blas)7;
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(bar.mesh, &bar.reg, &so, &s, &err), ISO_EINVAL);
+    assert_null(s);
+    assert_non_null(strstr(err.msg, "BLAS thread policy 7"));
+    problem_deinit(&bar);
+}
+
+int main(void)
+{
+    /* The program's choice, made once before any thread solves (see the
+     * file's comment): one BLAS thread. */
+    controls c = find_controls();
+    if (c.blas_set)
+        c.blas_set(1);
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(two_solvers_match_one_at_a_time),
+        cmocka_unit_test(defaults_leave_settings_alone),
+        cmocka_unit_test(sized_blas_lasts_the_solver_lifetime),
+        cmocka_unit_test(bad_thread_policy_is_refused),
+    };
+    return cmocka_run_group_tests_name("solver_threads", t, NULL, NULL);
+}
