@@ -14,13 +14,13 @@
 
 enum {
     ISO_OK = 0,
-    ISO_EINVAL = -1,   /* caller bug or bad option value */
+    ISO_EINVAL = -1, /* caller bug or bad option value */
     ISO_ENOMEM = -2,
-    ISO_EIO = -3,      /* OS or device failure; msg carries strerror text */
-    ISO_EPARSE = -4,   /* bad input file; msg names file:line or byte offset */
+    ISO_EIO = -3,    /* OS or device failure; msg carries strerror text */
+    ISO_EPARSE = -4, /* bad input file; msg names file:line or byte offset */
     ISO_ENOTSUP = -5,
-    ISO_ENUMERIC = -6, /* e.g. a system that is not positive definite */
-    ISO_EMESH = -7,    /* mesh that parses but cannot be used (degenerate, non-manifold) */
+    ISO_ENUMERIC = -6,   /* e.g. a system that is not positive definite */
+    ISO_EMESH = -7,      /* mesh that parses but cannot be used (degenerate, non-manifold) */
     ISO_ECONSTRAINT = -8 /* ill-posed boundary conditions */
 };
 

@@ -38,7 +38,7 @@
 #define ISO_SCENE_NAME_MAX 64
 #define ISO_SCENE_MAX_HANDLES ((int)ISO_DEV_MAX_HANDLES)
 #define ISO_SCENE_MAX_DEVICES ((int)ISO_DEV_MAX_SOURCES)
-#define ISO_SCENE_MAX_SELECT 16    /* selection items per region */
+#define ISO_SCENE_MAX_SELECT 16 /* selection items per region */
 #define ISO_SCENE_MAX_KEYFRAMES 64
 #define ISO_SCENE_MAX_CHANNELS 32
 #define ISO_SCENE_MAX_SNAPSHOTS 32
@@ -51,18 +51,18 @@ typedef enum iso_scene_mesh_kind {
 } iso_scene_mesh_kind;
 
 typedef struct iso_scene_mesh_src {
-    int kind;                             /* iso_scene_mesh_kind as written */
-    char path[ISO_SCENE_PATH_MAX];        /* FILE, resolved against the scene's folder */
-    char shape[ISO_SHAPE_NAME_MAX];       /* SHAPE */
-    int resolution;                       /* SHAPE or fallback: 0 = default */
-    char benchmark[ISO_SCENE_NAME_MAX];   /* BENCHMARK */
+    int kind;                                /* iso_scene_mesh_kind as written */
+    char path[ISO_SCENE_PATH_MAX];           /* FILE, resolved against the scene's folder */
+    char shape[ISO_SHAPE_NAME_MAX];          /* SHAPE */
+    int resolution;                          /* SHAPE or fallback: 0 = default */
+    char benchmark[ISO_SCENE_NAME_MAX];      /* BENCHMARK */
     char fallback_shape[ISO_SHAPE_NAME_MAX]; /* "" = none: a missing benchmark is an error */
-    int line, col;                        /* where `mesh:` was written */
+    int line, col;                           /* where `mesh:` was written */
     /* After loading: what was used. */
-    int used;                             /* FILE, SHAPE (also a fallback) or BENCHMARK */
-    char sel[ISO_SCENE_PATH_MAX];         /* the benchmark's .sel ("" otherwise) */
-    char def[ISO_SCENE_PATH_MAX];         /* the benchmark's .def ("" otherwise) */
-    char note[ISO_SCENE_PATH_MAX + 64];   /* why the fallback stood in, "" if it did not */
+    int used;                           /* FILE, SHAPE (also a fallback) or BENCHMARK */
+    char sel[ISO_SCENE_PATH_MAX];       /* the benchmark's .sel ("" otherwise) */
+    char def[ISO_SCENE_PATH_MAX];       /* the benchmark's .def ("" otherwise) */
+    char note[ISO_SCENE_PATH_MAX + 64]; /* why the fallback stood in, "" if it did not */
 } iso_scene_mesh_src;
 
 /* ---- selections ------------------------------------------------------------ */
@@ -75,11 +75,11 @@ typedef enum iso_scene_sel_kind {
 
 typedef struct iso_scene_sel {
     int kind;
-    int line, col;        /* where it was written, for messages */
-    int *vertices;        /* VERTICES: owned */
+    int line, col; /* where it was written, for messages */
+    int *vertices; /* VERTICES: owned */
     int n_vertices;
-    double a[3], b[3];    /* BOX min/max; SPHERE centre; PLANE point/normal */
-    double radius;        /* SPHERE */
+    double a[3], b[3]; /* BOX min/max; SPHERE centre; PLANE point/normal */
+    double radius;     /* SPHERE */
 } iso_scene_sel;
 
 typedef struct iso_scene_region {
@@ -104,19 +104,19 @@ typedef struct iso_scene_keyframe {
 
 typedef struct iso_scene_driver {
     int kind;
-    int device;              /* DEVICE: index in scene->devices */
-    iso_dev_map_opts map;    /* DEVICE: the mapping (devices layer defaults + scene) */
+    int device;                   /* DEVICE: index in scene->devices */
+    iso_dev_map_opts map;         /* DEVICE: the mapping (devices layer defaults + scene) */
     char def[ISO_SCENE_PATH_MAX]; /* SCREW: the .def file, "" = the mesh source's own */
-    double M[16];            /* SCREW: the final transform (row-major) */
-    iso_twist twist;         /* SCREW: its twist (iso_twist_from_matrix) */
-    double duration;         /* SCREW: seconds, > 0 */
+    double M[16];                 /* SCREW: the final transform (row-major) */
+    iso_twist twist;              /* SCREW: its twist (iso_twist_from_matrix) */
+    double duration;              /* SCREW: seconds, > 0 */
     iso_scene_keyframe keys[ISO_SCENE_MAX_KEYFRAMES];
     int n_keys;
 } iso_scene_driver;
 
 typedef struct iso_scene_handle {
     char name[ISO_SCENE_NAME_MAX];
-    int from_sel;            /* 1: no select: the base regions' handle of this index */
+    int from_sel; /* 1: no select: the base regions' handle of this index */
     iso_scene_region region;
     iso_scene_driver driver;
 } iso_scene_handle;
@@ -134,12 +134,12 @@ typedef enum iso_scene_dev_backend {
 
 typedef struct iso_scene_device {
     char name[ISO_SCENE_NAME_MAX];
-    int backend;                   /* iso_scene_dev_backend */
-    char path[ISO_SCENE_PATH_MAX]; /* device node, port, recording (resolved) */
+    int backend;                          /* iso_scene_dev_backend */
+    char path[ISO_SCENE_PATH_MAX];        /* device node, port, recording (resolved) */
     char address[ISO_SCENE_NAME_MAX * 2]; /* TCP host:port */
     uint32_t baud;
     uint16_t vid, pid;
-    iso_dev_gpio_opts gpio;        /* GPIOD; gpio.chip points at `chip` */
+    iso_dev_gpio_opts gpio; /* GPIOD; gpio.chip points at `chip` */
     char chip[ISO_SCENE_NAME_MAX];
     /* TTY, TCP, SERIALPORT, REPLAY: a twist stream's stale time in ms (key
      * `stale_ms`): this long without a twist sample and its twist is zero
@@ -175,7 +175,8 @@ typedef enum iso_scene_link_kind {
     ISO_SCENE_LINK_TTY = 1,    /* path, baud */
     ISO_SCENE_LINK_TCP = 2,    /* host, port */
     ISO_SCENE_LINK_SERIAL = 3, /* path (libserialport name), baud */
-    ISO_SCENE_LINK_EMULATED = 4 /* emulation: firmware in QEMU or in-process (sim/iso_actuators.h) */
+    ISO_SCENE_LINK_EMULATED =
+        4 /* emulation: firmware in QEMU or in-process (sim/iso_actuators.h) */
 } iso_scene_link_kind;
 
 /* Which emulated MCU; the values are sim/iso_actuators.h's ISO_ACT_EMU_*. */
@@ -186,13 +187,13 @@ typedef enum iso_scene_emu_mode {
 } iso_scene_emu_mode;
 
 typedef struct iso_scene_channel {
-    int channel;      /* actuator channel, 0..ISO_SCENE_MAX_CHANNELS-1, each once */
-    int vertex;       /* a vertex, or -1 */
-    int region;       /* or a region's centroid (see below) */
-    int axis;         /* 0 x, 1 y, 2 z */
-    double min, max;  /* limits, min < max (scene units) */
-    double scale;     /* scene units to actuator counts, default 1 */
-    int line, col;    /* where it was written, for messages */
+    int channel;     /* actuator channel, 0..ISO_SCENE_MAX_CHANNELS-1, each once */
+    int vertex;      /* a vertex, or -1 */
+    int region;      /* or a region's centroid (see below) */
+    int axis;        /* 0 x, 1 y, 2 z */
+    double min, max; /* limits, min < max (scene units) */
+    double scale;    /* scene units to actuator counts, default 1 */
+    int line, col;   /* where it was written, for messages */
 } iso_scene_channel;
 /* region: ISO_SCENE_REGION_FIXED, or a handle index >= 0; ISO_SCENE_REGION_NONE
  * when the channel follows a vertex. */
@@ -205,8 +206,8 @@ typedef struct iso_scene_actuators {
     char path[ISO_SCENE_PATH_MAX]; /* TTY device or serial port name */
     char host[ISO_SCENE_NAME_MAX];
     int port;
-    int baud;                      /* default 115200 */
-    int emulation;                 /* EMULATED: iso_scene_emu_mode */
+    int baud;      /* default 115200 */
+    int emulation; /* EMULATED: iso_scene_emu_mode */
     iso_scene_channel ch[ISO_SCENE_MAX_CHANNELS];
     int n_ch;
     int loop_timeout_ms; /* loop watchdog bound; 0 (default) = max(250, 5 tick periods) */
@@ -241,8 +242,8 @@ typedef struct iso_scene {
 
     /* Built by iso_scene_load (not with ISO_SCENE_PARSE_ONLY). Owned. */
     iso_mesh *mesh;
-    iso_regions regions;      /* per-vertex kind and handle index */
-    double shape_M[16];       /* the built-in shape's or benchmark's final transform */
+    iso_regions regions; /* per-vertex kind and handle index */
+    double shape_M[16];  /* the built-in shape's or benchmark's final transform */
     int have_shape_M;
 } iso_scene;
 

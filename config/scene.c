@@ -35,7 +35,7 @@ typedef struct sctx {
     iso_scene *s;
     const char *file; /* the scene's name in messages */
     iso_err *err;
-    int check_files;  /* 0 with ISO_SCENE_PARSE_ONLY */
+    int check_files; /* 0 with ISO_SCENE_PARSE_ONLY */
     /* Scalar text, copied: libfyaml 0.7.12's fy_node_get_scalar0() leaks
      * the NUL-terminated copy it makes of a scalar in several chunks
      * (found by fuzz_scene), so we copy from fy_node_get_scalar(). A ring,
@@ -192,8 +192,8 @@ static int check_keys(sctx *c, fnode *map, const char *path, const char *const *
         list_keys(all, sizeof all, known);
         const char *near = nearest(ks, known);
         if (near)
-            return fail(c, k, ISO_EPARSE, key, "unknown key; did you mean '%s'? (expected one of: %s)",
-                        near, all);
+            return fail(c, k, ISO_EPARSE, key,
+                        "unknown key; did you mean '%s'? (expected one of: %s)", near, all);
         return fail(c, k, ISO_EPARSE, key, "unknown key (expected one of: %s)", all);
     }
     return ISO_OK;
@@ -289,8 +289,8 @@ static int to_enum(sctx *c, fnode *n, const char *key, const char *const *names,
             return (*out = i), ISO_OK;
     const char *near = nearest(t, names);
     if (near)
-        return fail(c, n, ISO_EPARSE, key, "unknown value '%s'; did you mean '%s'? (expected one of %s)",
-                    t, near, all);
+        return fail(c, n, ISO_EPARSE, key,
+                    "unknown value '%s'; did you mean '%s'? (expected one of %s)", t, near, all);
     return fail(c, n, ISO_EPARSE, key, "unknown value '%s' (expected one of %s)", t, all);
 }
 
@@ -386,8 +386,10 @@ static int file_at(sctx *c, fnode *n, const char *key, char *out, size_t cap)
         return ISO_OK;
     struct stat st;
     if (stat(out, &st) != 0)
-        return fail(c, n, ISO_EIO, key, "file '%s' does not exist (%s; relative names start at the "
-                    "scene's folder)", out, strerror(errno));
+        return fail(c, n, ISO_EIO, key,
+                    "file '%s' does not exist (%s; relative names start at the "
+                    "scene's folder)",
+                    out, strerror(errno));
     if (!S_ISREG(st.st_mode))
         return fail(c, n, ISO_EIO, key, "'%s' is not a regular file", out);
     return ISO_OK;
@@ -406,8 +408,8 @@ int iso_scene__resolve(const iso_scene *s, const char *name, char *out, size_t c
 
 static int parse_mesh(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"path", "shape", "resolution", "benchmark",
-                                       "fallback_shape", NULL};
+    static const char *const keys[] = {"path",      "shape",          "resolution",
+                                       "benchmark", "fallback_shape", NULL};
     iso_scene_mesh_src *m = &c->s->mesh_src;
     int rc;
     mark_of(n, &m->line, &m->col);
@@ -415,7 +417,8 @@ static int parse_mesh(sctx *c, fnode *n)
         m->kind = ISO_SCENE_MESH_FILE;
         return file_at(c, n, "mesh", m->path, sizeof m->path);
     }
-    if ((rc = want_map(c, n, "mesh", "a mesh file name or a mapping with path, shape or benchmark")) ||
+    if ((rc = want_map(c, n, "mesh",
+                       "a mesh file name or a mapping with path, shape or benchmark")) ||
         (rc = check_keys(c, n, "mesh", keys)))
         return rc;
     fnode *path = get(n, "path"), *shape = get(n, "shape"), *bench = get(n, "benchmark");
@@ -447,7 +450,8 @@ static int parse_mesh(sctx *c, fnode *n)
                                sizeof m->fallback_shape))))
         return rc;
     if (res && path)
-        return fail(c, res, ISO_EPARSE, "mesh.resolution", "only goes with a shape or a fallback_shape");
+        return fail(c, res, ISO_EPARSE, "mesh.resolution",
+                    "only goes with a shape or a fallback_shape");
     if (res && (rc = to_int(c, res, "mesh.resolution", 0, 4096, &m->resolution)))
         return rc;
     return ISO_OK;
@@ -504,7 +508,8 @@ static int parse_sel_item(sctx *c, fnode *n, const char *key, iso_scene_sel *sel
             return rc;
         for (int i = 0; i < 3; i++)
             if (sel->a[i] > sel->b[i])
-                return fail(c, get(v, "max"), ISO_EINVAL, sub2, "expected max >= min on every axis");
+                return fail(c, get(v, "max"), ISO_EINVAL, sub2,
+                            "expected max >= min on every axis");
         return ISO_OK;
     }
     if ((v = get(n, "sphere")) != NULL) {
@@ -554,8 +559,10 @@ static int parse_region(sctx *c, fnode *n, const char *key, iso_scene_region *r)
         return parse_sel_item(c, n, key, &r->sel[0]);
     }
     if (!n || !fy_node_is_sequence(n) || fy_node_sequence_item_count(n) < 1)
-        return fail(c, n, ISO_EPARSE, key, "expected a selection or a non-empty list of them, "
-                    "found %s", type_name(n));
+        return fail(c, n, ISO_EPARSE, key,
+                    "expected a selection or a non-empty list of them, "
+                    "found %s",
+                    type_name(n));
     int cnt = fy_node_sequence_item_count(n);
     if (cnt > ISO_SCENE_MAX_SELECT)
         return fail(c, n, ISO_EINVAL, key, "at most %d selections, found %d", ISO_SCENE_MAX_SELECT,
@@ -617,15 +624,17 @@ static int parse_axes(sctx *c, fnode *n, const char *key, const char *field, dou
         }
         return ISO_OK;
     }
-    return fail(c, n, ISO_EPARSE, key, "expected a number, a list of 6 numbers or a mapping of "
-                "tx, ty, tz, rx, ry, rz; found %s", type_name(n));
+    return fail(c, n, ISO_EPARSE, key,
+                "expected a number, a list of 6 numbers or a mapping of "
+                "tx, ty, tz, rx, ry, rz; found %s",
+                type_name(n));
 }
 
 static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o)
 {
-    static const char *const keys[] = {"full_scale", "sensitivity", "dead_zone", "curve", "remap",
-                                       "invert", "dominant", "lock", "frame", "clutch", "buttons",
-                                       "pose_gain", "pose_scale", NULL};
+    static const char *const keys[] = {"full_scale", "sensitivity", "dead_zone",  "curve", "remap",
+                                       "invert",     "dominant",    "lock",       "frame", "clutch",
+                                       "buttons",    "pose_gain",   "pose_scale", NULL};
     int rc;
     if ((rc = want_map(c, n, key, "a device mapping")) || (rc = check_keys(c, n, key, keys)))
         return rc;
@@ -684,7 +693,8 @@ static int parse_mapping(sctx *c, fnode *n, const char *key, iso_dev_map_opts *o
     if ((v = get(n, "buttons"))) {
         join(sub, sizeof sub, key, "buttons");
         if (!fy_node_is_sequence(v) || fy_node_sequence_item_count(v) > 32)
-            return fail(c, v, ISO_EPARSE, sub, "expected a list of at most 32 actions, by button "
+            return fail(c, v, ISO_EPARSE, sub,
+                        "expected a list of at most 32 actions, by button "
                         "(none, clutch, next_handle, reset_pose, record)");
         void *it = NULL;
         fnode *e;
@@ -713,8 +723,8 @@ static int parse_keyframes(sctx *c, fnode *n, const char *key, iso_scene_driver 
         return fail(c, n, ISO_EPARSE, key, "expected a non-empty list of {t, translate, rotate}");
     int cnt = fy_node_sequence_item_count(n);
     if (cnt > ISO_SCENE_MAX_KEYFRAMES)
-        return fail(c, n, ISO_EINVAL, key, "at most %d keyframes, found %d", ISO_SCENE_MAX_KEYFRAMES,
-                    cnt);
+        return fail(c, n, ISO_EINVAL, key, "at most %d keyframes, found %d",
+                    ISO_SCENE_MAX_KEYFRAMES, cnt);
     void *it = NULL;
     for (int i = 0; i < cnt; i++) {
         fnode *e = fy_node_sequence_iterate(n, &it);
@@ -781,8 +791,10 @@ static int parse_driver(sctx *c, fnode *n, const char *key, iso_scene_driver *d)
     fnode *dev = get(n, "device"), *screw = get(n, "screw"), *keyf = get(n, "keyframes");
     int count = (dev != NULL) + (screw != NULL) + (keyf != NULL);
     if (count != 1)
-        return fail(c, n, ISO_EPARSE, key, "expected exactly one of device, screw or keyframes, "
-                    "found %d", count);
+        return fail(c, n, ISO_EPARSE, key,
+                    "expected exactly one of device, screw or keyframes, "
+                    "found %d",
+                    count);
     char sub[KEY_MAX];
     if (get(n, "mapping") && !dev)
         return fail(c, get(n, "mapping"), ISO_EPARSE, join(sub, sizeof sub, key, "mapping"),
@@ -792,7 +804,8 @@ static int parse_driver(sctx *c, fnode *n, const char *key, iso_scene_driver *d)
         if ((rc = find_device(c, dev, join(sub, sizeof sub, key, "device"), &d->device)))
             return rc;
         if (get(n, "mapping") &&
-            (rc = parse_mapping(c, get(n, "mapping"), join(sub, sizeof sub, key, "mapping"), &d->map)))
+            (rc = parse_mapping(c, get(n, "mapping"), join(sub, sizeof sub, key, "mapping"),
+                                &d->map)))
             return rc;
         return ISO_OK;
     }
@@ -844,10 +857,11 @@ static int parse_regions(sctx *c, fnode *n)
     if (fixed && (rc = parse_region(c, fixed, "regions.fixed", &s->fixed)))
         return rc;
     if (!handles)
-        return missing(c, n, "regions", "handles", "a list of handles, each with select and driver");
+        return missing(c, n, "regions", "handles",
+                       "a list of handles, each with select and driver");
     if (!fy_node_is_sequence(handles) || fy_node_sequence_item_count(handles) < 1)
-        return fail(c, handles, ISO_EPARSE, "regions.handles", "expected a non-empty list, found %s",
-                    type_name(handles));
+        return fail(c, handles, ISO_EPARSE, "regions.handles",
+                    "expected a non-empty list, found %s", type_name(handles));
     int cnt = fy_node_sequence_item_count(handles);
     if (cnt > ISO_SCENE_MAX_HANDLES)
         return fail(c, handles, ISO_EINVAL, "regions.handles", "at most %d handles, found %d",
@@ -863,9 +877,8 @@ static int parse_regions(sctx *c, fnode *n)
             (rc = check_keys(c, h, key, hkeys)))
             return rc;
         snprintf(hd->name, sizeof hd->name, "handle%d", i);
-        if (get(h, "name") &&
-            (rc = to_string(c, get(h, "name"), join(sub, sizeof sub, key, "name"), hd->name,
-                            sizeof hd->name)))
+        if (get(h, "name") && (rc = to_string(c, get(h, "name"), join(sub, sizeof sub, key, "name"),
+                                              hd->name, sizeof hd->name)))
             return rc;
         for (int j = 0; j < i; j++)
             if (strcmp(s->handles[j].name, hd->name) == 0)
@@ -894,8 +907,8 @@ static int parse_regions(sctx *c, fnode *n)
 
 static int parse_solver(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"omega", "weighting", "restore", "assembly", "refactor",
-                                       "cg_tol", "cg_max_iter", NULL};
+    static const char *const keys[] = {"omega",    "weighting", "restore",     "assembly",
+                                       "refactor", "cg_tol",    "cg_max_iter", NULL};
     iso_solver_opts *o = &c->s->solver;
     int rc;
     fnode *v;
@@ -981,7 +994,8 @@ static int parse_integrator(sctx *c, fnode *n)
         if ((rc = to_double(c, v, "integrator.restore_kappa", k)))
             return rc;
         if (!(*k >= 0))
-            return fail(c, v, ISO_EINVAL, "integrator.restore_kappa", "expected >= 0, found %g", *k);
+            return fail(c, v, ISO_EINVAL, "integrator.restore_kappa", "expected >= 0, found %g",
+                        *k);
     }
     if ((v = get(n, "cg_share"))) {
         double *q = &c->s->integrate.cg_share;
@@ -998,8 +1012,8 @@ static int parse_integrator(sctx *c, fnode *n)
 /* devices                                                                   */
 /* ------------------------------------------------------------------------ */
 
-static const char *const backend_names[] = {"", "hid", "spnav", "tty", "tcp", "serialport", "gpio",
-                                            "replay", NULL};
+static const char *const backend_names[] = {"",           "hid",  "spnav",  "tty", "tcp",
+                                            "serialport", "gpio", "replay", NULL};
 
 const char *iso_scene_backend_name(int b)
 {
@@ -1025,9 +1039,10 @@ static int host_port(sctx *c, fnode *n, const char *key, char *host, size_t cap,
 
 static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
 {
-    static const char *const all[] = {"name", "kind", "path", "address", "port", "baud", "vid",
-                                      "pid", "chip", "clutch_line", "estop_line", "pulse_line",
-                                      "active_low", "debounce_us", "file", "stale_ms", NULL};
+    static const char *const all[] = {
+        "name",       "kind",        "path", "address",     "port",       "baud",
+        "vid",        "pid",         "chip", "clutch_line", "estop_line", "pulse_line",
+        "active_low", "debounce_us", "file", "stale_ms",    NULL};
     static const char *const per[][12] = {
         {NULL},
         {"name", "kind", "path", "vid", "pid", NULL},
@@ -1041,7 +1056,8 @@ static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
     };
     int rc;
     char sub[KEY_MAX];
-    if ((rc = want_map(c, n, key, "a device {name, kind, ...}")) || (rc = check_keys(c, n, key, all)))
+    if ((rc = want_map(c, n, key, "a device {name, kind, ...}")) ||
+        (rc = check_keys(c, n, key, all)))
         return rc;
     if (!get(n, "name"))
         return missing(c, n, key, "name", "the name handles refer to");
@@ -1089,14 +1105,14 @@ static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
             d->pid = (uint16_t)l;
         }
         break;
-    case ISO_SCENE_DEV_SPNAV:
-        break;
+    case ISO_SCENE_DEV_SPNAV: break;
     case ISO_SCENE_DEV_TTY:
     case ISO_SCENE_DEV_SERIALPORT: {
         const char *pk = d->backend == ISO_SCENE_DEV_TTY ? "path" : "port";
         if (!get(n, pk))
             return missing(c, n, key, pk, "the device's name, e.g. /dev/ttyUSB0");
-        if ((rc = to_string(c, get(n, pk), join(sub, sizeof sub, key, pk), d->path, sizeof d->path)))
+        if ((rc =
+                 to_string(c, get(n, pk), join(sub, sizeof sub, key, pk), d->path, sizeof d->path)))
             return rc;
         d->baud = 115200;
         if ((v = get(n, "baud"))) {
@@ -1160,7 +1176,8 @@ static int parse_device(sctx *c, fnode *n, const char *key, iso_scene_device *d)
 static int parse_devices(sctx *c, fnode *n)
 {
     if (!n || !fy_node_is_sequence(n))
-        return fail(c, n, ISO_EPARSE, "devices", "expected a list of devices, found %s", type_name(n));
+        return fail(c, n, ISO_EPARSE, "devices", "expected a list of devices, found %s",
+                    type_name(n));
     int cnt = fy_node_sequence_item_count(n);
     if (cnt > ISO_SCENE_MAX_DEVICES)
         return fail(c, n, ISO_EINVAL, "devices", "at most %d devices, found %d",
@@ -1188,12 +1205,13 @@ static int parse_devices(sctx *c, fnode *n)
 
 static int parse_display(sctx *c, fnode *n)
 {
-    static const char *const keys[] = {"host",         "port",         "allow_remote",
+    static const char *const keys[] = {"host",           "port",         "allow_remote",
                                        "snapshot_ticks", "snapshot_dir", NULL};
     iso_scene_display *d = &c->s->display;
     int rc;
     fnode *v;
-    if ((rc = want_map(c, n, "sinks.display", "a mapping (host, port, allow_remote, snapshot_ticks, snapshot_dir)")) ||
+    if ((rc = want_map(c, n, "sinks.display",
+                       "a mapping (host, port, allow_remote, snapshot_ticks, snapshot_dir)")) ||
         (rc = check_keys(c, n, "sinks.display", keys)))
         return rc;
     d->enabled = 1;
@@ -1251,19 +1269,22 @@ static int parse_link(sctx *c, fnode *n, iso_scene_actuators *a)
         if (strcmp(word, "emulated") == 0)
             return parse_emulated(c, NULL, a);
         if (nearest(word, words))
-            return fail(c, n, ISO_EPARSE, key, "unknown link '%s'; did you mean 'emulated'? (expected "
-                        LINK_FORMS ", or emulated alone)", word);
+            return fail(c, n, ISO_EPARSE, key,
+                        "unknown link '%s'; did you mean 'emulated'? (expected " LINK_FORMS
+                        ", or emulated alone)",
+                        word);
         return fail(c, n, ISO_EPARSE, key, "expected " LINK_FORMS ", or emulated alone; found '%s'",
                     word);
     }
     if ((rc = want_map(c, n, key, LINK_FORMS ", with baud for tty and serial")) ||
         (rc = check_keys(c, n, key, keys)))
         return rc;
-    fnode *tty = get(n, "tty"), *tcp = get(n, "tcp"), *ser = get(n, "serial"), *emu = get(n, "emulated");
+    fnode *tty = get(n, "tty"), *tcp = get(n, "tcp"), *ser = get(n, "serial"),
+          *emu = get(n, "emulated");
     int count = (tty != NULL) + (tcp != NULL) + (ser != NULL) + (emu != NULL);
     if (count != 1)
-        return fail(c, n, ISO_EPARSE, key, "expected exactly one of tty, tcp, serial or emulated, found %d",
-                    count);
+        return fail(c, n, ISO_EPARSE, key,
+                    "expected exactly one of tty, tcp, serial or emulated, found %d", count);
     if ((tcp || emu) && get(n, "baud"))
         return fail(c, get(n, "baud"), ISO_EPARSE, "sinks.actuators.link.baud",
                     "only goes with tty or serial");
@@ -1274,8 +1295,9 @@ static int parse_link(sctx *c, fnode *n, iso_scene_actuators *a)
         return host_port(c, tcp, "sinks.actuators.link.tcp", a->host, sizeof a->host, &a->port);
     }
     a->link = tty ? ISO_SCENE_LINK_TTY : ISO_SCENE_LINK_SERIAL;
-    if ((rc = to_string(c, tty ? tty : ser, tty ? "sinks.actuators.link.tty" : "sinks.actuators.link.serial",
-                        a->path, sizeof a->path)))
+    if ((rc = to_string(c, tty ? tty : ser,
+                        tty ? "sinks.actuators.link.tty" : "sinks.actuators.link.serial", a->path,
+                        sizeof a->path)))
         return rc;
     if (get(n, "baud") &&
         (rc = to_int(c, get(n, "baud"), "sinks.actuators.link.baud", 50, 12000000, &a->baud)))
@@ -1285,8 +1307,8 @@ static int parse_link(sctx *c, fnode *n, iso_scene_actuators *a)
 
 static int parse_channel(sctx *c, fnode *n, const char *key, iso_scene_channel *ch)
 {
-    static const char *const keys[] = {"channel", "vertex", "region", "axis", "min", "max", "scale",
-                                       NULL};
+    static const char *const keys[] = {"channel", "vertex", "region", "axis",
+                                       "min",     "max",    "scale",  NULL};
     int rc;
     char sub[KEY_MAX];
     if ((rc = want_map(c, n, key, "a channel {channel, vertex or region, axis, min, max}")) ||
@@ -1387,13 +1409,13 @@ static int parse_sinks(sctx *c, fnode *n)
                 return rc;
             for (int j = 0; j < i; j++)
                 if (a->ch[j].channel == a->ch[i].channel)
-                    return fail(c, get(e, "channel"), ISO_EPARSE, key,
-                                "channel %d is used twice", a->ch[i].channel);
+                    return fail(c, get(e, "channel"), ISO_EPARSE, key, "channel %d is used twice",
+                                a->ch[i].channel);
         }
         /* the loop watchdog may be widened or narrowed, never switched off */
         fnode *lt = get(v, "loop_timeout_ms");
-        if (lt && (rc = to_int(c, lt, "sinks.actuators.loop_timeout_ms", 20, 60000,
-                               &a->loop_timeout_ms)))
+        if (lt &&
+            (rc = to_int(c, lt, "sinks.actuators.loop_timeout_ms", 20, 60000, &a->loop_timeout_ms)))
             return rc;
         a->enabled = 1;
     }
@@ -1406,14 +1428,16 @@ static int parse_sinks(sctx *c, fnode *n)
 
 static int parse_root(sctx *c, fnode *root)
 {
-    static const char *const keys[] = {"name", "mesh", "regions", "solver", "integrator", "tick_hz",
-                                       "devices", "sinks", "recording", NULL};
+    static const char *const keys[] = {"name",    "mesh",    "regions", "solver",    "integrator",
+                                       "tick_hz", "devices", "sinks",   "recording", NULL};
     iso_scene *s = c->s;
     int rc;
     fnode *v;
     if (!root)
-        return iso_err_set(c->err, ISO_EPARSE, 1, "%s:1:1: (top level): the file is empty "
-                           "(expected a mapping with mesh and regions)", c->file);
+        return iso_err_set(c->err, ISO_EPARSE, 1,
+                           "%s:1:1: (top level): the file is empty "
+                           "(expected a mapping with mesh and regions)",
+                           c->file);
     if ((rc = want_map(c, root, "(top level)", "a mapping with mesh and regions")) ||
         (rc = check_keys(c, root, "", keys)))
         return rc;
@@ -1526,13 +1550,17 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
     for (size_t i = 0, line = 1; i < len; i++) {
         unsigned char ch = (unsigned char)text[i];
         if (ch < 0x20 && ch != '\t' && ch != '\n' && ch != '\r') {
-            rc = iso_err_set(err, ISO_EPARSE, (long)line, "%s:%zu: control byte 0x%02x: a scene is "
-                             "a text file", path, line, ch);
+            rc = iso_err_set(err, ISO_EPARSE, (long)line,
+                             "%s:%zu: control byte 0x%02x: a scene is "
+                             "a text file",
+                             path, line, ch);
             goto out;
         }
         if ((i == 0 || text[i - 1] == '\n' || text[i - 1] == '\r') && ch == '%') {
-            rc = iso_err_set(err, ISO_EPARSE, (long)line, "%s:%zu:1: YAML directives ('%%...') are "
-                             "not supported in scene files", path, line);
+            rc = iso_err_set(err, ISO_EPARSE, (long)line,
+                             "%s:%zu:1: YAML directives ('%%...') are "
+                             "not supported in scene files",
+                             path, line);
             goto out;
         }
         line += text[i] == '\n';
@@ -1547,8 +1575,10 @@ static int load(const char *text, size_t len, const char *path, const iso_scene_
                              e->line > 0 ? e->line : 1, e->column > 0 ? e->column : 1,
                              e->msg ? e->msg : "?");
         else
-            rc = iso_err_set(err, ISO_EPARSE, 1, "%s:1:1: (top level): the file is empty or holds "
-                             "no YAML document (expected a mapping with mesh and regions)", path);
+            rc = iso_err_set(err, ISO_EPARSE, 1,
+                             "%s:1:1: (top level): the file is empty or holds "
+                             "no YAML document (expected a mapping with mesh and regions)",
+                             path);
         goto out;
     }
     sctx *c0 = calloc(1, sizeof *c0);

@@ -47,9 +47,8 @@ static int build_mesh(iso_scene *s, const iso_scene_opts *opts, iso_regions *bas
     }
     if (m->kind == ISO_SCENE_MESH_BENCHMARK) {
         char why[1024] = "no benchmark lookup was given";
-        if (opts->bench_find &&
-            opts->bench_find(opts->bench_ctx, m->benchmark, m->path, m->sel, m->def, why,
-                             sizeof why)) {
+        if (opts->bench_find && opts->bench_find(opts->bench_ctx, m->benchmark, m->path, m->sel,
+                                                 m->def, why, sizeof why)) {
             m->used = ISO_SCENE_MESH_BENCHMARK;
             if ((rc = iso_mesh_load(m->path, &s->mesh, &e)))
                 return wrap(s, err, m->line, m->col, "mesh.benchmark", &e);
@@ -63,9 +62,12 @@ static int build_mesh(iso_scene *s, const iso_scene_opts *opts, iso_regions *bas
         if (!m->fallback_shape[0])
             return at(s, err, ISO_EIO, m->line, m->col, "mesh.benchmark",
                       "benchmark problem '%s' not found (looked in: %s); add fallback_shape to run "
-                      "a built-in shape instead", m->benchmark, why);
-        snprintf(m->note, sizeof m->note, "benchmark '%s' not found (looked in: %.900s); using the "
-                 "built-in shape '%s'", m->benchmark, why, m->fallback_shape);
+                      "a built-in shape instead",
+                      m->benchmark, why);
+        snprintf(m->note, sizeof m->note,
+                 "benchmark '%s' not found (looked in: %.900s); using the "
+                 "built-in shape '%s'",
+                 m->benchmark, why, m->fallback_shape);
         shape = m->fallback_shape;
     }
     m->used = ISO_SCENE_MESH_SHAPE;
@@ -139,7 +141,8 @@ static int select_region(iso_scene *s, const iso_scene_region *r, const char *ke
             if (hit == 0)
                 return at(s, err, ISO_ECONSTRAINT, q->line, q->col, key,
                           "this selection selects no vertex (the mesh's bounding-box diagonal is "
-                          "%g)", iso_mesh_bbox_diagonal(s->mesh));
+                          "%g)",
+                          iso_mesh_bbox_diagonal(s->mesh));
         }
         *count += n;
     }
@@ -188,8 +191,10 @@ static int build_regions(iso_scene *s, iso_regions *base, iso_err *err)
             if (mark[v]) {
                 if (r->kind[v] == ISO_HANDLE) {
                     rc = at(s, err, ISO_ECONSTRAINT, s->fixed.sel[0].line, s->fixed.sel[0].col,
-                            "regions.fixed", "vertex %d is both fixed and on handle '%s' (from "
-                            "the .sel)", v, s->handles[0].name);
+                            "regions.fixed",
+                            "vertex %d is both fixed and on handle '%s' (from "
+                            "the .sel)",
+                            v, s->handles[0].name);
                     goto out;
                 }
                 r->kind[v] = ISO_FIXED;
@@ -203,7 +208,8 @@ static int build_regions(iso_scene *s, iso_regions *base, iso_err *err)
             if (h != 0 || base_handles == 0) {
                 rc = at(s, err, ISO_EPARSE, s->sel_line, s->sel_col, key,
                         "handle '%s' has no select, so it must be handle 0 of regions.sel, which "
-                        "%s", hd->name, h != 0 ? "only has one handle" : "has no handle vertices");
+                        "%s",
+                        hd->name, h != 0 ? "only has one handle" : "has no handle vertices");
                 goto out;
             }
             hd->region.count = base_handles;

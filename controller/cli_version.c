@@ -76,8 +76,8 @@ void iso_cli__tune_blas(char **argv)
         return;
     __builtin_cpu_init();
     const char *better = __builtin_cpu_supports("avx512f") ? "SkylakeX"
-                         : __builtin_cpu_supports("avx2") ? "Haswell"
-                                                          : NULL;
+                         : __builtin_cpu_supports("avx2")  ? "Haswell"
+                                                           : NULL;
     if (!better || setenv("OPENBLAS_CORETYPE", better, 1) != 0)
         return;
     execv("/proc/self/exe", argv);

@@ -83,11 +83,11 @@ typedef struct bench_accuracy {
 
 typedef struct bench_machine {
     int dgemm_n, dgemm_reps;
-    double dgemm_gflops;   /* with OpenBLAS's own thread count */
-    double dgemm1_gflops;  /* on one thread: the ceiling of a factorization the
-                              solver runs single-threaded (linsolve.c); NAN
-                              when the BLAS has no thread control */
-    int dgemm_threads;     /* OpenBLAS's thread count, 0 if unknown */
+    double dgemm_gflops;  /* with OpenBLAS's own thread count */
+    double dgemm1_gflops; /* on one thread: the ceiling of a factorization the
+                             solver runs single-threaded (linsolve.c); NAN
+                             when the BLAS has no thread control */
+    int dgemm_threads;    /* OpenBLAS's thread count, 0 if unknown */
     int bare_reps, unknowns;
     long nnz_l;
     double flops, bare_factor_s, bare_solve_s;

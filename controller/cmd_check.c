@@ -22,13 +22,15 @@ static void print_summary(const iso_scene *s)
     if (m->used == ISO_SCENE_MESH_BENCHMARK)
         printf("  mesh: benchmark %s (%s)\n", m->benchmark, m->path);
     else if (m->used == ISO_SCENE_MESH_SHAPE)
-        printf("  mesh: built-in shape %s%s\n", m->fallback_shape[0] && m->kind == ISO_SCENE_MESH_BENCHMARK
-                                                   ? m->fallback_shape : m->shape,
+        printf("  mesh: built-in shape %s%s\n",
+               m->fallback_shape[0] && m->kind == ISO_SCENE_MESH_BENCHMARK ? m->fallback_shape
+                                                                           : m->shape,
                m->note[0] ? " (benchmark absent)" : "");
     else
         printf("  mesh: %s\n", m->path);
     printf("  vertices %d, triangles %d: free %d, fixed %d, handle %d\n", nv,
-           iso_mesh_triangle_count(s->mesh), counts[ISO_FREE], counts[ISO_FIXED], counts[ISO_HANDLE]);
+           iso_mesh_triangle_count(s->mesh), counts[ISO_FREE], counts[ISO_FIXED],
+           counts[ISO_HANDLE]);
     for (int h = 0; h < s->n_handles; h++) {
         const iso_scene_handle *hd = &s->handles[h];
         const iso_scene_driver *d = &hd->driver;

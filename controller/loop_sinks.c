@@ -17,7 +17,7 @@ struct iso_loop_sinks {
     iso_display *display;
     iso_actuators *act;
     char act_line[1000]; /* kept when the actuators close (the counters run ~650) */
-    char act_stop[600]; /* how the safe stop went */
+    char act_stop[600];  /* how the safe stop went */
     iso_ply_frames *ply;
     long ply_written, snapshots;
     long frames_sent; /* kept when the display closes */
@@ -122,7 +122,7 @@ static int open_actuators(iso_loop *l, iso_err *err)
     memset(&so, 0, sizeof so);
     so.tick_period_ms = (int)ceil(1000.0 / l->sc->tick_hz);
     so.loop_timeout_ms = a->loop_timeout_ms; /* 0: the default above */
-    so.estop_probe = estop_inputs; /* read on the sender thread, every 2 ms */
+    so.estop_probe = estop_inputs;           /* read on the sender thread, every 2 ms */
     so.estop_ctx = l;
     return iso_actuators_create_v2(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &so,
                                    &l->sinks->act, err);

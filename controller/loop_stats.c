@@ -146,12 +146,13 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             iso_abm_mode_name((iso_abm_mode)sc->abm_mode), s->integ.evaluations,
             s->integ.max_step_evaluations);
     double ev = s->solver.evaluations > 0 ? (double)s->solver.evaluations : NAN;
-    fprintf(f,
-            "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms\n"
-            "              %ld factorizations, %ld CG iterations (at most %ld a step, %ld capped)\n",
-            1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
-            1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
-            s->integ.max_step_cg_iterations, s->solver.cg_capped);
+    fprintf(
+        f,
+        "  solver      per evaluation: assembly %.2f ms, factor %.2f ms, solve %.2f ms\n"
+        "              %ld factorizations, %ld CG iterations (at most %ld a step, %ld capped)\n",
+        1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
+        1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
+        s->integ.max_step_cg_iterations, s->solver.cg_capped);
     fprintf(f, "  distortion  of the mesh against its rest pose (e' and e: an edge now and at "
                "rest)\n");
     iso_metrics_print(f, "    ", &s->metrics);

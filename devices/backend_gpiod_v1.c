@@ -110,8 +110,8 @@ static int gp_estop_level(iso_dev_source *s)
     return v < 0 ? ISO_EIO : v != 0;
 }
 
-static const iso_dev_source_ops gp_ops = {"gpiod",  gp_fd,   gp_read, gp_write_level,
-                                          gp_close, gp_estop_level};
+static const iso_dev_source_ops gp_ops = {"gpiod",        gp_fd,    gp_read,
+                                          gp_write_level, gp_close, gp_estop_level};
 
 static int fail(gp *g, iso_dev_source *s, iso_err *err, const char *chip, const char *what,
                 int line)

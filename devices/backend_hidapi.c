@@ -44,7 +44,8 @@ static void hid_close_source(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops hid_ops = {"hidapi", NULL, hid_read_chunk, NULL, hid_close_source, NULL};
+static const iso_dev_source_ops hid_ops = {"hidapi",         NULL, hid_read_chunk, NULL,
+                                           hid_close_source, NULL};
 
 /* /dev/hidrawN -> /sys/class/hidraw/hidrawN/device/report_descriptor */
 static void read_descriptor(iso_dev_info *info)

@@ -190,8 +190,8 @@ static void spnav_close_source(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops spnav_ops = {"spnav", spnav_fd_of, spnav_read_chunk, NULL,
-                                             spnav_close_source, NULL};
+static const iso_dev_source_ops spnav_ops = {"spnav", spnav_fd_of,        spnav_read_chunk,
+                                             NULL,    spnav_close_source, NULL};
 
 int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 {

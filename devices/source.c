@@ -80,8 +80,8 @@ static int fake_estop_level(iso_dev_source *s)
     return atomic_load(&((fake *)s->impl)->estop);
 }
 
-static const iso_dev_source_ops fake_ops = {"fake",         NULL,       fake_read, fake_write_level,
-                                            fake_close,     fake_estop_level};
+static const iso_dev_source_ops fake_ops = {"fake",           NULL,       fake_read,
+                                            fake_write_level, fake_close, fake_estop_level};
 
 void iso_dev_fake_set_estop(iso_dev_source *s, int level)
 {
@@ -193,7 +193,8 @@ static void replay_close(iso_dev_source *s)
     free(s);
 }
 
-static const iso_dev_source_ops replay_ops = {"replay", NULL, replay_read, NULL, replay_close, NULL};
+static const iso_dev_source_ops replay_ops = {"replay", NULL,         replay_read,
+                                              NULL,     replay_close, NULL};
 
 int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err)
 {

@@ -40,7 +40,8 @@ static void send_hello(iso_fb_host *h)
     req.proto_version = ISO_FB_VERSION;
     uint8_t p[ISO_FB_MAX_PAYLOAD];
     iso_err_clear(&h->last_err);
-    if (send_frame(h, ISO_FB_HELLO, p, iso_fb_hello_pack(p, sizeof p, &req), &h->last_err) != ISO_OK) {
+    if (send_frame(h, ISO_FB_HELLO, p, iso_fb_hello_pack(p, sizeof p, &req), &h->last_err) !=
+        ISO_OK) {
         link_down(h);
         return;
     }
@@ -60,10 +61,14 @@ int iso_fb_host_init(iso_fb_host *h, iso_link *link, const iso_fb_host_opts *opt
     h->opts.reopen_ms = 250;
     h->opts.write_timeout_ms = 100;
     if (opts) {
-        if (opts->hello_retry_ms > 0) h->opts.hello_retry_ms = opts->hello_retry_ms;
-        if (opts->link_timeout_ms > 0) h->opts.link_timeout_ms = opts->link_timeout_ms;
-        if (opts->reopen_ms > 0) h->opts.reopen_ms = opts->reopen_ms;
-        if (opts->write_timeout_ms > 0) h->opts.write_timeout_ms = opts->write_timeout_ms;
+        if (opts->hello_retry_ms > 0)
+            h->opts.hello_retry_ms = opts->hello_retry_ms;
+        if (opts->link_timeout_ms > 0)
+            h->opts.link_timeout_ms = opts->link_timeout_ms;
+        if (opts->reopen_ms > 0)
+            h->opts.reopen_ms = opts->reopen_ms;
+        if (opts->write_timeout_ms > 0)
+            h->opts.write_timeout_ms = opts->write_timeout_ms;
     }
     if (cb)
         h->cb = *cb;
@@ -101,8 +106,10 @@ static void note_rtt(iso_fb_host *h, uint16_t seq)
     h->stats.rtt_last_us = us;
     h->stats.rtt_sum_us += us;
     h->stats.rtt_count++;
-    if (us < h->stats.rtt_min_us) h->stats.rtt_min_us = us;
-    if (us > h->stats.rtt_max_us) h->stats.rtt_max_us = us;
+    if (us < h->stats.rtt_min_us)
+        h->stats.rtt_min_us = us;
+    if (us > h->stats.rtt_max_us)
+        h->stats.rtt_max_us = us;
 }
 
 static void handle_frame(iso_fb_host *h, const iso_fb_view *v)
@@ -249,7 +256,8 @@ static void service(iso_fb_host *h)
         return;
     }
     if (h->state == ISO_FB_HOST_HANDSHAKE &&
-        (h->last_hello_us == 0 || now - h->last_hello_us >= (uint64_t)h->opts.hello_retry_ms * 1000u))
+        (h->last_hello_us == 0 ||
+         now - h->last_hello_us >= (uint64_t)h->opts.hello_retry_ms * 1000u))
         send_hello(h);
 }
 
@@ -299,7 +307,8 @@ int iso_fb_host_send_safe(iso_fb_host *h, uint8_t cause, iso_err *err)
         return iso_err_set(err, ISO_ENOTSUP, -1,
                            "fb host: the MCU (firmware %u.%u) does not offer SAFE; only its link "
                            "watchdog brakes it",
-                           (unsigned)(h->device.fw_version >> 8), (unsigned)(h->device.fw_version & 0xffu));
+                           (unsigned)(h->device.fw_version >> 8),
+                           (unsigned)(h->device.fw_version & 0xffu));
     iso_fb_safe q = {cause};
     uint8_t p[ISO_FB_MAX_PAYLOAD];
     iso_err e;
@@ -331,12 +340,13 @@ int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap)
     return snprintf(buf, cap,
                     "fb link: sent %" PRIu64 " frames (%" PRIu64 " B), received %" PRIu64
                     " (%" PRIu64 " B); dropped %" PRIu32 " (crc %" PRIu32 ", cobs %" PRIu32
-                    ", too long %" PRIu32 ", short %" PRIu32 ", seq dup %" PRIu32 ", seq order %" PRIu32
-                    "), %" PRIu32 " lost in gaps; acks %" PRIu32 ", naks %" PRIu32 ", faults %" PRIu32
-                    ", samples %" PRIu32 "; link losses %" PRIu32 ", reopens %" PRIu32
-                    ", handshakes %" PRIu32 "; rtt avg %.2f ms (min %.2f, max %.2f)",
-                    s->tx_frames, s->tx_bytes, s->rx_frames, s->rx_bytes, s->rx.resyncs, s->rx.bad_crc,
-                    s->rx.bad_cobs, s->rx.too_long, s->rx.too_short, s->rx.duplicate,
+                    ", too long %" PRIu32 ", short %" PRIu32 ", seq dup %" PRIu32
+                    ", seq order %" PRIu32 "), %" PRIu32 " lost in gaps; acks %" PRIu32
+                    ", naks %" PRIu32 ", faults %" PRIu32 ", samples %" PRIu32
+                    "; link losses %" PRIu32 ", reopens %" PRIu32 ", handshakes %" PRIu32
+                    "; rtt avg %.2f ms (min %.2f, max %.2f)",
+                    s->tx_frames, s->tx_bytes, s->rx_frames, s->rx_bytes, s->rx.resyncs,
+                    s->rx.bad_crc, s->rx.bad_cobs, s->rx.too_long, s->rx.too_short, s->rx.duplicate,
                     s->rx.out_of_order, s->rx.seq_gaps, s->acks, s->naks, s->faults, s->samples,
                     s->link_losses, s->reopens, s->handshakes, avg, mn, s->rtt_max_us / 1000.0);
 }

@@ -235,8 +235,16 @@ static void put8(cursor *c, uint32_t v)
     }
     c->w[c->pos++] = (uint8_t)v;
 }
-static void put16(cursor *c, uint32_t v) { put8(c, v & 0xFFu); put8(c, (v >> 8) & 0xFFu); }
-static void put32(cursor *c, uint32_t v) { put16(c, v & 0xFFFFu); put16(c, v >> 16); }
+static void put16(cursor *c, uint32_t v)
+{
+    put8(c, v & 0xFFu);
+    put8(c, (v >> 8) & 0xFFu);
+}
+static void put32(cursor *c, uint32_t v)
+{
+    put16(c, v & 0xFFFFu);
+    put16(c, v >> 16);
+}
 
 static uint32_t get8(cursor *c)
 {
@@ -246,21 +254,49 @@ static uint32_t get8(cursor *c)
     }
     return c->r[c->pos++];
 }
-static uint32_t get16(cursor *c) { uint32_t lo = get8(c); return lo | get8(c) << 8; }
-static uint32_t get32(cursor *c) { uint32_t lo = get16(c); return lo | get16(c) << 16; }
+static uint32_t get16(cursor *c)
+{
+    uint32_t lo = get8(c);
+    return lo | get8(c) << 8;
+}
+static uint32_t get32(cursor *c)
+{
+    uint32_t lo = get16(c);
+    return lo | get16(c) << 16;
+}
 /* Two's complement without implementation-defined conversions. */
-static int16_t s16(uint32_t v) { return (int16_t)(v >= 0x8000u ? (int32_t)v - 0x10000 : (int32_t)v); }
+static int16_t s16(uint32_t v)
+{
+    return (int16_t)(v >= 0x8000u ? (int32_t)v - 0x10000 : (int32_t)v);
+}
 static int32_t s32(uint32_t v)
 {
     return v >= 0x80000000u ? -(int32_t)(~v) - 1 : (int32_t)v;
 }
-static uint32_t u16(int16_t v) { return (uint16_t)v; }
+static uint32_t u16(int16_t v)
+{
+    return (uint16_t)v;
+}
 
-static cursor writer(uint8_t *dst, size_t cap) { cursor c = {dst, NULL, dst ? cap : 0, 0, 0}; return c; }
-static cursor reader(const uint8_t *src, size_t len) { cursor c = {NULL, src, src ? len : 0, 0, 0}; return c; }
-static int wdone(const cursor *c) { return c->bad ? ISO_FB_ENOSPACE : (int)c->pos; }
+static cursor writer(uint8_t *dst, size_t cap)
+{
+    cursor c = {dst, NULL, dst ? cap : 0, 0, 0};
+    return c;
+}
+static cursor reader(const uint8_t *src, size_t len)
+{
+    cursor c = {NULL, src, src ? len : 0, 0, 0};
+    return c;
+}
+static int wdone(const cursor *c)
+{
+    return c->bad ? ISO_FB_ENOSPACE : (int)c->pos;
+}
 /* An unpack succeeds only if it consumed exactly the payload. */
-static int rdone(const cursor *c) { return c->bad || c->pos != c->cap ? ISO_FB_EPAYLOAD : 0; }
+static int rdone(const cursor *c)
+{
+    return c->bad || c->pos != c->cap ? ISO_FB_EPAYLOAD : 0;
+}
 
 int iso_fb_hello_pack(uint8_t *dst, size_t cap, const iso_fb_hello *m)
 {

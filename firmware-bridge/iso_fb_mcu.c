@@ -92,7 +92,10 @@ int iso_fb_mcu_init(iso_fb_mcu *m, const iso_fb_mcu_config *cfg, iso_fb_mcu_writ
     return 0;
 }
 
-static int32_t clamp_i32(int32_t v, int32_t lo, int32_t hi) { return v < lo ? lo : v > hi ? hi : v; }
+static int32_t clamp_i32(int32_t v, int32_t lo, int32_t hi)
+{
+    return v < lo ? lo : v > hi ? hi : v;
+}
 
 static void on_setpoints(iso_fb_mcu *m, const iso_fb_view *v)
 {

@@ -17,11 +17,11 @@
 typedef void (*iso_fb_mcu_write_fn)(void *ctx, const uint8_t *bytes, size_t n);
 
 typedef struct iso_fb_mcu_config {
-    uint8_t n_channels;                     /* 1..ISO_FB_MAX_CHANNELS */
+    uint8_t n_channels; /* 1..ISO_FB_MAX_CHANNELS */
     iso_fb_channel_info ch[ISO_FB_MAX_CHANNELS];
-    uint32_t watchdog_ms;                   /* no SETPOINTS this long -> safe state; default 100 */
-    uint32_t heartbeat_ms;                  /* HEARTBEAT period; default 100 */
-    uint32_t sample_ms;                     /* HANDLE_SAMPLE period while armed; 0 = off; default 20 */
+    uint32_t watchdog_ms;  /* no SETPOINTS this long -> safe state; default 100 */
+    uint32_t heartbeat_ms; /* HEARTBEAT period; default 100 */
+    uint32_t sample_ms;    /* HANDLE_SAMPLE period while armed; 0 = off; default 20 */
 } iso_fb_mcu_config;
 
 typedef struct iso_fb_mcu {
@@ -34,8 +34,8 @@ typedef struct iso_fb_mcu {
     uint8_t hang_requested; /* DIAG asked to stop feeding the hardware watchdog */
     uint32_t now_ms;
     uint32_t last_setpoints_ms, last_heartbeat_ms, last_sample_ms;
-    int32_t pos_u[ISO_FB_MAX_CHANNELS];     /* positions in micro-units */
-    int32_t target_u[ISO_FB_MAX_CHANNELS];  /* rate-limited towards these */
+    int32_t pos_u[ISO_FB_MAX_CHANNELS];    /* positions in micro-units */
+    int32_t target_u[ISO_FB_MAX_CHANNELS]; /* rate-limited towards these */
     uint32_t setpoints_applied, clamped, naks, faults;
 } iso_fb_mcu;
 

@@ -62,9 +62,9 @@ ISO_API ISO_NODISCARD int iso_link_tcp_open(const char *host, int port, int time
 
 /* ---- libserialport ------------------------------------------------------ */
 typedef struct iso_link_sp_port {
-    char name[128];        /* what iso_link_sp_open takes, e.g. /dev/ttyUSB0 */
+    char name[128]; /* what iso_link_sp_open takes, e.g. /dev/ttyUSB0 */
     char description[128];
-    int usb_vid, usb_pid;  /* -1 when not a USB port */
+    int usb_vid, usb_pid; /* -1 when not a USB port */
 } iso_link_sp_port;
 /* Lists serial ports into ports[cap]; returns how many exist (may exceed
  * cap), or ISO_EIO / ISO_ENOTSUP (built without libserialport). */

@@ -43,7 +43,8 @@ void iso_link_close(iso_link *l)
         l->ops->close(l);
 }
 
-int iso_fb__fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
+int iso_fb__fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms,
+                    iso_err *err)
 {
     if (fd < 0)
         return iso_err_set(err, ISO_EIO, -1, "%s: link is closed", what);
@@ -85,8 +86,9 @@ int iso_fb__fd_write(int fd, const char *what, const uint8_t *buf, size_t n, int
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", what, strerror(errno));
         int left = iso_clock_ms_until(deadline);
         if (left == 0)
-            return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms (%zu of %zu bytes)",
-                               what, timeout_ms, done, n);
+            return iso_err_set(err, ISO_EIO, -1,
+                               "%s: write timed out after %d ms (%zu of %zu bytes)", what,
+                               timeout_ms, done, n);
         struct pollfd p = {fd, POLLOUT, 0};
         if (poll(&p, 1, left) < 0 && errno != EINTR)
             return iso_err_set(err, ISO_EIO, -1, "%s: poll: %s", what, strerror(errno));

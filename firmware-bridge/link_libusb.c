@@ -9,7 +9,8 @@
 #include <libusb.h>
 
 _Static_assert((int)ISO_LINK_USB_EIO == (int)LIBUSB_ERROR_IO, "usb codes match libusb");
-_Static_assert((int)ISO_LINK_USB_NO_DEVICE == (int)LIBUSB_ERROR_NO_DEVICE, "usb codes match libusb");
+_Static_assert((int)ISO_LINK_USB_NO_DEVICE == (int)LIBUSB_ERROR_NO_DEVICE,
+               "usb codes match libusb");
 _Static_assert((int)ISO_LINK_USB_TIMEOUT == (int)LIBUSB_ERROR_TIMEOUT, "usb codes match libusb");
 _Static_assert((int)ISO_LINK_USB_OVERFLOW == (int)LIBUSB_ERROR_OVERFLOW, "usb codes match libusb");
 _Static_assert((int)ISO_LINK_USB_PIPE == (int)LIBUSB_ERROR_PIPE, "usb codes match libusb");
@@ -20,7 +21,8 @@ typedef struct lusb {
     int iface;
 } lusb;
 
-static int lusb_bulk(void *ctx, uint8_t ep, uint8_t *data, int length, int *transferred, unsigned timeout_ms)
+static int lusb_bulk(void *ctx, uint8_t ep, uint8_t *data, int length, int *transferred,
+                     unsigned timeout_ms)
 {
     lusb *u = ctx;
     return libusb_bulk_transfer(u->dev, ep, data, length, transferred, timeout_ms);
@@ -96,15 +98,16 @@ int iso_link_usb_open(uint16_t vid, uint16_t pid, iso_link **out, iso_err *err)
     u->dev = libusb_open_device_with_vid_pid(u->ctx, vid, pid);
     if (!u->dev) {
         lusb_close(u);
-        return iso_err_set(err, ISO_EIO, -1, "usb %04x:%04x: no such device (or no permission)", vid, pid);
+        return iso_err_set(err, ISO_EIO, -1, "usb %04x:%04x: no such device (or no permission)",
+                           vid, pid);
     }
     uint8_t ep_in = 0, ep_out = 0;
     uint16_t mps = 64;
     if (find_bulk(libusb_get_device(u->dev), &u->iface, &ep_in, &ep_out, &mps) != 0) {
         lusb_close(u);
-        return iso_err_set(err, ISO_EIO, -1,
-                           "usb %04x:%04x: no vendor-class interface with bulk IN and OUT endpoints",
-                           vid, pid);
+        return iso_err_set(
+            err, ISO_EIO, -1,
+            "usb %04x:%04x: no vendor-class interface with bulk IN and OUT endpoints", vid, pid);
     }
     libusb_set_auto_detach_kernel_driver(u->dev, 1);
     rc = libusb_claim_interface(u->dev, u->iface);
@@ -113,8 +116,8 @@ int iso_link_usb_open(uint16_t vid, uint16_t pid, iso_link **out, iso_err *err)
         libusb_close(u->dev);
         u->dev = NULL;
         lusb_close(u);
-        return iso_err_set(err, ISO_EIO, -1, "usb %04x:%04x: claim interface %d: %s", vid, pid, iface,
-                           libusb_strerror(rc));
+        return iso_err_set(err, ISO_EIO, -1, "usb %04x:%04x: claim interface %d: %s", vid, pid,
+                           iface, libusb_strerror(rc));
     }
     iso_link_usb_io io = {lusb_bulk, lusb_clear_halt, NULL, lusb_close, u};
     return iso_link_usb_open_io(&io, ep_in, ep_out, mps, out, err);
@@ -126,7 +129,8 @@ int iso_link_usb_open(uint16_t vid, uint16_t pid, iso_link **out, iso_err *err)
 {
     if (out)
         *out = NULL;
-    return iso_err_set(err, ISO_ENOTSUP, -1, "usb %04x:%04x: isoshape was built without libusb", vid, pid);
+    return iso_err_set(err, ISO_ENOTSUP, -1, "usb %04x:%04x: isoshape was built without libusb",
+                       vid, pid);
 }
 
 #endif

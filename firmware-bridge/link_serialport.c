@@ -21,9 +21,15 @@ typedef struct sp_link {
 static int sp_fail(iso_err *err, const char *what, const char *call, enum sp_return r)
 {
     char *m = r == SP_ERR_FAIL ? sp_last_error_message() : NULL;
-    int rc = iso_err_set(err, r == SP_ERR_MEM ? ISO_ENOMEM : r == SP_ERR_SUPP ? ISO_ENOTSUP : ISO_EIO, -1,
-                         "%s: %s: %s", what, call,
-                         m ? m : r == SP_ERR_ARG ? "bad argument" : r == SP_ERR_SUPP ? "not supported" : "failed");
+    int rc = iso_err_set(err,
+                         r == SP_ERR_MEM    ? ISO_ENOMEM
+                         : r == SP_ERR_SUPP ? ISO_ENOTSUP
+                                            : ISO_EIO,
+                         -1, "%s: %s: %s", what, call,
+                         m                  ? m
+                         : r == SP_ERR_ARG  ? "bad argument"
+                         : r == SP_ERR_SUPP ? "not supported"
+                                            : "failed");
     if (m)
         sp_free_error_message(m);
     return rc;
@@ -34,7 +40,8 @@ static int sp_connect(sp_link *s, iso_err *err)
     enum sp_return r;
     if ((r = sp_open(s->port, SP_MODE_READ_WRITE)) != SP_OK)
         return sp_fail(err, s->what, "open", r);
-    if ((r = sp_set_baudrate(s->port, s->baud)) != SP_OK || (r = sp_set_bits(s->port, 8)) != SP_OK ||
+    if ((r = sp_set_baudrate(s->port, s->baud)) != SP_OK ||
+        (r = sp_set_bits(s->port, 8)) != SP_OK ||
         (r = sp_set_parity(s->port, SP_PARITY_NONE)) != SP_OK ||
         (r = sp_set_stopbits(s->port, 1)) != SP_OK ||
         (r = sp_set_flowcontrol(s->port, SP_FLOWCONTROL_NONE)) != SP_OK) {
@@ -49,8 +56,9 @@ static int spl_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_e
 {
     sp_link *s = (sp_link *)l;
     /* sp_blocking_read_next's timeout 0 means forever: poll instead. */
-    enum sp_return r = timeout_ms > 0 ? sp_blocking_read_next(s->port, buf, cap, (unsigned)timeout_ms)
-                                      : sp_nonblocking_read(s->port, buf, cap);
+    enum sp_return r = timeout_ms > 0
+                           ? sp_blocking_read_next(s->port, buf, cap, (unsigned)timeout_ms)
+                           : sp_nonblocking_read(s->port, buf, cap);
     if (r < 0)
         return sp_fail(err, s->what, "read", r);
     return (int)r;
@@ -59,12 +67,13 @@ static int spl_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_e
 static int spl_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
     sp_link *s = (sp_link *)l;
-    enum sp_return r = sp_blocking_write(s->port, buf, n, timeout_ms > 0 ? (unsigned)timeout_ms : 1u);
+    enum sp_return r =
+        sp_blocking_write(s->port, buf, n, timeout_ms > 0 ? (unsigned)timeout_ms : 1u);
     if (r < 0)
         return sp_fail(err, s->what, "write", r);
     if ((size_t)r != n)
-        return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms (%d of %zu bytes)", s->what,
-                           timeout_ms, (int)r, n);
+        return iso_err_set(err, ISO_EIO, -1, "%s: write timed out after %d ms (%d of %zu bytes)",
+                           s->what, timeout_ms, (int)r, n);
     return ISO_OK;
 }
 
@@ -90,7 +99,8 @@ static void spl_close(iso_link *l)
     free(s);
 }
 
-static const iso_link_ops sp_ops = {"serialport", spl_read, spl_write, spl_poll_fd, spl_reopen, spl_close};
+static const iso_link_ops sp_ops = {"serialport", spl_read,   spl_write,
+                                    spl_poll_fd,  spl_reopen, spl_close};
 
 int iso_link_sp_open(const char *name, int baud, iso_link **out, iso_err *err)
 {
@@ -154,7 +164,8 @@ int iso_link_sp_open(const char *name, int baud, iso_link **out, iso_err *err)
     (void)baud;
     if (out)
         *out = NULL;
-    return iso_err_set(err, ISO_ENOTSUP, -1, "serialport %s: isoshape was built without libserialport",
+    return iso_err_set(err, ISO_ENOTSUP, -1,
+                       "serialport %s: isoshape was built without libserialport",
                        name ? name : "(null)");
 }
 
@@ -162,7 +173,8 @@ int iso_link_sp_list(iso_link_sp_port *ports, size_t cap, iso_err *err)
 {
     (void)ports;
     (void)cap;
-    return iso_err_set(err, ISO_ENOTSUP, -1, "serialport: isoshape was built without libserialport");
+    return iso_err_set(err, ISO_ENOTSUP, -1,
+                       "serialport: isoshape was built without libserialport");
 }
 
 #endif

@@ -86,7 +86,10 @@ static int tcp_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, 
     return iso_fb__fd_write(t->fd, t->what, buf, n, timeout_ms, 1, err);
 }
 
-static int tcp_poll_fd(iso_link *l) { return ((tcp_link *)l)->fd; }
+static int tcp_poll_fd(iso_link *l)
+{
+    return ((tcp_link *)l)->fd;
+}
 
 static int tcp_reopen(iso_link *l, iso_err *err)
 {
@@ -105,7 +108,8 @@ static void tcp_close(iso_link *l)
     free(t);
 }
 
-static const iso_link_ops tcp_ops = {"tcp", tcp_read, tcp_write, tcp_poll_fd, tcp_reopen, tcp_close};
+static const iso_link_ops tcp_ops = {"tcp",       tcp_read,   tcp_write,
+                                     tcp_poll_fd, tcp_reopen, tcp_close};
 
 int iso_link_tcp_open(const char *host, int port, int timeout_ms, iso_link **out, iso_err *err)
 {
@@ -114,7 +118,7 @@ int iso_link_tcp_open(const char *host, int port, int timeout_ms, iso_link **out
     if (!host || !out || port <= 0 || port > 65535 || timeout_ms < 0)
         return iso_err_set(err, ISO_EINVAL, -1, "tcp link: bad host, port %d or timeout %d", port,
                            timeout_ms);
-    if (strlen(host) >= sizeof ((tcp_link *)0)->host)
+    if (strlen(host) >= sizeof((tcp_link *)0)->host)
         return iso_err_set(err, ISO_EINVAL, -1, "tcp link: host name too long");
     tcp_link *t = calloc(1, sizeof *t);
     if (!t)

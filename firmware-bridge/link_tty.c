@@ -39,7 +39,10 @@ static int tty_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, 
     return iso_fb__fd_write(t->fd, t->what, buf, n, timeout_ms, 0, err);
 }
 
-static int tty_poll_fd(iso_link *l) { return ((tty_link *)l)->fd; }
+static int tty_poll_fd(iso_link *l)
+{
+    return ((tty_link *)l)->fd;
+}
 
 static int tty_reopen(iso_link *l, iso_err *err)
 {
@@ -58,7 +61,8 @@ static void tty_close(iso_link *l)
     free(t);
 }
 
-static const iso_link_ops tty_ops = {"tty", tty_read, tty_write, tty_poll_fd, tty_reopen, tty_close};
+static const iso_link_ops tty_ops = {"tty",       tty_read,   tty_write,
+                                     tty_poll_fd, tty_reopen, tty_close};
 
 int iso_link_tty_open(const char *path, int baud, iso_link **out, iso_err *err)
 {
@@ -66,7 +70,7 @@ int iso_link_tty_open(const char *path, int baud, iso_link **out, iso_err *err)
         *out = NULL;
     if (!path || !out)
         return iso_err_set(err, ISO_EINVAL, -1, "tty link: NULL path or out");
-    if (strlen(path) >= sizeof ((tty_link *)0)->path)
+    if (strlen(path) >= sizeof((tty_link *)0)->path)
         return iso_err_set(err, ISO_EINVAL, -1, "tty link: path too long: %.64s...", path);
     tty_link *t = calloc(1, sizeof *t);
     if (!t)

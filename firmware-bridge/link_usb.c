@@ -75,8 +75,8 @@ static int usb_out(usb_link *u, const uint8_t *buf, size_t n, uint64_t deadline,
         uint64_t now = iso_clock_us();
         int left = now >= deadline ? 1 : (int)((deadline - now + 999u) / 1000u);
         int got = 0;
-        int rc = u->io.bulk(u->io.ctx, u->ep_out, (uint8_t *)(uintptr_t)(buf + done), (int)(n - done),
-                            &got, usb_timeout(left));
+        int rc = u->io.bulk(u->io.ctx, u->ep_out, (uint8_t *)(uintptr_t)(buf + done),
+                            (int)(n - done), &got, usb_timeout(left));
         if (got > 0 && (size_t)got <= n - done)
             done += (size_t)got;
         if (rc == ISO_LINK_USB_OK && n == 0)
@@ -89,9 +89,10 @@ static int usb_out(usb_link *u, const uint8_t *buf, size_t n, uint64_t deadline,
             return iso_err_set(err, ISO_EIO, -1, "usb endpoint 0x%02x: bulk write: %s (%d)",
                                (unsigned)u->ep_out, usb_code_name(rc), rc);
         if (done < n && iso_clock_us() >= deadline)
-            return iso_err_set(err, ISO_EIO, -1,
-                               "usb endpoint 0x%02x: bulk write timed out after %d ms (%zu of %zu bytes)",
-                               (unsigned)u->ep_out, timeout_ms, done, n);
+            return iso_err_set(
+                err, ISO_EIO, -1,
+                "usb endpoint 0x%02x: bulk write timed out after %d ms (%zu of %zu bytes)",
+                (unsigned)u->ep_out, timeout_ms, done, n);
     } while (done < n);
     return ISO_OK;
 }
@@ -133,10 +134,11 @@ static void usb_close(iso_link *l)
     free(u);
 }
 
-static const iso_link_ops usb_ops = {"usb", usb_read, usb_write, usb_poll_fd, usb_reopen, usb_close};
+static const iso_link_ops usb_ops = {"usb",       usb_read,   usb_write,
+                                     usb_poll_fd, usb_reopen, usb_close};
 
-int iso_link_usb_open_io(const iso_link_usb_io *io, uint8_t ep_in, uint8_t ep_out, uint16_t max_packet,
-                         iso_link **out, iso_err *err)
+int iso_link_usb_open_io(const iso_link_usb_io *io, uint8_t ep_in, uint8_t ep_out,
+                         uint16_t max_packet, iso_link **out, iso_err *err)
 {
     if (out)
         *out = NULL;

@@ -657,7 +657,7 @@ static unsigned holds_now(iso_actuators *a)
     unsigned before = a->hold;
     unsigned h = update_holds(a, iso_clock_us(), stopped, last_pub);
     unsigned fresh = h & ~before;
-    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP) ? ISO_FB_SAFE_ESTOP
+    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP)  ? ISO_FB_SAFE_ESTOP
                     : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
                     : (fresh & ISO_ACT_HOLD_STOP) ? ISO_FB_SAFE_STOP
                                                   : 0;
@@ -1175,7 +1175,7 @@ void iso_actuators_estop(iso_actuators *a, int on)
         return;
     }
     if (atomic_load(&a->estop_req))
-        return;                           /* the edge counts, not the level */
+        return;                                 /* the edge counts, not the level */
     atomic_store(&a->estop_us, iso_clock_us()); /* before the flag: the sender reads both */
     atomic_store(&a->estop_req, 1);
 }

@@ -291,7 +291,8 @@ static int authority_is_ours(const iso_display *d, const iso_display__conn *c, c
                                      sizeof names / sizeof names[0]);
 }
 
-static int origin_is_ours(const iso_display *d, const iso_display__conn *c, const iso_display__request *r)
+static int origin_is_ours(const iso_display *d, const iso_display__conn *c,
+                          const iso_display__request *r)
 {
     if (!r->origin) /* not a web page: browsers send Origin on every upgrade */
         return 1;
@@ -371,7 +372,8 @@ static void answer(iso_display *d, iso_display__conn *c)
         if (!origin_is_ours(d, c, &r))
             respond_error(c, 403, "Forbidden", NULL,
                           "the stream is only for this view's own page (foreign Origin)", head);
-        else if (head || !r.upgrade || !iso_display__contains_ci(r.upgrade, r.upgrade_len, "websocket"))
+        else if (head || !r.upgrade ||
+                 !iso_display__contains_ci(r.upgrade, r.upgrade_len, "websocket"))
             respond_error(c, 426, "Upgrade Required", "Upgrade: websocket\r\n",
                           "/ws is a WebSocket", head);
         else if (!r.version || !iso_display__token_eq(r.version, r.version_len, "13"))

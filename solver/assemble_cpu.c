@@ -24,8 +24,7 @@ int iso_solver__element_matrix(const iso_solver_opts *o, const element *e, const
 /* Restoration term of edge element e: μ Q, Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ], and its
  * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
  * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
-static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q,
-                        double *rhs)
+static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q, double *rhs)
 {
     const double *a = x + 3 * e->v[0], *b = x + 3 * e->v[1];
     double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
@@ -309,4 +308,3 @@ int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, i
     }
     return ISO_OK;
 }
-

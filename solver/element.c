@@ -61,9 +61,12 @@ void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double
         /* ρ = a + b × r = a − [r]x b: block [I, −[r]x] */
         for (int a = 0; a < 3; a++)
             row[6 * a + a] = 1.0;
-        row[0 * 6 + 4] = r[2];  row[0 * 6 + 5] = -r[1];
-        row[1 * 6 + 3] = -r[2]; row[1 * 6 + 5] = r[0];
-        row[2 * 6 + 3] = r[1];  row[2 * 6 + 4] = -r[0];
+        row[0 * 6 + 4] = r[2];
+        row[0 * 6 + 5] = -r[1];
+        row[1 * 6 + 3] = -r[2];
+        row[1 * 6 + 5] = r[0];
+        row[2 * 6 + 3] = r[1];
+        row[2 * 6 + 4] = -r[0];
     }
 }
 
@@ -242,8 +245,8 @@ int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
     double I00 = 1.0 / L00, I11 = 1.0 / L11, I22 = 1.0 / L22;
     double I10 = -L10 * I00 * I11, I21 = -L21 * I11 * I22;
     double I20 = -(L20 * I00 + L21 * I10) * I22;
-    double w00 = I00 * I00 + I10 * I10 + I20 * I20, w01 = I10 * I11 + I20 * I21,
-           w02 = I20 * I22, w11 = I11 * I11 + I21 * I21, w12 = I21 * I22, w22 = I22 * I22;
+    double w00 = I00 * I00 + I10 * I10 + I20 * I20, w01 = I10 * I11 + I20 * I21, w02 = I20 * I22,
+           w11 = I11 * I11 + I21 * I21, w12 = I21 * I22, w22 = I22 * I22;
     double W[9] = {w00, w01, w02, w01, w11, w12, w02, w12, w22};
     f->W[0] = w00, f->W[1] = w01, f->W[2] = w02, f->W[3] = w11, f->W[4] = w12, f->W[5] = w22;
     double *R = f->R;
@@ -266,8 +269,7 @@ int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
 
 /* Q1 block (k, l) = σ ((J_kl − 4/3) I + [r_k]× B_l): N − N E R with the fit
  * above written out; only the upper blocks are computed, then mirrored. */
-void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w,
-                          double Q[81])
+void iso_elem_q1_from_fit(const double x[9], const iso_elem_fit *f, iso_weighting w, double Q[81])
 {
     double sigma = iso_elem_n_scale(x, w), r[9], B[27];
     frame_points(f, x, 3, r);
@@ -335,8 +337,8 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
         double suml = cl[0] + cl[1] + cl[2];
         for (int m = l; m < 4; m++) {
             const double *cm = c + 3 * m;
-            double cjc = cl[0] * cm[0] + cl[1] * cm[1] + cl[2] * cm[2] +
-                         suml * (cm[0] + cm[1] + cm[2]);
+            double cjc =
+                cl[0] * cm[0] + cl[1] * cm[1] + cl[2] * cm[2] + suml * (cm[0] + cm[1] + cm[2]);
             double blk[9] = {cjc, 0, 0, 0, cjc, 0, 0, 0, cjc}, C[9];
             if (m < 3) {
                 cross_mat(wv + 3 * l, B + 9 * m, C);

@@ -38,7 +38,7 @@ typedef struct integ {
     const iso_path *path;
     int nv;
     const double *rest;
-    iso_pose *poses;   /* per handle, at the current stage */
+    iso_pose *poses; /* per handle, at the current stage */
     iso_twist *twists;
     double *vc;        /* 3nv handle velocities */
     double *f[3];      /* history: f_n, f_{n-1}, f_{n-2} (3nv each) */
@@ -410,8 +410,7 @@ static int run(integ *g, const iso_integrate_opts *o, double *x, iso_integrate_s
 }
 
 int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const iso_path *path,
-                  const iso_integrate_opts *opts, double *x, iso_integrate_stats *st,
-                  iso_err *err)
+                  const iso_integrate_opts *opts, double *x, iso_integrate_stats *st, iso_err *err)
 {
     iso_integrate_opts o;
     if (opts)
@@ -451,10 +450,10 @@ struct iso_stepper {
     integ g;
     iso_path path;
     double *x;
-    double t;          /* start of the current tick */
+    double t; /* start of the current tick */
     int nh;
-    iso_pose *base;    /* per handle: pose at t */
-    iso_twist *tw;     /* per handle: twist held over the current tick */
+    iso_pose *base; /* per handle: pose at t */
+    iso_twist *tw;  /* per handle: twist held over the current tick */
     iso_abm_mode mode;
     iso_integrate_stats st;
 };
@@ -531,7 +530,7 @@ int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kap
     if (isnan(restore_kappa))
         return iso_err_set(err, ISO_EINVAL, -1, "restore_kappa is not a number");
     st->mode = mode;
-    st->g.restore_kappa = restore_kappa >= 0             ? restore_kappa
+    st->g.restore_kappa = restore_kappa >= 0    ? restore_kappa
                           : mode == ISO_ABM_PEC ? ISO_INTEGRATE_RESTORE_KAPPA_PEC
                                                 : ISO_INTEGRATE_RESTORE_KAPPA;
     return ISO_OK;
@@ -578,8 +577,7 @@ static int stepper_advance(iso_stepper *st, double h, int restart, iso_err *err)
     return rc;
 }
 
-int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int restart,
-                     iso_err *err)
+int iso_stepper_step(iso_stepper *st, double h, const iso_twist *twists, int restart, iso_err *err)
 {
     if (!(h > 0) || !isfinite(h))
         return iso_err_set(err, ISO_EINVAL, -1, "step %g must be positive and finite", h);

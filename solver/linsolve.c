@@ -144,8 +144,7 @@ static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_
     int ok = cholmod_solve2(CHOLMOD_A, s->L, R, NULL, Z, NULL, &s->Y, &s->E, &s->c);
     omp_end(s, levels);
     if (!ok || s->c.status < CHOLMOD_OK)
-        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)",
-                           s->c.status);
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD solve failed (status %d)", s->c.status);
     return ISO_OK;
 }
 
@@ -185,8 +184,7 @@ static int matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *er
 {
     double one[2] = {1, 0}, zero[2] = {0, 0};
     if (!cholmod_sdmult(s->A, 0, one, zero, x, y, &s->c))
-        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD sdmult failed (status %d)",
-                           s->c.status);
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD sdmult failed (status %d)", s->c.status);
     return ISO_OK;
 }
 

@@ -27,7 +27,6 @@ const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
 typedef iso_solver__element element;
 #define local_count iso_solver__local_count
 
-
 void iso_solver_opts_default(iso_solver_opts *o)
 {
     o->omega = 1.0 / 3.0;
@@ -56,8 +55,8 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
         return iso_err_set(err, ISO_EINVAL, -1, "restoration weight mu = %g must be >= 0",
                            o->restore_mu);
     if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
-        return iso_err_set(err, ISO_EINVAL, -1,
-                           "restoration time constant tau = %g must be > 0", o->restore_tau);
+        return iso_err_set(err, ISO_EINVAL, -1, "restoration time constant tau = %g must be > 0",
+                           o->restore_tau);
     if (o->threads.omp != ISO_SOLVER_OMP_CALLER && o->threads.omp != ISO_SOLVER_OMP_LEAVE)
         return iso_err_set(err, ISO_EINVAL, -1, "unknown OpenMP thread policy %d",
                            (int)o->threads.omp);
@@ -453,9 +452,8 @@ static int number_free_vertices(iso_solver *s, iso_err *err)
 static int check_regions(const iso_mesh *m, const iso_regions *r, iso_err *err)
 {
     if (r->nv != iso_mesh_vertex_count(m))
-        return iso_err_set(err, ISO_EINVAL, -1,
-                           "the regions cover %d vertices but %s has %d", r->nv,
-                           iso_mesh_origin(m), iso_mesh_vertex_count(m));
+        return iso_err_set(err, ISO_EINVAL, -1, "the regions cover %d vertices but %s has %d",
+                           r->nv, iso_mesh_origin(m), iso_mesh_vertex_count(m));
     for (int i = 0; i < r->nv; i++) {
         if (r->kind[i] > ISO_HANDLE)
             return iso_err_set(err, ISO_EINVAL, -1, "vertex %d has region kind %d", i,

@@ -67,35 +67,35 @@ struct iso_solver {
     const iso_regions *r;
     iso_solver_opts o;
     int nv, nf;
-    int *free_of;   /* nv: free index or −1 */
-    int *vert_of;   /* nf: vertex of each free index */
+    int *free_of; /* nv: free index or −1 */
+    int *vert_of; /* nf: vertex of each free index */
     iso_solver__element *el;
     int nel;
-    int *slots;     /* per element, per local (a, b): 3 column offsets or −1 */
-    double *rest_len;  /* per edge, when restoration is on */
-    double *edge_w;    /* per edge weight w_e, when restoration is on */
+    int *slots;       /* per element, per local (a, b): 3 column offsets or −1 */
+    double *rest_len; /* per edge, when restoration is on */
+    double *edge_w;   /* per edge weight w_e, when restoration is on */
     char notice[256];
     struct iso_cl_assembler *cl; /* OpenCL path when in use, else NULL */
     cholmod_common c;
     cholmod_sparse *A;
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
-    cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
-    int have_factor;        /* L holds a numeric factor of some earlier A */
-    double factor_flops;    /* CHOLMOD's Common->fl after analysis */
+    cholmod_dense *work[4];  /* PCG: residual, preconditioned residual, direction, A·direction */
+    int have_factor;         /* L holds a numeric factor of some earlier A */
+    double factor_flops;     /* CHOLMOD's Common->fl after analysis */
     iso_elem_fit_core *fits; /* C path: per triangle, the current evaluation's fit */
-    unsigned *fit_stamp;    /* fits[t] is current when fit_stamp[t] == fit_epoch */
+    unsigned *fit_stamp;     /* fits[t] is current when fit_stamp[t] == fit_epoch */
     unsigned char *q1_carry; /* C path: per element, which edge adds which Q1 (assemble_cpu.c) */
     unsigned fit_epoch;
-    int last_cg_iters;      /* iterations of the previous PCG solve, −1 after a direct one */
-    int cg_failures;        /* consecutive PCG attempts at factor age 1 that failed */
-    int cg_skip;            /* evaluations left before PCG is tried again */
-    int factor_age;         /* evaluations since L was computed (this one included) */
-    int reuse_horizon;      /* oldest factor age PCG is tried at; 0: not learned yet */
-    int horizon_probe;      /* factorizations left until the horizon is probed */
-    double cg_target;       /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
-    int budget_on;          /* a shared iteration budget is open */
-    int budget_used;        /* its iterations spent since it opened or since a factorization */
+    int last_cg_iters; /* iterations of the previous PCG solve, −1 after a direct one */
+    int cg_failures;   /* consecutive PCG attempts at factor age 1 that failed */
+    int cg_skip;       /* evaluations left before PCG is tried again */
+    int factor_age;    /* evaluations since L was computed (this one included) */
+    int reuse_horizon; /* oldest factor age PCG is tried at; 0: not learned yet */
+    int horizon_probe; /* factorizations left until the horizon is probed */
+    double cg_target;  /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
+    int budget_on;     /* a shared iteration budget is open */
+    int budget_used;   /* its iterations spent since it opened or since a factorization */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
     int (*omp_get_levels)(void);
@@ -113,7 +113,6 @@ static inline void iso_solver__progress(const struct iso_solver *s)
     if (s->progress)
         s->progress(s->progress_ctx);
 }
-
 
 /* Element matrix Q (dimension 3·nl) of a triangle or pair element at
  * positions x; −1 if its triangle is degenerate. */

@@ -1088,13 +1088,11 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     iso_act_stats s1 = stats_of(a);
     const char *st = iso_actuators_link_state(a);
     double stall_ms = (t_stall - t_last) * 1000, safe_ms = (t_safe - t_last) * 1000;
-    printf(
-        "%s: loop stalled: detected %.1f ms after its last progress, MCU safe %.1f ms after it "
-        "(sink: %.1f ms; the issue's bound: timeout 250 + 100 = 350 ms: %s), MCU FAULT reason "
-        "%u detail %u; state '%s'\n",
-        label, stall_ms, safe_ms, s1.last_safe_ms, safe_ms <= 350.0 ? "met" : "MISSED",
-        (unsigned)s1.last_fault_reason,
-        (unsigned)s1.last_fault_detail_ms, st);
+    printf("%s: loop stalled: detected %.1f ms after its last progress, MCU safe %.1f ms after it "
+           "(sink: %.1f ms; the issue's bound: timeout 250 + 100 = 350 ms: %s), MCU FAULT reason "
+           "%u detail %u; state '%s'\n",
+           label, stall_ms, safe_ms, s1.last_safe_ms, safe_ms <= 350.0 ? "met" : "MISSED",
+           (unsigned)s1.last_fault_reason, (unsigned)s1.last_fault_detail_ms, st);
     assert_int_equal(s1.loop_stalls, s0.loop_stalls + 1);
     assert_true(t_stall > 0 && t_safe > 0);
     assert_true(stall_ms >= 244.0);         /* not before the timeout less the 5 ms guard */
@@ -1119,8 +1117,7 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     run_ticks(a, &tick, 100, NULL, NULL, NULL); /* the setpoints follow the HELLO's answer */
     iso_act_stats s2 = stats_of(a);
     printf("%s: the loop resumed: armed and acked again after %.1f ms (handshakes %u -> %u)\n",
-           label, resumed_ms, (unsigned)s0.handshakes,
-           (unsigned)s2.handshakes);
+           label, resumed_ms, (unsigned)s0.handshakes, (unsigned)s2.handshakes);
     assert_true(armed_and_acked(a, NULL));
     assert_true(s2.handshakes > s0.handshakes);
     assert_true(s2.setpoints_sent > sent_at_stall);
@@ -1240,12 +1237,12 @@ static int estop_while_stuck(int mode, int probe, const char *label)
            "bound 20 ms), MCU FAULT reason %u detail %u; setpoints after press+20 ms: %llu; "
            "state '%s'\n",
            label, probe ? " (probe)" : "", ms, s1.last_safe_ms, (unsigned)s1.last_fault_reason,
-           (unsigned)s1.last_fault_detail_ms,
-           (unsigned long long)(p.sent_end - p.sent_20ms), iso_actuators_link_state(a));
+           (unsigned)s1.last_fault_detail_ms, (unsigned long long)(p.sent_end - p.sent_20ms),
+           iso_actuators_link_state(a));
     assert_true(p.t_safe > 0);
     assert_int_equal(s1.estops, s0.estops + 1);
     assert_int_equal(s1.last_safe_cause, ISO_ACT_HOLD_ESTOP);
-    assert_int_equal(p.sent_end, p.sent_20ms);     /* stopped within the sender's cycle */
+    assert_int_equal(p.sent_end, p.sent_20ms); /* stopped within the sender's cycle */
     assert_true(ms <= 20.0); /* the press to the MCU's answer, one round trip included */
     assert_true(s1.last_safe_ms <= 20.0);
     assert_int_equal(s1.last_fault_reason, ISO_FB_FAULT_REQUESTED);

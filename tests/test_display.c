@@ -28,11 +28,11 @@
 #endif
 
 #include "iso_display.h"
-#include "ws_client.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
 #include "iso_snapshot.h"
+#include "ws_client.h"
 
 /* ---- fixtures ----------------------------------------------------------- */
 
@@ -350,8 +350,8 @@ static void server_serves_page_and_streams_frames(void **state)
     /* WebSocket handshake, written out (RFC 6455's sample key and answer). */
     int fd = iso_test_connect(AF_INET, port, 0);
     iso_test_send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
-                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                 "Sec-WebSocket-Version: 13\r\n\r\n");
+                          "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                          "Sec-WebSocket-Version: 13\r\n\r\n");
     char resp[1024];
     size_t n = 0;
     while (n < sizeof resp - 1 && !(n >= 4 && memcmp(resp + n - 4, "\r\n\r\n", 4) == 0)) {
@@ -424,8 +424,8 @@ static void stalled_browser_never_blocks_publish(void **state)
     start_display(&s, &d);
     int fd = iso_test_connect(AF_INET, iso_display_port(d), 0);
     iso_test_send_all(fd, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
-                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                 "Sec-WebSocket-Version: 13\r\n\r\n");
+                          "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                          "Sec-WebSocket-Version: 13\r\n\r\n");
     for (int w = 0; w < 500 && iso_display_clients(d) < 1; w++)
         sleep_ms(10);
     assert_int_equal(iso_display_clients(d), 1);

@@ -175,7 +175,8 @@ typedef struct fake_usb {
     size_t mcu_len;
 } fake_usb;
 
-static int fake_bulk(void *ctx, uint8_t ep, uint8_t *data, int length, int *transferred, unsigned timeout_ms)
+static int fake_bulk(void *ctx, uint8_t ep, uint8_t *data, int length, int *transferred,
+                     unsigned timeout_ms)
 {
     fake_usb *f = ctx;
     (void)timeout_ms;
@@ -231,7 +232,10 @@ static int fake_clear_halt(void *ctx, uint8_t ep)
     return 0;
 }
 
-static void fake_close(void *ctx) { ((fake_usb *)ctx)->closed++; }
+static void fake_close(void *ctx)
+{
+    ((fake_usb *)ctx)->closed++;
+}
 
 static iso_link *usb_over(fake_usb *f)
 {
@@ -251,11 +255,16 @@ static void usb_bulk_reads(void **state)
     for (int i = 0; i < 256; i++)
         f.in_data[i] = (uint8_t)i;
     /* 10 bytes ok; a timeout that still moved 5; a stall; 100 bytes */
-    f.in_rc[0] = ISO_LINK_USB_OK;      f.in_n[0] = 10;
-    f.in_rc[1] = ISO_LINK_USB_TIMEOUT; f.in_n[1] = 5;
-    f.in_rc[2] = ISO_LINK_USB_PIPE;    f.in_n[2] = 0;
-    f.in_rc[3] = ISO_LINK_USB_OK;      f.in_n[3] = 100;
-    f.in_rc[4] = ISO_LINK_USB_NO_DEVICE; f.in_n[4] = 0;
+    f.in_rc[0] = ISO_LINK_USB_OK;
+    f.in_n[0] = 10;
+    f.in_rc[1] = ISO_LINK_USB_TIMEOUT;
+    f.in_n[1] = 5;
+    f.in_rc[2] = ISO_LINK_USB_PIPE;
+    f.in_n[2] = 0;
+    f.in_rc[3] = ISO_LINK_USB_OK;
+    f.in_n[3] = 100;
+    f.in_rc[4] = ISO_LINK_USB_NO_DEVICE;
+    f.in_n[4] = 0;
     f.in_script = 5;
     iso_link *l = usb_over(&f);
     assert_int_equal(iso_link_poll_fd(l), -1);
@@ -427,7 +436,8 @@ static void serialport_list_and_errors(void **state)
     printf("libserialport sees %d port(s)\n", n);
     for (int i = 0; i < n && i < 16; i++)
         printf("  %s  %s  vid %04x pid %04x\n", ports[i].name, ports[i].description,
-               ports[i].usb_vid < 0 ? 0 : ports[i].usb_vid, ports[i].usb_pid < 0 ? 0 : ports[i].usb_pid);
+               ports[i].usb_vid < 0 ? 0 : ports[i].usb_vid,
+               ports[i].usb_pid < 0 ? 0 : ports[i].usb_pid);
     iso_link *l = NULL;
     iso_err_clear(&err);
     assert_int_equal(iso_link_sp_open("/dev/ttyFBnonexistent", 115200, &l, &err), ISO_EIO);

@@ -47,7 +47,11 @@ static int fake_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms,
     return ISO_OK;
 }
 
-static int fake_poll_fd(iso_link *l) { (void)l; return -1; }
+static int fake_poll_fd(iso_link *l)
+{
+    (void)l;
+    return -1;
+}
 
 static int fake_reopen(iso_link *l, iso_err *err)
 {
@@ -60,9 +64,13 @@ static int fake_reopen(iso_link *l, iso_err *err)
     return ISO_OK;
 }
 
-static void fake_close(iso_link *l) { (void)l; }
+static void fake_close(iso_link *l)
+{
+    (void)l;
+}
 
-static const iso_link_ops fake_ops = {"fake", fake_read, fake_write, fake_poll_fd, fake_reopen, fake_close};
+static const iso_link_ops fake_ops = {"fake",       fake_read,   fake_write,
+                                      fake_poll_fd, fake_reopen, fake_close};
 
 static void mcu_out(void *ctx, const uint8_t *b, size_t n)
 {
@@ -92,13 +100,18 @@ static void drain(fake_link *f, iso_fb_parser *p, decoded *d)
             continue;
         d->count[v.type]++;
         switch (v.type) {
-        case ISO_FB_HELLO: assert_int_equal(iso_fb_hello_unpack(&d->hello, v.payload, v.len), 0); break;
+        case ISO_FB_HELLO:
+            assert_int_equal(iso_fb_hello_unpack(&d->hello, v.payload, v.len), 0);
+            break;
         case ISO_FB_ACK: assert_int_equal(iso_fb_ack_unpack(&d->ack, v.payload, v.len), 0); break;
         case ISO_FB_NAK: assert_int_equal(iso_fb_nak_unpack(&d->nak, v.payload, v.len), 0); break;
-        case ISO_FB_FAULT: assert_int_equal(iso_fb_fault_unpack(&d->fault, v.payload, v.len), 0); break;
+        case ISO_FB_FAULT:
+            assert_int_equal(iso_fb_fault_unpack(&d->fault, v.payload, v.len), 0);
+            break;
         case ISO_FB_HANDLE_SAMPLE:
             if (d->n_samples < 64)
-                assert_int_equal(iso_fb_sample_unpack(&d->samples[d->n_samples++], v.payload, v.len), 0);
+                assert_int_equal(
+                    iso_fb_sample_unpack(&d->samples[d->n_samples++], v.payload, v.len), 0);
             break;
         default: break;
         }

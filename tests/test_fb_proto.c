@@ -30,7 +30,10 @@ static void cobs_round_trip_every_length(void **state)
         for (size_t len = 0; len <= 254; len++) {
             for (size_t i = 0; i < len; i++) {
                 uint8_t b = (uint8_t)lcg(&seed);
-                src[i] = pattern == 0 ? b : pattern == 1 ? 0 : pattern == 2 ? 0xFF : (b & 1u ? 0 : b);
+                src[i] = pattern == 0   ? b
+                         : pattern == 1 ? 0
+                         : pattern == 2 ? 0xFF
+                                        : (b & 1u ? 0 : b);
             }
             int e = iso_fb_cobs_encode(enc, ISO_FB_COBS_MAX(len), src, len);
             assert_true(e > 0 && (size_t)e <= ISO_FB_COBS_MAX(len));
@@ -98,7 +101,8 @@ static void frame_round_trip_every_payload_length(void **state)
         uint8_t payload[ISO_FB_MAX_PAYLOAD], wire[ISO_FB_FRAME_MAX];
         for (size_t i = 0; i < len; i++)
             payload[i] = (uint8_t)(i % 3 == 0 ? 0 : lcg(&seed));
-        int n = iso_fb_frame_encode(wire, sizeof wire, ISO_FB_SETPOINTS, (uint16_t)(len + 1), payload, len);
+        int n = iso_fb_frame_encode(wire, sizeof wire, ISO_FB_SETPOINTS, (uint16_t)(len + 1),
+                                    payload, len);
         assert_true(n > 0 && n <= (int)ISO_FB_WIRE_MAX(len));
         assert_int_equal(wire[0], 0);
         assert_int_equal(wire[n - 1], 0);
@@ -117,7 +121,8 @@ static void frame_round_trip_every_payload_length(void **state)
     uint8_t wire[ISO_FB_FRAME_MAX], payload[ISO_FB_MAX_PAYLOAD + 1] = {0};
     assert_int_equal(iso_fb_frame_encode(wire, sizeof wire, 1, 0, payload, ISO_FB_MAX_PAYLOAD + 1),
                      ISO_FB_EARG);
-    assert_int_equal(iso_fb_frame_encode(wire, ISO_FB_WIRE_MAX(4) - 1, 1, 0, payload, 4), ISO_FB_ENOSPACE);
+    assert_int_equal(iso_fb_frame_encode(wire, ISO_FB_WIRE_MAX(4) - 1, 1, 0, payload, 4),
+                     ISO_FB_ENOSPACE);
 }
 
 /* Builds a wire frame from a raw (un-stuffed) body: header+payload+CRC as
@@ -200,7 +205,8 @@ static void parser_counts_every_drop(void **state)
     assert_int_equal(v.seq, 10);
     /* the longest body that still fits the stuffed buffer parses (length
      * checks decide), one byte more overflows */
-    n = forge(wire, raw, raw_frame(raw, 1, ISO_FB_HEARTBEAT, 11, ISO_FB_MAX_PAYLOAD, ISO_FB_MAX_PAYLOAD, 1));
+    n = forge(wire, raw,
+              raw_frame(raw, 1, ISO_FB_HEARTBEAT, 11, ISO_FB_MAX_PAYLOAD, ISO_FB_MAX_PAYLOAD, 1));
     assert_int_equal(n - 2, sizeof p.buf);
     assert_int_equal(feed_all(&p, wire, n, &v, NULL), ISO_FB_FRAME);
     n = forge(wire, raw, raw_frame(raw, 1, ISO_FB_HEARTBEAT, 12, 0, ISO_FB_MAX_PAYLOAD + 1, 1));
@@ -231,8 +237,8 @@ static void parser_counts_every_drop(void **state)
     assert_int_equal(p.n.duplicate, 1);
     /* every drop was counted as a resync, and only those */
     assert_int_equal(p.n.resyncs, p.n.bad_crc + p.n.too_short + p.n.bad_cobs + p.n.bad_version +
-                                      p.n.bad_length + p.n.too_long + p.n.unknown_type + p.n.duplicate +
-                                      p.n.out_of_order);
+                                      p.n.bad_length + p.n.too_long + p.n.unknown_type +
+                                      p.n.duplicate + p.n.out_of_order);
     assert_int_equal(p.n.resyncs, 12);
     assert_int_equal(p.n.frames_ok, 7);
     /* idle delimiters are not errors */
@@ -256,7 +262,8 @@ static void garbage_costs_at_most_the_frame_it_touches(void **state)
         for (size_t i = 0; i < g; i++)
             stream[len++] = (uint8_t)lcg(&seed);
         uint8_t pl[8] = {1, 2, 3, 4, 5, 6, 7, (uint8_t)s};
-        int n = iso_fb_frame_encode(stream + len, sizeof stream - len, ISO_FB_HEARTBEAT, s, pl, sizeof pl);
+        int n = iso_fb_frame_encode(stream + len, sizeof stream - len, ISO_FB_HEARTBEAT, s, pl,
+                                    sizeof pl);
         assert_true(n > 0);
         len += (size_t)n;
     }
@@ -278,7 +285,8 @@ static void messages_round_trip(void **state)
 {
     (void)state;
     uint8_t b[ISO_FB_MAX_PAYLOAD];
-    iso_fb_hello h = {1, 0x0102, ISO_FB_HELLO_BOOT, 123456, 3, {{-5, 7, 100, 0}, {-1000, 1000, 2000, 3}, {0, 1, 1, 1}}};
+    iso_fb_hello h = {1,      0x0102, ISO_FB_HELLO_BOOT,
+                      123456, 3,      {{-5, 7, 100, 0}, {-1000, 1000, 2000, 3}, {0, 1, 1, 1}}};
     int n = iso_fb_hello_pack(b, sizeof b, &h);
     assert_int_equal(n, 9 + 3 * 8);
     iso_fb_hello h2;
@@ -292,7 +300,11 @@ static void messages_round_trip(void **state)
     h.n_channels = ISO_FB_MAX_CHANNELS + 1;
     assert_int_equal(iso_fb_hello_pack(b, sizeof b, &h), ISO_FB_EARG);
 
-    iso_fb_sample s = {4000000000u, ISO_FB_SAMPLE_TWIST, 0xBEEF, {-1, 2, -2147483647 - 1, 2147483647, 0, -7}}, s2;
+    iso_fb_sample s = {4000000000u,
+                       ISO_FB_SAMPLE_TWIST,
+                       0xBEEF,
+                       {-1, 2, -2147483647 - 1, 2147483647, 0, -7}},
+                  s2;
     n = iso_fb_sample_pack(b, sizeof b, &s);
     assert_int_equal(iso_fb_sample_unpack(&s2, b, (size_t)n), 0);
     assert_memory_equal(s.v, s2.v, sizeof s.v);

@@ -161,7 +161,7 @@ static void flush_queue(int d, int fd, uint64_t now, uint64_t *next_due)
     ssize_t w = write(fd, out, n);
     if (w > 0)
         q->tail += (uint32_t)w;
-    if (w < (ssize_t)n && *next_due > now + 1000)
+    if (w < (ssize_t)n && now + 1000 < *next_due)
         *next_due = now + 1000; /* retry soon */
 }
 
@@ -170,7 +170,8 @@ static void *proxy_main(void *arg)
     (void)arg;
     uint8_t buf[4096];
     while (!atomic_load(&g.stop)) {
-        struct pollfd p[3] = {{g.listen_fd, POLLIN, 0}, {g.qemu_fd, POLLIN, 0}, {g.master, POLLIN, 0}};
+        struct pollfd p[3] = {
+            {g.listen_fd, POLLIN, 0}, {g.qemu_fd, POLLIN, 0}, {g.master, POLLIN, 0}};
         uint64_t now = iso_clock_us(), next_due = now + 5000;
         pthread_mutex_lock(&g.mu);
         flush_queue(TO_MCU, g.qemu_fd, now, &next_due);
@@ -375,7 +376,10 @@ static int run_host(int ms, int send, int (*done)(void))
     return sent;
 }
 
-static int streaming(void) { return g.host.state == ISO_FB_HOST_STREAMING; }
+static int streaming(void)
+{
+    return g.host.state == ISO_FB_HOST_STREAMING;
+}
 
 /* ---- setup / teardown ----------------------------------------------------- */
 static int group_setup(void **state)
@@ -383,9 +387,10 @@ static int group_setup(void **state)
     (void)state;
     char qemu[4096];
     if (!find_qemu(qemu, sizeof qemu)) {
-        printf("SKIP: qemu-system-arm not found (ISO_FB_QEMU '%s', configure-time path '%s', not on "
-               "PATH); install Debian's qemu-system-arm to run the firmware end to end\n",
-               getenv("ISO_FB_QEMU") ? getenv("ISO_FB_QEMU") : "unset", ISO_FB_QEMU_PATH);
+        printf(
+            "SKIP: qemu-system-arm not found (ISO_FB_QEMU '%s', configure-time path '%s', not on "
+            "PATH); install Debian's qemu-system-arm to run the firmware end to end\n",
+            getenv("ISO_FB_QEMU") ? getenv("ISO_FB_QEMU") : "unset", ISO_FB_QEMU_PATH);
         fflush(stdout);
         exit(ISO_TEST_SKIP);
     }
@@ -413,7 +418,8 @@ static int group_setup(void **state)
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     socklen_t alen = sizeof a;
     if (g.listen_fd < 0 || bind(g.listen_fd, (struct sockaddr *)&a, sizeof a) != 0 ||
-        listen(g.listen_fd, 1) != 0 || getsockname(g.listen_fd, (struct sockaddr *)&a, &alen) != 0) {
+        listen(g.listen_fd, 1) != 0 ||
+        getsockname(g.listen_fd, (struct sockaddr *)&a, &alen) != 0) {
         perror("proxy listen");
         return -1;
     }
@@ -493,9 +499,11 @@ static void setpoints_at_100hz_every_value_correct(void **state)
     /* collect the acks still in flight, sending on: a silent host trips the watchdog */
     sent += run_host(300, 1, NULL);
     int acks = g.z.acks - before.acks;
-    printf("clean 3 s: sent %d setpoints, %d acks, %d samples, %d watchdog faults, rtt avg %.2f ms\n", sent,
-           acks, g.z.samples - before.samples, g.z.faults - before.faults,
-           g.host.stats.rtt_count ? (double)g.host.stats.rtt_sum_us / g.host.stats.rtt_count / 1000.0 : 0.0);
+    printf(
+        "clean 3 s: sent %d setpoints, %d acks, %d samples, %d watchdog faults, rtt avg %.2f ms\n",
+        sent, acks, g.z.samples - before.samples, g.z.faults - before.faults,
+        g.host.stats.rtt_count ? (double)g.host.stats.rtt_sum_us / g.host.stats.rtt_count / 1000.0
+                               : 0.0);
     assert_true(sent >= 150); /* 300 at an unloaded 100 Hz */
     assert_true(acks >= sent * 8 / 10);
     assert_int_equal(g.z.bad_echo, 0);
@@ -559,11 +567,18 @@ static void bit_errors_never_accepted_and_link_recovers(void **state)
     assert_true(g.z.acks - mid.acks >= clean_sent * 8 / 10);
 }
 
-static int got_fault(void) { return g.z.faults > 0; }
-static int got_safe_heartbeat(void) { return g.z.hb.state == ISO_FB_STATE_SAFE; }
+static int got_fault(void)
+{
+    return g.z.faults > 0;
+}
+static int got_safe_heartbeat(void)
+{
+    return g.z.hb.state == ISO_FB_STATE_SAFE;
+}
 static int got_armed_heartbeat_moved(void)
 {
-    return g.z.hb.state == ISO_FB_STATE_ARMED && g.z.hb.pos[0] == g.hold[0] && g.z.hb.pos[1] == g.hold[1];
+    return g.z.hb.state == ISO_FB_STATE_ARMED && g.z.hb.pos[0] == g.hold[0] &&
+           g.z.hb.pos[1] == g.hold[1];
 }
 
 static void watchdog_safe_state_then_resume_after_hello(void **state)
@@ -596,9 +611,10 @@ static void watchdog_safe_state_then_resume_after_hello(void **state)
     assert_int_equal(g.z.hb.state, ISO_FB_STATE_SAFE);
     for (unsigned c = 0; c < N_CH; c++)
         assert_int_equal(g.z.hb.pos[c], 0); /* every channel's safe position */
-    printf("link watchdog: safe state %u ms (MCU clock) after the last setpoints; FAULT reached the "
-           "host %.1f ms (host clock) after its last send\n",
-           (unsigned)g.z.fault.detail, (double)(g.z.fault_us - silent_from) / 1000.0);
+    printf(
+        "link watchdog: safe state %u ms (MCU clock) after the last setpoints; FAULT reached the "
+        "host %.1f ms (host clock) after its last send\n",
+        (unsigned)g.z.fault.detail, (double)(g.z.fault_us - silent_from) / 1000.0);
     assert_true(g.z.fault_us - silent_from < 3000000u); /* generous: loaded CI */
 
     /* the host comes back: HELLO first, then motion */
@@ -613,8 +629,14 @@ static void watchdog_safe_state_then_resume_after_hello(void **state)
     assert_int_equal(g.z.bad_echo, bad_echo0);
 }
 
-static int got_boot_hello(void) { return g.z.boot_hellos > 0; }
-static int got_diag_ack(void) { return g.z.diag_acks > 0; }
+static int got_boot_hello(void)
+{
+    return g.z.boot_hellos > 0;
+}
+static int got_diag_ack(void)
+{
+    return g.z.diag_acks > 0;
+}
 
 static void hardware_watchdog_resets_hung_firmware(void **state)
 {

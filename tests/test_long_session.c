@@ -79,8 +79,8 @@ static void sample(void *ctx, double t, int steps, long evaluations)
         sm->err[steps - 1] = q.metric_err;
 }
 
-static void run_session(const iso_mesh *m, const iso_regions *r, const bend_path *bp,
-                        double mu, double *err)
+static void run_session(const iso_mesh *m, const iso_regions *r, const bend_path *bp, double mu,
+                        double *err)
 {
     iso_solver_opts so;
     iso_solver_opts_default(&so);
@@ -189,8 +189,8 @@ static void restoration_keeps_a_long_session_bounded(void **state)
         peak_on[c] = on[c * STEPS_PER_CYCLE + STEPS_PER_CYCLE / 2 - 1];
     }
     for (int c = 0; c < CYCLES - 1; c += (c < 4 ? 1 : 5))
-        print_message("cycle %2d: at rest off %.3e on %.3e; at 60 deg off %.3e on %.3e\n",
-                      c + 1, rest_off[c], rest_on[c], peak_off[c], peak_on[c]);
+        print_message("cycle %2d: at rest off %.3e on %.3e; at 60 deg off %.3e on %.3e\n", c + 1,
+                      rest_off[c], rest_on[c], peak_off[c], peak_on[c]);
     int last = CYCLES - 1;
     print_message("cycle %2d: at rest off %.3e on %.3e; at 60 deg off %.3e on %.3e\n", last + 1,
                   rest_off[last], rest_on[last], peak_off[last], peak_on[last]);

@@ -338,8 +338,7 @@ static void stretched_mesh_relaxes(void **state)
         if (iso_integrate(s, p.m, &p.r, &path, &io, x, &st, &err) != ISO_OK)
             fail_msg("iso_integrate: %s", err.msg);
         double e = length_error(p.m, x);
-        print_message("length error %.4g at t = %.1f (%.3f of the previous)\n", e, io.t1,
-                      e / prev);
+        print_message("length error %.4g at t = %.1f (%.3f of the previous)\n", e, io.t1, e / prev);
         assert_true(e < prev);
         if (k < 5)
             assert_true(e < 0.25 * prev);
@@ -446,10 +445,8 @@ static void tau_eff_keeps_the_step_stable(void **state)
 int main(void)
 {
     const struct CMUnitTest t[] = {
-        cmocka_unit_test(zero_at_rest_for_zero_field),
-        cmocka_unit_test(matches_dense_reference),
-        cmocka_unit_test(stretched_mesh_relaxes),
-        cmocka_unit_test(off_is_bit_identical),
+        cmocka_unit_test(zero_at_rest_for_zero_field),   cmocka_unit_test(matches_dense_reference),
+        cmocka_unit_test(stretched_mesh_relaxes),        cmocka_unit_test(off_is_bit_identical),
         cmocka_unit_test(tau_eff_keeps_the_step_stable),
     };
     return cmocka_run_group_tests_name("restore", t, NULL, NULL);

@@ -65,8 +65,8 @@ static void expect_error(const char *text, int code, ...)
 static void test_examples_load(void **state)
 {
     (void)state;
-    static const char *const names[] = {"cactus", "bar", "cylinder", "bumpplane", "mouse_cactus",
-                                        "replay_cactus"};
+    static const char *const names[] = {"cactus",    "bar",          "cylinder",
+                                        "bumpplane", "mouse_cactus", "replay_cactus"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         char path[1100];
         snprintf(path, sizeof path, "%s/%s.yaml", SCENES, names[i]);
@@ -121,38 +121,39 @@ static void test_round_trip(void **state)
     (void)state;
     iso_scene *s = NULL;
     iso_err err;
-    int rc = load_text("rt.yaml",
-                       "name: rt\n" BASE "devices:\n"
-                       "  - {name: m, kind: tcp, address: 'localhost:4000'}\n"
-                       "  - {name: t, kind: tty, path: /dev/ttyUSB0, baud: 9600, stale_ms: 250}\n"
-                       "regions:\n"
-                       "  fixed: {beyond: {point: [0, 0, 1], normal: [0, 0, -1]}}\n"
-                       "  handles:\n"
-                       "    - name: top\n"
-                       "      select: [{beyond: {point: [0, 0, 11], normal: [0, 0, 1]}}]\n"
-                       "      driver:\n"
-                       "        device: m\n"
-                       "        mapping: {sensitivity: {tx: 0.5}, dead_zone: 0.1, invert: [ry],\n"
-                       "                  remap: {ty: tz}, lock: rotation, dominant: true}\n"
-                       "    - name: side\n"
-                       "      select: {box: {min: [-100, -100, 5.5], max: [100, 100, 6.5]}}\n"
-                       "      driver:\n"
-                       "        keyframes: [{t: 0}, {t: 1.5, translate: [1, 0, 0], rotate: [0, 0, 90]}]\n"
-                       "solver: {omega: 0.5, weighting: area, restore: {mu: 2, tau: 0.25},\n"
-                       "         refactor: always}\n"
-                       "integrator: {steps_per_tick: 2, restore_kappa: 0.7, abm: pec,\n"
-                       "             cg_share: 0.25}\n"
-                       "tick_hz: 120\n"
-                       "sinks:\n"
-                       "  display: {port: 9000, snapshot_ticks: [10, 20]}\n"
-                       "  ply: {dir: out, every: 5}\n"
-                       "  actuators:\n"
-                       "    link: {tcp: '127.0.0.1:5555'}\n"
-                       "    channels:\n"
-                       "      - {channel: 0, region: top, axis: z, min: -1, max: 1}\n"
-                       "      - {channel: 1, vertex: 3, axis: x, min: 0, max: 2, scale: 100}\n"
-                       "recording: rec.isorec\n",
-                       &s, &err);
+    int rc = load_text(
+        "rt.yaml",
+        "name: rt\n" BASE "devices:\n"
+        "  - {name: m, kind: tcp, address: 'localhost:4000'}\n"
+        "  - {name: t, kind: tty, path: /dev/ttyUSB0, baud: 9600, stale_ms: 250}\n"
+        "regions:\n"
+        "  fixed: {beyond: {point: [0, 0, 1], normal: [0, 0, -1]}}\n"
+        "  handles:\n"
+        "    - name: top\n"
+        "      select: [{beyond: {point: [0, 0, 11], normal: [0, 0, 1]}}]\n"
+        "      driver:\n"
+        "        device: m\n"
+        "        mapping: {sensitivity: {tx: 0.5}, dead_zone: 0.1, invert: [ry],\n"
+        "                  remap: {ty: tz}, lock: rotation, dominant: true}\n"
+        "    - name: side\n"
+        "      select: {box: {min: [-100, -100, 5.5], max: [100, 100, 6.5]}}\n"
+        "      driver:\n"
+        "        keyframes: [{t: 0}, {t: 1.5, translate: [1, 0, 0], rotate: [0, 0, 90]}]\n"
+        "solver: {omega: 0.5, weighting: area, restore: {mu: 2, tau: 0.25},\n"
+        "         refactor: always}\n"
+        "integrator: {steps_per_tick: 2, restore_kappa: 0.7, abm: pec,\n"
+        "             cg_share: 0.25}\n"
+        "tick_hz: 120\n"
+        "sinks:\n"
+        "  display: {port: 9000, snapshot_ticks: [10, 20]}\n"
+        "  ply: {dir: out, every: 5}\n"
+        "  actuators:\n"
+        "    link: {tcp: '127.0.0.1:5555'}\n"
+        "    channels:\n"
+        "      - {channel: 0, region: top, axis: z, min: -1, max: 1}\n"
+        "      - {channel: 1, vertex: 3, axis: x, min: 0, max: 2, scale: 100}\n"
+        "recording: rec.isorec\n",
+        &s, &err);
     if (rc)
         fail_msg("%s", err.msg);
     assert_string_equal(s->name, "rt");
@@ -276,8 +277,8 @@ static void test_errors(void **state)
                  ISO_EPARSE, "solver.weighting", "did you mean 'area'", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n",
                  ISO_EINVAL, "bad.yaml:", "integrator.cg_share", "[0, 1]", "found 2", NULL);
-    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {abm: pex}\n",
-                 ISO_EPARSE, "integrator.abm", "did you mean 'pec'", NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {abm: pex}\n", ISO_EPARSE,
+                 "integrator.abm", "did you mean 'pec'", NULL);
     expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EPARSE, "devices[0].address", "unknown key", NULL);

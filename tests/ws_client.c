@@ -1,6 +1,6 @@
 /* tests/ws_client.c -- see ws_client.h. */
-#include "testutil.h"
 #include "ws_client.h"
+#include "testutil.h"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>

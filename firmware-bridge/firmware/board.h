@@ -48,8 +48,17 @@
 
 #define NVIC_ISER0 REG32(0xE000E100u)
 
-static inline void irq_disable(void) { __asm volatile("cpsid i" ::: "memory"); }
-static inline void irq_enable(void) { __asm volatile("cpsie i" ::: "memory"); }
-static inline void wait_for_interrupt(void) { __asm volatile("wfi" ::: "memory"); }
+static inline void irq_disable(void)
+{
+    __asm volatile("cpsid i" ::: "memory");
+}
+static inline void irq_enable(void)
+{
+    __asm volatile("cpsie i" ::: "memory");
+}
+static inline void wait_for_interrupt(void)
+{
+    __asm volatile("wfi" ::: "memory");
+}
 
 #endif

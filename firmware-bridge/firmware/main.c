@@ -44,7 +44,10 @@ static int ring_get(ring *r, uint8_t *b)
 }
 
 /* ---- interrupts ---------------------------------------------------------- */
-void SysTick_Handler(void) { fw.ms++; }
+void SysTick_Handler(void)
+{
+    fw.ms++;
+}
 
 void uart0_rx_isr(void)
 {
@@ -73,7 +76,9 @@ void uart0_tx_isr(void)
 
 /* First expiry of the hardware watchdog. Leaving its interrupt pending lets
  * the second expiry reset the chip; a live main loop never gets here. */
-void NMI_Handler(void) {}
+void NMI_Handler(void)
+{
+}
 
 /* ---- drivers ------------------------------------------------------------- */
 static void uart_init(void)
