@@ -2,11 +2,13 @@
 #ifndef ISO_TESTUTIL_H
 #define ISO_TESTUTIL_H
 
-#include <cmocka.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+
+/* cmocka.h needs the four above first. */
+#include <cmocka.h>
 
 /* Exit code CTest reads as "skipped" (SKIP_RETURN_CODE). */
 #define ISO_TEST_SKIP 77
