@@ -3,16 +3,13 @@
 #include "iso_dev.h"
 
 #include <errno.h>
-#include <fcntl.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
 #include <unistd.h>
+
+#include "iso_fd.h"
 
 typedef struct tcp {
     int fd;
@@ -49,39 +46,6 @@ static void tcp_close(iso_dev_source *s)
 
 static const iso_dev_source_ops tcp_ops = {"tcp", tcp_fd, tcp_read, NULL, tcp_close, NULL};
 
-static int connect_one(const struct addrinfo *a, int timeout_ms, int *err_no)
-{
-    int fd = socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
-    if (fd < 0) {
-        *err_no = errno;
-        return -1;
-    }
-    fcntl(fd, F_SETFL, fcntl(fd, F_GETFL) | O_NONBLOCK);
-    if (connect(fd, a->ai_addr, a->ai_addrlen) != 0) {
-        if (errno != EINPROGRESS) {
-            *err_no = errno;
-            close(fd);
-            return -1;
-        }
-        struct pollfd p = {fd, POLLOUT, 0};
-        int soerr = 0;
-        socklen_t sl = sizeof soerr;
-        if (poll(&p, 1, timeout_ms) != 1) {
-            *err_no = ETIMEDOUT;
-            close(fd);
-            return -1;
-        }
-        if (getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &sl) != 0 || soerr) {
-            *err_no = soerr ? soerr : errno;
-            close(fd);
-            return -1;
-        }
-    }
-    int one = 1;
-    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    return fd;
-}
-
 int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
@@ -91,19 +55,10 @@ int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_dev_source **out
         return iso_err_set(err, ISO_EINVAL, -1, "'%s' is not HOST:PORT", host_port);
     memcpy(host, host_port, (size_t)(colon - host_port));
     host[colon - host_port] = 0;
-    struct addrinfo hints, *res = NULL;
-    memset(&hints, 0, sizeof hints);
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
-    int g = getaddrinfo(host, colon + 1, &hints, &res);
-    if (g != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot resolve: %s", host_port, gai_strerror(g));
-    int fd = -1, err_no = 0;
-    for (struct addrinfo *a = res; a && fd < 0; a = a->ai_next)
-        fd = connect_one(a, timeout_ms, &err_no);
-    freeaddrinfo(res);
-    if (fd < 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot connect: %s", host_port, strerror(err_no));
+    int fd = -1;
+    int rc = iso_fd_tcp_connect(host, colon + 1, timeout_ms, &fd, err);
+    if (rc != ISO_OK)
+        return rc;
     iso_dev_source *s = calloc(1, sizeof *s);
     tcp *t = calloc(1, sizeof *t);
     if (!s || !t) {

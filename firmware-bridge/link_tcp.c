@@ -1,18 +1,12 @@
 /* firmware-bridge/link_tcp.c -- TCP client backend (QEMU -serial tcp,
  * ser2net, the test proxy). Nagle is off: frames are small and late. */
-#include <errno.h>
-#include <fcntl.h>
-#include <netdb.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/socket.h>
 #include <unistd.h>
 
 #include "internal.h"
+#include "iso_fd.h"
 
 typedef struct tcp_link {
     iso_link base;
@@ -22,68 +16,23 @@ typedef struct tcp_link {
     char what[300];
 } tcp_link;
 
-/* Connects one address with a timeout: a non-blocking connect, then poll. */
-static int connect_one(const struct addrinfo *ai, int timeout_ms)
-{
-    int fd = socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, ai->ai_protocol);
-    if (fd < 0)
-        return -1;
-    if (connect(fd, ai->ai_addr, ai->ai_addrlen) != 0) {
-        if (errno != EINPROGRESS) {
-            int e = errno;
-            close(fd);
-            errno = e;
-            return -1;
-        }
-        struct pollfd p = {fd, POLLOUT, 0};
-        int r = poll(&p, 1, timeout_ms);
-        int soerr = 0;
-        socklen_t len = sizeof soerr;
-        if (r <= 0 || getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &len) != 0 || soerr != 0) {
-            close(fd);
-            errno = r == 0 ? ETIMEDOUT : soerr ? soerr : errno;
-            return -1;
-        }
-    }
-    int one = 1;
-    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    return fd;
-}
-
 static int tcp_connect(tcp_link *t, iso_err *err)
 {
-    struct addrinfo hints, *res = NULL;
-    memset(&hints, 0, sizeof hints);
-    hints.ai_family = AF_UNSPEC;
-    hints.ai_socktype = SOCK_STREAM;
     char port[16];
     snprintf(port, sizeof port, "%d", t->port);
-    int g = getaddrinfo(t->host, port, &hints, &res);
-    if (g != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: cannot resolve: %s", t->what, gai_strerror(g));
-    int e = 0;
-    t->fd = -1;
-    for (struct addrinfo *ai = res; ai && t->fd < 0; ai = ai->ai_next) {
-        t->fd = connect_one(ai, t->timeout_ms);
-        if (t->fd < 0)
-            e = errno;
-    }
-    freeaddrinfo(res);
-    if (t->fd < 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: connect: %s", t->what, strerror(e));
-    return ISO_OK;
+    return iso_fd_tcp_connect(t->host, port, t->timeout_ms, &t->fd, err);
 }
 
 static int tcp_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
     tcp_link *t = (tcp_link *)l;
-    return iso_fb__fd_read(t->fd, t->what, buf, cap, timeout_ms, err);
+    return iso_fd_read(t->fd, t->what, buf, cap, timeout_ms, err);
 }
 
 static int tcp_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
     tcp_link *t = (tcp_link *)l;
-    return iso_fb__fd_write(t->fd, t->what, buf, n, timeout_ms, 1, err);
+    return iso_fd_write_all(t->fd, t->what, buf, n, timeout_ms, 1, err);
 }
 
 static int tcp_poll_fd(iso_link *l)

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "internal.h"
+#include "iso_fd.h"
 #include "iso_tty.h"
 
 typedef struct tty_link {
@@ -30,13 +31,13 @@ static int tty_connect(tty_link *t, iso_err *err)
 static int tty_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
     tty_link *t = (tty_link *)l;
-    return iso_fb__fd_read(t->fd, t->what, buf, cap, timeout_ms, err);
+    return iso_fd_read(t->fd, t->what, buf, cap, timeout_ms, err);
 }
 
 static int tty_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
     tty_link *t = (tty_link *)l;
-    return iso_fb__fd_write(t->fd, t->what, buf, n, timeout_ms, 0, err);
+    return iso_fd_write_all(t->fd, t->what, buf, n, timeout_ms, 0, err);
 }
 
 static int tty_poll_fd(iso_link *l)

@@ -3,11 +3,11 @@
 #include "iso_display.h"
 
 #include "display_internal.h"
+#include "iso_fd.h"
 #include "iso_file.h"
 #include "iso_snapshot.h"
 
 #include <errno.h>
-#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -89,11 +89,9 @@ static int open_wake_pipe(iso_display *d, iso_err *err)
         return iso_err_set(err, ISO_EIO, -1, "display: cannot create the wake pipe: %s",
                            strerror(errno));
     }
-    for (int i = 0; i < 2; i++) {
-        int fl = fcntl(d->wake[i], F_GETFL);
-        fcntl(d->wake[i], F_SETFL, fl | O_NONBLOCK);
-        fcntl(d->wake[i], F_SETFD, FD_CLOEXEC);
-    }
+    if (iso_fd_nonblock(d->wake[0]) != 0 || iso_fd_nonblock(d->wake[1]) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "display: cannot set up the wake pipe: %s",
+                           strerror(errno));
     return ISO_OK;
 }
 

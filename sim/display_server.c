@@ -16,10 +16,10 @@
  * published, that frame is copied out and becomes the next message. */
 #include "display_internal.h"
 #include "iso_clock.h"
+#include "iso_fd.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
-#include <fcntl.h>
 #include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -73,13 +73,6 @@ struct iso_display__conn {
 static long long now_ms(void)
 {
     return (long long)(iso_clock_ns() / 1000000);
-}
-
-static void set_nonblocking(int fd)
-{
-    int fl = fcntl(fd, F_GETFL);
-    fcntl(fd, F_SETFL, fl | O_NONBLOCK);
-    fcntl(fd, F_SETFD, FD_CLOEXEC);
 }
 
 /* ---- addresses ------------------------------------------------------------ */
@@ -173,7 +166,7 @@ int iso_display__listen(iso_display *d, const iso_display_opts *o, iso_err *err)
         close(fd);
         goto done;
     }
-    set_nonblocking(fd);
+    (void)iso_fd_nonblock(fd);
     struct sockaddr_storage ss;
     socklen_t sl = sizeof ss;
     getsockname(fd, (struct sockaddr *)&ss, &sl);
@@ -564,7 +557,7 @@ static void accept_all(iso_display *d, long long now)
                 d->accept_paused_until = now + 100;
             return;
         }
-        set_nonblocking(fd);
+        (void)iso_fd_nonblock(fd);
         iso_display__conn *c = slot_for_newcomer(d);
         if (!c) {
             static const char busy[] = "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n"

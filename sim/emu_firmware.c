@@ -27,6 +27,7 @@
 #include "act_internal.h"
 #include "iso_actuators.h"
 #include "iso_clock.h"
+#include "iso_fd.h"
 
 const char *const iso_act_emu_names[] = {"auto", "qemu", "native", NULL};
 
@@ -324,8 +325,7 @@ static int native_open(emu_link *e, iso_err *err)
     if (openpty(&e->master, &e->slave_keep, slave, &raw, NULL) != 0)
         return iso_err_set(err, ISO_EIO, -1, "%s: openpty: %s", e->what, strerror(errno));
     /* The kept slave fd stops the master reading EIO between host reopens. */
-    if (fcntl(e->master, F_SETFL, O_NONBLOCK) != 0 || fcntl(e->master, F_SETFD, FD_CLOEXEC) != 0 ||
-        fcntl(e->slave_keep, F_SETFD, FD_CLOEXEC) != 0)
+    if (iso_fd_nonblock(e->master) != 0 || fcntl(e->slave_keep, F_SETFD, FD_CLOEXEC) != 0)
         return iso_err_set(err, ISO_EIO, -1, "%s: fcntl: %s", e->what, strerror(errno));
     int rc = iso_link_tty_open(slave, 115200, &e->tty, err);
     if (rc != ISO_OK)

@@ -1,14 +1,22 @@
 /* tests/test_common.c -- the helpers every part shares (common/): the
  * clock and its absolute-deadline sleep, the whole-file reader, the JSON
  * writer and enum name tables. */
+#include <arpa/inet.h>
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "iso_clock.h"
+#include "iso_fd.h"
 #include "iso_file.h"
 #include "iso_json.h"
 #include "iso_names.h"
@@ -198,6 +206,94 @@ static void names_find_get_and_list(void **state)
     assert_string_equal(iso_names_list(names, " or ", buf, 8), "cpu, op"); /* cut, terminated */
 }
 
+/* A listening socket on 127.0.0.1 at a port the kernel picks. */
+static int listen_local(int *port)
+{
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(fd >= 0);
+    struct sockaddr_in a = {0};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(bind(fd, (struct sockaddr *)&a, sizeof a), 0);
+    assert_int_equal(listen(fd, 4), 0);
+    socklen_t len = sizeof a;
+    assert_int_equal(getsockname(fd, (struct sockaddr *)&a, &len), 0);
+    *port = ntohs(a.sin_port);
+    return fd;
+}
+
+static void fd_tcp_connects_reads_writes_and_says_why(void **state)
+{
+    (void)state;
+    int port, lfd = listen_local(&port);
+    char ps[16];
+    snprintf(ps, sizeof ps, "%d", port);
+    iso_err err;
+    iso_err_clear(&err);
+    int fd = -1;
+    assert_int_equal(iso_fd_tcp_connect("127.0.0.1", ps, 1000, &fd, &err), ISO_OK);
+    int peer = accept(lfd, NULL, NULL);
+    assert_true(peer >= 0);
+    /* What the header promises of the descriptor. */
+    assert_true(fcntl(fd, F_GETFL) & O_NONBLOCK);
+    assert_true(fcntl(fd, F_GETFD) & FD_CLOEXEC);
+    int nodelay = 0;
+    socklen_t len = sizeof nodelay;
+    assert_int_equal(getsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &nodelay, &len), 0);
+    assert_true(nodelay);
+
+    /* Nothing in time: 0, after about the timeout. */
+    uint8_t buf[64];
+    int64_t t0 = iso_clock_ns();
+    assert_int_equal(iso_fd_read(fd, "t", buf, sizeof buf, 30, &err), 0);
+    assert_true(iso_clock_ns() - t0 >= 29 * 1000000LL);
+    /* A round trip. */
+    const uint8_t msg[] = "frame";
+    assert_int_equal(iso_fd_write_all(fd, "t", msg, sizeof msg, 100, 1, &err), ISO_OK);
+    assert_int_equal(read(peer, buf, sizeof buf), (int)sizeof msg);
+    assert_memory_equal(buf, msg, sizeof msg);
+    assert_int_equal(write(peer, "ab", 2), 2);
+    assert_int_equal(iso_fd_read(fd, "t", buf, sizeof buf, 1000, &err), 2);
+
+    /* The peer goes: end of file is an error that says so. */
+    close(peer);
+    iso_err_clear(&err);
+    int r;
+    while ((r = iso_fd_read(fd, "t", buf, sizeof buf, 1000, &err)) > 0)
+        ;
+    assert_int_equal(r, ISO_EIO);
+    assert_non_null(strstr(err.msg, "t: peer closed the link"));
+    close(fd);
+
+    iso_err_clear(&err);
+    assert_int_equal(iso_fd_tcp_connect("127.0.0.1", ps, 1000, &fd, &err), ISO_OK);
+    peer = accept(lfd, NULL, NULL);
+    assert_true(peer >= 0);
+    /* A peer that never reads: the write gives up at its timeout, saying how
+     * far it got, instead of blocking the caller. */
+    static uint8_t big[8 << 20];
+    iso_err_clear(&err);
+    t0 = iso_clock_ns();
+    assert_int_equal(iso_fd_write_all(fd, "t", big, sizeof big, 50, 1, &err), ISO_EIO);
+    assert_non_null(strstr(err.msg, "t: write timed out after 50 ms"));
+    assert_true(iso_clock_ns() - t0 < 2000 * 1000000LL);
+    close(fd);
+    close(peer);
+
+    /* A closed port, and a name that does not resolve, named in the error. */
+    close(lfd);
+    iso_err_clear(&err);
+    assert_int_equal(iso_fd_tcp_connect("127.0.0.1", ps, 1000, &fd, &err), ISO_EIO);
+    assert_int_equal(fd, -1);
+    char want[64];
+    snprintf(want, sizeof want, "127.0.0.1:%s: cannot connect: %s", ps, strerror(ECONNREFUSED));
+    assert_string_equal(err.msg, want);
+    iso_err_clear(&err);
+    assert_int_equal(iso_fd_tcp_connect("no-such-host.invalid", ps, 100, &fd, &err), ISO_EIO);
+    assert_non_null(strstr(err.msg, "no-such-host.invalid:"));
+    assert_non_null(strstr(err.msg, ": cannot resolve: "));
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -206,6 +302,7 @@ int main(void)
         cmocka_unit_test(json_writer_is_valid_and_null_for_non_finite),
         cmocka_unit_test(json_fields_write_members_by_table),
         cmocka_unit_test(names_find_get_and_list),
+        cmocka_unit_test(fd_tcp_connects_reads_writes_and_says_why),
     };
     int failed = cmocka_run_group_tests_name("common", t, NULL, NULL);
     free(g.text);
