@@ -86,6 +86,7 @@ static int parse(int argc, char **argv, run_args *a)
 {
     const char *cmd = "run", *v;
     iso_loop_opts_default(&a->lo);
+    a->lo.rt = 1; /* the command runs in real time unless --no-rt */
     iso_cli__solver_threads(&a->lo.threads);
     a->abm = -1;
     for (int i = 1; i < argc; i++) {

@@ -94,11 +94,15 @@ typedef struct iso_loop_tick_info {
 } iso_loop_tick_info;
 
 typedef struct iso_loop_opts {
-    int fast;              /* 1: no waiting, as fast as possible on stream time */
-    double speed;          /* wall pacing: stream seconds per wall second (1) */
-    double duration_s;     /* stop after this much stream time; 0: when the stream ends */
-    long max_ticks;        /* stop after this many ticks; 0: no limit */
-    int rt;                /* 1: ask for SCHED_FIFO and locked memory (real-time mode only) */
+    int fast;          /* 1: no waiting, as fast as possible on stream time */
+    double speed;      /* wall pacing: stream seconds per wall second (1) */
+    double duration_s; /* stop after this much stream time; 0: when the stream ends */
+    long max_ticks;    /* stop after this many ticks; 0: no limit */
+    /* 1: ask for SCHED_FIFO and locked memory (real-time mode only). Both are
+     * process-wide (the scheduling policy of the loop's thread and the threads
+     * it starts later; mlockall of all the process holds), so the default is
+     * 0 and a program asks for them (the isoshape command's run does). */
+    int rt;
     int display;           /* -1: as the scene says, 0: off, 1: on */
     int port;              /* display port override; -1: the scene's; 0: any free port */
     int status_line;       /* 1: a live status line on `log` (a terminal) */

@@ -18,7 +18,6 @@ void iso_loop_opts_default(iso_loop_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->speed = 1;
-    o->rt = 1;
     o->display = -1;
     o->port = -1;
     o->assembly = -1;
