@@ -25,11 +25,8 @@ static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, 
     (void)until;
     hid *h = s->impl;
     int n = hid_read(h->dev, out->data, ISO_DEV_CHUNK_MAX);
-    if (n > 0) {
-        out->t_ns = iso_clock_ns();
-        out->len = (uint16_t)n;
+    if (iso_dev__chunk_read(out, n))
         return 1;
-    }
     if (n == 0)
         return 0;
     const wchar_t *why = hid_error(h->dev);

@@ -42,11 +42,8 @@ static int ser_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
     if (poll(&pf, 1, 0) == 1 && (pf.revents & (POLLHUP | POLLERR | POLLNVAL)))
         return iso_err_set(err, ISO_EIO, -1, "%s: the adapter hung up (unplugged?)", s->info.name);
     int n = sp_nonblocking_read(p->port, out->data, ISO_DEV_CHUNK_MAX);
-    if (n > 0) {
-        out->t_ns = iso_clock_ns();
-        out->len = (uint16_t)n;
+    if (iso_dev__chunk_read(out, n))
         return 1;
-    }
     if (n == 0)
         return 0;
     return sp_fail(err, ISO_EIO, s->info.name, "read failed");
@@ -99,11 +96,7 @@ int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **ou
     p->fd = fd;
     s->ops = &ser_ops;
     s->impl = p;
-    s->info.kind = ISO_DEV_KIND_SERIAL;
-    s->info.baud = baud;
-    s->info.data_bits = 8;
-    s->info.parity = 'N';
-    s->info.stop_bits = 1;
+    iso_dev__serial_info(&s->info, baud);
     int vid = 0, pid = 0;
     if (sp_get_port_transport(port) == SP_TRANSPORT_USB &&
         sp_get_port_usb_vid_pid(port, &vid, &pid) == SP_OK) {

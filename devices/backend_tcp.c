@@ -1,6 +1,6 @@
 /* devices/backend_tcp.c -- a TCP client to a serial-over-network bridge
  * (ser2net, an ESP32 bridge): the same byte stream as a serial line. */
-#include "iso_dev.h"
+#include "internal.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -25,11 +25,8 @@ static int tcp_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
     (void)until;
     tcp *t = s->impl;
     ssize_t n = recv(t->fd, out->data, ISO_DEV_CHUNK_MAX, MSG_DONTWAIT);
-    if (n > 0) {
-        out->t_ns = iso_clock_ns();
-        out->len = (uint16_t)n;
+    if (iso_dev__chunk_read(out, n))
         return 1;
-    }
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR))
         return 0;
     return iso_err_set(err, ISO_EIO, -1, "%s: %s", s->info.name,

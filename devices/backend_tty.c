@@ -1,7 +1,7 @@
 /* devices/backend_tty.c -- a POSIX tty in raw mode: pseudo-terminals,
  * emulators, and any serial adapter the kernel exposes as a tty. Debian 12's
  * libserialport (0.1.1) cannot open a pty, so this is the path tests take. */
-#include "iso_dev.h"
+#include "internal.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -28,11 +28,8 @@ static int tty_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_er
     (void)until;
     tty *t = s->impl;
     ssize_t n = read(t->fd, out->data, ISO_DEV_CHUNK_MAX);
-    if (n > 0) {
-        out->t_ns = iso_clock_ns();
-        out->len = (uint16_t)n;
+    if (iso_dev__chunk_read(out, n))
         return 1;
-    }
     if (n < 0 && (errno == EAGAIN || errno == EINTR))
         return 0;
     if (n == 0) {
@@ -75,11 +72,7 @@ int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_
     t->fd = fd;
     s->ops = &tty_ops;
     s->impl = t;
-    s->info.kind = ISO_DEV_KIND_SERIAL;
-    s->info.baud = baud;
-    s->info.data_bits = 8;
-    s->info.parity = 'N';
-    s->info.stop_bits = 1;
+    iso_dev__serial_info(&s->info, baud);
     snprintf(s->info.name, sizeof s->info.name, "%s", path);
     *out = s;
     return ISO_OK;

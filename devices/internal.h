@@ -6,6 +6,28 @@
 
 #include "iso_dev.h"
 
+/* A read of n bytes into out->data: n > 0 stamps the chunk with the time
+ * base of every live chunk (iso_clock_ns) and returns 1; n <= 0 returns 0,
+ * leaving the caller to tell "nothing yet" from an error. */
+static inline int iso_dev__chunk_read(iso_dev_chunk *out, long n)
+{
+    if (n <= 0)
+        return 0;
+    out->t_ns = iso_clock_ns();
+    out->len = (uint16_t)n;
+    return 1;
+}
+
+/* What a serial line's source reports: kind SERIAL, baud, 8N1. */
+static inline void iso_dev__serial_info(iso_dev_info *info, uint32_t baud)
+{
+    info->kind = ISO_DEV_KIND_SERIAL;
+    info->baud = baud;
+    info->data_bits = 8;
+    info->parity = 'N';
+    info->stop_bits = 1;
+}
+
 /* Each appends at most cap entries and returns how many. */
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap);
