@@ -3,6 +3,8 @@
  * beyond <stdint.h>/<stddef.h> and holds no state outside its arguments. */
 #include "iso_fb.h"
 
+#include <stddef.h>
+
 const char *iso_fb_strerror(int code)
 {
     switch (code) {
@@ -298,216 +300,165 @@ static int rdone(const cursor *c)
     return c->bad || c->pos != c->cap ? ISO_FB_EPAYLOAD : 0;
 }
 
-int iso_fb_hello_pack(uint8_t *dst, size_t cap, const iso_fb_hello *m)
+/* Each message is a layout: its fixed fields in wire order, then, for the
+ * ones with channels, a count (a u8 field among the fixed ones, at most
+ * ISO_FB_MAX_CHANNELS) and that many items of fields each. One pack and one
+ * unpack walk every layout, so the byte order, the bounds and the count
+ * rule are written once. */
+enum { F_U8, F_U16, F_U32, F_I16, F_I32 };
+
+typedef struct fb_field {
+    uint16_t off;  /* offsetof in the message (or in one item) */
+    uint8_t kind;  /* F_* */
+    uint8_t limit; /* F_U8: the largest valid value, unpack refuses more; 0: any */
+} fb_field;
+
+typedef struct fb_layout {
+    const fb_field *head, *item;
+    uint8_t n_head, n_item; /* n_item 0: no items */
+    uint16_t count_off;     /* the u8 count of items, in the message */
+    uint16_t items_off;     /* the first item, in the message */
+    uint16_t stride;        /* sizeof one item */
+} fb_layout;
+
+#define AT(type, member) (uint16_t) offsetof(type, member)
+#define N(a) (uint8_t)(sizeof(a) / sizeof((a)[0]))
+
+static void put_fields(cursor *c, const fb_field *f, unsigned n, const uint8_t *m)
 {
-    if (!m || m->n_channels > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put8(&c, m->proto_version);
-    put16(&c, m->fw_version);
-    put8(&c, m->flags);
-    put32(&c, m->uptime_ms);
-    put8(&c, m->n_channels);
-    for (unsigned i = 0; i < m->n_channels; i++) {
-        put16(&c, u16(m->ch[i].min));
-        put16(&c, u16(m->ch[i].max));
-        put16(&c, m->ch[i].max_rate);
-        put16(&c, u16(m->ch[i].safe));
+    for (unsigned i = 0; i < n; i++) {
+        const uint8_t *p = m + f[i].off;
+        switch (f[i].kind) {
+        case F_U8: put8(c, *p); break;
+        case F_U16: put16(c, *(const uint16_t *)p); break;
+        case F_U32: put32(c, *(const uint32_t *)p); break;
+        case F_I16: put16(c, u16(*(const int16_t *)p)); break;
+        default: put32(c, (uint32_t) * (const int32_t *)p); break;
+        }
     }
-    return wdone(&c);
 }
 
-int iso_fb_hello_unpack(iso_fb_hello *m, const uint8_t *src, size_t len)
+/* Reads the fields; 0, or ISO_FB_EPAYLOAD for a u8 above its limit. */
+static int get_fields(cursor *c, const fb_field *f, unsigned n, uint8_t *m)
 {
-    cursor c = reader(src, len);
-    m->proto_version = (uint8_t)get8(&c);
-    m->fw_version = (uint16_t)get16(&c);
-    m->flags = (uint8_t)get8(&c);
-    m->uptime_ms = get32(&c);
-    m->n_channels = (uint8_t)get8(&c);
-    if (m->n_channels > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EPAYLOAD;
-    for (unsigned i = 0; i < m->n_channels; i++) {
-        m->ch[i].min = s16(get16(&c));
-        m->ch[i].max = s16(get16(&c));
-        m->ch[i].max_rate = (uint16_t)get16(&c);
-        m->ch[i].safe = s16(get16(&c));
+    int rc = 0;
+    for (unsigned i = 0; i < n; i++) {
+        uint8_t *p = m + f[i].off;
+        switch (f[i].kind) {
+        case F_U8:
+            *p = (uint8_t)get8(c);
+            if (f[i].limit && *p > f[i].limit)
+                rc = ISO_FB_EPAYLOAD;
+            break;
+        case F_U16: *(uint16_t *)p = (uint16_t)get16(c); break;
+        case F_U32: *(uint32_t *)p = get32(c); break;
+        case F_I16: *(int16_t *)p = s16(get16(c)); break;
+        default: *(int32_t *)p = s32(get32(c)); break;
+        }
     }
-    return rdone(&c);
+    return rc;
 }
 
-int iso_fb_sample_pack(uint8_t *dst, size_t cap, const iso_fb_sample *m)
+static int pack(const fb_layout *l, uint8_t *dst, size_t cap, const void *msg)
 {
-    if (!m)
+    const uint8_t *m = msg;
+    unsigned n = l->n_item && m ? m[l->count_off] : 0;
+    if (!m || n > ISO_FB_MAX_CHANNELS)
         return ISO_FB_EARG;
     cursor c = writer(dst, cap);
-    put32(&c, m->t_us);
-    put8(&c, m->kind);
-    put16(&c, m->buttons);
-    for (int i = 0; i < 6; i++)
-        put32(&c, (uint32_t)m->v[i]);
+    put_fields(&c, l->head, l->n_head, m);
+    for (unsigned i = 0; i < n; i++)
+        put_fields(&c, l->item, l->n_item, m + l->items_off + i * l->stride);
     return wdone(&c);
 }
 
-int iso_fb_sample_unpack(iso_fb_sample *m, const uint8_t *src, size_t len)
+/* An unpack succeeds only if every field is valid and it consumed exactly
+ * the payload. */
+static int unpack(const fb_layout *l, void *msg, const uint8_t *src, size_t len)
 {
+    uint8_t *m = msg;
     cursor c = reader(src, len);
-    m->t_us = get32(&c);
-    m->kind = (uint8_t)get8(&c);
-    m->buttons = (uint16_t)get16(&c);
-    for (int i = 0; i < 6; i++)
-        m->v[i] = s32(get32(&c));
-    if (m->kind > ISO_FB_SAMPLE_TWIST)
+    if (get_fields(&c, l->head, l->n_head, m) != 0)
         return ISO_FB_EPAYLOAD;
+    unsigned n = l->n_item ? m[l->count_off] : 0;
+    for (unsigned i = 0; i < n; i++)
+        (void)get_fields(&c, l->item, l->n_item, m + l->items_off + i * l->stride);
     return rdone(&c);
 }
 
-int iso_fb_setpoints_pack(uint8_t *dst, size_t cap, const iso_fb_setpoints *m)
-{
-    if (!m || m->n > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put32(&c, m->tick);
-    put8(&c, m->n);
-    for (unsigned i = 0; i < m->n; i++)
-        put16(&c, u16(m->value[i]));
-    return wdone(&c);
-}
+#define CHANNELS ISO_FB_MAX_CHANNELS
+static const fb_field hello_head[] = {{AT(iso_fb_hello, proto_version), F_U8, 0},
+                                      {AT(iso_fb_hello, fw_version), F_U16, 0},
+                                      {AT(iso_fb_hello, flags), F_U8, 0},
+                                      {AT(iso_fb_hello, uptime_ms), F_U32, 0},
+                                      {AT(iso_fb_hello, n_channels), F_U8, CHANNELS}};
+static const fb_field hello_item[] = {{AT(iso_fb_channel_info, min), F_I16, 0},
+                                      {AT(iso_fb_channel_info, max), F_I16, 0},
+                                      {AT(iso_fb_channel_info, max_rate), F_U16, 0},
+                                      {AT(iso_fb_channel_info, safe), F_I16, 0}};
+static const fb_field sample_head[] = {
+    {AT(iso_fb_sample, t_us), F_U32, 0},    {AT(iso_fb_sample, kind), F_U8, ISO_FB_SAMPLE_TWIST},
+    {AT(iso_fb_sample, buttons), F_U16, 0}, {AT(iso_fb_sample, v[0]), F_I32, 0},
+    {AT(iso_fb_sample, v[1]), F_I32, 0},    {AT(iso_fb_sample, v[2]), F_I32, 0},
+    {AT(iso_fb_sample, v[3]), F_I32, 0},    {AT(iso_fb_sample, v[4]), F_I32, 0},
+    {AT(iso_fb_sample, v[5]), F_I32, 0}};
+static const fb_field setpoints_head[] = {{AT(iso_fb_setpoints, tick), F_U32, 0},
+                                          {AT(iso_fb_setpoints, n), F_U8, CHANNELS}};
+static const fb_field heartbeat_head[] = {{AT(iso_fb_heartbeat, uptime_ms), F_U32, 0},
+                                          {AT(iso_fb_heartbeat, state), F_U8, ISO_FB_STATE_SAFE},
+                                          {AT(iso_fb_heartbeat, n), F_U8, CHANNELS}};
+static const fb_field ack_head[] = {{AT(iso_fb_ack, type), F_U8, 0},
+                                    {AT(iso_fb_ack, seq), F_U16, 0},
+                                    {AT(iso_fb_ack, tick), F_U32, 0},
+                                    {AT(iso_fb_ack, n), F_U8, CHANNELS}};
+static const fb_field nak_head[] = {{AT(iso_fb_nak, type), F_U8, 0},
+                                    {AT(iso_fb_nak, seq), F_U16, 0},
+                                    {AT(iso_fb_nak, reason), F_U8, 0}};
+static const fb_field fault_head[] = {{AT(iso_fb_fault, reason), F_U8, 0},
+                                      {AT(iso_fb_fault, detail), F_U32, 0},
+                                      {AT(iso_fb_fault, uptime_ms), F_U32, 0}};
+static const fb_field diag_head[] = {{AT(iso_fb_diag, magic), F_U32, 0}};
+static const fb_field safe_head[] = {{AT(iso_fb_safe, cause), F_U8, 0}};
+/* One signed 16-bit value per channel. */
+static const fb_field i16_item[] = {{0, F_I16, 0}};
 
-int iso_fb_setpoints_unpack(iso_fb_setpoints *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->tick = get32(&c);
-    m->n = (uint8_t)get8(&c);
-    if (m->n > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EPAYLOAD;
-    for (unsigned i = 0; i < m->n; i++)
-        m->value[i] = s16(get16(&c));
-    return rdone(&c);
-}
+#define FIXED(name)                                                                                \
+    {                                                                                              \
+        name##_head, NULL, N(name##_head), 0, 0, 0, 0                                              \
+    }
+#define WITH_ITEMS(type, name, item, count, items)                                                 \
+    {                                                                                              \
+        name##_head, item, N(name##_head), N(item), (uint16_t)offsetof(type, count),               \
+            (uint16_t)offsetof(type, items), (uint16_t)sizeof(((type *)0)->items[0])               \
+    }
 
-int iso_fb_heartbeat_pack(uint8_t *dst, size_t cap, const iso_fb_heartbeat *m)
-{
-    if (!m || m->n > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put32(&c, m->uptime_ms);
-    put8(&c, m->state);
-    put8(&c, m->n);
-    for (unsigned i = 0; i < m->n; i++)
-        put16(&c, u16(m->pos[i]));
-    return wdone(&c);
-}
+static const fb_layout hello_layout = WITH_ITEMS(iso_fb_hello, hello, hello_item, n_channels, ch);
+static const fb_layout sample_layout = FIXED(sample);
+static const fb_layout setpoints_layout =
+    WITH_ITEMS(iso_fb_setpoints, setpoints, i16_item, n, value);
+static const fb_layout heartbeat_layout = WITH_ITEMS(iso_fb_heartbeat, heartbeat, i16_item, n, pos);
+static const fb_layout ack_layout = WITH_ITEMS(iso_fb_ack, ack, i16_item, n, value);
+static const fb_layout nak_layout = FIXED(nak);
+static const fb_layout fault_layout = FIXED(fault);
+static const fb_layout diag_layout = FIXED(diag);
+static const fb_layout safe_layout = FIXED(safe);
 
-int iso_fb_heartbeat_unpack(iso_fb_heartbeat *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->uptime_ms = get32(&c);
-    m->state = (uint8_t)get8(&c);
-    m->n = (uint8_t)get8(&c);
-    if (m->n > ISO_FB_MAX_CHANNELS || m->state > ISO_FB_STATE_SAFE)
-        return ISO_FB_EPAYLOAD;
-    for (unsigned i = 0; i < m->n; i++)
-        m->pos[i] = s16(get16(&c));
-    return rdone(&c);
-}
-
-int iso_fb_ack_pack(uint8_t *dst, size_t cap, const iso_fb_ack *m)
-{
-    if (!m || m->n > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put8(&c, m->type);
-    put16(&c, m->seq);
-    put32(&c, m->tick);
-    put8(&c, m->n);
-    for (unsigned i = 0; i < m->n; i++)
-        put16(&c, u16(m->value[i]));
-    return wdone(&c);
-}
-
-int iso_fb_ack_unpack(iso_fb_ack *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->type = (uint8_t)get8(&c);
-    m->seq = (uint16_t)get16(&c);
-    m->tick = get32(&c);
-    m->n = (uint8_t)get8(&c);
-    if (m->n > ISO_FB_MAX_CHANNELS)
-        return ISO_FB_EPAYLOAD;
-    for (unsigned i = 0; i < m->n; i++)
-        m->value[i] = s16(get16(&c));
-    return rdone(&c);
-}
-
-int iso_fb_nak_pack(uint8_t *dst, size_t cap, const iso_fb_nak *m)
-{
-    if (!m)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put8(&c, m->type);
-    put16(&c, m->seq);
-    put8(&c, m->reason);
-    return wdone(&c);
-}
-
-int iso_fb_nak_unpack(iso_fb_nak *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->type = (uint8_t)get8(&c);
-    m->seq = (uint16_t)get16(&c);
-    m->reason = (uint8_t)get8(&c);
-    return rdone(&c);
-}
-
-int iso_fb_fault_pack(uint8_t *dst, size_t cap, const iso_fb_fault *m)
-{
-    if (!m)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put8(&c, m->reason);
-    put32(&c, m->detail);
-    put32(&c, m->uptime_ms);
-    return wdone(&c);
-}
-
-int iso_fb_fault_unpack(iso_fb_fault *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->reason = (uint8_t)get8(&c);
-    m->detail = get32(&c);
-    m->uptime_ms = get32(&c);
-    return rdone(&c);
-}
-
-int iso_fb_diag_pack(uint8_t *dst, size_t cap, const iso_fb_diag *m)
-{
-    if (!m)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put32(&c, m->magic);
-    return wdone(&c);
-}
-
-int iso_fb_diag_unpack(iso_fb_diag *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->magic = get32(&c);
-    return rdone(&c);
-}
-
-int iso_fb_safe_pack(uint8_t *dst, size_t cap, const iso_fb_safe *m)
-{
-    if (!m)
-        return ISO_FB_EARG;
-    cursor c = writer(dst, cap);
-    put8(&c, m->cause);
-    return wdone(&c);
-}
-
-int iso_fb_safe_unpack(iso_fb_safe *m, const uint8_t *src, size_t len)
-{
-    cursor c = reader(src, len);
-    m->cause = (uint8_t)get8(&c);
-    return rdone(&c);
-}
+/* The public pack and unpack of each message (iso_fb.h), over its layout. */
+#define CODEC(name)                                                                                \
+    int iso_fb_##name##_pack(uint8_t *dst, size_t cap, const iso_fb_##name *m)                     \
+    {                                                                                              \
+        return pack(&name##_layout, dst, cap, m);                                                  \
+    }                                                                                              \
+    int iso_fb_##name##_unpack(iso_fb_##name *m, const uint8_t *src, size_t len)                   \
+    {                                                                                              \
+        return unpack(&name##_layout, m, src, len);                                                \
+    }
+CODEC(hello)
+CODEC(sample)
+CODEC(setpoints)
+CODEC(heartbeat)
+CODEC(ack)
+CODEC(nak)
+CODEC(fault)
+CODEC(diag)
+CODEC(safe)

@@ -326,6 +326,14 @@ static void messages_round_trip(void **state)
     n = iso_fb_heartbeat_pack(b, sizeof b, &hb);
     assert_int_equal(iso_fb_heartbeat_unpack(&hb2, b, (size_t)n), 0);
     assert_int_equal(hb2.pos[1], -5);
+    /* The wire bytes, by PROTOCOL.md: u32 uptime, u8 state, u8 n, n × i16,
+     * little-endian. A state past SAFE does not parse. */
+    iso_fb_heartbeat hb3 = {0x04030201u, ISO_FB_STATE_SAFE, 1, {-2}};
+    static const uint8_t hb_wire[] = {1, 2, 3, 4, ISO_FB_STATE_SAFE, 1, 0xFE, 0xFF};
+    assert_int_equal(iso_fb_heartbeat_pack(b, sizeof b, &hb3), (int)sizeof hb_wire);
+    assert_memory_equal(b, hb_wire, sizeof hb_wire);
+    b[4] = ISO_FB_STATE_SAFE + 1;
+    assert_int_equal(iso_fb_heartbeat_unpack(&hb2, b, sizeof hb_wire), ISO_FB_EPAYLOAD);
 
     iso_fb_ack a = {ISO_FB_SETPOINTS, 513, 1u << 31, 2, {1, -2}}, a2;
     n = iso_fb_ack_pack(b, sizeof b, &a);
@@ -333,6 +341,11 @@ static void messages_round_trip(void **state)
     assert_int_equal(a2.seq, 513);
     assert_int_equal(a2.tick, 1u << 31);
     assert_int_equal(a2.value[1], -2);
+    /* u8 type, u16 seq, u32 tick, u8 n, n × i16. */
+    iso_fb_ack a3 = {ISO_FB_SETPOINTS, 0x0201u, 0x06050403u, 1, {0x0807}};
+    static const uint8_t ack_wire[] = {ISO_FB_SETPOINTS, 1, 2, 3, 4, 5, 6, 1, 7, 8};
+    assert_int_equal(iso_fb_ack_pack(b, sizeof b, &a3), (int)sizeof ack_wire);
+    assert_memory_equal(b, ack_wire, sizeof ack_wire);
 
     iso_fb_nak k = {ISO_FB_SETPOINTS, 9, ISO_FB_NAK_CHANNELS}, k2;
     n = iso_fb_nak_pack(b, sizeof b, &k);
