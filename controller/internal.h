@@ -5,6 +5,7 @@
 #define ISO_CLI_INTERNAL_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "iso_dev.h"
 #include "iso_err.h"
@@ -54,6 +55,118 @@ int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char 
 /* Parses --restore: "MU,TAU" (MU >= 0, TAU > 0 when MU > 0) or "off"
  * (MU = 0: the paper's method exactly); returns 0 or -1 after reporting. */
 int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau);
+
+/* ------------------------------------------------------------------------ */
+/* Options as tables (cli_opts.c)                                             */
+/* ------------------------------------------------------------------------ */
+
+/* A command's options are data, as getopt_long's table and SQLite's pragma
+ * table are: one row says an option's name, kind, range, metavar and help
+ * line and where its value goes, and the parser, the range check and the
+ * --help printer all read that row. A table ends with a row of kind
+ * ISO_CLI_OPT_END (all zero). Options that several commands take are one
+ * table of their own, included by a row of kind ISO_CLI_OPT_TABLE. */
+typedef enum iso_cli__opt_kind {
+    ISO_CLI_OPT_END = 0, /* ends a table */
+    ISO_CLI_OPT_FLAG,    /* no value: stores .flag (an int), or calls .set */
+    ISO_CLI_OPT_INT,     /* an int in the row's range */
+    ISO_CLI_OPT_DOUBLE,  /* a finite double in the row's range */
+    ISO_CLI_OPT_STRING,  /* a path or a name: a const char * into argv */
+    ISO_CLI_OPT_ENUM,    /* one of .names: its index, as an int */
+    ISO_CLI_OPT_CALL,    /* a compound value (MU,TAU, a list): .set parses it */
+    ISO_CLI_OPT_TABLE,   /* the rows of .table, their values inside the one at .at */
+    ISO_CLI_OPT_HEADING  /* no option: .help is a heading line in --help */
+} iso_cli__opt_kind;
+
+/* A range's end: none, open (excluded) or closed (included). */
+typedef enum iso_cli__end { ISO_CLI_NONE = 0, ISO_CLI_OPEN, ISO_CLI_CLOSED } iso_cli__end;
+
+/* A row's range, as designated initializers: {..., ISO_CLI_GT(0), ISO_CLI_LE(1)}
+ * is (0, 1]. */
+#define ISO_CLI_GT(x) .lo = (x), .lo_end = ISO_CLI_OPEN
+#define ISO_CLI_GE(x) .lo = (x), .lo_end = ISO_CLI_CLOSED
+#define ISO_CLI_LT(x) .hi = (x), .hi_end = ISO_CLI_OPEN
+#define ISO_CLI_LE(x) .hi = (x), .hi_end = ISO_CLI_CLOSED
+
+/* Where a row's value goes: the offset of `member` in `type`, which must be
+ * of C type `ctype` (a compile error otherwise, so a row cannot write an
+ * int into a double). ISO_CLI_ENUM_AT takes an int or an enum the size of
+ * one (ENUM, INT and FLAG rows store an int). */
+#define ISO_CLI_AT(type, member, ctype)                                                            \
+    (offsetof(type, member) + 0 * sizeof(char[_Generic(((type *)0)->member, ctype : 1, default     \
+                                                       : -1)]))
+#define ISO_CLI_INT_AT(type, member) ISO_CLI_AT(type, member, int)
+#define ISO_CLI_DOUBLE_AT(type, member) ISO_CLI_AT(type, member, double)
+#define ISO_CLI_STRING_AT(type, member) ISO_CLI_AT(type, member, const char *)
+#define ISO_CLI_ENUM_AT(type, member)                                                              \
+    (offsetof(type, member) + 0 * sizeof(char[sizeof(((type *)0)->member) == sizeof(int) ? 1 : -1]))
+
+struct iso_cli__opt;
+/* Parses `val` (NULL for a FLAG row) into dst, the row's place in the
+ * command's arguments. Returns 0, or -1 with a phrase in why that follows
+ * "--opt 'VALUE': " (e.g. "the weight MU must be >= 0"). */
+typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const char *val, char *why,
+                                size_t why_cap);
+
+typedef struct iso_cli__opt {
+    const char *name;                 /* without "--"; NULL when the option has a short name only */
+    iso_cli__opt_kind kind;           /* */
+    size_t at;                        /* where the value goes (ISO_CLI_*_AT) */
+    const char *metavar;              /* "N", "FILE"; NULL for flags and enums (their names show) */
+    const char *help;                 /* one line, wrapped by the printer; "%R" prints the range */
+    char short_name;                  /* 'o' for -o, or 0 */
+    double lo, hi;                    /* INT and DOUBLE: the range, whose ends... */
+    iso_cli__end lo_end, hi_end;      /* ...are none, open or closed */
+    int flag;                         /* FLAG: the value stored (1, or 0 for --no-x) */
+    int nonempty;                     /* STRING: 1 refuses an empty value */
+    const char *const *names;         /* ENUM: the enum's name table (common/iso_names.h) */
+    iso_cli__opt_set set;             /* CALL, and FLAG when it does more than store */
+    const struct iso_cli__opt *table; /* TABLE: the included rows */
+} iso_cli__opt;
+
+/* What iso_cli__opts_parse returns after --help or -h. */
+#define ISO_CLI_HELP 1
+
+/* Parses argv[1..argc-1] against opts, into args (each row's .at): both
+ * `--opt VALUE` and `--opt=VALUE`, every value checked against its row.
+ * An argument that is not an option is a positional: up to max_pos of them
+ * go into pos (their count in *n_pos). Stops at --help or -h and returns
+ * ISO_CLI_HELP; returns ISO_OK when all is parsed; else ISO_EINVAL with a
+ * sentence in err that names the option, the value and what was expected
+ * (err->offset: the argument's index). cmd names the command in it. */
+int iso_cli__opts_parse(const char *cmd, const iso_cli__opt *opts, int argc, char **argv,
+                        void *args, const char **pos, int max_pos, int *n_pos, iso_err *err);
+
+/* Writes the option list of opts, one row an option (headings as they
+ * are), help wrapped to 80 columns. */
+void iso_cli__opts_print(const iso_cli__opt *opts, FILE *f);
+
+/* A row's range as a phrase: "in (0, 1]", "> 0", ">= 1"; "" without one. */
+const char *iso_cli__opt_range(const iso_cli__opt *o, char *buf, size_t cap);
+
+/* The option as it is spelled on the command line: "--omega", or "-o". */
+const char *iso_cli__opt_spelling(const iso_cli__opt *o, char *buf, size_t cap);
+
+/* One subcommand: its help is usage, then the option list from opts, then
+ * after. */
+typedef struct iso_cli__cmd {
+    const char *name;                   /* "deform" */
+    const char *summary;                /* its line in `isoshape --help`; NULL: not listed */
+    const char *usage;                  /* the usage lines and the prose before the options */
+    const iso_cli__opt *opts;           /* its options */
+    const char *after;                  /* prose after the options, or NULL */
+    int (*main)(int argc, char **argv); /* argv[0] is the name; returns the exit status */
+} iso_cli__cmd;
+
+/* Prints c's --help on f. */
+void iso_cli__help(const iso_cli__cmd *c, FILE *f);
+
+/* Parses c's command line into args (as iso_cli__opts_parse), printing
+ * --help on stdout or the error on stderr. Returns -1 to go on, else the
+ * exit status: 0 after --help, 2 after a usage error. pos and n_pos may be
+ * NULL when the command takes no positionals. */
+int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
+                   int max_pos, int *n_pos);
 
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
