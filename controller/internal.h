@@ -168,6 +168,9 @@ void iso_cli__help(const iso_cli__cmd *c, FILE *f);
 int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
                    int max_pos, int *n_pos);
 
+/* The subcommands' descriptions (controller/cmd_*.c). */
+extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__bench_cmd;
+
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
     char dir[ISO_CLI_PATH_MAX];
@@ -210,19 +213,15 @@ const char *iso_cli__blas_config(void);
 
 #define ISO_CLI_DEFAULT_CG_TOL 1e-10
 
-/* The solver options' help lines; bench says --refactor its own way, so
- * the three parts are there alone too. */
-#define ISO_CLI_ASSEMBLY_HELP                                                                      \
-    "  --assembly A       cpu or opencl (default): who fills the system each evaluation;\n"        \
-    "                     without a usable OpenCL device the C path runs, with a notice\n"         \
-    "  --cl-device SPEC   OpenCL device: P:D platform/device indices or part of a name\n"          \
-    "                     (default: the first CPU device)\n"
-#define ISO_CLI_REFACTOR_HELP                                                                      \
-    "  --refactor R       always (factor every evaluation, the paper's scheme) or\n"               \
-    "                     adaptive (default): reuse the last factor as a CG preconditioner\n"
-#define ISO_CLI_CG_TOL_HELP                                                                        \
-    "  --cg-tol T         adaptive: CG's relative residual, in (0, 1), default 1e-10\n"
-#define ISO_CLI_SOLVER_HELP ISO_CLI_ASSEMBLY_HELP ISO_CLI_REFACTOR_HELP ISO_CLI_CG_TOL_HELP
+/* The solver options, as table fragments whose rows' values go into an
+ * iso_solver_opts (include them at its offset): --assembly and --cl-device;
+ * --refactor; --cg-tol; the three together (bench says --refactor its own
+ * way); and the field's weights --omega and --weighting. */
+extern const iso_cli__opt iso_cli__assembly_options[];
+extern const iso_cli__opt iso_cli__refactor_options[];
+extern const iso_cli__opt iso_cli__cg_tol_options[];
+extern const iso_cli__opt iso_cli__solver_options[];
+extern const iso_cli__opt iso_cli__weight_options[];
 
 /* The library's defaults with the command's: OpenCL assembly, adaptive
  * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL, and the command's
@@ -235,12 +234,6 @@ void iso_cli__solver_opts_default(iso_solver_opts *so);
  * A user who sets OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT, or
  * OPENBLAS_NUM_THREADS, keeps that choice: the solver then leaves it. */
 void iso_cli__solver_threads(iso_solver_threads *t);
-
-/* If argv[*i] is --assembly, --cl-device, --refactor or --cg-tol (either
- * form of iso_cli__value), stores its value in so and returns 1; returns -1
- * after reporting a missing or bad value, naming the option; returns 0 if
- * argv[*i] is none of them. so->cl_device then points into argv. */
-int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_solver_opts *so);
 
 /* Prints iso_solver_notice() as "isoshape <cmd>: <notice>" on stderr, one
  * line; nothing when the notice is empty. */
@@ -262,6 +255,13 @@ typedef struct iso_cli__source {
     int resolution;               /* built-in shapes: 0 = default */
     int quiet;                    /* 1: no stderr line when the built-in stands in */
 } iso_cli__source;
+
+/* Where a problem comes from, as table fragments whose rows' values go
+ * into an iso_cli__source (include them at its offset): --mesh and --sel;
+ * --shape and --resolution; --benchmark-dir. */
+extern const iso_cli__opt iso_cli__mesh_options[];
+extern const iso_cli__opt iso_cli__shape_options[];
+extern const iso_cli__opt iso_cli__benchmark_dir_options[];
 
 typedef struct iso_cli__problem {
     char label[ISO_CLI_PATH_MAX + 64];
