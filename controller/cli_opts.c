@@ -140,22 +140,33 @@ static int parse_int(const char *val, int *out)
     return 0;
 }
 
-/* Stores val, the value of row o at dst; returns ISO_OK or ISO_EINVAL with
- * the sentence in err. */
+/* Puts a checked value at dst: its bytes, or through the row's setter,
+ * which may refuse it still (a range owned elsewhere, as the mapping's). */
+static int put(const iso_cli__opt *o, void *dst, const char *val, const void *v, size_t n,
+               long index, iso_err *err)
+{
+    char opt[64], why[192];
+    if (!o->set) {
+        memcpy(dst, v, n);
+        return ISO_OK;
+    }
+    if (o->set(o, dst, val, why, sizeof why) == 0)
+        return ISO_OK;
+    iso_cli__opt_spelling(o, opt, sizeof opt);
+    if (val)
+        return iso_err_set(err, ISO_EINVAL, index, "%s '%s': %s.", opt, val, why);
+    return iso_err_set(err, ISO_EINVAL, index, "%s: %s.", opt, why);
+}
+
+/* Checks val, the value of row o, and puts it at dst; returns ISO_OK or
+ * ISO_EINVAL with the sentence in err. */
 static int store(const char *cmd, const iso_cli__opt *o, void *dst, const char *val, long index,
                  iso_err *err)
 {
-    char opt[64], want[128], why[192];
+    char opt[64], want[128];
     iso_cli__opt_spelling(o, opt, sizeof opt);
     switch (o->kind) {
-    case ISO_CLI_OPT_FLAG:
-        if (o->set) {
-            if (o->set(o, dst, NULL, why, sizeof why) != 0)
-                return iso_err_set(err, ISO_EINVAL, index, "%s: %s.", opt, why);
-        } else {
-            memcpy(dst, &o->flag, sizeof o->flag);
-        }
-        return ISO_OK;
+    case ISO_CLI_OPT_FLAG: return put(o, dst, NULL, &o->flag, sizeof o->flag, index, err);
     case ISO_CLI_OPT_INT: {
         int v;
         if (parse_int(val, &v) != 0)
@@ -164,8 +175,7 @@ static int store(const char *cmd, const iso_cli__opt *o, void *dst, const char *
         if (!in_range(o, v))
             return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is out of range: expected %s.", opt,
                                val, expected(o, want, sizeof want));
-        memcpy(dst, &v, sizeof v);
-        return ISO_OK;
+        return put(o, dst, val, &v, sizeof v, index, err);
     }
     case ISO_CLI_OPT_DOUBLE: {
         double v;
@@ -175,28 +185,22 @@ static int store(const char *cmd, const iso_cli__opt *o, void *dst, const char *
         if (!in_range(o, v))
             return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is out of range: expected %s.", opt,
                                val, expected(o, want, sizeof want));
-        memcpy(dst, &v, sizeof v);
-        return ISO_OK;
+        return put(o, dst, val, &v, sizeof v, index, err);
     }
     case ISO_CLI_OPT_STRING:
         if (o->nonempty && !*val)
             return iso_err_set(err, ISO_EINVAL, index,
                                "%s is empty: expected %s (see isoshape %s --help).", opt,
                                o->metavar ? o->metavar : "a value", cmd);
-        memcpy(dst, &val, sizeof val);
-        return ISO_OK;
+        return put(o, dst, val, &val, sizeof val, index, err);
     case ISO_CLI_OPT_ENUM: {
         int v = iso_names_find(o->names, val);
         if (v < 0)
             return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is unknown: use %s.", opt, val,
                                iso_names_list(o->names, " or ", want, sizeof want));
-        memcpy(dst, &v, sizeof v);
-        return ISO_OK;
+        return put(o, dst, val, &v, sizeof v, index, err);
     }
-    case ISO_CLI_OPT_CALL:
-        if (o->set(o, dst, val, why, sizeof why) != 0)
-            return iso_err_set(err, ISO_EINVAL, index, "%s '%s': %s.", opt, val, why);
-        return ISO_OK;
+    case ISO_CLI_OPT_CALL: return put(o, dst, val, NULL, 0, index, err);
     default: return iso_err_set(err, ISO_EINVAL, index, "%s: a row of unknown kind.", opt);
     }
 }

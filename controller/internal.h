@@ -102,9 +102,11 @@ typedef enum iso_cli__end { ISO_CLI_NONE = 0, ISO_CLI_OPEN, ISO_CLI_CLOSED } iso
     (offsetof(type, member) + 0 * sizeof(char[sizeof(((type *)0)->member) == sizeof(int) ? 1 : -1]))
 
 struct iso_cli__opt;
-/* Parses `val` (NULL for a FLAG row) into dst, the row's place in the
- * command's arguments. Returns 0, or -1 with a phrase in why that follows
- * "--opt 'VALUE': " (e.g. "the weight MU must be >= 0"). */
+/* Puts `val` (NULL for a FLAG row) into dst, the row's place in the
+ * command's arguments: a CALL row's setter parses the text; any other
+ * row's is called instead of storing the value, once the row's own checks
+ * passed (its type, its range). Returns 0, or -1 with a phrase in why that
+ * follows "--opt 'VALUE': " (e.g. "the weight MU must be >= 0"). */
 typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const char *val, char *why,
                                 size_t why_cap);
 
@@ -120,7 +122,7 @@ typedef struct iso_cli__opt {
     int flag;                         /* FLAG: the value stored (1, or 0 for --no-x) */
     int nonempty;                     /* STRING: 1 refuses an empty value */
     const char *const *names;         /* ENUM: the enum's name table (common/iso_names.h) */
-    iso_cli__opt_set set;             /* CALL, and FLAG when it does more than store */
+    iso_cli__opt_set set;             /* CALL; others: stores instead of .at's bytes */
     const struct iso_cli__opt *table; /* TABLE: the included rows */
 } iso_cli__opt;
 
@@ -168,8 +170,13 @@ void iso_cli__help(const iso_cli__cmd *c, FILE *f);
 int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
                    int max_pos, int *n_pos);
 
+/* The device mapping's options (cli_dev_map.c), shared by record and
+ * replay: a table fragment whose rows' values go into an iso_dev_map_opts. */
+extern const iso_cli__opt iso_cli__dev_map_options[];
+
 /* The subcommands' descriptions (controller/cmd_*.c). */
-extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__bench_cmd;
+extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__bench_cmd,
+    iso_cli__replay_cmd, iso_cli__record_cmd;
 
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {

@@ -20,7 +20,7 @@ typedef struct inner {
 
 typedef struct targs {
     int flag, count, color, calls;
-    double x, speed;
+    double x, speed, limit;
     const char *path, *name, *out;
     int pair[2];
     inner in;
@@ -48,6 +48,20 @@ static int count_call(const iso_cli__opt *o, void *dst, const char *val, char *w
     return 0;
 }
 
+/* Stores twice the value, up to a limit of its own: the row's range is
+ * checked first, then this. */
+static int set_limit(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
+{
+    double v = strtod(val, NULL);
+    (void)o;
+    if (v > 10) {
+        snprintf(why, cap, "above the setter's limit 10");
+        return -1;
+    }
+    *(double *)dst = 2 * v;
+    return 0;
+}
+
 static const iso_cli__opt inner_opts[] = {{"weight", ISO_CLI_OPT_DOUBLE,
                                            ISO_CLI_DOUBLE_AT(inner, weight), "W",
                                            .help = "a weight %R", ISO_CLI_GT(0), ISO_CLI_LE(1)},
@@ -63,6 +77,8 @@ static const iso_cli__opt opts[] = {
     {"x", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(targs, x), "X", .help = "any finite number"},
     {"speed", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(targs, speed), "S",
      .help = "a speed whose range the help does not place", ISO_CLI_GT(0)},
+    {"limit", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(targs, limit), "L",
+     .help = "a number the setter stores", ISO_CLI_GE(0), .set = set_limit},
     {"path", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(targs, path), "FILE",
      .help = "a path, empty allowed"},
     {"name", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(targs, name), "NAME", .help = "a name",
@@ -198,6 +214,17 @@ static void wrong_type_is_refused_naming_option_and_range(void **state)
     assert_refused("--pair 1", "--pair '1': expected two integers A,B.");
 }
 
+static void a_setter_stores_after_the_rows_own_checks(void **state)
+{
+    (void)state;
+    targs a;
+    assert_int_equal(parse(&a, "--limit 3"), ISO_OK);
+    assert_true(a.limit == 6.0);
+    assert_refused("--limit -1", "--limit '-1' is out of range: expected a value >= 0.");
+    assert_refused("--limit one", "--limit 'one' is not a number: expected a value >= 0.");
+    assert_refused("--limit=11", "--limit '11': above the setter's limit 10.");
+}
+
 static void an_enum_lists_its_names_on_error(void **state)
 {
     (void)state;
@@ -267,6 +294,7 @@ int main(void)
         cmocka_unit_test(equals_and_space_forms_parse_the_same),
         cmocka_unit_test(out_of_range_is_refused_naming_option_and_range),
         cmocka_unit_test(wrong_type_is_refused_naming_option_and_range),
+        cmocka_unit_test(a_setter_stores_after_the_rows_own_checks),
         cmocka_unit_test(an_enum_lists_its_names_on_error),
         cmocka_unit_test(usage_errors_name_the_argument),
         cmocka_unit_test(help_prints_every_row_once_with_its_range),
