@@ -176,7 +176,7 @@ extern const iso_cli__opt iso_cli__dev_map_options[];
 
 /* The subcommands' descriptions (controller/cmd_*.c). */
 extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__bench_cmd,
-    iso_cli__replay_cmd, iso_cli__record_cmd;
+    iso_cli__replay_cmd, iso_cli__record_cmd, iso_cli__run_cmd;
 
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
