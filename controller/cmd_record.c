@@ -17,8 +17,6 @@
 #include "iso_dev.h"
 #include "iso_loop.h"
 
-int iso_cli__record(int argc, char **argv);
-
 /* The one piece of file-scope state: a signal handler can reach nothing else. */
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig)

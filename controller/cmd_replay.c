@@ -16,8 +16,6 @@
 #include "iso_dev.h"
 #include "iso_loop.h"
 
-int iso_cli__replay(int argc, char **argv);
-
 /* A YAML string: quoted, with the two characters that need it escaped. */
 static void yaml_str(char *dst, size_t cap, const char *s)
 {

@@ -14,8 +14,6 @@
 #include "iso_loop.h"
 #include "iso_snapshot.h"
 
-int iso_cli__run_scene(int argc, char **argv);
-
 /* The one piece of file-scope state: a signal handler can reach nothing else. */
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig)

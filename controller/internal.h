@@ -24,6 +24,12 @@ int iso_cli__deform(int argc, char **argv);
 int iso_cli__field(int argc, char **argv);
 int iso_cli__metrics(int argc, char **argv);
 int iso_cli__bench_run(int argc, char **argv); /* `isoshape bench` */
+int iso_cli__record(int argc, char **argv);
+int iso_cli__replay(int argc, char **argv);
+int iso_cli__inspect(int argc, char **argv);
+int iso_cli__devices(int argc, char **argv);
+int iso_cli__check(int argc, char **argv);
+int iso_cli__run_scene(int argc, char **argv); /* `isoshape run` */
 
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
@@ -174,9 +180,16 @@ int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, con
  * replay: a table fragment whose rows' values go into an iso_dev_map_opts. */
 extern const iso_cli__opt iso_cli__dev_map_options[];
 
-/* The subcommands' descriptions (controller/cmd_*.c). */
-extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__bench_cmd,
-    iso_cli__replay_cmd, iso_cli__record_cmd, iso_cli__run_cmd;
+/* The subcommands (controller/cmd_*.c, cli_version.c). */
+extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__metrics_cmd,
+    iso_cli__bench_cmd, iso_cli__record_cmd, iso_cli__replay_cmd, iso_cli__inspect_cmd,
+    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__version_cmd;
+
+/* All of them, in the order `isoshape --help` lists them; NULL-terminated
+ * (cli_commands.c). */
+extern const iso_cli__cmd *const iso_cli__commands[];
+/* The subcommand called `name`, or NULL. */
+const iso_cli__cmd *iso_cli__command(const char *name);
 
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
