@@ -1,6 +1,7 @@
-/* controller/internal.h -- what the isoshape command's files share: option
- * parsing that names the option in every error, locating the benchmark, and
- * the run-time library report of --version. Not installed. */
+/* controller/internal.h -- what the isoshape command's files share: the
+ * subcommands and their option tables, the parser and --help printer that
+ * read them, locating the benchmark, and the run-time library report of
+ * --version. Not installed. */
 #ifndef ISO_CLI_INTERNAL_H
 #define ISO_CLI_INTERNAL_H
 
@@ -33,34 +34,6 @@ int iso_cli__run_scene(int argc, char **argv); /* `isoshape run` */
 
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
-
-/* If argv[*i] is `name` or `name=VALUE`, stores the value (VALUE or the
- * next argument, which *i then skips) in *val and returns 1; returns -1
- * after reporting a missing value; returns 0 if argv[*i] is not `name`. */
-int iso_cli__value(const char *cmd, int argc, char **argv, int *i, const char *name,
-                   const char **val);
-
-/* Strict number parsing: the whole text must be a finite number. Each
- * returns 0, or -1 after reporting "--opt VALUE is not a number". */
-int iso_cli__double(const char *cmd, const char *opt, const char *val, double *out);
-int iso_cli__int(const char *cmd, const char *opt, const char *val, int *out);
-
-/* Reports an unknown option or a stray argument; always returns 2. */
-int iso_cli__unknown(const char *cmd, const char *arg);
-
-/* Parses an --omega value (see iso_solver.h); returns 0 or -1 after
- * reporting. */
-int iso_cli__omega(const char *cmd, const char *val, double *omega);
-
-/* Parses `val` as one of `names`, an enum's name table owned by its module
- * (common/iso_names.h: iso_weighting_names, iso_dev_lock_names, ...), into
- * *out; returns 0, or -1 after reporting "--OPT VAL: use a, b or c." */
-int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char *const *names,
-                  int *out);
-
-/* Parses --restore: "MU,TAU" (MU >= 0, TAU > 0 when MU > 0) or "off"
- * (MU = 0: the paper's method exactly); returns 0 or -1 after reporting. */
-int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau);
 
 /* ------------------------------------------------------------------------ */
 /* Options as tables (cli_opts.c)                                             */
