@@ -1,9 +1,15 @@
 /* tests/test_cli_opts.c -- the isoshape command's option tables
- * (controller/cli_opts.c): the parser, the range check and the --help
- * printer on a table of every kind, in-process. Links the command's static
- * library (isoshape_cmd), so it reaches controller/internal.h. */
+ * (controller/cli_opts.c). In-process: the parser, the range check and the
+ * --help printer on a table of every kind. Through the built binary, for
+ * every subcommand in the command table: its --help lists every row of its
+ * option table and no other option; every number option refuses a value
+ * out of its range and a value of the wrong type, naming the option and the
+ * range, the same for --opt=VALUE and --opt VALUE; every enum option lists
+ * its names. Links the command's static library (isoshape_cmd), so it
+ * reaches controller/internal.h. */
 #include "testutil.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -97,7 +103,9 @@ static const iso_cli__opt opts[] = {
 
 /* The test program's state (the SQLite manner). */
 typedef struct globals {
-    char line[1024]; /* the command line, cut into words */
+    char bin[PATH_MAX];                  /* the isoshape binary, "" if absent */
+    char out[65536], stderr_text[16384]; /* the last command's output */
+    char line[1024];                     /* the command line, cut into words */
     char *argv[64];
     int argc;
     const char *pos[4];
@@ -288,8 +296,262 @@ static void help_prints_every_row_once_with_its_range(void **state)
     free(text);
 }
 
+/* ---- every subcommand ------------------------------------------------------- */
+
+/* A command's rows, included tables flattened (headings and ends left out). */
+typedef struct rows {
+    const iso_cli__opt *o[128];
+    int n;
+} rows;
+
+static void flatten(const iso_cli__opt *t, rows *r)
+{
+    for (; t->kind != ISO_CLI_OPT_END; t++)
+        if (t->kind == ISO_CLI_OPT_TABLE)
+            flatten(t->table, r);
+        else if (t->kind != ISO_CLI_OPT_HEADING && r->n < 128)
+            r->o[r->n++] = t;
+}
+
+/* Runs `isoshape ARGS`; returns its exit status, output in g.out and g.stderr_text. */
+static int iso(const char *fmt, ...) ISO_PRINTF(1, 2);
+static int iso(const char *fmt, ...)
+{
+    char args[1024], cmd[PATH_MAX + 1100];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(args, sizeof args, fmt, ap);
+    va_end(ap);
+    /* a value wrongly taken would start the command: bound it */
+    snprintf(cmd, sizeof cmd, "timeout 60 '%s' %s </dev/null", g.bin, args);
+    return iso_test_sh(cmd, g.out, sizeof g.out, g.stderr_text, sizeof g.stderr_text);
+}
+
+static void need_binary(void)
+{
+    if (!g.bin[0]) {
+        printf("skipped: no isoshape binary (set ISOSHAPE_BIN)\n");
+        skip();
+    }
+}
+
+/* The options --help lists: its lines "  --name ..." or "  -c ..." (an
+ * option's help continues at column 21, so never at column 2), by the
+ * spelling the table uses ("--name" when the row has one). */
+static int listed_options(const char *help, char names[][64], const char **lines, int cap)
+{
+    int n = 0;
+    for (const char *l = help; *l; l = strchr(l, '\n') ? strchr(l, '\n') + 1 : l + strlen(l)) {
+        if (strncmp(l, "  -", 3) != 0)
+            continue;
+        const char *o = l + 2;
+        size_t len = strcspn(o, " ,\n");
+        if (o[len] == ',' && strncmp(o + len, ", --", 4) == 0) { /* "-c, --name" */
+            o += len + 2;
+            len = strcspn(o, " \n");
+        }
+        if (n < cap) {
+            snprintf(names[n], 64, "%.*s", (int)len, o);
+            lines[n] = l;
+        }
+        n++;
+    }
+    return n;
+}
+
+/* The help block of the option listed at `line`: up to the next line that
+ * does not continue it (one not indented to the help column). */
+static void option_block(const char *line, char *buf, size_t cap)
+{
+    const char *end = strchr(line, '\n');
+    while (end && strncmp(end + 1, "                     ", 21) == 0)
+        end = strchr(end + 1, '\n');
+    size_t n = end ? (size_t)(end - line) : strlen(line);
+    snprintf(buf, cap, "%.*s", (int)n, line);
+}
+
+static void every_command_lists_its_table_and_no_other_option(void **state)
+{
+    (void)state;
+    need_binary();
+    for (int c = 0; iso_cli__commands[c]; c++) {
+        const iso_cli__cmd *cmd = iso_cli__commands[c];
+        rows r = {0};
+        flatten(cmd->opts, &r);
+        assert_int_equal(iso("%s --help", cmd->name), 0);
+        /* the usage and prose first, the prose after last, as written */
+        if (strncmp(g.out, cmd->usage, strlen(cmd->usage)) != 0)
+            fail_msg("isoshape %s --help does not begin with its usage:\n%s", cmd->name, g.out);
+        if (cmd->after && (strlen(g.out) < strlen(cmd->after) ||
+                           strcmp(g.out + strlen(g.out) - strlen(cmd->after), cmd->after) != 0))
+            fail_msg("isoshape %s --help does not end with its closing prose", cmd->name);
+        char names[128][64];
+        const char *lines[128];
+        int n = listed_options(g.out, names, lines, 128);
+        if (n != r.n)
+            fail_msg("isoshape %s --help lists %d options; its table has %d:\n%s", cmd->name, n,
+                     r.n, g.out);
+        for (int i = 0; i < r.n; i++) {
+            char want[64], range[96], block[2048];
+            iso_cli__opt_spelling(r.o[i], want, sizeof want);
+            int found = 0;
+            for (int k = 0; k < n; k++)
+                if (strcmp(names[k], want) == 0) {
+                    found++;
+                    option_block(lines[k], block, sizeof block);
+                }
+            if (found != 1)
+                fail_msg("isoshape %s --help lists %s %d times:\n%s", cmd->name, want, found,
+                         g.out);
+            /* the metavar (an enum's names) beside it, the range in its help */
+            const char *meta = r.o[i]->metavar;
+            if (r.o[i]->kind == ISO_CLI_OPT_ENUM)
+                meta = r.o[i]->names[0];
+            if (meta && !strstr(block, meta))
+                fail_msg("isoshape %s --help: %s without %s: %s", cmd->name, want, meta, block);
+            iso_cli__opt_range(r.o[i], range, sizeof range);
+            char flat[2048]; /* the block with its line breaks and indents folded */
+            size_t m = 0;
+            for (const char *p = block; *p && m + 1 < sizeof flat; p++)
+                if (!(*p == ' ' && m && flat[m - 1] == ' '))
+                    flat[m++] = *p == '\n' ? ' ' : *p;
+            flat[m] = '\0';
+            if (range[0] && !strstr(flat, range))
+                fail_msg("isoshape %s --help: %s does not show its range %s: %s", cmd->name, want,
+                         range, block);
+        }
+    }
+}
+
+/* What the table's rows themselves must hold, for every command: one row
+ * per spelling, a help line on each, a setter on each CALL row, names on
+ * each ENUM row, and a range placed in the help where a row has one. */
+static void every_command_table_is_well_formed(void **state)
+{
+    (void)state;
+    for (int c = 0; iso_cli__commands[c]; c++) {
+        const iso_cli__cmd *cmd = iso_cli__commands[c];
+        rows r = {0};
+        flatten(cmd->opts, &r);
+        assert_true(r.n < 128);
+        assert_non_null(strstr(cmd->usage, "usage: isoshape "));
+        assert_ptr_equal(iso_cli__command(cmd->name), cmd);
+        for (int i = 0; i < r.n; i++) {
+            const iso_cli__opt *o = r.o[i];
+            char a[64], b[64];
+            iso_cli__opt_spelling(o, a, sizeof a);
+            if (!o->help || !o->help[0])
+                fail_msg("isoshape %s: %s has no help line", cmd->name, a);
+            if (o->kind == ISO_CLI_OPT_CALL && (!o->set || !o->metavar))
+                fail_msg("isoshape %s: %s is CALL without a setter or a metavar", cmd->name, a);
+            if (o->kind == ISO_CLI_OPT_ENUM && (!o->names || !o->names[0]))
+                fail_msg("isoshape %s: %s is ENUM without names", cmd->name, a);
+            if ((o->lo_end || o->hi_end) && !strstr(o->help, "%R"))
+                fail_msg("isoshape %s: %s has a range its help does not place (%%R)", cmd->name, a);
+            for (int k = 0; k < i; k++)
+                if (strcmp(a, iso_cli__opt_spelling(r.o[k], b, sizeof b)) == 0 ||
+                    (o->short_name && o->short_name == r.o[k]->short_name))
+                    fail_msg("isoshape %s: two rows for %s", cmd->name, a);
+        }
+    }
+}
+
+/* Runs `isoshape CMD OPT=V` and `isoshape CMD OPT V`: both must exit 2
+ * with the same one line, which names the option and the value and holds
+ * each of `needles`. */
+static void assert_both_forms_refuse(const char *cmd, const char *opt, const char *v,
+                                     const char *const *needles)
+{
+    char first[16384];
+    assert_int_equal(iso("%s %s='%s'", cmd, opt, v), 2);
+    snprintf(first, sizeof first, "%s", g.stderr_text);
+    assert_int_equal(iso("%s %s '%s'", cmd, opt, v), 2);
+    if (strcmp(first, g.stderr_text) != 0)
+        fail_msg("isoshape %s: %s=%s and %s %s say different things:\n%s%s", cmd, opt, v, opt, v,
+                 first, g.stderr_text);
+    char quoted[128];
+    snprintf(quoted, sizeof quoted, "%s '%s'", opt, v);
+    if (!strstr(g.stderr_text, quoted))
+        fail_msg("isoshape %s %s %s: the message does not name %s: %s", cmd, opt, v, quoted,
+                 g.stderr_text);
+    for (int k = 0; needles[k]; k++)
+        if (!strstr(g.stderr_text, needles[k]))
+            fail_msg("isoshape %s %s %s: the message lacks '%s': %s", cmd, opt, v, needles[k],
+                     g.stderr_text);
+    assert_non_null(strchr(g.stderr_text, '\n'));
+    assert_string_equal(strchr(g.stderr_text, '\n'), "\n"); /* one line */
+}
+
+static void every_number_option_refuses_out_of_range_and_wrong_type(void **state)
+{
+    (void)state;
+    need_binary();
+    int checked = 0;
+    for (int c = 0; iso_cli__commands[c]; c++) {
+        const iso_cli__cmd *cmd = iso_cli__commands[c];
+        rows r = {0};
+        flatten(cmd->opts, &r);
+        for (int i = 0; i < r.n; i++) {
+            const iso_cli__opt *o = r.o[i];
+            if (o->kind != ISO_CLI_OPT_INT && o->kind != ISO_CLI_OPT_DOUBLE)
+                continue;
+            char opt[64], range[96], v[64];
+            iso_cli__opt_spelling(o, opt, sizeof opt);
+            iso_cli__opt_range(o, range, sizeof range);
+            const char *type = o->kind == ISO_CLI_OPT_INT ? "is not an integer: expected an integer"
+                                                          : "is not a number: expected a";
+            const char *wrong_type[] = {type, range, NULL};
+            assert_both_forms_refuse(cmd->name, opt, "x1", wrong_type);
+            if (o->kind == ISO_CLI_OPT_INT)
+                assert_both_forms_refuse(cmd->name, opt, "2.5", wrong_type);
+            const char *out_of_range[] = {"is out of range: expected", range, NULL};
+            if (o->lo_end) { /* the end itself when open, just below it when closed */
+                snprintf(v, sizeof v, "%.17g", o->lo_end == ISO_CLI_OPEN ? o->lo : o->lo - 1);
+                assert_both_forms_refuse(cmd->name, opt, v, out_of_range);
+                checked++;
+            }
+            if (o->hi_end) {
+                snprintf(v, sizeof v, "%.17g", o->hi_end == ISO_CLI_OPEN ? o->hi : o->hi + 1);
+                assert_both_forms_refuse(cmd->name, opt, v, out_of_range);
+                checked++;
+            }
+        }
+    }
+    printf("%d range ends refused, each in both forms\n", checked);
+    assert_true(checked >= 20); /* every command with numbers has ranges */
+}
+
+static void every_enum_option_lists_its_names(void **state)
+{
+    (void)state;
+    need_binary();
+    int checked = 0;
+    for (int c = 0; iso_cli__commands[c]; c++) {
+        const iso_cli__cmd *cmd = iso_cli__commands[c];
+        rows r = {0};
+        flatten(cmd->opts, &r);
+        for (int i = 0; i < r.n; i++) {
+            if (r.o[i]->kind != ISO_CLI_OPT_ENUM)
+                continue;
+            char opt[64];
+            iso_cli__opt_spelling(r.o[i], opt, sizeof opt);
+            const char *needles[] = {"is unknown: use", NULL};
+            assert_both_forms_refuse(cmd->name, opt, "bogus", needles);
+            for (int k = 0; r.o[i]->names[k]; k++)
+                if (!strstr(g.stderr_text, r.o[i]->names[k]))
+                    fail_msg("isoshape %s %s bogus: '%s' is not listed: %s", cmd->name, opt,
+                             r.o[i]->names[k], g.stderr_text);
+            checked++;
+        }
+    }
+    printf("%d enum options list their names\n", checked);
+    assert_true(checked >= 8);
+}
+
 int main(void)
 {
+    if (iso_test_isoshape_bin(g.bin, sizeof g.bin) != 0)
+        g.bin[0] = '\0';
     const struct CMUnitTest t[] = {
         cmocka_unit_test(equals_and_space_forms_parse_the_same),
         cmocka_unit_test(out_of_range_is_refused_naming_option_and_range),
@@ -298,6 +560,10 @@ int main(void)
         cmocka_unit_test(an_enum_lists_its_names_on_error),
         cmocka_unit_test(usage_errors_name_the_argument),
         cmocka_unit_test(help_prints_every_row_once_with_its_range),
+        cmocka_unit_test(every_command_table_is_well_formed),
+        cmocka_unit_test(every_command_lists_its_table_and_no_other_option),
+        cmocka_unit_test(every_number_option_refuses_out_of_range_and_wrong_type),
+        cmocka_unit_test(every_enum_option_lists_its_names),
     };
     return cmocka_run_group_tests_name("cli_opts", t, NULL, NULL);
 }
