@@ -70,15 +70,17 @@ typedef enum iso_cli__end { ISO_CLI_NONE = 0, ISO_CLI_OPEN, ISO_CLI_CLOSED } iso
 /* Where a row's value goes: the offset of `member` in `type`, which must be
  * of C type `ctype` (a compile error otherwise, so a row cannot write an
  * int into a double). ISO_CLI_ENUM_AT takes an int or an enum the size of
- * one (ENUM, INT and FLAG rows store an int). */
+ * one (ENUM, INT and FLAG rows store an int). ISO_CLI_ZERO_IF(c) is 0 when
+ * c holds and a negative array size, refused by the compiler, when not. */
+#define ISO_CLI_ZERO_IF(c) (0 * sizeof(char[(c) ? 1 : -1]))
+#define ISO_CLI_IS(type, member, ctype) _Generic(((type *)0)->member, ctype : 1, default : 0)
 #define ISO_CLI_AT(type, member, ctype)                                                            \
-    (offsetof(type, member) + 0 * sizeof(char[_Generic(((type *)0)->member, ctype : 1, default     \
-                                                       : -1)]))
+    (offsetof(type, member) + ISO_CLI_ZERO_IF(ISO_CLI_IS(type, member, ctype)))
 #define ISO_CLI_INT_AT(type, member) ISO_CLI_AT(type, member, int)
 #define ISO_CLI_DOUBLE_AT(type, member) ISO_CLI_AT(type, member, double)
 #define ISO_CLI_STRING_AT(type, member) ISO_CLI_AT(type, member, const char *)
 #define ISO_CLI_ENUM_AT(type, member)                                                              \
-    (offsetof(type, member) + 0 * sizeof(char[sizeof(((type *)0)->member) == sizeof(int) ? 1 : -1]))
+    (offsetof(type, member) + ISO_CLI_ZERO_IF(sizeof(((type *)0)->member) == sizeof(int)))
 
 struct iso_cli__opt;
 /* Puts `val` (NULL for a FLAG row) into dst, the row's place in the
@@ -91,7 +93,7 @@ typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const c
 
 typedef struct iso_cli__opt {
     const char *name;                 /* without "--"; NULL when the option has a short name only */
-    iso_cli__opt_kind kind;           /* */
+    iso_cli__opt_kind kind;           /* what it takes and how it is stored */
     size_t at;                        /* where the value goes (ISO_CLI_*_AT) */
     const char *metavar;              /* "N", "FILE"; NULL for flags and enums (their names show) */
     const char *help;                 /* one line, wrapped by the printer; "%R" prints the range */
