@@ -1,151 +1,15 @@
-/* controller/cli_args.c -- option parsing and benchmark lookup for the
- * isoshape command. Every message names the option and the value, so a user
- * sees what to fix without reading the help. */
+/* controller/cli_args.c -- where the benchmark problems are: the folders
+ * --benchmark-dir, $ISOSHAPE_BENCHMARK_DIR and the places near the program
+ * that deform, bench and scenes look in, and the files of each problem
+ * there. (The options it once parsed by hand are tables now, cli_opts.c;
+ * config/iso_scene.h names this file for the lookup.) */
 #include "internal.h"
 
-#include <errno.h>
-#include <limits.h>
-#include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-
-#include "iso_element.h"
-
-void iso_cli__fail(const char *cmd, const char *fmt, ...)
-{
-    va_list ap;
-    fprintf(stderr, "isoshape%s%s: ", cmd ? " " : "", cmd ? cmd : "");
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fputc('\n', stderr);
-}
-
-int iso_cli__value(const char *cmd, int argc, char **argv, int *i, const char *name,
-                   const char **val)
-{
-    const char *arg = argv[*i];
-    size_t n = strlen(name);
-    if (strncmp(arg, name, n) != 0)
-        return 0;
-    if (arg[n] == '=') {
-        *val = arg + n + 1;
-        return 1;
-    }
-    if (arg[n] != '\0')
-        return 0;
-    if (*i + 1 >= argc) {
-        iso_cli__fail(cmd, "option %s needs a value (see isoshape %s --help).", name, cmd);
-        return -1;
-    }
-    *val = argv[++*i];
-    return 1;
-}
-
-int iso_cli__double(const char *cmd, const char *opt, const char *val, double *out)
-{
-    char *end;
-    errno = 0;
-    double d = strtod(val, &end);
-    if (end == val || *end != '\0' || errno == ERANGE || !isfinite(d)) {
-        iso_cli__fail(cmd, "%s '%s' is not a finite number.", opt, val);
-        return -1;
-    }
-    *out = d;
-    return 0;
-}
-
-int iso_cli__int(const char *cmd, const char *opt, const char *val, int *out)
-{
-    char *end;
-    errno = 0;
-    long l = strtol(val, &end, 10);
-    if (end == val || *end != '\0' || errno == ERANGE || l < INT_MIN || l > INT_MAX) {
-        iso_cli__fail(cmd, "%s '%s' is not an integer.", opt, val);
-        return -1;
-    }
-    *out = (int)l;
-    return 0;
-}
-
-int iso_cli__unknown(const char *cmd, const char *arg)
-{
-    if (arg[0] == '-')
-        iso_cli__fail(cmd, "unknown option '%s' (see isoshape %s --help).", arg, cmd);
-    else
-        iso_cli__fail(cmd, "unexpected argument '%s' (see isoshape %s --help).", arg, cmd);
-    return 2;
-}
-
-int iso_cli__omega(const char *cmd, const char *val, double *omega)
-{
-    double w;
-    if (iso_cli__double(cmd, "--omega", val, &w) != 0)
-        return -1;
-    if (!(w > 0.0 && w <= 1.0)) {
-        iso_cli__fail(cmd,
-                      "--omega %s is outside (0, 1]: at 0 a flat region makes the system "
-                      "singular, and above 1 the distortion term turns negative.",
-                      val);
-        return -1;
-    }
-    *omega = w;
-    return 0;
-}
-
-int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char *const *names,
-                  int *out)
-{
-    int v = iso_names_find(names, val);
-    if (v < 0) {
-        char all[256];
-        iso_cli__fail(cmd, "%s %s: use %s.", opt, val,
-                      iso_names_list(names, " or ", all, sizeof all));
-        return -1;
-    }
-    *out = v;
-    return 0;
-}
-
-int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau)
-{
-    if (strcmp(val, "off") == 0) {
-        *mu = 0.0;
-        *tau = 0.0;
-        return 0;
-    }
-    const char *comma = strchr(val, ',');
-    char num[64];
-    if (!comma || (size_t)(comma - val) >= sizeof num) {
-        iso_cli__fail(cmd, "--restore '%s' is not MU,TAU (e.g. 1,0.05) or off.", val);
-        return -1;
-    }
-    memcpy(num, val, (size_t)(comma - val));
-    num[comma - val] = '\0';
-    double m, t;
-    if (iso_cli__double(cmd, "--restore MU", num, &m) != 0 ||
-        iso_cli__double(cmd, "--restore TAU", comma + 1, &t) != 0)
-        return -1;
-    if (!(m >= 0.0)) {
-        iso_cli__fail(cmd, "--restore %s: the weight MU must be >= 0 (0 = off).", val);
-        return -1;
-    }
-    if (m > 0.0 && !(t > 0.0)) {
-        iso_cli__fail(cmd, "--restore %s: the time constant TAU must be positive.", val);
-        return -1;
-    }
-    *mu = m;
-    *tau = m > 0.0 ? t : 0.0;
-    return 0;
-}
-
-/* ------------------------------------------------------------------------ */
-/* The benchmark                                                              */
-/* ------------------------------------------------------------------------ */
 
 typedef struct bench_layout {
     const char *name, *folder, *stem;

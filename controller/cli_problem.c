@@ -22,6 +22,32 @@ void iso_cli__problem_deinit(iso_cli__problem *p)
 }
 
 /* ------------------------------------------------------------------------ */
+/* The options, as table fragments the commands include                       */
+/* ------------------------------------------------------------------------ */
+
+const iso_cli__opt iso_cli__mesh_options[] = {
+    {"mesh", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, mesh), "M",
+     .help = "an OFF, OBJ or PLY mesh"},
+    {"sel", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, sel), "S",
+     .help = "its labels, one per vertex: 0 fixed, 1 free, 2 handle"},
+    {0}};
+
+/* The resolution's range is the shape's own (iso_shape_init names it). */
+const iso_cli__opt iso_cli__shape_options[] = {
+    {"shape", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, shape), "NAME",
+     .help = "a built-in shape and its labels: bar, cylinder, bumpplane, cactus"},
+    {"resolution", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_cli__source, resolution), "N",
+     .help = "the built-in shape's resolution (0: its default)"},
+    {0}};
+
+const iso_cli__opt iso_cli__benchmark_dir_options[] = {
+    {"benchmark-dir", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, bench_dir), "DIR",
+     .help = "where the benchmark problems are (default: $ISOSHAPE_BENCHMARK_DIR, else "
+             "../shared/data/benchmark from the current folder or the program's); a problem absent "
+             "there runs as the built-in shape of its name"},
+    {0}};
+
+/* ------------------------------------------------------------------------ */
 /* Loading                                                                    */
 /* ------------------------------------------------------------------------ */
 

@@ -9,7 +9,8 @@
 
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
+
+#include "iso_element.h"
 
 void iso_cli__solver_opts_default(iso_solver_opts *so)
 {
@@ -27,52 +28,56 @@ void iso_cli__solver_threads(iso_solver_threads *t)
     t->blas = getenv("OPENBLAS_NUM_THREADS") ? ISO_SOLVER_BLAS_LEAVE : ISO_SOLVER_BLAS_SIZED;
 }
 
-static int parse_cg_tol(const char *cmd, const char *val, double *out)
-{
-    double t;
-    if (iso_cli__double(cmd, "--cg-tol", val, &t) != 0)
-        return -1;
-    /* Below ~1e-16 relative the residual cannot fall further in double
-     * precision, so CG would only stall and force a refactor each time. */
-    if (!(t > 0.0 && t < 1.0)) {
-        iso_cli__fail(cmd, "--cg-tol %s must lie in (0, 1): it is a relative residual.", val);
-        return -1;
-    }
-    *out = t;
-    return 0;
-}
+/* ------------------------------------------------------------------------ */
+/* The options, as table fragments the commands include                       */
+/* ------------------------------------------------------------------------ */
 
-int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_solver_opts *so)
-{
-    const char *val = NULL;
-    int r;
-    int v;
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--assembly", &val)) != 0) {
-        if (r < 0 || iso_cli__enum(cmd, "--assembly", val, iso_assembly_names, &v) != 0)
-            return -1;
-        so->assembly = (iso_assembly)v;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--refactor", &val)) != 0) {
-        if (r < 0 || iso_cli__enum(cmd, "--refactor", val, iso_refactor_names, &v) != 0)
-            return -1;
-        so->refactor = (iso_refactor)v;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--cg-tol", &val)) != 0)
-        return r < 0 || parse_cg_tol(cmd, val, &so->cg_tol) != 0 ? -1 : 1;
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--cl-device", &val)) != 0) {
-        if (r < 0)
-            return -1;
-        if (!*val) {
-            iso_cli__fail(cmd, "--cl-device is empty: give P:D indices or part of a device name.");
-            return -1;
-        }
-        so->cl_device = val;
-        return 1;
-    }
-    return 0;
-}
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
+const iso_cli__opt iso_cli__assembly_options[] = {
+    {"assembly", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, assembly), NULL,
+     .help =
+         "who fills the system each evaluation (default opencl); without a usable OpenCL device "
+         "the C path runs, with a notice",
+     .names = iso_assembly_names},
+    {"cl-device", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_solver_opts, cl_device), "SPEC",
+     .help = "OpenCL device: P:D platform/device indices or part of a name (default: the first CPU "
+             "device)",
+     .nonempty = 1},
+    {0}};
+
+const iso_cli__opt iso_cli__refactor_options[] = {
+    {"refactor", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, refactor), NULL,
+     .help =
+         "always: factor every evaluation (the paper's scheme); adaptive (default): reuse the last "
+         "factor as a CG preconditioner",
+     .names = iso_refactor_names},
+    {0}};
+
+/* Below ~1e-16 relative the residual cannot fall further in double
+ * precision, so CG would only stall and force a refactor each time; at 1
+ * it is no tolerance at all. */
+const iso_cli__opt iso_cli__cg_tol_options[] = {
+    {"cg-tol", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, cg_tol), "T",
+     .help = "adaptive: CG's relative residual, %R, default " STR(ISO_CLI_DEFAULT_CG_TOL),
+     ISO_CLI_GT(0), ISO_CLI_LT(1)},
+    {0}};
+
+const iso_cli__opt iso_cli__solver_options[] = {
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__assembly_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__refactor_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__cg_tol_options},
+    {0}};
+
+/* At omega 0 a flat region makes the system singular, and above 1 the
+ * distortion term turns negative (iso_solver.h). */
+const iso_cli__opt iso_cli__weight_options[] = {
+    {"omega", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, omega), "W",
+     .help = "smoothness weight %R, default 1/3", ISO_CLI_GT(0), ISO_CLI_LE(1)},
+    {"weighting", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, weighting), NULL,
+     .help = "how triangles are weighted (default param)", .names = iso_weighting_names},
+    {0}};
 
 void iso_cli__print_notice(const char *cmd, const char *notice)
 {

@@ -144,3 +144,28 @@ void iso_cli__print_version(void)
     print_cholmod();
     print_blas();
 }
+
+static const iso_cli__opt version_options[] = {{0}};
+
+static int version_main(int argc, char **argv);
+
+const iso_cli__cmd iso_cli__version_cmd = {
+    "version",
+    NULL,
+    "usage: isoshape --version\n"
+    "       isoshape version\n"
+    "\n"
+    "Prints the versions of isoshape and of the CHOLMOD it runs with (and was built\n"
+    "against), and the BLAS that is loaded, with the file it was loaded from.\n",
+    version_options,
+    NULL,
+    version_main};
+
+static int version_main(int argc, char **argv)
+{
+    int status = iso_cli__parse(&iso_cli__version_cmd, argc, argv, NULL, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
+    iso_cli__print_version();
+    return 0;
+}

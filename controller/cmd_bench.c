@@ -27,24 +27,6 @@
 #include "iso_json.h"
 #include "iso_metrics.h"
 
-static const char *const help =
-    "usage: isoshape bench [--quick] [--json] [--benchmark-dir DIR] [--reps N] [options]\n"
-    "\n"
-    "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
-    "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
-    "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
-    "Then runs each problem's scene in real time (as fast as possible) beside one bare solve.\n"
-    "  --benchmark-dir DIR  where the problems are (default: as isoshape deform looks);\n"
-    "                       a problem that is absent runs as the built-in shape of its name\n"
-    "  --quick              under a minute: one rep, dgemm at n = 1000, no bumpplane\n"
-    "                       (the small built-in one when the benchmark is absent)\n"
-    "  --reps N             timed runs per figure, median reported (default 3)\n"
-    "  --json               print one JSON object instead of tables\n"
-    "  --refactor R         run only this scheme: always (factor every evaluation, the\n"
-    "                       paper's scheme) or adaptive (reuse the last factor as a CG\n"
-    "                       preconditioner); default: both\n" ISO_CLI_ASSEMBLY_HELP
-        ISO_CLI_CG_TOL_HELP;
-
 /* The paper's times (Martinez Esturo, Roessl, Theisel 2010, Table 1). */
 static const struct {
     const char *name;
@@ -59,8 +41,9 @@ static const struct {
 enum { N_PROBLEMS = sizeof problems / sizeof problems[0], N_SCHEMES = 2 };
 
 typedef struct bench_args {
-    const char *bench_dir;
+    iso_cli__source src; /* its bench_dir: where the problems are */
     int quick, json, reps, tty;
+    int only;                 /* --refactor: one iso_refactor, or -1 for both */
     int scheme_on[N_SCHEMES]; /* indexed by iso_refactor */
     iso_solver_opts so;
 } bench_args;
@@ -141,62 +124,57 @@ static double rel_diff(double a, double b)
 /* Options                                                                    */
 /* ------------------------------------------------------------------------ */
 
+static const iso_cli__opt bench_options[] = {
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, src, iso_cli__source),
+     .table = iso_cli__benchmark_dir_options},
+    {"quick", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(bench_args, quick), NULL,
+     .help =
+         "under a minute: one rep, dgemm at n = 1000, no bumpplane (the small built-in one when "
+         "the benchmark is absent)",
+     .flag = 1},
+    {"reps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, reps), "N",
+     .help = "timed runs per figure, median reported, %R (default 3; 1 with --quick)",
+     ISO_CLI_GE(1), ISO_CLI_LE(99)},
+    {"json", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(bench_args, json), NULL,
+     .help = "print one JSON object instead of tables", .flag = 1},
+    {"refactor", ISO_CLI_OPT_ENUM, ISO_CLI_INT_AT(bench_args, only), NULL,
+     .help =
+         "run only this scheme: always (factor every evaluation, the paper's scheme) or adaptive "
+         "(reuse the last factor as a CG preconditioner); default: both",
+     .names = iso_refactor_names},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
+     .table = iso_cli__assembly_options},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
+     .table = iso_cli__cg_tol_options},
+    {0}};
+
+const iso_cli__cmd iso_cli__bench_cmd = {
+    "bench",
+    "time the four benchmark problems against the paper and this machine",
+    "usage: isoshape bench [--quick] [--json] [--benchmark-dir DIR] [--reps N] [options]\n"
+    "\n"
+    "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
+    "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
+    "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
+    "Then runs each problem's scene in real time (as fast as possible) beside one bare solve.\n",
+    bench_options,
+    NULL,
+    iso_cli__bench_run};
+
 /* Returns -1 to go on, else the exit status (0 after --help). */
 static int parse_args(int argc, char **argv, bench_args *a)
 {
-    const char *cmd = "bench", *val = NULL;
-    int r, have_reps = 0;
     memset(a, 0, sizeof *a);
     iso_cli__solver_opts_default(&a->so);
     a->so.restore_mu = 0.0; /* the paper's method exactly */
-    a->reps = 3;
-    a->scheme_on[ISO_REFACTOR_ALWAYS] = a->scheme_on[ISO_REFACTOR_ADAPTIVE] = 1;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            fputs(help, stdout);
-            return 0;
-        }
-        if (strcmp(argv[i], "--json") == 0) {
-            a->json = 1;
-            continue;
-        }
-        if (strcmp(argv[i], "--quick") == 0) {
-            a->quick = 1;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--refactor", &val)) != 0) {
-            int only;
-            if (r < 0 || iso_cli__enum(cmd, "--refactor", val, iso_refactor_names, &only) != 0)
-                return 2;
-            a->scheme_on[ISO_REFACTOR_ALWAYS] = only == ISO_REFACTOR_ALWAYS;
-            a->scheme_on[ISO_REFACTOR_ADAPTIVE] = only == ISO_REFACTOR_ADAPTIVE;
-            continue;
-        }
-        if ((r = iso_cli__solver_option(cmd, argc, argv, &i, &a->so)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--benchmark-dir", &val)) != 0) {
-            if (r < 0)
-                return 2;
-            a->bench_dir = val;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--reps", &val)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--reps", val, &a->reps) != 0)
-                return 2;
-            if (a->reps < 1 || a->reps > 99) {
-                iso_cli__fail(cmd, "--reps %s must be between 1 and 99.", val);
-                return 2;
-            }
-            have_reps = 1;
-            continue;
-        }
-        return iso_cli__unknown(cmd, argv[i]);
-    }
-    if (a->quick && !have_reps)
-        a->reps = 1;
+    a->only = -1;
+    int status = iso_cli__parse(&iso_cli__bench_cmd, argc, argv, a, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
+    for (int k = 0; k < N_SCHEMES; k++)
+        a->scheme_on[k] = a->only < 0 || a->only == k;
+    if (a->reps == 0) /* not given */
+        a->reps = a->quick ? 1 : 3;
     a->tty = isatty(STDERR_FILENO);
     return -1;
 }
@@ -364,7 +342,7 @@ static int wanted(const bench_args *a, int k, int *builtin)
 {
     iso_cli__bench b;
     char why[2048];
-    *builtin = !iso_cli__bench_find(problems[k].name, a->bench_dir, &b, why, sizeof why);
+    *builtin = !iso_cli__bench_find(problems[k].name, a->src.bench_dir, &b, why, sizeof why);
     return !(a->quick && strcmp(problems[k].name, "bumpplane") == 0 && !*builtin);
 }
 
@@ -372,7 +350,7 @@ static int run_problem(const bench_args *a, int k, bench_result *res, iso_err *e
 {
     iso_cli__source src = {0};
     src.benchmark = problems[k].name;
-    src.bench_dir = a->bench_dir;
+    src.bench_dir = a->src.bench_dir;
     src.resolution = a->quick ? problems[k].small_resolution : 0;
     src.quiet = 0;
     iso_cli__problem p;
@@ -656,8 +634,8 @@ int iso_cli__bench_run(int argc, char **argv)
             continue;
         if (a.tty)
             fprintf(stderr, "isoshape bench: %s in real time ...\n", problems[k].name);
-        if (iso_cli__bench_realtime(problems[k].name, a.bench_dir, res_k, &a.so, a.quick ? 3 : 5,
-                                    &res->rt[res->n_rt++], &err) != ISO_OK) {
+        if (iso_cli__bench_realtime(problems[k].name, a.src.bench_dir, res_k, &a.so,
+                                    a.quick ? 3 : 5, &res->rt[res->n_rt++], &err) != ISO_OK) {
             iso_cli__fail("bench", "%s in real time: %s", problems[k].name, err.msg);
             goto out;
         }

@@ -9,8 +9,6 @@
 
 #include "iso_scene.h"
 
-int iso_cli__check(int argc, char **argv);
-
 static void print_summary(const iso_scene *s)
 {
     const iso_scene_mesh_src *m = &s->mesh_src;
@@ -64,20 +62,24 @@ static void print_summary(const iso_scene *s)
         printf("  recording: %s\n", s->recording);
 }
 
+static const iso_cli__opt check_options[] = {{0}};
+
+const iso_cli__cmd iso_cli__check_cmd = {
+    "check",
+    "validate a scene file without running it",
+    "usage: isoshape check SCENE\n"
+    "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
+    "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n",
+    check_options,
+    NULL,
+    iso_cli__check};
+
 int iso_cli__check(int argc, char **argv)
 {
     const char *path = NULL;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: isoshape check SCENE\n"
-                   "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
-                   "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n");
-            return 0;
-        }
-        if (argv[i][0] == '-' || path)
-            return iso_cli__unknown("check", argv[i]);
-        path = argv[i];
-    }
+    int status = iso_cli__parse(&iso_cli__check_cmd, argc, argv, NULL, &path, 1, NULL);
+    if (status >= 0)
+        return status;
     if (!path) {
         iso_cli__fail("check", "missing SCENE (usage: isoshape check SCENE)");
         return 2;

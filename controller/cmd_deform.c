@@ -26,42 +26,10 @@
 #define RESTORE_DEFAULT_TAU 0.05
 #define RESTORE_DEFAULT_TEXT "1,0.05"
 
-static const char *const help =
-    "usage: isoshape deform --mesh M --sel S --def D [options]\n"
-    "       isoshape deform --shape NAME [--resolution N] [options]\n"
-    "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
-    "\n"
-    "Moves the handle from its rest pose to the pose D along a screw motion and\n"
-    "integrates the free vertices along the isometry-preserving field.\n"
-    "  --mesh M           OFF, OBJ or PLY mesh\n"
-    "  --sel S            one label per vertex: 0 fixed, 1 free, 2 handle\n"
-    "  --def D            the handle's final transform: 4x4 row-major, x' = M [x;1]\n"
-    "  --shape NAME       a built-in problem instead: bar, cylinder, bumpplane, cactus\n"
-    "  --resolution N     the built-in shape's resolution (0: its default)\n"
-    "  --benchmark NAME   a Botsch-Sorkine benchmark problem (cactus, bar, cylinder,\n"
-    "                     bumpplane) read from --benchmark-dir, $ISOSHAPE_BENCHMARK_DIR\n"
-    "                     or ../shared/data/benchmark; the built-in shape if absent\n"
-    "  --omega W          smoothness weight in (0, 1], default 1/3\n"
-    "  --weighting        param (default) or area: how triangles are weighted\n"
-    "  --steps N          N fixed steps, or\n"
-    "  --tol T            adaptive steps with local error T x bbox diagonal (default 1e-4)\n"
-    "  --start S          rk4 (default, the paper's) or adams: how the Adams history\n"
-    "                     starts; adams is the real-time loop's (orders 1, 2, 3)\n"
-    "  --restore MU,TAU   isometry restoration (beyond the paper): each edge's length\n"
-    "                     relaxes to its rest length with time constant TAU seconds\n"
-    "                     (the path takes 1 s, t in [0, 1], so TAU is also its fraction;\n"
-    "                     a scene's tau is seconds of its stream time: a scene whose\n"
-    "                     motion lasts D s matches TAU/D here), weight MU; "
-    "default " RESTORE_DEFAULT_TEXT "\n"
-    "  --restore off      the paper's method exactly (use for paper reproductions)\n"
-    "  --out OUT          write the deformed mesh (format from the extension)\n"
-    "  --reference REF    also measure REF, another result of the same problem\n"
-    "                     (with --benchmark: the Laplacian-editing result)\n"
-    "  --json             print one JSON object instead of text\n" ISO_CLI_SOLVER_HELP;
-
 typedef struct deform_args {
-    const char *mesh, *sel, *def, *shape, *benchmark, *bench_dir, *out, *reference;
-    int resolution, json, steps, start;
+    iso_cli__source src;
+    const char *out;
+    int json, steps, start;
     double tol;
     iso_solver_opts so;
 } deform_args;
@@ -70,123 +38,152 @@ typedef struct deform_args {
 /* Options                                                                    */
 /* ------------------------------------------------------------------------ */
 
-/* Returns -1 to go on, else the exit status (0 after --help). */
-static int parse_args(int argc, char **argv, deform_args *a)
+/* --start's names, indexed by ISO_INTEGRATE_START_* (solver/ has no table
+ * of them). */
+static const char *const start_names[] = {"rk4", "adams", NULL};
+_Static_assert(ISO_INTEGRATE_START_RK4 == 0 && ISO_INTEGRATE_START_ADAMS == 1,
+               "start_names is indexed by ISO_INTEGRATE_START_*");
+
+/* --restore MU,TAU (MU >= 0, TAU > 0 when MU > 0) or off (MU = 0: the
+ * paper's method exactly), into the solver options at dst. */
+static int set_restore(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
 {
-    const char *cmd = "deform", *val = NULL;
-    int r, weighting, have_steps = 0, have_tol = 0;
-    iso_integrate_opts io;
-    iso_integrate_opts_default(&io);
-    memset(a, 0, sizeof *a);
-    iso_cli__solver_opts_default(&a->so);
-    a->steps = io.steps;
-    a->tol = io.tol;
-    a->so.restore_mu = RESTORE_DEFAULT_MU;
-    a->so.restore_tau = RESTORE_DEFAULT_TAU;
-    weighting = (int)a->so.weighting;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            fputs(help, stdout);
-            return 0;
-        }
-        if (strcmp(argv[i], "--json") == 0) {
-            a->json = 1;
-            continue;
-        }
-        r = iso_cli__solver_option(cmd, argc, argv, &i, &a->so);
-        if (r < 0)
-            return 2;
-        if (r > 0)
-            continue;
-#define VALUE(name) ((r = iso_cli__value(cmd, argc, argv, &i, name, &val)) != 0)
-        if (VALUE("--mesh"))
-            a->mesh = val;
-        else if (VALUE("--sel"))
-            a->sel = val;
-        else if (VALUE("--def"))
-            a->def = val;
-        else if (VALUE("--shape"))
-            a->shape = val;
-        else if (VALUE("--benchmark"))
-            a->benchmark = val;
-        else if (VALUE("--benchmark-dir"))
-            a->bench_dir = val;
-        else if (VALUE("--out"))
-            a->out = val;
-        else if (VALUE("--reference"))
-            a->reference = val;
-        else if (VALUE("--resolution")) {
-            if (r > 0 && iso_cli__int(cmd, "--resolution", val, &a->resolution) != 0)
-                return 2;
-        } else if (VALUE("--omega")) {
-            if (r > 0 && iso_cli__omega(cmd, val, &a->so.omega) != 0)
-                return 2;
-        } else if (VALUE("--weighting")) {
-            if (r > 0 &&
-                iso_cli__enum(cmd, "--weighting", val, iso_weighting_names, &weighting) != 0)
-                return 2;
-        } else if (VALUE("--restore")) {
-            if (r > 0 && iso_cli__restore(cmd, val, &a->so.restore_mu, &a->so.restore_tau) != 0)
-                return 2;
-        } else if (VALUE("--steps")) {
-            if (r > 0 && iso_cli__int(cmd, "--steps", val, &a->steps) != 0)
-                return 2;
-            if (r > 0 && a->steps <= 0) {
-                iso_cli__fail(cmd, "--steps %s must be a positive number of steps.", val);
-                return 2;
-            }
-            have_steps = 1;
-        } else if (VALUE("--start")) {
-            if (r > 0 && strcmp(val, "rk4") != 0 && strcmp(val, "adams") != 0) {
-                iso_cli__fail(cmd, "--start '%s' is unknown: use rk4 or adams.", val);
-                return 2;
-            }
-            a->start = r > 0 && strcmp(val, "adams") == 0 ? ISO_INTEGRATE_START_ADAMS
-                                                          : ISO_INTEGRATE_START_RK4;
-        } else if (VALUE("--tol")) {
-            if (r > 0 && iso_cli__double(cmd, "--tol", val, &a->tol) != 0)
-                return 2;
-            if (r > 0 && !(a->tol > 0)) {
-                iso_cli__fail(cmd, "--tol %s must be positive.", val);
-                return 2;
-            }
-            have_tol = 1;
-        } else
-            return iso_cli__unknown(cmd, argv[i]);
-#undef VALUE
-        if (r < 0)
-            return 2;
+    iso_solver_opts *so = dst;
+    (void)o;
+    if (strcmp(val, "off") == 0) {
+        so->restore_mu = so->restore_tau = 0.0;
+        return 0;
     }
-    a->so.weighting = (iso_weighting)weighting;
-    if (have_steps && have_tol) {
+    double m, t;
+    char tail;
+    if (sscanf(val, "%lf,%lf%c", &m, &t, &tail) != 2 || !isfinite(m) || !isfinite(t)) {
+        snprintf(why, cap, "expected MU,TAU (e.g. " RESTORE_DEFAULT_TEXT ") or off");
+        return -1;
+    }
+    if (!(m >= 0.0)) {
+        snprintf(why, cap, "the weight MU must be >= 0 (0 = off)");
+        return -1;
+    }
+    if (m > 0.0 && !(t > 0.0)) {
+        snprintf(why, cap, "the time constant TAU must be > 0");
+        return -1;
+    }
+    so->restore_mu = m;
+    so->restore_tau = m > 0.0 ? t : 0.0;
+    return 0;
+}
+
+static const iso_cli__opt deform_options[] = {
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, src, iso_cli__source),
+     .table = iso_cli__mesh_options},
+    {"def", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.def), "D",
+     .help = "the handle's final transform: 4x4 row-major, x' = M [x;1]"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, src, iso_cli__source),
+     .table = iso_cli__shape_options},
+    {"benchmark", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.benchmark), "NAME",
+     .help = "a Botsch-Sorkine benchmark problem instead (cactus, bar, cylinder, bumpplane), read "
+             "from --benchmark-dir; the built-in shape of its name when absent"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, src, iso_cli__source),
+     .table = iso_cli__benchmark_dir_options},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, so, iso_solver_opts),
+     .table = iso_cli__weight_options},
+    {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(deform_args, steps), "N",
+     .help = "N fixed steps (%R), or", ISO_CLI_GE(1)},
+    {"tol", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(deform_args, tol), "T",
+     .help = "adaptive steps with local error T x bbox diagonal, T %R (default 1e-4)",
+     ISO_CLI_GT(0)},
+    {"start", ISO_CLI_OPT_ENUM, ISO_CLI_INT_AT(deform_args, start), NULL,
+     .help =
+         "how the Adams history starts: rk4 (default, the paper's) or adams, the real-time loop's "
+         "(orders 1, 2, 3)",
+     .names = start_names},
+    {"restore", ISO_CLI_OPT_CALL, ISO_CLI_AT(deform_args, so, iso_solver_opts), "MU,TAU",
+     .help =
+         "isometry restoration (beyond the paper): each edge's length relaxes to its rest length "
+         "with time constant TAU seconds (the path takes 1 s, t in [0, 1], so TAU is also its "
+         "fraction; a scene's tau is seconds of its stream time: a scene whose motion lasts D s "
+         "matches TAU/D here), weight MU; default " RESTORE_DEFAULT_TEXT
+         "; off: the paper's method exactly (use for paper reproductions)",
+     .set = set_restore},
+    {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, out), "OUT",
+     .help = "write the deformed mesh (format from the extension)"},
+    {"reference", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.reference), "REF",
+     .help = "also measure REF, another result of the same problem (with --benchmark: the "
+             "Laplacian-editing result)"},
+    {"json", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(deform_args, json), NULL,
+     .help = "print one JSON object instead of text", .flag = 1},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, so, iso_solver_opts),
+     .table = iso_cli__solver_options},
+    {0}};
+
+const iso_cli__cmd iso_cli__deform_cmd = {
+    "deform",
+    "integrate the deformation of a mesh as its handle moves to its final pose",
+    "usage: isoshape deform --mesh M --sel S --def D [options]\n"
+    "       isoshape deform --shape NAME [--resolution N] [options]\n"
+    "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
+    "\n"
+    "Moves the handle from its rest pose to the pose D along a screw motion and\n"
+    "integrates the free vertices along the isometry-preserving field.\n",
+    deform_options,
+    NULL,
+    iso_cli__deform};
+
+/* The problem's options exclude each other, and --steps excludes --tol.
+ * Returns -1 when all fit, else 2 after saying why. */
+static int check_args(const char *cmd, deform_args *a)
+{
+    const iso_cli__source *s = &a->src;
+    if (a->steps > 0 && !isnan(a->tol)) {
         iso_cli__fail(cmd, "--steps and --tol exclude each other: fixed steps or adaptive ones.");
         return 2;
     }
-    if (have_tol)
-        a->steps = 0;
-    int sources = (a->shape != NULL) + (a->benchmark != NULL) + (a->mesh || a->sel || a->def);
+    int sources = (s->shape != NULL) + (s->benchmark != NULL) + (s->mesh || s->sel || s->def);
     if (sources != 1) {
         iso_cli__fail(cmd, "give one problem: --mesh/--sel/--def, --shape NAME or --benchmark "
                            "NAME (see isoshape deform --help).");
         return 2;
     }
-    if (!a->shape && !a->benchmark && (!a->mesh || !a->sel || !a->def)) {
+    if (!s->shape && !s->benchmark && (!s->mesh || !s->sel || !s->def)) {
         iso_cli__fail(cmd, "--%s is missing: a file problem needs --mesh, --sel and --def.",
-                      !a->mesh  ? "mesh"
-                      : !a->sel ? "sel"
+                      !s->mesh  ? "mesh"
+                      : !s->sel ? "sel"
                                 : "def");
         return 2;
     }
-    if (a->benchmark && !iso_cli__bench_known(a->benchmark)) {
+    if (s->benchmark && !iso_cli__bench_known(s->benchmark)) {
         iso_cli__fail(cmd, "--benchmark '%s' is unknown: use cactus, bar, cylinder or bumpplane.",
-                      a->benchmark);
+                      s->benchmark);
         return 2;
     }
-    if (a->bench_dir && !a->benchmark) {
-        iso_cli__fail(cmd, "--benchmark-dir %s needs --benchmark NAME.", a->bench_dir);
+    if (s->bench_dir && !s->benchmark) {
+        iso_cli__fail(cmd, "--benchmark-dir %s needs --benchmark NAME.", s->bench_dir);
         return 2;
     }
     return -1;
+}
+
+/* Returns -1 to go on, else the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, deform_args *a)
+{
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    memset(a, 0, sizeof *a);
+    iso_cli__solver_opts_default(&a->so);
+    a->so.restore_mu = RESTORE_DEFAULT_MU;
+    a->so.restore_tau = RESTORE_DEFAULT_TAU;
+    a->start = io.start;
+    a->tol = NAN; /* not given: the library's default, adaptive unless --steps */
+    int status = iso_cli__parse(&iso_cli__deform_cmd, argc, argv, a, NULL, 0, NULL);
+    if (status < 0)
+        status = check_args("deform", a);
+    if (a->steps == 0)
+        a->steps = io.steps;
+    if (isnan(a->tol))
+        a->tol = io.tol;
+    else
+        a->steps = 0;
+    return status;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -361,15 +358,7 @@ int iso_cli__deform(int argc, char **argv)
     iso_err err;
     iso_err_clear(&err);
     double *x = NULL;
-    iso_cli__source src = {.mesh = a.mesh,
-                           .sel = a.sel,
-                           .def = a.def,
-                           .shape = a.shape,
-                           .benchmark = a.benchmark,
-                           .bench_dir = a.bench_dir,
-                           .reference = a.reference,
-                           .resolution = a.resolution};
-    if (iso_cli__problem_load("deform", &src, &p, &err) != ISO_OK)
+    if (iso_cli__problem_load("deform", &a.src, &p, &err) != ISO_OK)
         goto fail;
     int nv = iso_mesh_vertex_count(p.mesh);
     x = malloc((size_t)nv * 3 * sizeof *x);

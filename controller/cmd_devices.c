@@ -7,21 +7,25 @@
 
 #include "iso_dev.h"
 
-int iso_cli__devices(int argc, char **argv);
+static const iso_cli__opt devices_options[] = {{0}};
+
+const iso_cli__cmd iso_cli__devices_cmd = {
+    "devices",
+    "list input devices, usable or why not",
+    "usage: isoshape devices\n"
+    "\n"
+    "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
+    "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
+    "devices (libusb), each usable or with the reason it is not.\n",
+    devices_options,
+    NULL,
+    iso_cli__devices};
 
 int iso_cli__devices(int argc, char **argv)
 {
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: isoshape devices\n"
-                   "\n"
-                   "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
-                   "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
-                   "devices (libusb), each usable or with the reason it is not.\n");
-            return 0;
-        }
-        return iso_cli__unknown("devices", argv[i]);
-    }
+    int status = iso_cli__parse(&iso_cli__devices_cmd, argc, argv, NULL, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
     iso_dev_found f[64];
     size_t n = iso_dev_enumerate(f, 64);
     char built[128];

@@ -13,23 +13,42 @@
 #include "iso_shapes.h"
 #include "iso_solver.h"
 
-static const char *const help =
+typedef struct field_args {
+    iso_cli__source src;
+    const char *velocity, *out;
+    iso_solver_opts so;
+} field_args;
+
+static const iso_cli__opt field_options[] = {
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(field_args, src, iso_cli__source),
+     .table = iso_cli__mesh_options},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(field_args, src, iso_cli__source),
+     .table = iso_cli__shape_options},
+    {"velocity", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(field_args, velocity), "V",
+     .help =
+         "one line 'vx vy vz' per handle vertex, in vertex order ('#' comments and blank lines are "
+         "skipped)"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(field_args, so, iso_solver_opts),
+     .table = iso_cli__weight_options},
+    {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(field_args, out), "F",
+     .help = "one line 'vx vy vz' per vertex, 17 significant digits"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(field_args, so, iso_solver_opts),
+     .table = iso_cli__solver_options},
+    {0}};
+
+const iso_cli__cmd iso_cli__field_cmd = {
+    "field",
+    "solve the deformation field once, at the rest pose",
     "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
     "--out F\n"
     "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
     "\n"
     "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
     "handle vertices (label 2) move with the velocities in V, and free vertices\n"
-    "(label 1) get the velocities that preserve lengths best.\n"
-    "  --mesh M        OFF, OBJ or PLY mesh\n"
-    "  --sel S         one label per vertex: 0 fixed, 1 free, 2 handle\n"
-    "  --shape NAME    a built-in shape and its labels instead (bar, cylinder, bumpplane, cactus)\n"
-    "  --resolution N  the built-in shape's resolution (0: its default)\n"
-    "  --velocity V    one line 'vx vy vz' per handle vertex, in vertex order\n"
-    "                  ('#' comments and blank lines are skipped)\n"
-    "  --omega W       smoothness weight in (0, 1], default 1/3\n"
-    "  --weighting     param (default) or area: how triangles are weighted\n"
-    "  --out F         one line 'vx vy vz' per vertex, 17 significant digits\n" ISO_CLI_SOLVER_HELP;
+    "(label 1) get the velocities that preserve lengths best.\n",
+    field_options,
+    NULL,
+    iso_cli__field};
 
 /* Reads one velocity per handle vertex into vc (3*nv). Returns 0, or -1
  * after naming V's line. */
@@ -124,62 +143,35 @@ static int write_field(const char *path, const double *v, int nv)
     return 0;
 }
 
-int iso_cli__field(int argc, char **argv)
+/* Returns -1 to go on, else the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, field_args *a)
 {
-    const char *cmd = "field", *mesh_path = NULL, *sel_path = NULL, *vel_path = NULL,
-               *out_path = NULL, *shape = NULL, *val = NULL;
-    int resolution = 0, weighting, r;
-    iso_solver_opts so;
-    iso_cli__solver_opts_default(&so);
-    weighting = (int)so.weighting;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            fputs(help, stdout);
-            return 0;
-        }
-        r = iso_cli__solver_option(cmd, argc, argv, &i, &so);
-        if (r < 0)
-            return 2;
-        if (r > 0)
-            continue;
-#define VALUE(name) ((r = iso_cli__value(cmd, argc, argv, &i, name, &val)) != 0)
-        if (VALUE("--mesh"))
-            mesh_path = val;
-        else if (VALUE("--sel"))
-            sel_path = val;
-        else if (VALUE("--velocity"))
-            vel_path = val;
-        else if (VALUE("--out"))
-            out_path = val;
-        else if (VALUE("--shape"))
-            shape = val;
-        else if (VALUE("--resolution")) {
-            if (r > 0 && iso_cli__int(cmd, "--resolution", val, &resolution) != 0)
-                return 2;
-        } else if (VALUE("--omega")) {
-            if (r > 0 && iso_cli__omega(cmd, val, &so.omega) != 0)
-                return 2;
-        } else if (VALUE("--weighting")) {
-            if (r > 0 &&
-                iso_cli__enum(cmd, "--weighting", val, iso_weighting_names, &weighting) != 0)
-                return 2;
-        } else
-            return iso_cli__unknown(cmd, argv[i]);
-#undef VALUE
-        if (r < 0)
-            return 2;
-    }
-    so.weighting = (iso_weighting)weighting;
-    if (shape ? (mesh_path || sel_path) : (!mesh_path || !sel_path)) {
+    const char *cmd = "field";
+    memset(a, 0, sizeof *a);
+    iso_cli__solver_opts_default(&a->so);
+    int status = iso_cli__parse(&iso_cli__field_cmd, argc, argv, a, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
+    const iso_cli__source *s = &a->src;
+    if (s->shape ? (s->mesh || s->sel) : (!s->mesh || !s->sel)) {
         iso_cli__fail(cmd, "give either --mesh and --sel, or --shape (see isoshape field --help).");
         return 2;
     }
-    if (!vel_path || !out_path) {
+    if (!a->velocity || !a->out) {
         iso_cli__fail(cmd, "--%s is required (see isoshape field --help).",
-                      vel_path ? "out" : "velocity");
+                      a->velocity ? "out" : "velocity");
         return 2;
     }
+    return -1;
+}
 
+int iso_cli__field(int argc, char **argv)
+{
+    const char *cmd = "field";
+    field_args a;
+    int status = parse_args(argc, argv, &a);
+    if (status >= 0)
+        return status;
     iso_err err;
     iso_err_clear(&err);
     iso_shape sh = {0};
@@ -187,14 +179,14 @@ int iso_cli__field(int argc, char **argv)
     iso_regions reg = {0};
     iso_solver *s = NULL;
     double *vc = NULL, *v = NULL;
-    int status = 1;
-    if (shape) {
-        if (iso_shape_init(&sh, shape, resolution, &err) != ISO_OK ||
+    status = 1;
+    if (a.src.shape) {
+        if (iso_shape_init(&sh, a.src.shape, a.src.resolution, &err) != ISO_OK ||
             iso_mesh_create(sh.nv, sh.x, sh.nt, sh.tri, sh.name, &m, &err) != ISO_OK ||
             iso_shape_regions(&sh, &reg, &err) != ISO_OK)
             goto fail;
-    } else if (iso_mesh_load(mesh_path, &m, &err) != ISO_OK ||
-               iso_sel_load(sel_path, iso_mesh_vertex_count(m), &reg, &err) != ISO_OK) {
+    } else if (iso_mesh_load(a.src.mesh, &m, &err) != ISO_OK ||
+               iso_sel_load(a.src.sel, iso_mesh_vertex_count(m), &reg, &err) != ISO_OK) {
         goto fail;
     }
     int nv = iso_mesh_vertex_count(m);
@@ -204,14 +196,14 @@ int iso_cli__field(int argc, char **argv)
         iso_cli__fail(cmd, "out of memory for the field of %d vertices.", nv);
         goto out;
     }
-    if (read_velocities(vel_path, &reg, vc) != 0)
+    if (read_velocities(a.velocity, &reg, vc) != 0)
         goto out;
-    if (iso_solver_create(m, &reg, &so, &s, &err) != ISO_OK)
+    if (iso_solver_create(m, &reg, &a.so, &s, &err) != ISO_OK)
         goto fail;
     iso_cli__print_notice(cmd, iso_solver_notice(s));
     if (iso_solver_field(s, iso_mesh_positions(m), vc, v, &err) != ISO_OK)
         goto fail;
-    if (write_field(out_path, v, nv) != 0)
+    if (write_field(a.out, v, nv) != 0)
         goto out;
     status = 0;
     goto out;

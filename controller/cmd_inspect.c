@@ -9,8 +9,6 @@
 
 #include "iso_dev.h"
 
-int iso_cli__inspect(int argc, char **argv);
-
 static const char *type_name(int t)
 {
     switch (t) {
@@ -46,26 +44,34 @@ static void print_event(const iso_dev_event *e)
     }
 }
 
+typedef struct inspect_args {
+    int raw; /* 1: each data record's bytes */
+} inspect_args;
+
+static const iso_cli__opt inspect_options[] = {
+    {"no-bytes", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(inspect_args, raw), NULL,
+     .help = "leave out each record's raw bytes", .flag = 0},
+    {0}};
+
+const iso_cli__cmd iso_cli__inspect_cmd = {
+    "inspect",
+    "print a device recording, record by record, decoded",
+    "usage: isoshape inspect FILE [--no-bytes]\n"
+    "\n"
+    "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
+    "every record with its time, source, raw bytes and decoded events.\n"
+    "Damaged records and a torn end are reported with their byte offsets.\n",
+    inspect_options,
+    NULL,
+    iso_cli__inspect};
+
 int iso_cli__inspect(int argc, char **argv)
 {
     const char *path = NULL;
-    int raw = 1;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: isoshape inspect FILE [--no-bytes]\n"
-                   "\n"
-                   "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
-                   "every record with its time, source, raw bytes and decoded events.\n"
-                   "Damaged records and a torn end are reported with their byte offsets.\n");
-            return 0;
-        }
-        if (strcmp(argv[i], "--no-bytes") == 0)
-            raw = 0;
-        else if (argv[i][0] == '-' || path)
-            return iso_cli__unknown("inspect", argv[i]);
-        else
-            path = argv[i];
-    }
+    inspect_args a = {1};
+    int status = iso_cli__parse(&iso_cli__inspect_cmd, argc, argv, &a, &path, 1, NULL);
+    if (status >= 0)
+        return status;
     if (!path) {
         iso_cli__fail("inspect", "no recording given (isoshape inspect FILE).");
         return 2;
@@ -114,7 +120,7 @@ int iso_cli__inspect(int argc, char **argv)
         printf(" src %u", c.source);
         if (c.type == ISO_DEV_CHUNK_DATA) {
             printf(" %3u bytes", c.len);
-            if (raw)
+            if (a.raw)
                 for (unsigned k = 0; k < c.len; k++)
                     printf("%s%02x", k % 32 == 0 && k ? "\n                          " : " ",
                            c.data[k]);

@@ -9,15 +9,29 @@
 #include "iso_mesh.h"
 #include "iso_metrics.h"
 
-static const char *const help =
+typedef struct metrics_args {
+    int json;
+} metrics_args;
+
+static const iso_cli__opt metrics_options[] = {
+    {"json", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(metrics_args, json), NULL,
+     .help = "print one JSON object instead of text (keys metric_err, area_err, angle_err, "
+             "max_edge_strain, rms_edge_strain)",
+     .flag = 1},
+    {0}};
+
+const iso_cli__cmd iso_cli__metrics_cmd = {
+    "metrics",
+    "distortion between an original mesh and a deformed copy",
     "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
     "\n"
     "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
     "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
     "the largest and the root-mean-square relative edge length change, each printed\n"
-    "with what it measures.\n"
-    "  --json         print one JSON object instead of text (keys metric_err,\n"
-    "                 area_err, angle_err, max_edge_strain, rms_edge_strain)\n";
+    "with what it measures.\n",
+    metrics_options,
+    NULL,
+    iso_cli__metrics};
 
 int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, size_t why_cap)
 {
@@ -42,19 +56,11 @@ int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, 
 int iso_cli__metrics(int argc, char **argv)
 {
     const char *cmd = "metrics", *path[2] = {NULL, NULL};
-    int json = 0, npath = 0;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            fputs(help, stdout);
-            return 0;
-        } else if (strcmp(argv[i], "--json") == 0) {
-            json = 1;
-        } else if (argv[i][0] != '-' && npath < 2) {
-            path[npath++] = argv[i];
-        } else {
-            return iso_cli__unknown(cmd, argv[i]);
-        }
-    }
+    metrics_args a = {0};
+    int npath = 0;
+    int status = iso_cli__parse(&iso_cli__metrics_cmd, argc, argv, &a, path, 2, &npath);
+    if (status >= 0)
+        return status;
     if (npath != 2) {
         iso_cli__fail(cmd,
                       "needs two meshes, ORIGINAL and DEFORMED (see isoshape metrics --help).");
@@ -63,7 +69,7 @@ int iso_cli__metrics(int argc, char **argv)
     iso_mesh *m[2] = {NULL, NULL};
     iso_err err;
     iso_err_clear(&err);
-    int status = 1;
+    status = 1;
     char why[1024];
     for (int k = 0; k < 2; k++)
         if (iso_mesh_load(path[k], &m[k], &err) != ISO_OK) {
@@ -76,7 +82,7 @@ int iso_cli__metrics(int argc, char **argv)
     }
     iso_metrics mt;
     iso_metrics_compute(m[0], iso_mesh_positions(m[0]), iso_mesh_positions(m[1]), &mt);
-    if (json) {
+    if (a.json) {
         iso_json j;
         iso_json_begin(&j, stdout);
         size_t n;

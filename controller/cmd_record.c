@@ -17,9 +17,6 @@
 #include "iso_dev.h"
 #include "iso_loop.h"
 
-int iso_cli__record(int argc, char **argv);
-int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_dev_map_opts *o);
-
 /* The one piece of file-scope state: a signal handler can reach nothing else. */
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig)
@@ -96,172 +93,155 @@ static void on_command(void *ctx, const iso_dev_tick *out, double dt)
         fprintf(stderr, "isoshape record: reset pose of handle %d\n", out->active);
 }
 
-static void usage(void)
+typedef struct record_args {
+    const char *out;
+    src_spec specs[ISO_DEV_MAX_SOURCES];
+    int n, quiet;
+    int baud; /* for the next --tty or --serial */
+    double tick_ms, duration, debounce_ms;
+    iso_dev_gpio_opts gp; /* for every --gpio */
+    iso_dev_map_opts mo;
+} record_args;
+
+/* A source option adds one source of its kind (the option's name), with
+ * the --baud given before it. */
+static int add_source(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
 {
-    printf("usage: isoshape record -o FILE SOURCE... [options]\n"
-           "\n"
-           "Records live input devices (devices/RECORDING.md) while running the device side\n"
-           "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n"
-           "  --hid PATH|auto    a 3D mouse through hidapi/hidraw (auto: the first one)\n"
-           "  --mouse            a 3D mouse: through spacenavd when it runs, else hidapi\n"
-           "  --spnav            3D mouse events from the spacenavd daemon\n"
-           "  --tty PATH         a serial stream on a tty or pseudo-terminal\n"
-           "  --serial NAME      a serial adapter through libserialport\n"
-           "  --tcp HOST:PORT    a serial-over-network bridge\n"
-           "  --gpio CHIP        clutch/e-stop inputs; with --clutch-line N, --estop-line N,\n"
-           "                     --pulse-line N (a pulse each tick), --active-low,\n"
-           "                     --debounce-ms X (default 5)\n"
-           "Options:\n"
-           "  --baud N           serial rate for the next --tty/--serial (default 115200)\n"
-           "  --tick-ms T        tick length (default 1)\n"
-           "  --duration S       stop after S seconds (default: at Ctrl-C)\n"
-           "  --quiet            no per-second status line\n");
+    record_args *a = dst;
+    if (a->n >= (int)ISO_DEV_MAX_SOURCES) {
+        snprintf(why, cap, "more than %u sources", ISO_DEV_MAX_SOURCES);
+        return -1;
+    }
+    src_spec *sp = &a->specs[a->n++];
+    memset(sp, 0, sizeof *sp);
+    snprintf(sp->kind, sizeof sp->kind, "%s", o->name);
+    sp->arg = val;
+    sp->baud = (uint32_t)a->baud;
+    return 0;
+}
+
+static const iso_cli__opt record_options[] = {
+    {"hid", ISO_CLI_OPT_CALL, 0, "PATH|auto",
+     .help = "a 3D mouse through hidapi/hidraw (auto: the first one)", .set = add_source},
+    {"mouse", ISO_CLI_OPT_FLAG, 0, NULL,
+     .help = "a 3D mouse: through spacenavd when it runs, else hidapi", .set = add_source},
+    {"spnav", ISO_CLI_OPT_FLAG, 0, NULL, .help = "3D mouse events from the spacenavd daemon",
+     .set = add_source},
+    {"tty", ISO_CLI_OPT_CALL, 0, "PATH", .help = "a serial stream on a tty or pseudo-terminal",
+     .set = add_source},
+    {"serial", ISO_CLI_OPT_CALL, 0, "NAME", .help = "a serial adapter through libserialport",
+     .set = add_source},
+    {"tcp", ISO_CLI_OPT_CALL, 0, "HOST:PORT", .help = "a serial-over-network bridge",
+     .set = add_source},
+    {"gpio", ISO_CLI_OPT_CALL, 0, "CHIP",
+     .help = "clutch/e-stop inputs on a GPIO chip, on the lines below", .set = add_source},
+    {"clutch-line", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(record_args, gp.clutch_line), "N",
+     .help = "--gpio: the clutch's line, %R", ISO_CLI_GE(0)},
+    {"estop-line", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(record_args, gp.estop_line), "N",
+     .help = "--gpio: the e-stop's line, %R", ISO_CLI_GE(0)},
+    {"pulse-line", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(record_args, gp.pulse_line), "N",
+     .help = "--gpio: a line that pulses each tick, %R", ISO_CLI_GE(0)},
+    {"active-low", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(record_args, gp.active_low), NULL,
+     .help = "--gpio: the lines are active low", .flag = 1},
+    {"debounce-ms", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(record_args, debounce_ms), "X",
+     .help = "--gpio: debounce time, %R (default 5)", ISO_CLI_GT(0)},
+    {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Options:"},
+    {NULL, ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(record_args, out), "FILE",
+     .help = "the recording to write (required)", .short_name = 'o'},
+    {"baud", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(record_args, baud), "N",
+     .help = "serial rate for the next --tty/--serial, %R (default 115200)", ISO_CLI_GE(0)},
+    {"tick-ms", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(record_args, tick_ms), "T",
+     .help = "tick length, %R (default 1)", ISO_CLI_GT(0)},
+    {"duration", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(record_args, duration), "S",
+     .help = "stop after S seconds (default: at Ctrl-C)"},
+    {"quiet", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(record_args, quiet), NULL,
+     .help = "no per-second status line", .flag = 1},
+    {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Mapping:"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(record_args, mo, iso_dev_map_opts),
+     .table = iso_cli__dev_map_options},
+    {0}};
+
+const iso_cli__cmd iso_cli__record_cmd = {
+    "record",
+    "record live input devices (3D mouse, serial, GPIO) while running them",
+    "usage: isoshape record -o FILE SOURCE... [options]\n"
+    "\n"
+    "Records live input devices (devices/RECORDING.md) while running the device side\n"
+    "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n",
+    record_options,
+    NULL,
+    iso_cli__record};
+
+/* Returns -1 to go on, else the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, record_args *a)
+{
+    memset(a, 0, sizeof *a);
+    a->baud = 115200;
+    a->tick_ms = 1;
+    a->duration = -1;
+    a->debounce_ms = 5;
+    a->gp = (iso_dev_gpio_opts){NULL, -1, -1, -1, 0, 0};
+    iso_dev_map_opts_default(&a->mo);
+    int status = iso_cli__parse(&iso_cli__record_cmd, argc, argv, a, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
+    if (!a->out || a->n == 0) {
+        iso_cli__fail("record", "%s (see isoshape record --help).",
+                      !a->out ? "no output file: give -o FILE" : "no source given");
+        return 2;
+    }
+    a->gp.debounce_us = (uint32_t)(a->debounce_ms * 1000);
+    for (int k = 0; k < a->n; k++)
+        if (strcmp(a->specs[k].kind, "gpio") == 0) {
+            a->specs[k].gpio = a->gp;
+            a->specs[k].gpio.chip = a->specs[k].arg;
+        }
+    return -1;
 }
 
 int iso_cli__record(int argc, char **argv)
 {
-    const char *cmd = "record", *out_path = NULL, *v;
-    src_spec specs[ISO_DEV_MAX_SOURCES];
-    int n = 0, quiet = 0;
-    uint32_t baud = 115200;
-    double tick_ms = 1, duration = -1, debounce_ms = 5;
-    iso_dev_gpio_opts gp = {NULL, -1, -1, -1, 0, 0};
-    iso_dev_map_opts mo;
-    iso_dev_map_opts_default(&mo);
-    for (int i = 1; i < argc; i++) {
-        int r;
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            usage();
-            return 0;
-        }
-        if (strcmp(argv[i], "--active-low") == 0) {
-            gp.active_low = 1;
-            continue;
-        }
-        if (strcmp(argv[i], "--quiet") == 0) {
-            quiet = 1;
-            continue;
-        }
-        if (strcmp(argv[i], "--spnav") == 0 || strcmp(argv[i], "--mouse") == 0) {
-            if (n >= (int)ISO_DEV_MAX_SOURCES) {
-                iso_cli__fail(cmd, "more than 16 sources.");
-                return 2;
-            }
-            memset(&specs[n], 0, sizeof specs[n]);
-            snprintf(specs[n].kind, sizeof specs[n].kind, "%s", argv[i] + 2);
-            n++;
-            continue;
-        }
-        static const char *const kinds[] = {"--hid", "--tty", "--serial", "--tcp", "--gpio"};
-        int matched = 0;
-        for (int k = 0; k < 5 && !matched; k++) {
-            if ((r = iso_cli__value(cmd, argc, argv, &i, kinds[k], &v)) == 0)
-                continue;
-            if (r < 0)
-                return 2;
-            if (n >= (int)ISO_DEV_MAX_SOURCES) {
-                iso_cli__fail(cmd, "more than 16 sources.");
-                return 2;
-            }
-            memset(&specs[n], 0, sizeof specs[n]);
-            snprintf(specs[n].kind, sizeof specs[n].kind, "%s", kinds[k] + 2);
-            specs[n].arg = v;
-            specs[n].baud = baud;
-            n++;
-            matched = 1;
-        }
-        if (matched)
-            continue;
-        static const char *const nums[] = {
-            "--clutch-line", "--estop-line", "--pulse-line",  "--baud",
-            "--tick-ms",     "--duration",   "--debounce-ms", "-o"};
-        for (int k = 0; k < 8 && !matched; k++) {
-            if ((r = iso_cli__value(cmd, argc, argv, &i, nums[k], &v)) == 0)
-                continue;
-            if (r < 0)
-                return 2;
-            matched = 1;
-            double d = 0;
-            if (k == 7) {
-                out_path = v;
-                continue;
-            }
-            if (iso_cli__double(cmd, nums[k], v, &d) != 0)
-                return 2;
-            if (k < 4 && (d < 0 || d != (double)(long)d)) {
-                iso_cli__fail(cmd, "%s %s must be a whole number >= 0.", nums[k], v);
-                return 2;
-            }
-            if (k >= 4 && k != 5 && !(d > 0)) {
-                iso_cli__fail(cmd, "%s %s must be > 0.", nums[k], v);
-                return 2;
-            }
-            switch (k) {
-            case 0: gp.clutch_line = (int)d; break;
-            case 1: gp.estop_line = (int)d; break;
-            case 2: gp.pulse_line = (int)d; break;
-            case 3: baud = (uint32_t)d; break;
-            case 4: tick_ms = d; break;
-            case 5: duration = d; break;
-            default: debounce_ms = d; break;
-            }
-        }
-        if (matched)
-            continue;
-        if ((r = iso_cli__dev_map_option(cmd, argc, argv, &i, &mo)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        return iso_cli__unknown(cmd, argv[i]);
-    }
-    if (!out_path || n == 0) {
-        iso_cli__fail(cmd, "%s (see isoshape record --help).",
-                      !out_path ? "no output file: give -o FILE" : "no source given");
-        return 2;
-    }
-    gp.debounce_us = (uint32_t)(debounce_ms * 1000);
-    for (int k = 0; k < n; k++)
-        if (strcmp(specs[k].kind, "gpio") == 0) {
-            specs[k].gpio = gp;
-            specs[k].gpio.chip = specs[k].arg;
-        }
+    const char *cmd = "record";
+    record_args a;
+    int status = parse_args(argc, argv, &a);
+    if (status >= 0)
+        return status;
     iso_err err;
     iso_err_clear(&err);
     iso_dev_map m; /* the options' own check */
-    if (iso_dev_map_init(&m, &mo, &err) != ISO_OK) {
+    if (iso_dev_map_init(&m, &a.mo, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
         return 2;
     }
     /* a scene of the device side alone: the sources, the mapping, the recording */
-    iso_scene *sc = iso_cli__device_scene("record", 1000.0 / tick_ms, &mo);
+    iso_scene *sc = iso_cli__device_scene("record", 1000.0 / a.tick_ms, &a.mo);
     if (!sc) {
         iso_cli__fail(cmd, "out of memory");
         return 1;
     }
-    sc->n_devices = n;
-    for (int k = 0; k < n; k++)
-        scene_device(&specs[k], k, &sc->devices[k]);
-    snprintf(sc->recording, sizeof sc->recording, "%s", out_path);
+    sc->n_devices = a.n;
+    for (int k = 0; k < a.n; k++)
+        scene_device(&a.specs[k], k, &sc->devices[k]);
+    snprintf(sc->recording, sizeof sc->recording, "%s", a.out);
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    record_ctx ctx = {quiet, (long)llround(1000.0 / tick_ms), 0, tick_ms};
+    record_ctx ctx = {a.quiet, (long)llround(1000.0 / a.tick_ms), 0, a.tick_ms};
     iso_loop_opts lo;
     iso_loop_opts_default(&lo);
     iso_cli__solver_threads(&lo.threads);
     lo.cmd = cmd;
     lo.rt = 0;
     lo.display = 0;
-    lo.duration_s = duration > 0 ? duration : duration == 0 ? 1e-12 : 0;
+    lo.duration_s = a.duration > 0 ? a.duration : a.duration == 0 ? 1e-12 : 0;
     lo.stop = &g_stop;
     lo.on_tick = on_tick;
     lo.on_command = on_command;
     lo.hook_ctx = &ctx;
     iso_loop *l = NULL;
-    int status = 0;
+    status = 0;
     if (iso_loop_create(sc, &lo, &l, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
         free(sc);
@@ -280,7 +260,7 @@ int iso_cli__record(int argc, char **argv)
     iso_loop_get_summary(l, &sum);
     iso_loop_destroy(l);
     free(sc);
-    printf("%s: %ld ticks of %g ms from %d source(s)%s\n", out_path, sum.device_ticks, tick_ms, n,
+    printf("%s: %ld ticks of %g ms from %d source(s)%s\n", a.out, sum.device_ticks, a.tick_ms, a.n,
            ctx.late ? " (some ticks ran late)" : "");
     return status;
 }

@@ -3,7 +3,7 @@
  * speed, scaled, or as fast as possible. The tick commands depend on the
  * recording and the options only: the summary checksum and the handles'
  * final poses are the same at any speed the machine keeps up with.
- * Also the mapping options shared with `isoshape record`. */
+ */
 #include "internal.h"
 
 #include <errno.h>
@@ -15,138 +15,6 @@
 
 #include "iso_dev.h"
 #include "iso_loop.h"
-
-int iso_cli__replay(int argc, char **argv);
-int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_dev_map_opts *o);
-
-#define ISO_CLI_DEV_MAP_HELP                                                                       \
-    "  --handles N        handles the devices drive (1..8; a 'next handle' button cycles)\n"       \
-    "  --sensitivity L,A  at full deflection: L m/s and A rad/s (default 0.1,0.5)\n"               \
-    "  --dead-zone F      fraction of full scale that maps to 0 (default 0.05)\n"                  \
-    "  --curve E          response exponent (1 linear, 2 quadratic; default 1)\n"                  \
-    "  --remap A,B,C,D,E,F  output axis i reads input axis (0..5: tx ty tz rx ry rz)\n"            \
-    "  --invert AXES      comma list of axes to negate: tx,ty,tz,rx,ry,rz (or x,y,z)\n"            \
-    "  --dominant         keep only the largest axis\n"                                            \
-    "  --lock L           none, translation (translation only) or rotation (rotation only)\n"      \
-    "  --frame F          world (default) or device: axes along the handle's own\n"                \
-    "  --deadman          move only while the clutch is held (default: held = hold still)\n"
-
-/* An axis of iso_dev_axis_names ("tx" .. "rz"); "x", "y" and "z" stand
- * for "tx", "ty" and "tz" (what this option took before scenes named them). */
-static int axis_index(const char *s, size_t n)
-{
-    char word[4];
-    if (n < 1 || n > 2)
-        return -1;
-    snprintf(word, sizeof word, "%s%.*s", n == 1 ? "t" : "", (int)n, s);
-    return iso_names_find(iso_dev_axis_names, word);
-}
-
-/* A mapping number in the range devices/ holds it to (iso_dev_map_check). */
-static int map_number(const char *cmd, const char *opt, const char *text, const char *field,
-                      double v)
-{
-    char why[128];
-    if (iso_dev_map_check(field, v, why, sizeof why) == 0)
-        return 0;
-    iso_cli__fail(cmd, "%s %s: %s.", opt, text, why);
-    return -1;
-}
-
-int iso_cli__dev_map_option(const char *cmd, int argc, char **argv, int *i, iso_dev_map_opts *o)
-{
-    const char *v;
-    int r;
-    if (strcmp(argv[*i], "--dominant") == 0) {
-        o->dominant = 1;
-        return 1;
-    }
-    if (strcmp(argv[*i], "--deadman") == 0) {
-        o->clutch_is_deadman = 1;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--handles", &v)) != 0) {
-        if (r < 0 || iso_cli__int(cmd, "--handles", v, &o->n_handles) != 0)
-            return -1;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--sensitivity", &v)) != 0) {
-        double l, a;
-        char tail;
-        if (r < 0)
-            return -1;
-        if (sscanf(v, "%lf,%lf%c", &l, &a, &tail) != 2) {
-            iso_cli__fail(cmd, "--sensitivity %s: give L,A (m/s and rad/s at full scale).", v);
-            return -1;
-        }
-        if (map_number(cmd, "--sensitivity", v, "sensitivity", l) != 0 ||
-            map_number(cmd, "--sensitivity", v, "sensitivity", a) != 0)
-            return -1;
-        for (int k = 0; k < 3; k++) {
-            o->sensitivity[k] = l;
-            o->sensitivity[k + 3] = a;
-        }
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--dead-zone", &v)) != 0) {
-        double d;
-        if (r < 0 || iso_cli__double(cmd, "--dead-zone", v, &d) != 0 ||
-            map_number(cmd, "--dead-zone", v, "dead_zone", d) != 0)
-            return -1;
-        for (int k = 0; k < 6; k++)
-            o->dead_zone[k] = d;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--curve", &v)) != 0) {
-        double e;
-        if (r < 0 || iso_cli__double(cmd, "--curve", v, &e) != 0 ||
-            map_number(cmd, "--curve", v, "curve", e) != 0)
-            return -1;
-        for (int k = 0; k < 6; k++)
-            o->curve[k] = e;
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--remap", &v)) != 0) {
-        int m[6];
-        char tail;
-        if (r < 0)
-            return -1;
-        if (sscanf(v, "%d,%d,%d,%d,%d,%d%c", &m[0], &m[1], &m[2], &m[3], &m[4], &m[5], &tail) !=
-            6) {
-            iso_cli__fail(cmd, "--remap %s: give six input axes, e.g. 0,2,1,3,5,4.", v);
-            return -1;
-        }
-        memcpy(o->remap, m, sizeof m);
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--invert", &v)) != 0) {
-        if (r < 0)
-            return -1;
-        for (const char *p = v; *p;) {
-            size_t n = strcspn(p, ",");
-            int a = axis_index(p, n);
-            if (a < 0) {
-                iso_cli__fail(cmd, "--invert %s: '%.*s' is not one of tx,ty,tz,rx,ry,rz.", v,
-                              (int)n, p);
-                return -1;
-            }
-            o->invert[a] = 1;
-            p += n + (p[n] == ',');
-        }
-        return 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--lock", &v)) != 0) {
-        if (r < 0)
-            return -1;
-        return iso_cli__enum(cmd, "--lock", v, iso_dev_lock_names, &o->lock) != 0 ? -1 : 1;
-    }
-    if ((r = iso_cli__value(cmd, argc, argv, i, "--frame", &v)) != 0) {
-        if (r < 0)
-            return -1;
-        return iso_cli__enum(cmd, "--frame", v, iso_dev_frame_names, &o->frame) != 0 ? -1 : 1;
-    }
-    return 0;
-}
 
 /* A YAML string: quoted, with the two characters that need it escaped. */
 static void yaml_str(char *dst, size_t cap, const char *s)
@@ -273,98 +141,57 @@ static void report(const replay_args *a, iso_loop *l, const iso_scene *sc, const
                 s.misses, s.skipped);
 }
 
-static void usage(void)
-{
-    printf("usage: isoshape replay FILE [options]\n"
-           "\n"
-           "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
-           "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
-           "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
-           "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
-           "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
-           "\n"
-           "  --speed X          X times the recorded speed (default 1)\n"
-           "  --fast             as fast as possible\n"
-           "  --tick-ms T        tick length for recordings without TICK records (default 1)\n"
-           "  --print-ticks      one line per tick: time, active handle, clutch, e-stop,\n"
-           "                     buttons, and the active handle's twist (w, v) in %%a\n"
-           "A scene moved by the replayed commands, as `isoshape run` moves it, with a\n"
-           "checksum of its vertices:\n"
-           "  --shape NAME       a built-in shape (bar, cylinder, bumpplane, cactus)\n"
-           "  --resolution N     the built-in shape's resolution (0: its default)\n"
-           "  --mesh M --sel S   or a mesh and its regions\n"
-           "  --steps N          ABM steps per tick (default 1)\n"
-           "  --out FILE         save the deformed mesh\n"
-           "Mapping:\n" ISO_CLI_DEV_MAP_HELP);
-}
+static const iso_cli__opt replay_options[] = {
+    {"speed", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(replay_args, speed), "X",
+     .help = "X times the recorded speed, %R (default 1; --fast for no waiting)", ISO_CLI_GT(0)},
+    {"fast", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(replay_args, fast), NULL,
+     .help = "as fast as possible", .flag = 1},
+    {"tick-ms", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(replay_args, tick_ms), "T",
+     .help = "tick length for recordings without TICK records, %R (default 1)", ISO_CLI_GT(0)},
+    {"print-ticks", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(replay_args, print), NULL,
+     .help = "one line per tick: time, active handle, clutch, e-stop, buttons, and the active "
+             "handle's twist (w, v) in %a",
+     .flag = 1},
+    {NULL, ISO_CLI_OPT_HEADING, 0, NULL,
+     .help = "A scene moved by the replayed commands, as `isoshape run` moves it, with a\n"
+             "checksum of its vertices:"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
+     .table = iso_cli__shape_options},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
+     .table = iso_cli__mesh_options},
+    {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(replay_args, steps), "N",
+     .help = "ABM steps per tick, %R (default 1)", ISO_CLI_GE(1)},
+    {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, out), "FILE",
+     .help = "save the deformed mesh"},
+    {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Mapping:"},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, mo, iso_dev_map_opts),
+     .table = iso_cli__dev_map_options},
+    {0}};
 
-/* Returns 0 to go on, 1 after --help, 2 on a usage error. */
+const iso_cli__cmd iso_cli__replay_cmd = {
+    "replay",
+    "replay a device recording, deterministically, at any speed",
+    "usage: isoshape replay FILE [options]\n"
+    "\n"
+    "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
+    "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
+    "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
+    "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
+    "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
+    "\n",
+    replay_options,
+    NULL,
+    iso_cli__replay};
+
+/* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
+ * error. */
 static int parse(int argc, char **argv, replay_args *a)
 {
-    const char *cmd = "replay", *v;
-    for (int i = 1; i < argc; i++) {
-        int r;
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            usage();
-            return 1;
-        }
-        if (strcmp(argv[i], "--fast") == 0) {
-            a->fast = 1;
-            continue;
-        }
-        if (strcmp(argv[i], "--print-ticks") == 0) {
-            a->print = 1;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--speed", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--speed", v, &a->speed) != 0)
-                return 2;
-            if (!(a->speed > 0)) {
-                iso_cli__fail(cmd, "--speed %s must be > 0 (use --fast for no waiting).", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--tick-ms", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--tick-ms", v, &a->tick_ms) != 0)
-                return 2;
-            if (!(a->tick_ms > 0)) {
-                iso_cli__fail(cmd, "--tick-ms %s must be > 0.", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__dev_map_option(cmd, argc, argv, &i, &a->mo)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--shape", &a->src.shape)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--mesh", &a->src.mesh)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--sel", &a->src.sel)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--out", &a->out)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--resolution", &v)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--resolution", v, &a->src.resolution) != 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--steps", &v)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--steps", v, &a->steps) != 0)
-                return 2;
-            if (a->steps < 1) {
-                iso_cli__fail(cmd, "--steps %s must be >= 1.", v);
-                return 2;
-            }
-            continue;
-        }
-        if (argv[i][0] == '-' || a->path)
-            return iso_cli__unknown(cmd, argv[i]);
-        a->path = argv[i];
-    }
+    const char *cmd = "replay";
+    int n_pos = 0;
+    int status = iso_cli__parse(&iso_cli__replay_cmd, argc, argv, a, &a->path, 1, &n_pos);
+    if (status >= 0)
+        return status;
     if (!a->path) {
         iso_cli__fail(cmd, "no recording given (isoshape replay FILE).");
         return 2;
@@ -378,7 +205,7 @@ static int parse(int argc, char **argv, replay_args *a)
         iso_cli__fail(cmd, "--out needs a scene (--shape, or --mesh and --sel).");
         return 2;
     }
-    return 0;
+    return -1;
 }
 
 int iso_cli__replay(int argc, char **argv)
@@ -390,8 +217,8 @@ int iso_cli__replay(int argc, char **argv)
     a.tick_ms = 1;
     iso_dev_map_opts_default(&a.mo);
     int r = parse(argc, argv, &a);
-    if (r != 0)
-        return r == 1 ? 0 : 2;
+    if (r >= 0)
+        return r;
     iso_err err;
     iso_err_clear(&err);
     iso_dev_map m; /* the options' own check, before anything is loaded */

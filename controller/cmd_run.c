@@ -14,8 +14,6 @@
 #include "iso_loop.h"
 #include "iso_snapshot.h"
 
-int iso_cli__run_scene(int argc, char **argv);
-
 /* The one piece of file-scope state: a signal handler can reach nothing else. */
 static volatile sig_atomic_t g_stop;
 static void on_signal(int sig)
@@ -24,153 +22,93 @@ static void on_signal(int sig)
     signal(sig, SIG_DFL); /* a second one ends the process */
 }
 
-static void usage(void)
-{
-    printf("usage: isoshape run SCENE [options]\n"
-           "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
-           "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
-           "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
-           "  line on a terminal and a summary at the end.\n"
-           "\n"
-           "  --fast             no waiting: as fast as possible on stream time (replays and\n"
-           "                     scripted scenes give the same result at any speed)\n"
-           "  --speed X          stream seconds per wall second (default 1)\n"
-           "  --duration S       stop after S seconds of stream time\n"
-           "  --ticks N          stop after N ticks\n"
-           "  --no-display       no live view, whatever the scene says\n"
-           "  --display          the live view even if the scene has none\n"
-           "  --port N           live view port (0: any free port; default: the scene's)\n"
-           "  --no-rt            do not ask for real-time scheduling and locked memory\n"
-           "  --abm M            pece (the paper's, two field evaluations a step) or pec\n"
-           "                     (one): the integrator mode (default: the scene's)\n"
-           "  --assembly A       cpu or opencl (default: the scene's)\n"
-           "  --cl-device SPEC   OpenCL device (see isoshape deform --help)\n"
-           "  --record FILE      record the devices to FILE (overrides the scene)\n"
-           "  --out FILE         write the final mesh (OFF, OBJ or PLY by extension)\n"
-           "  --png FILE         write a picture of the final mesh, coloured by distortion\n"
-           "  --stats-json FILE  write the summary as JSON\n"
-           "  --quiet            no status line and no summary\n"
-           "\n"
-           "  Output files are written whole or not at all (a temporary name, then a\n"
-           "  rename), and their folders are checked before the run starts. Exit status:\n"
-           "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
-           "  the run (after a clean shutdown: files written, actuators safe).\n");
-}
-
 typedef struct run_args {
     const char *scene, *out, *json, *png;
-    int quiet;
+    int quiet, ticks;
     int abm; /* iso_abm_mode, -1: the scene's */
     iso_loop_opts lo;
 } run_args;
 
-static int parse_flag(run_args *a, const char *arg)
-{
-    if (strcmp(arg, "--fast") == 0)
-        a->lo.fast = 1;
-    else if (strcmp(arg, "--no-display") == 0)
-        a->lo.display = 0;
-    else if (strcmp(arg, "--display") == 0)
-        a->lo.display = 1;
-    else if (strcmp(arg, "--no-rt") == 0)
-        a->lo.rt = 0;
-    else if (strcmp(arg, "--quiet") == 0)
-        a->quiet = 1;
-    else
-        return 0;
-    return 1;
-}
+static const iso_cli__opt run_options[] = {
+    {"fast", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, lo.fast), NULL,
+     .help = "no waiting: as fast as possible on stream time (replays and scripted scenes give "
+             "the same result at any speed)",
+     .flag = 1},
+    {"speed", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(run_args, lo.speed), "X",
+     .help = "stream seconds per wall second, %R (default 1; --fast runs without waiting)",
+     ISO_CLI_GT(0)},
+    {"duration", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(run_args, lo.duration_s), "S",
+     .help = "stop after S seconds of stream time, S %R", ISO_CLI_GT(0)},
+    {"ticks", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(run_args, ticks), "N",
+     .help = "stop after N ticks, N %R", ISO_CLI_GE(1)},
+    {"no-display", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, lo.display), NULL,
+     .help = "no live view, whatever the scene says", .flag = 0},
+    {"display", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, lo.display), NULL,
+     .help = "the live view even if the scene has none", .flag = 1},
+    {"port", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(run_args, lo.port), "N",
+     .help = "live view port %R (0: any free port; default: the scene's)", ISO_CLI_GE(0),
+     ISO_CLI_LE(65535)},
+    {"no-rt", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, lo.rt), NULL,
+     .help = "do not ask for real-time scheduling and locked memory", .flag = 0},
+    {"abm", ISO_CLI_OPT_ENUM, ISO_CLI_INT_AT(run_args, abm), NULL,
+     .help = "the integrator mode: pece (the paper's, two field evaluations a step) or pec "
+             "(one); default: the scene's",
+     .names = iso_abm_mode_names},
+    {"assembly", ISO_CLI_OPT_ENUM, ISO_CLI_INT_AT(run_args, lo.assembly), NULL,
+     .help = "who fills the system each evaluation (default: the scene's)",
+     .names = iso_assembly_names},
+    {"cl-device", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, lo.cl_device), "SPEC",
+     .help = "OpenCL device (see isoshape deform --help)"},
+    {"record", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, lo.record), "FILE",
+     .help = "record the devices to FILE (overrides the scene; empty: no recording)"},
+    {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, out), "FILE",
+     .help = "write the final mesh (OFF, OBJ or PLY by extension)"},
+    {"png", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, png), "FILE",
+     .help = "write a picture of the final mesh, coloured by distortion"},
+    {"stats-json", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, json), "FILE",
+     .help = "write the summary as JSON"},
+    {"quiet", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, quiet), NULL,
+     .help = "no status line and no summary", .flag = 1},
+    {0}};
 
-/* Returns 0 to go on, 1 when --help was printed, 2 on a usage error. */
+const iso_cli__cmd iso_cli__run_cmd = {
+    "run",
+    "run a scene: devices or a replay drive the mesh in real time",
+    "usage: isoshape run SCENE [options]\n"
+    "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
+    "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
+    "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
+    "  line on a terminal and a summary at the end.\n"
+    "\n",
+    run_options,
+    "\n"
+    "  Output files are written whole or not at all (a temporary name, then a\n"
+    "  rename), and their folders are checked before the run starts. Exit status:\n"
+    "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
+    "  the run (after a clean shutdown: files written, actuators safe).\n",
+    iso_cli__run_scene};
+
+/* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
+ * error. */
 static int parse(int argc, char **argv, run_args *a)
 {
-    const char *cmd = "run", *v;
     iso_loop_opts_default(&a->lo);
     a->lo.rt = 1; /* the command runs in real time unless --no-rt */
     iso_cli__solver_threads(&a->lo.threads);
     a->abm = -1;
-    for (int i = 1; i < argc; i++) {
-        int r;
-        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            usage();
-            return 1;
-        }
-        if (parse_flag(a, argv[i]))
-            continue;
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--speed", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--speed", v, &a->lo.speed) != 0)
-                return 2;
-            if (!(a->lo.speed > 0)) {
-                iso_cli__fail(cmd, "--speed %s must be > 0 (--fast runs without waiting).", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--duration", &v)) != 0) {
-            if (r < 0 || iso_cli__double(cmd, "--duration", v, &a->lo.duration_s) != 0)
-                return 2;
-            if (!(a->lo.duration_s > 0)) {
-                iso_cli__fail(cmd, "--duration %s must be > 0 seconds.", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--ticks", &v)) != 0) {
-            int n;
-            if (r < 0 || iso_cli__int(cmd, "--ticks", v, &n) != 0)
-                return 2;
-            if (n < 1) {
-                iso_cli__fail(cmd, "--ticks %s must be >= 1.", v);
-                return 2;
-            }
-            a->lo.max_ticks = n;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--port", &v)) != 0) {
-            if (r < 0 || iso_cli__int(cmd, "--port", v, &a->lo.port) != 0)
-                return 2;
-            if (a->lo.port < 0 || a->lo.port > 65535) {
-                iso_cli__fail(cmd, "--port %s must be 0..65535 (0: any free port).", v);
-                return 2;
-            }
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--abm", &v)) != 0) {
-            if (r < 0)
-                return 2;
-            if (iso_cli__enum(cmd, "--abm", v, iso_abm_mode_names, &a->abm) != 0)
-                return 2;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--assembly", &v)) != 0) {
-            if (r < 0)
-                return 2;
-            int as;
-            if (iso_cli__enum(cmd, "--assembly", v, iso_assembly_names, &as) != 0)
-                return 2;
-            a->lo.assembly = as;
-            continue;
-        }
-        if ((r = iso_cli__value(cmd, argc, argv, &i, "--cl-device", &a->lo.cl_device)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--record", &a->lo.record)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--out", &a->out)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--png", &a->png)) != 0 ||
-            (r = iso_cli__value(cmd, argc, argv, &i, "--stats-json", &a->json)) != 0) {
-            if (r < 0)
-                return 2;
-            continue;
-        }
-        if (argv[i][0] == '-' || a->scene)
-            return iso_cli__unknown(cmd, argv[i]);
-        a->scene = argv[i];
-    }
+    int n_pos = 0;
+    int status = iso_cli__parse(&iso_cli__run_cmd, argc, argv, a, &a->scene, 1, &n_pos);
+    if (status >= 0)
+        return status;
     if (!a->scene) {
-        iso_cli__fail(cmd,
+        iso_cli__fail("run",
                       "missing SCENE (usage: isoshape run SCENE; scenes are in config/scenes).");
         return 2;
     }
+    if (a->ticks > 0)
+        a->lo.max_ticks = a->ticks;
     a->lo.status_line = !a->quiet && isatty(STDERR_FILENO);
-    return 0;
+    return -1;
 }
 
 /* An output's folder must exist and be writable before a long run starts. */
@@ -261,8 +199,8 @@ int iso_cli__run_scene(int argc, char **argv)
     run_args a;
     memset(&a, 0, sizeof a);
     int r = parse(argc, argv, &a);
-    if (r != 0)
-        return r == 1 ? 0 : 2;
+    if (r >= 0)
+        return r;
     if ((a.out && check_output("--out", a.out)) || (a.png && check_output("--png", a.png)) ||
         (a.json && check_output("--stats-json", a.json)))
         return 1;

@@ -1,10 +1,12 @@
-/* controller/internal.h -- what the isoshape command's files share: option
- * parsing that names the option in every error, locating the benchmark, and
- * the run-time library report of --version. Not installed. */
+/* controller/internal.h -- what the isoshape command's files share: the
+ * subcommands and their option tables, the parser and --help printer that
+ * read them, locating the benchmark, and the run-time library report of
+ * --version. Not installed. */
 #ifndef ISO_CLI_INTERNAL_H
 #define ISO_CLI_INTERNAL_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "iso_dev.h"
 #include "iso_err.h"
@@ -23,37 +25,146 @@ int iso_cli__deform(int argc, char **argv);
 int iso_cli__field(int argc, char **argv);
 int iso_cli__metrics(int argc, char **argv);
 int iso_cli__bench_run(int argc, char **argv); /* `isoshape bench` */
+int iso_cli__record(int argc, char **argv);
+int iso_cli__replay(int argc, char **argv);
+int iso_cli__inspect(int argc, char **argv);
+int iso_cli__devices(int argc, char **argv);
+int iso_cli__check(int argc, char **argv);
+int iso_cli__run_scene(int argc, char **argv); /* `isoshape run` */
 
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
 
-/* If argv[*i] is `name` or `name=VALUE`, stores the value (VALUE or the
- * next argument, which *i then skips) in *val and returns 1; returns -1
- * after reporting a missing value; returns 0 if argv[*i] is not `name`. */
-int iso_cli__value(const char *cmd, int argc, char **argv, int *i, const char *name,
-                   const char **val);
+/* ------------------------------------------------------------------------ */
+/* Options as tables (cli_opts.c)                                             */
+/* ------------------------------------------------------------------------ */
 
-/* Strict number parsing: the whole text must be a finite number. Each
- * returns 0, or -1 after reporting "--opt VALUE is not a number". */
-int iso_cli__double(const char *cmd, const char *opt, const char *val, double *out);
-int iso_cli__int(const char *cmd, const char *opt, const char *val, int *out);
+/* A command's options are data, as getopt_long's table and SQLite's pragma
+ * table are: one row says an option's name, kind, range, metavar and help
+ * line and where its value goes, and the parser, the range check and the
+ * --help printer all read that row. A table ends with a row of kind
+ * ISO_CLI_OPT_END (all zero). Options that several commands take are one
+ * table of their own, included by a row of kind ISO_CLI_OPT_TABLE. */
+typedef enum iso_cli__opt_kind {
+    ISO_CLI_OPT_END = 0, /* ends a table */
+    ISO_CLI_OPT_FLAG,    /* no value: stores .flag (an int), or calls .set */
+    ISO_CLI_OPT_INT,     /* an int in the row's range */
+    ISO_CLI_OPT_DOUBLE,  /* a finite double in the row's range */
+    ISO_CLI_OPT_STRING,  /* a path or a name: a const char * into argv */
+    ISO_CLI_OPT_ENUM,    /* one of .names: its index, as an int */
+    ISO_CLI_OPT_CALL,    /* a compound value (MU,TAU, a list): .set parses it */
+    ISO_CLI_OPT_TABLE,   /* the rows of .table, their values inside the one at .at */
+    ISO_CLI_OPT_HEADING  /* no option: .help is a heading line in --help */
+} iso_cli__opt_kind;
 
-/* Reports an unknown option or a stray argument; always returns 2. */
-int iso_cli__unknown(const char *cmd, const char *arg);
+/* A range's end: none, open (excluded) or closed (included). */
+typedef enum iso_cli__end { ISO_CLI_NONE = 0, ISO_CLI_OPEN, ISO_CLI_CLOSED } iso_cli__end;
 
-/* Parses an --omega value (see iso_solver.h); returns 0 or -1 after
- * reporting. */
-int iso_cli__omega(const char *cmd, const char *val, double *omega);
+/* A row's range, as designated initializers: {..., ISO_CLI_GT(0), ISO_CLI_LE(1)}
+ * is (0, 1]. */
+#define ISO_CLI_GT(x) .lo = (x), .lo_end = ISO_CLI_OPEN
+#define ISO_CLI_GE(x) .lo = (x), .lo_end = ISO_CLI_CLOSED
+#define ISO_CLI_LT(x) .hi = (x), .hi_end = ISO_CLI_OPEN
+#define ISO_CLI_LE(x) .hi = (x), .hi_end = ISO_CLI_CLOSED
 
-/* Parses `val` as one of `names`, an enum's name table owned by its module
- * (common/iso_names.h: iso_weighting_names, iso_dev_lock_names, ...), into
- * *out; returns 0, or -1 after reporting "--OPT VAL: use a, b or c." */
-int iso_cli__enum(const char *cmd, const char *opt, const char *val, const char *const *names,
-                  int *out);
+/* Where a row's value goes: the offset of `member` in `type`, which must be
+ * of C type `ctype` (a compile error otherwise, so a row cannot write an
+ * int into a double). ISO_CLI_ENUM_AT takes an int or an enum the size of
+ * one (ENUM, INT and FLAG rows store an int). ISO_CLI_ZERO_IF(c) is 0 when
+ * c holds and a negative array size, refused by the compiler, when not. */
+#define ISO_CLI_ZERO_IF(c) (0 * sizeof(char[(c) ? 1 : -1]))
+#define ISO_CLI_IS(type, member, ctype) _Generic(((type *)0)->member, ctype : 1, default : 0)
+#define ISO_CLI_AT(type, member, ctype)                                                            \
+    (offsetof(type, member) + ISO_CLI_ZERO_IF(ISO_CLI_IS(type, member, ctype)))
+#define ISO_CLI_INT_AT(type, member) ISO_CLI_AT(type, member, int)
+#define ISO_CLI_DOUBLE_AT(type, member) ISO_CLI_AT(type, member, double)
+#define ISO_CLI_STRING_AT(type, member) ISO_CLI_AT(type, member, const char *)
+#define ISO_CLI_ENUM_AT(type, member)                                                              \
+    (offsetof(type, member) + ISO_CLI_ZERO_IF(sizeof(((type *)0)->member) == sizeof(int)))
 
-/* Parses --restore: "MU,TAU" (MU >= 0, TAU > 0 when MU > 0) or "off"
- * (MU = 0: the paper's method exactly); returns 0 or -1 after reporting. */
-int iso_cli__restore(const char *cmd, const char *val, double *mu, double *tau);
+struct iso_cli__opt;
+/* Puts `val` (NULL for a FLAG row) into dst, the row's place in the
+ * command's arguments: a CALL row's setter parses the text; any other
+ * row's is called instead of storing the value, once the row's own checks
+ * passed (its type, its range). Returns 0, or -1 with a phrase in why that
+ * follows "--opt 'VALUE': " (e.g. "the weight MU must be >= 0"). */
+typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const char *val, char *why,
+                                size_t why_cap);
+
+typedef struct iso_cli__opt {
+    const char *name;                 /* without "--"; NULL when the option has a short name only */
+    iso_cli__opt_kind kind;           /* what it takes and how it is stored */
+    size_t at;                        /* where the value goes (ISO_CLI_*_AT) */
+    const char *metavar;              /* "N", "FILE"; NULL for flags and enums (their names show) */
+    const char *help;                 /* one line, wrapped by the printer; "%R" prints the range */
+    char short_name;                  /* 'o' for -o, or 0 */
+    double lo, hi;                    /* INT and DOUBLE: the range, whose ends... */
+    iso_cli__end lo_end, hi_end;      /* ...are none, open or closed */
+    int flag;                         /* FLAG: the value stored (1, or 0 for --no-x) */
+    int nonempty;                     /* STRING: 1 refuses an empty value */
+    const char *const *names;         /* ENUM: the enum's name table (common/iso_names.h) */
+    iso_cli__opt_set set;             /* CALL; others: stores instead of .at's bytes */
+    const struct iso_cli__opt *table; /* TABLE: the included rows */
+} iso_cli__opt;
+
+/* What iso_cli__opts_parse returns after --help or -h. */
+#define ISO_CLI_HELP 1
+
+/* Parses argv[1..argc-1] against opts, into args (each row's .at): both
+ * `--opt VALUE` and `--opt=VALUE`, every value checked against its row.
+ * An argument that is not an option is a positional: up to max_pos of them
+ * go into pos (their count in *n_pos). Stops at --help or -h and returns
+ * ISO_CLI_HELP; returns ISO_OK when all is parsed; else ISO_EINVAL with a
+ * sentence in err that names the option, the value and what was expected
+ * (err->offset: the argument's index). cmd names the command in it. */
+int iso_cli__opts_parse(const char *cmd, const iso_cli__opt *opts, int argc, char **argv,
+                        void *args, const char **pos, int max_pos, int *n_pos, iso_err *err);
+
+/* Writes the option list of opts, one row an option (headings as they
+ * are), help wrapped to 80 columns. */
+void iso_cli__opts_print(const iso_cli__opt *opts, FILE *f);
+
+/* A row's range as a phrase: "in (0, 1]", "> 0", ">= 1"; "" without one. */
+const char *iso_cli__opt_range(const iso_cli__opt *o, char *buf, size_t cap);
+
+/* The option as it is spelled on the command line: "--omega", or "-o". */
+const char *iso_cli__opt_spelling(const iso_cli__opt *o, char *buf, size_t cap);
+
+/* One subcommand: its help is usage, then the option list from opts, then
+ * after. */
+typedef struct iso_cli__cmd {
+    const char *name;                   /* "deform" */
+    const char *summary;                /* its line in `isoshape --help`; NULL: not listed */
+    const char *usage;                  /* the usage lines and the prose before the options */
+    const iso_cli__opt *opts;           /* its options */
+    const char *after;                  /* prose after the options, or NULL */
+    int (*main)(int argc, char **argv); /* argv[0] is the name; returns the exit status */
+} iso_cli__cmd;
+
+/* Prints c's --help on f. */
+void iso_cli__help(const iso_cli__cmd *c, FILE *f);
+
+/* Parses c's command line into args (as iso_cli__opts_parse), printing
+ * --help on stdout or the error on stderr. Returns -1 to go on, else the
+ * exit status: 0 after --help, 2 after a usage error. pos and n_pos may be
+ * NULL when the command takes no positionals. */
+int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
+                   int max_pos, int *n_pos);
+
+/* The device mapping's options (cli_dev_map.c), shared by record and
+ * replay: a table fragment whose rows' values go into an iso_dev_map_opts. */
+extern const iso_cli__opt iso_cli__dev_map_options[];
+
+/* The subcommands (controller/cmd_*.c, cli_version.c). */
+extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__metrics_cmd,
+    iso_cli__bench_cmd, iso_cli__record_cmd, iso_cli__replay_cmd, iso_cli__inspect_cmd,
+    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__version_cmd;
+
+/* All of them, in the order `isoshape --help` lists them; NULL-terminated
+ * (cli_commands.c). */
+extern const iso_cli__cmd *const iso_cli__commands[];
+/* The subcommand called `name`, or NULL. */
+const iso_cli__cmd *iso_cli__command(const char *name);
 
 /* The files of one benchmark problem. */
 typedef struct iso_cli__bench {
@@ -97,19 +208,15 @@ const char *iso_cli__blas_config(void);
 
 #define ISO_CLI_DEFAULT_CG_TOL 1e-10
 
-/* The solver options' help lines; bench says --refactor its own way, so
- * the three parts are there alone too. */
-#define ISO_CLI_ASSEMBLY_HELP                                                                      \
-    "  --assembly A       cpu or opencl (default): who fills the system each evaluation;\n"        \
-    "                     without a usable OpenCL device the C path runs, with a notice\n"         \
-    "  --cl-device SPEC   OpenCL device: P:D platform/device indices or part of a name\n"          \
-    "                     (default: the first CPU device)\n"
-#define ISO_CLI_REFACTOR_HELP                                                                      \
-    "  --refactor R       always (factor every evaluation, the paper's scheme) or\n"               \
-    "                     adaptive (default): reuse the last factor as a CG preconditioner\n"
-#define ISO_CLI_CG_TOL_HELP                                                                        \
-    "  --cg-tol T         adaptive: CG's relative residual, in (0, 1), default 1e-10\n"
-#define ISO_CLI_SOLVER_HELP ISO_CLI_ASSEMBLY_HELP ISO_CLI_REFACTOR_HELP ISO_CLI_CG_TOL_HELP
+/* The solver options, as table fragments whose rows' values go into an
+ * iso_solver_opts (include them at its offset): --assembly and --cl-device;
+ * --refactor; --cg-tol; the three together (bench says --refactor its own
+ * way); and the field's weights --omega and --weighting. */
+extern const iso_cli__opt iso_cli__assembly_options[];
+extern const iso_cli__opt iso_cli__refactor_options[];
+extern const iso_cli__opt iso_cli__cg_tol_options[];
+extern const iso_cli__opt iso_cli__solver_options[];
+extern const iso_cli__opt iso_cli__weight_options[];
 
 /* The library's defaults with the command's: OpenCL assembly, adaptive
  * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL, and the command's
@@ -122,12 +229,6 @@ void iso_cli__solver_opts_default(iso_solver_opts *so);
  * A user who sets OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT, or
  * OPENBLAS_NUM_THREADS, keeps that choice: the solver then leaves it. */
 void iso_cli__solver_threads(iso_solver_threads *t);
-
-/* If argv[*i] is --assembly, --cl-device, --refactor or --cg-tol (either
- * form of iso_cli__value), stores its value in so and returns 1; returns -1
- * after reporting a missing or bad value, naming the option; returns 0 if
- * argv[*i] is none of them. so->cl_device then points into argv. */
-int iso_cli__solver_option(const char *cmd, int argc, char **argv, int *i, iso_solver_opts *so);
 
 /* Prints iso_solver_notice() as "isoshape <cmd>: <notice>" on stderr, one
  * line; nothing when the notice is empty. */
@@ -149,6 +250,13 @@ typedef struct iso_cli__source {
     int resolution;               /* built-in shapes: 0 = default */
     int quiet;                    /* 1: no stderr line when the built-in stands in */
 } iso_cli__source;
+
+/* Where a problem comes from, as table fragments whose rows' values go
+ * into an iso_cli__source (include them at its offset): --mesh and --sel;
+ * --shape and --resolution; --benchmark-dir. */
+extern const iso_cli__opt iso_cli__mesh_options[];
+extern const iso_cli__opt iso_cli__shape_options[];
+extern const iso_cli__opt iso_cli__benchmark_dir_options[];
 
 typedef struct iso_cli__problem {
     char label[ISO_CLI_PATH_MAX + 64];

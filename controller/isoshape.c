@@ -21,34 +21,20 @@
 
 static void usage(FILE *f)
 {
-    fprintf(f,
-            "usage: isoshape <command> [options]\n"
-            "\n"
-            "Isometry-preserving continuous deformation (Martinez Esturo, Roessl, Theisel 2010).\n"
-            "\n"
-            "commands:\n"
-            "  deform   integrate the deformation of a mesh as its handle moves to its final pose\n"
-            "  field    solve the deformation field once, at the rest pose\n"
-            "  metrics  distortion between an original mesh and a deformed copy\n"
-            "  bench    time the four benchmark problems against the paper and this machine\n"
-            "  record   record live input devices (3D mouse, serial, GPIO) while running them\n"
-            "  replay   replay a device recording, deterministically, at any speed\n"
-            "  inspect  print a device recording, record by record, decoded\n"
-            "  devices  list input devices, usable or why not\n"
-            "  check    validate a scene file without running it\n"
-            "  run      run a scene: devices or a replay drive the mesh in real time\n"
-            "\n"
-            "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs with\n"
-            "  isoshape <command> --help\n");
+    fprintf(f, "usage: isoshape <command> [options]\n"
+               "\n"
+               "Isometry-preserving continuous deformation (Martinez Esturo, Roessl, Theisel "
+               "2010).\n"
+               "\n"
+               "commands:\n");
+    for (int i = 0; iso_cli__commands[i]; i++)
+        if (iso_cli__commands[i]->summary)
+            fprintf(f, "  %-8s %s\n", iso_cli__commands[i]->name, iso_cli__commands[i]->summary);
+    fprintf(f, "\n"
+               "  isoshape --version     versions, and the CHOLMOD and BLAS this process runs "
+               "with\n"
+               "  isoshape <command> --help\n");
 }
-
-/* Device commands (controller/cmd_record.c, cmd_replay.c, cmd_inspect.c, cmd_devices.c). */
-int iso_cli__record(int argc, char **argv);
-int iso_cli__replay(int argc, char **argv);
-int iso_cli__inspect(int argc, char **argv);
-int iso_cli__devices(int argc, char **argv);
-int iso_cli__check(int argc, char **argv);     /* controller/cmd_check.c */
-int iso_cli__run_scene(int argc, char **argv); /* controller/cmd_run.c */
 
 /* The subcommand's status, then stdout's: output lost to a closed pipe or
  * a full disk is an error, said once. */
@@ -82,30 +68,9 @@ static int dispatch(int argc, char **argv)
         usage(stdout);
         return 0;
     }
-    if (strcmp(cmd, "--version") == 0 || strcmp(cmd, "version") == 0) {
-        iso_cli__print_version();
-        return 0;
-    }
-    if (strcmp(cmd, "deform") == 0)
-        return iso_cli__deform(argc - 1, argv + 1);
-    if (strcmp(cmd, "field") == 0)
-        return iso_cli__field(argc - 1, argv + 1);
-    if (strcmp(cmd, "metrics") == 0)
-        return iso_cli__metrics(argc - 1, argv + 1);
-    if (strcmp(cmd, "bench") == 0)
-        return iso_cli__bench_run(argc - 1, argv + 1);
-    if (strcmp(cmd, "record") == 0)
-        return iso_cli__record(argc - 1, argv + 1);
-    if (strcmp(cmd, "replay") == 0)
-        return iso_cli__replay(argc - 1, argv + 1);
-    if (strcmp(cmd, "inspect") == 0)
-        return iso_cli__inspect(argc - 1, argv + 1);
-    if (strcmp(cmd, "devices") == 0)
-        return iso_cli__devices(argc - 1, argv + 1);
-    if (strcmp(cmd, "check") == 0)
-        return iso_cli__check(argc - 1, argv + 1);
-    if (strcmp(cmd, "run") == 0)
-        return iso_cli__run_scene(argc - 1, argv + 1);
+    const iso_cli__cmd *c = iso_cli__command(strcmp(cmd, "--version") == 0 ? "version" : cmd);
+    if (c)
+        return c->main(argc - 1, argv + 1);
     if (cmd[0] == '-')
         iso_cli__fail(NULL, "unknown option '%s' (see isoshape --help).", cmd);
     else

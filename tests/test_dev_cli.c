@@ -69,16 +69,18 @@ static void replay_is_the_same_at_every_speed(void **state)
     assert_string_not_equal(g_out, fast);
     /* errors */
     assert_int_equal(run("%s replay %s --speed 0 2>&1", bin(), s), 2);
-    assert_non_null(strstr(g_out, "--speed 0 must be > 0"));
+    assert_non_null(strstr(g_out, "--speed '0' is out of range: expected a value > 0."));
     assert_int_equal(run("%s replay %s --lock sideways 2>&1", bin(), s), 2);
     assert_string_equal(g_out,
-                        "isoshape replay: --lock sideways: use none, translation or rotation.\n");
+                        "isoshape replay: --lock 'sideways' is unknown: use none, translation or "
+                        "rotation.\n");
     /* the mapping's ranges are devices/'s (iso_dev_map_check), as in scenes */
     assert_int_equal(run("%s replay %s --dead-zone 0.995 2>&1", bin(), s), 2);
-    assert_string_equal(g_out, "isoshape replay: --dead-zone 0.995: expected a value in [0, 0.99], "
-                               "found 0.995.\n");
+    assert_string_equal(g_out,
+                        "isoshape replay: --dead-zone '0.995': expected a value in [0, 0.99], "
+                        "found 0.995.\n");
     assert_int_equal(run("%s replay %s --sensitivity 0.1,-2 2>&1", bin(), s), 2);
-    assert_non_null(strstr(g_out, "--sensitivity 0.1,-2: expected a value in [0, 1e+06]"));
+    assert_non_null(strstr(g_out, "--sensitivity '0.1,-2': expected a value in [0, 1e+06]"));
     /* axes by their table's names; x, y and z still stand for tx, ty and tz */
     assert_int_equal(run("%s replay %s --fast --lock rotation --invert ty", bin(), s), 0);
     char ty[4096];

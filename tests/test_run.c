@@ -347,7 +347,7 @@ static void pec_takes_half_the_evaluations(void **state)
     printf("screw: PECE's own error %.3g of the diagonal\n", e_pece / diag);
     assert_true(d <= 4 * e_pece);
     assert_int_equal(iso("run '%s' --abm pex", scene), 2);
-    assert_non_null(strstr(g_err, "--abm pex"));
+    assert_non_null(strstr(g_err, "--abm 'pex' is unknown: use pece or pec."));
 }
 
 static void keyframes_end_at_their_pose(void **state)
