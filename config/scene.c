@@ -49,7 +49,7 @@ static const scene_key top_keys[] = {
      .help = "where the shape goes: display, ply, actuators", .dflt = "none"},
     {"recording", SK_PATH, FIELD(iso_scene, recording),
      .help = "a .isorec file to record the devices to", .dflt = "none"},
-    {NULL},
+    {.key = NULL},
 };
 
 const scene_section iso_scene__schema = {

@@ -69,7 +69,7 @@ static const scene_key device_keys[] = {
      .with = "gpio", .help = "the lines' debounce time in microseconds", .dflt = "0"},
     {"file", SK_FILE, FIELD(iso_scene_device, path), .with = "replay", .need = "replay",
      .help = "a recording (.isorec)"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int device_begin(scene_ctx *c, scene_map *m)

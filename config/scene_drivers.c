@@ -152,7 +152,7 @@ static const scene_key mapping_keys[] = {
      .help = "pose streams: the fraction of the error closed per tick", .dflt = "1"},
     {"pose_scale", SK_NUMBER, FIELD(iso_dev_map_opts, pose_scale), .dev = "pose_scale",
      .help = "pose streams: their units to scene units", .dflt = "1"},
-    {NULL},
+    {.key = NULL},
 };
 
 static const scene_section mapping = {
@@ -168,7 +168,7 @@ static const scene_key screw_keys[] = {
      .dflt = "builtin"},
     {"duration", SK_NUMBER, FIELD(iso_scene_driver, duration), SK_REQUIRED, ABOVE(0),
      .help = "the motion's length in seconds"},
-    {NULL},
+    {.key = NULL},
 };
 
 static const scene_section screw = {.name = "regions.handles[].driver.screw",
@@ -182,7 +182,7 @@ static const scene_key keyframe_keys[] = {
      .help = "the handle's translation [x, y, z] (scene units)", .dflt = "[0, 0, 0]"},
     {"rotate", SK_VEC3, FIELD(iso_scene_keyframe, rotate),
      .help = "its rotation vector [rx, ry, rz] in degrees (axis times angle)", .dflt = "[0, 0, 0]"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int keyframe_end(scene_ctx *c, scene_map *m)
@@ -245,7 +245,7 @@ static const scene_key driver_keys[] = {
      .count_off = offsetof(iso_scene_driver, n_keys), .stride = sizeof(iso_scene_keyframe),
      .min_items = 1, .max_items = ISO_SCENE_MAX_KEYFRAMES, .sub = &keyframe, .noun = "keyframes",
      .type = "list of keyframes", .help = "poses at times, interpolated"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int driver_begin(scene_ctx *c, scene_map *m)

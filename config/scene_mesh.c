@@ -25,7 +25,7 @@ static const scene_key mesh_keys[] = {
      .names_fn = iso_shape_names, .with = "benchmark",
      .help = "the built-in shape that stands in when the benchmark is absent",
      .dflt = "none: a missing benchmark is an error"},
-    {NULL},
+    {.key = NULL},
 };
 
 /* Where `mesh:` was written, for the build step's messages. */

@@ -18,7 +18,7 @@ static const scene_key box_keys[] = {
     {"min", SK_VEC3, FIELD(iso_scene_sel, a), SK_REQUIRED, .help = "the low corner [x, y, z]"},
     {"max", SK_VEC3, FIELD(iso_scene_sel, b), SK_REQUIRED,
      .help = "the high corner [x, y, z], >= min on every axis"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int box_end(scene_ctx *c, scene_map *m)
@@ -42,7 +42,7 @@ static const scene_key sphere_keys[] = {
     {"center", SK_VEC3, FIELD(iso_scene_sel, a), SK_REQUIRED, .help = "the centre [x, y, z]"},
     {"radius", SK_NUMBER, FIELD(iso_scene_sel, radius), SK_REQUIRED, ABOVE(0),
      .help = "the radius (scene units)"},
-    {NULL},
+    {.key = NULL},
 };
 
 static const scene_section sphere = {
@@ -53,7 +53,7 @@ static const scene_key beyond_keys[] = {
      .help = "a point on the plane [x, y, z]"},
     {"normal", SK_VEC3, FIELD(iso_scene_sel, b), SK_REQUIRED,
      .help = "the plane's normal [x, y, z], pointing to the side selected"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int beyond_end(scene_ctx *c, scene_map *m)
@@ -101,7 +101,7 @@ static const scene_key selection_keys[] = {
     {"sphere", SK_SECTION, 0, 0, SK_ONE_OF, .sub = &sphere, .help = "the vertices in a ball"},
     {"beyond", SK_SECTION, 0, 0, SK_ONE_OF, .sub = &beyond,
      .help = "the vertices on the normal's side of a plane"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int selection_begin(scene_ctx *c, scene_map *m)
@@ -146,7 +146,7 @@ static const scene_key handle_keys[] = {
      .dflt = "the .sel's handle of this index"},
     {"driver", SK_SECTION, FIELD(iso_scene_handle, driver), SK_REQUIRED, .sub = &iso_scene__driver,
      .type = "none or mapping", .help = "none, {device, mapping}, {screw} or {keyframes}"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int handle_begin(scene_ctx *c, scene_map *m)
@@ -193,7 +193,7 @@ static const scene_key regions_keys[] = {
      .count_off = offsetof(iso_scene, n_handles), .stride = sizeof(iso_scene_handle),
      .min_items = 1, .max_items = ISO_SCENE_MAX_HANDLES, .sub = &handle, .noun = "handles",
      .type = "list of handles", .help = "a list of handles, each with select and driver"},
-    {NULL},
+    {.key = NULL},
 };
 
 /* Where `sel:` was written (or regions:), for the build step's messages. */

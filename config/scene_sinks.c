@@ -42,7 +42,7 @@ static const scene_key display_keys[] = {
      .type = "list of integers", .help = "ticks at which a PNG snapshot is taken", .dflt = "none"},
     {"snapshot_dir", SK_PATH, FIELD(iso_scene_display, snapshot_dir),
      .help = "the folder for the snapshots", .dflt = "the working folder"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int enable_display(scene_ctx *c, scene_map *m)
@@ -62,7 +62,7 @@ static const scene_key ply_keys[] = {
     {"dir", SK_PATH, FIELD(iso_scene_ply, dir), SK_REQUIRED, .help = "a folder for the frames"},
     {"every", SK_INT, FIELD(iso_scene_ply, every), IN(1, 1000000),
      .help = "one frame per this many ticks", .dflt = "1"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int enable_ply(scene_ctx *c, scene_map *m)
@@ -101,7 +101,7 @@ static const scene_key link_keys[] = {
      .help = "the MCU emulated: in QEMU, natively, or auto (QEMU when it and the ELF are there)"},
     {"baud", SK_INT, FIELD(iso_scene_actuators, baud), IN(50, 12000000), .with = "tty serial",
      .help = "the line's rate", .dflt = "115200"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int link_begin(scene_ctx *c, scene_map *m)
@@ -186,7 +186,7 @@ static const scene_key channel_keys[] = {
      .help = "the high limit (scene units), > min"},
     {"scale", SK_NUMBER, FIELD(iso_scene_channel, scale), .help = "scene units to actuator counts",
      .dflt = "1"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int channel_begin(scene_ctx *c, scene_map *m)
@@ -233,7 +233,7 @@ static const scene_key actuators_keys[] = {
     {"loop_timeout_ms", SK_INT, FIELD(iso_scene_actuators, loop_timeout_ms), IN(20, 60000),
      .help = "the loop watchdog's bound: no progress this long and the actuators go SAFE",
      .dflt = "max(250, 5 tick periods)"},
-    {NULL},
+    {.key = NULL},
 };
 
 static int enable_actuators(scene_ctx *c, scene_map *m)
@@ -255,7 +255,7 @@ static const scene_key sinks_keys[] = {
      .dflt = "off"},
     {"actuators", SK_SECTION, FIELD(iso_scene, actuators), .sub = &actuators,
      .help = "actuator setpoints over the firmware bridge", .dflt = "off"},
-    {NULL},
+    {.key = NULL},
 };
 
 const scene_section iso_scene__sinks = {

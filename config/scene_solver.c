@@ -16,7 +16,7 @@ static const scene_key restore_keys[] = {
      .help = "the restoration term's weight (0: off)"},
     {"tau", SK_NUMBER, FIELD(iso_solver_opts, restore_tau), ABOVE(0),
      .help = "its time constant in seconds of stream time", .dflt = "required when mu > 0"},
-    {NULL},
+    {.key = NULL},
 };
 
 /* `restore: off` is mu = 0. */
@@ -64,7 +64,7 @@ static const scene_key solver_keys[] = {
     {"cg_max_iter", SK_INT, FIELD(iso_solver_opts, cg_max_iter), IN(1, 100000),
      .help = "PCG iterations a tick may spend before it refactors and solves directly",
      .dflt = "12"},
-    {NULL},
+    {.key = NULL},
 };
 
 const scene_section iso_scene__solver = {
@@ -81,7 +81,7 @@ static const scene_key integrator_keys[] = {
     {"cg_share", SK_NUMBER, FIELD(iso_scene, integrate.cg_share), IN(0, 1),
      .help = "PCG's share of a step's local error estimate (0: solver.cg_tol always)",
      .dflt = "0.1"},
-    {NULL},
+    {.key = NULL},
 };
 
 const scene_section iso_scene__integrator = {
