@@ -73,6 +73,7 @@ static void expect_error(const char *text, int code, ...)
 }
 
 #define BASE "mesh: {shape: bar, resolution: 4}\n"
+#define REGIONS_NONE "regions: {handles: [{driver: none}]}\n"
 #define HANDLES                                                                                    \
     "  handles:\n"                                                                                 \
     "    - name: top\n"                                                                            \
@@ -315,6 +316,30 @@ static void test_errors(void **state)
                  "only twist streams time out (kinds tty, tcp, serialport, replay); a spnav "
                  "device reports a state",
                  NULL);
+    /* Keys that go with another form of their mapping, at the value; a
+     * key of another device kind, at the key, with the kind's keys. */
+    expect_error("mesh: {shape: bar, fallback_shape: cactus}\n" REGIONS_NONE, ISO_EPARSE,
+                 "bad.yaml:1:36:", "mesh.fallback_shape: only goes with benchmark", NULL);
+    expect_error(BASE REGIONS_NONE
+                 "sinks:\n  actuators:\n    link: {tcp: 'h:1', baud: 9600}\n"
+                 "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 ISO_EPARSE,
+                 "bad.yaml:5:30:", "sinks.actuators.link.baud: only goes with tty or serial", NULL);
+    expect_error(
+        BASE "regions:\n  handles:\n    - driver: {screw: {duration: 1}, mapping: {curve: 2}}\n",
+        ISO_EPARSE, "bad.yaml:4:48:", "regions.handles[0].driver.mapping: only goes with device",
+        NULL);
+    expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, addres: 'h:1'}]\n" REGIONS_NONE,
+                 ISO_EPARSE, "bad.yaml:2:46:", "devices[0].addres: unknown key",
+                 "did you mean 'address'", NULL);
+    expect_error(BASE
+                 "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n" REGIONS_NONE,
+                 ISO_EPARSE, "bad.yaml:2:46:", "devices[0].address: unknown key for kind tty",
+                 "(expected one of: name, kind, stale_ms, path, baud)", NULL);
+    /* A missing enum names its values. */
+    expect_error(BASE "devices: [{name: m}]\n" REGIONS_NONE, ISO_EPARSE,
+                 "bad.yaml:2:12:", "devices[0].kind: missing required key",
+                 "hid, spnav, tty, tcp, serialport, gpio or replay", NULL);
     /* An empty file. */
     expect_error("", ISO_EPARSE, "bad.yaml:1:1:", "empty", NULL);
 }
