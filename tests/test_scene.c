@@ -846,6 +846,10 @@ static void test_schema_shape(void **state)
                 }
             }
             assert_non_null(k->help);
+            char range[64];
+            if (k->dev && !iso_scene__range_text(k, range, sizeof range)[0])
+                fail_msg("%s.%s: no range read from the devices layer's message for '%s'",
+                         all[i]->name, k->key, k->dev);
         }
         assert_true(rows > 0 && rows <= ISO_SCENE_SECTION_KEYS);
     }
