@@ -161,23 +161,52 @@ static iso_scene *new_scene(const char *path)
     return s;
 }
 
-/* libfyaml 0.7.12 can loop forever scanning a malformed directive (found
- * by fuzz_scene), and scenes have no use for directives: refuses any line
- * that starts with '%' (after LF or CR), and control bytes, before the
- * parser sees them. */
+static int blank(const char *text, size_t len, size_t i)
+{
+    return i >= len || text[i] == ' ' || text[i] == '\t' || text[i] == '\n' || text[i] == '\r';
+}
+
+/* The column (from 1) of a block explicit key ('?' and a blank, after the
+ * indentation and any sequence dashes) that opens the line at text[i], or 0. */
+static size_t explicit_key(const char *text, size_t len, size_t i)
+{
+    size_t j = i;
+    for (;;) {
+        while (j < len && (text[j] == ' ' || text[j] == '\t'))
+            j++;
+        if (j < len && text[j] == '-' && j + 1 < len && blank(text, len, j + 1) &&
+            text[j + 1] != '\n' && text[j + 1] != '\r')
+            j++;
+        else
+            break;
+    }
+    return j < len && text[j] == '?' && blank(text, len, j + 1) ? j - i + 1 : 0;
+}
+
+/* libfyaml 0.7.12 can loop forever scanning a malformed directive, and
+ * crashes on a block explicit key whose value holds a tab before an
+ * indicator ("? e:\t-"; both found by fuzz_scene). Scenes have no use for
+ * either: refuses a line that starts with '%' or opens with "? ", and
+ * control bytes, before the parser sees them. */
 static int plain_text(const char *text, size_t len, const char *path, iso_err *err)
 {
-    for (size_t i = 0, line = 1; i < len; i++) {
+    for (size_t i = 0, line = 1, col; i < len; i++) {
         unsigned char ch = (unsigned char)text[i];
+        int starts = i == 0 || text[i - 1] == '\n' || text[i - 1] == '\r';
         if (ch < 0x20 && ch != '\t' && ch != '\n' && ch != '\r')
             return iso_err_set(err, ISO_EPARSE, (long)line,
                                "%s:%zu: control byte 0x%02x: a scene is a text file", path, line,
                                ch);
-        if ((i == 0 || text[i - 1] == '\n' || text[i - 1] == '\r') && ch == '%')
+        if (starts && ch == '%')
             return iso_err_set(err, ISO_EPARSE, (long)line,
                                "%s:%zu:1: YAML directives ('%%...') are not supported in "
                                "scene files",
                                path, line);
+        if (starts && (col = explicit_key(text, len, i)) > 0)
+            return iso_err_set(err, ISO_EPARSE, (long)line,
+                               "%s:%zu:%zu: explicit keys ('? ') are not supported in scene "
+                               "files; write KEY: VALUE",
+                               path, line, col);
         line += text[i] == '\n';
     }
     return ISO_OK;

@@ -340,6 +340,11 @@ static void test_errors(void **state)
     expect_error(BASE "devices: [{name: m}]\n" REGIONS_NONE, ISO_EPARSE,
                  "bad.yaml:2:12:", "devices[0].kind: missing required key",
                  "hid, spnav, tty, tcp, serialport, gpio or replay", NULL);
+    /* Explicit keys, refused before libfyaml 0.7.12 sees them: it crashes
+     * on "? e:<tab>-" (found by fuzz_scene). */
+    expect_error("? e:\t-\n", ISO_EPARSE, "bad.yaml:1:1:", "explicit keys ('? ')", NULL);
+    expect_error(BASE "regions:\n  handles:\n    - ? driver\n      : none\n", ISO_EPARSE,
+                 "bad.yaml:4:7:", "explicit keys ('? ') are not supported", NULL);
     /* An empty file. */
     expect_error("", ISO_EPARSE, "bad.yaml:1:1:", "empty", NULL);
 }
