@@ -1,5 +1,5 @@
 /* tests/fuzz/fuzz_scene.c -- libFuzzer target for the scene reader
- * (config/scene.c): YAML in memory, parsed and validated with
+ * (config/scene*.c): YAML in memory, parsed and validated with
  * ISO_SCENE_PARSE_ONLY (no file is opened, no mesh built). An accepted
  * scene must be self-consistent; a refused one must say why. */
 #include <stdint.h>

@@ -1,0 +1,88 @@
+/* config/scene_solver.c -- the scene's `solver:` and `integrator:`
+ * sections. Defaults are the library's (iso_solver_opts_default,
+ * iso_integrate_opts_default) except where scene.c's new_scene says. */
+#include "internal.h"
+
+#include <string.h>
+
+#include "iso_names.h"
+
+_Static_assert(sizeof(iso_weighting) == sizeof(int) && sizeof(iso_assembly) == sizeof(int) &&
+                   sizeof(iso_refactor) == sizeof(int),
+               "SK_ENUM stores an int: the solver's enums must be int-sized");
+
+static const scene_key restore_keys[] = {
+    {"mu", SK_NUMBER, FIELD(iso_solver_opts, restore_mu), SK_REQUIRED, AT_LEAST(0),
+     .help = "the restoration term's weight (0: off)"},
+    {"tau", SK_NUMBER, FIELD(iso_solver_opts, restore_tau), ABOVE(0),
+     .help = "its time constant in seconds of stream time", .dflt = "required when mu > 0"},
+    {.key = NULL},
+};
+
+/* `restore: off` is mu = 0. */
+static int restore_off(scene_ctx *c, scene_map *m)
+{
+    iso_solver_opts *o = m->obj;
+    const char *t = iso_scene__scalar(c, m->node);
+    if (!t || strcmp(t, "off") != 0)
+        return iso_scene__want_map(c, m->node, m->key, "off or {mu, tau}");
+    o->restore_mu = 0;
+    o->restore_tau = 0;
+    return ISO_OK;
+}
+
+static int restore_end(scene_ctx *c, scene_map *m)
+{
+    const iso_solver_opts *o = m->obj;
+    if (o->restore_mu > 0 && !iso_scene__get(m->node, "tau"))
+        return iso_scene__missing(c, m->node, m->key, "tau", "a time constant > 0 when mu > 0");
+    return ISO_OK;
+}
+
+static const scene_section restore = {.name = "solver.restore",
+                                      .what = "off or {mu, tau}",
+                                      .keys = restore_keys,
+                                      .scalar = restore_off,
+                                      .end = restore_end};
+
+static const scene_key solver_keys[] = {
+    {"omega", SK_NUMBER, FIELD(iso_solver_opts, omega), IN_OC(0, 1),
+     .help = "the distortion term's weight against the isometry term", .dflt = "1/3"},
+    {"weighting", SK_ENUM, FIELD(iso_solver_opts, weighting), .names = iso_weighting_names,
+     .help = "the element integral: over the parameter triangle or the surface", .dflt = "param"},
+    {"restore", SK_SECTION, 0, 0, .sub = &restore, .type = "off or mapping",
+     .help = "isometry restoration: edge lengths pulled back with time constant tau",
+     .dflt = "off"},
+    {"assembly", SK_ENUM, FIELD(iso_solver_opts, assembly), .names = iso_assembly_names,
+     .help = "where the system is assembled (opencl falls back to cpu with a notice)",
+     .dflt = "cpu"},
+    {"refactor", SK_ENUM, FIELD(iso_solver_opts, refactor), .names = iso_refactor_names,
+     .help = "always factor, or reuse the factor as PCG's preconditioner", .dflt = "always"},
+    {"cg_tol", SK_NUMBER, FIELD(iso_solver_opts, cg_tol), IN_OO(0, 1),
+     .help = "PCG's relative residual (a floor beside integrator.cg_share's target)",
+     .dflt = "1e-10"},
+    {"cg_max_iter", SK_INT, FIELD(iso_solver_opts, cg_max_iter), IN(1, 100000),
+     .help = "PCG iterations a tick may spend before it refactors and solves directly",
+     .dflt = "12"},
+    {.key = NULL},
+};
+
+const scene_section iso_scene__solver = {
+    .name = "solver", .what = "a mapping of solver settings", .keys = solver_keys};
+
+static const scene_key integrator_keys[] = {
+    {"steps_per_tick", SK_INT, FIELD(iso_scene, steps_per_tick), IN(1, 1000),
+     .help = "ABM steps per tick", .dflt = "1"},
+    {"restore_kappa", SK_NUMBER, FIELD(iso_scene, integrate.restore_kappa), AT_LEAST(0),
+     .help = "restoration's clamp: tau_eff = max(tau, kappa h)",
+     .dflt = "1.0 under pece, 6.0 under pec"},
+    {"abm", SK_ENUM, FIELD(iso_scene, abm_mode), .names = iso_abm_mode_names,
+     .help = "the ABM3 form: two field evaluations a step (pece) or one (pec)", .dflt = "pece"},
+    {"cg_share", SK_NUMBER, FIELD(iso_scene, integrate.cg_share), IN(0, 1),
+     .help = "PCG's share of a step's local error estimate (0: solver.cg_tol always)",
+     .dflt = "0.1"},
+    {.key = NULL},
+};
+
+const scene_section iso_scene__integrator = {
+    .name = "integrator", .what = "a mapping of integrator settings", .keys = integrator_keys};
