@@ -33,7 +33,8 @@ void iso_loop_opts_default(iso_loop_opts *o)
 static int open_device(const iso_scene_device *d, iso_dev_source **out, iso_err *err)
 {
     switch (d->backend) {
-    case ISO_SCENE_DEV_HIDAPI: return iso_dev_hid_open(d->path[0] ? d->path : NULL, out, err);
+    case ISO_SCENE_DEV_HIDAPI:
+        return iso_dev_hid_open_id(d->path[0] ? d->path : NULL, d->vid, d->pid, out, err);
     case ISO_SCENE_DEV_SPNAV: return iso_dev_spnav_open(out, err);
     case ISO_SCENE_DEV_TTY: return iso_dev_tty_open(d->path, d->baud, out, err);
     case ISO_SCENE_DEV_TCP: return iso_dev_tcp_open(d->address, 1000, out, err);

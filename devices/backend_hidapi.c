@@ -59,7 +59,24 @@ static void read_descriptor(iso_dev_info *info)
     fclose(f);
 }
 
+/* Whether hidapi's entry d is the device asked for: at path, or (without
+ * one) with the ids, or (without ids either) a known 3D mouse. */
+static int wanted(const struct hid_device_info *d, const char *path, uint16_t vid, uint16_t pid)
+{
+    if (path)
+        return strcmp(d->path, path) == 0;
+    if (vid)
+        return d->vendor_id == vid && (!pid || d->product_id == pid);
+    return iso_dev_is_3dmouse(d->vendor_id, d->product_id);
+}
+
 int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
+{
+    return iso_dev_hid_open_id(path, 0, 0, out, err);
+}
+
+int iso_dev_hid_open_id(const char *path, uint16_t want_vid, uint16_t want_pid,
+                        iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
     if (hid_init() != 0)
@@ -69,9 +86,7 @@ int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
     uint16_t vid = 0, pid = 0;
     struct hid_device_info *all = hid_enumerate(0, 0);
     for (struct hid_device_info *d = all; d; d = d->next) {
-        int match =
-            path ? strcmp(d->path, path) == 0 : iso_dev_is_3dmouse(d->vendor_id, d->product_id);
-        if (match) {
+        if (wanted(d, path, want_vid, want_pid)) {
             snprintf(found, sizeof found, "%s", d->path);
             vid = d->vendor_id;
             pid = d->product_id;
@@ -83,9 +98,16 @@ int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
         }
     }
     hid_free_enumeration(all);
-    if (!found[0] && !path)
+    if (!found[0] && !path && !want_vid)
         return iso_err_set(err, ISO_EIO, -1,
                            "no 3D mouse found (3Dconnexion 046d or 256f): is it plugged in?");
+    if (!found[0] && !path)
+        return iso_err_set(err, ISO_EIO, -1, "no HID device %04x:%04x found: is it plugged in?",
+                           want_vid, want_pid);
+    if (found[0] && ((want_vid && vid != want_vid) || (want_pid && pid != want_pid)))
+        return iso_err_set(err, ISO_EIO, -1,
+                           "%s is %04x:%04x, not the %04x:%04x the caller asked for", found, vid,
+                           pid, want_vid, want_pid);
     const char *p = found[0] ? found : path;
     hid_device *dev = hid_open_path(p);
     if (!dev) {
@@ -157,6 +179,14 @@ const int iso_dev__hidapi_built = 0;
 
 int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err)
 {
+    return iso_dev_hid_open_id(path, 0, 0, out, err);
+}
+
+int iso_dev_hid_open_id(const char *path, uint16_t vid, uint16_t pid, iso_dev_source **out,
+                        iso_err *err)
+{
+    (void)vid;
+    (void)pid;
     *out = NULL;
     return iso_err_set(err, ISO_ENOTSUP, -1,
                        "%s: this build has no hidapi backend (install libhidapi-dev and rebuild)",

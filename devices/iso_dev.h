@@ -145,6 +145,13 @@ ISO_API ISO_NODISCARD int iso_dev_tcp_open(const char *host_port, int timeout_ms
 /* hidapi (hidraw): path as hidapi enumerates it ("/dev/hidraw3"), or NULL
  * for the first known 3D mouse. */
 ISO_API ISO_NODISCARD int iso_dev_hid_open(const char *path, iso_dev_source **out, iso_err *err);
+/* The same, held to a vendor and product id (0: any): without a path, the
+ * first device with that vid (and pid); with both 0, the first known 3D
+ * mouse. With a path, a device there whose ids differ is refused (ISO_EIO,
+ * naming both pairs), so a scene never drives a handle from a device it did
+ * not name. Not found: ISO_EIO naming the ids. */
+ISO_API ISO_NODISCARD int iso_dev_hid_open_id(const char *path, uint16_t vid, uint16_t pid,
+                                              iso_dev_source **out, iso_err *err);
 /* spacenavd through libspnav: fails with ISO_EIO when no daemon runs. The
  * socket is found as libspnav finds it: $SPNAV_SOCKET, then `socket =` in
  * /etc/spnavrc, then /var/run/spnav.sock (the first that accepts; it goes

@@ -198,6 +198,14 @@ static void hardware_backends_without_hardware(void **state)
     int rc = iso_dev_hid_open("/dev/hidraw-none", &s, &err);
     expect_no_hardware("hidapi", rc, &err, "/dev/hidraw-none");
     assert_null(s);
+    /* A scene's vid and pid hold: no device with those ids is no device,
+     * never the first 3D mouse instead. */
+    iso_err_clear(&err);
+    rc = iso_dev_hid_open_id(NULL, 0x1234, 0x5678, &s, &err);
+    expect_no_hardware("hidapi", rc, &err,
+                       iso_dev_backend_built("hidapi") == 1 ? "no HID device 1234:5678 found"
+                                                            : "3D mouse");
+    assert_null(s);
     iso_err_clear(&err);
     rc = iso_dev_serialport_open("/dev/ttyNONE9", 115200, &s, &err);
     expect_no_hardware("serialport", rc, &err, "/dev/ttyNONE9");
