@@ -177,6 +177,11 @@ fnode *iso_scene__get(fnode *map, const char *name);
 const char *iso_scene__type_name(fnode *n);
 /* The nearest of `known` (NULL-terminated) to `word`, or NULL if none is close. */
 const char *iso_scene__nearest(const char *word, const char *const *known);
+/* Refuses `word` at node n (scene key `key`), ISO_EPARSE: "WHAT; did you
+ * mean 'NEAREST'? (LABEL: a, b, c)", or without the suggestion when no
+ * known word is close. known is NULL-terminated. */
+int iso_scene__refuse_word(scene_ctx *c, fnode *n, const char *key, const char *what,
+                           const char *word, const char *const *known, const char *label);
 /* Checks that every key of map is a plain scalar among `known`. */
 int iso_scene__check_keys(scene_ctx *c, fnode *map, const char *path, const char *const *known);
 int iso_scene__want_map(scene_ctx *c, fnode *n, const char *key, const char *what);

@@ -225,13 +225,9 @@ static int store_device(scene_ctx *c, const scene_key *k, fnode *v, const char *
     if (s->n_devices == 0)
         return iso_scene__fail(c, v, ISO_EPARSE, key,
                                "no device '%s': the scene's devices list is empty", t);
-    char all[512];
-    iso_names_list(names, ", ", all, sizeof all);
-    const char *near = iso_scene__nearest(t, names);
-    if (near)
-        return iso_scene__fail(c, v, ISO_EPARSE, key,
-                               "no device '%s'; did you mean '%s'? (devices: %s)", t, near, all);
-    return iso_scene__fail(c, v, ISO_EPARSE, key, "no device '%s' (devices: %s)", t, all);
+    char what[300];
+    snprintf(what, sizeof what, "no device '%s'", t);
+    return iso_scene__refuse_word(c, v, key, what, t, names, "devices");
 }
 
 static const scene_key driver_keys[] = {
