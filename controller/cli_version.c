@@ -150,16 +150,14 @@ static const iso_cli__opt version_options[] = {{0}};
 static int version_main(int argc, char **argv);
 
 const iso_cli__cmd iso_cli__version_cmd = {
-    "version",
-    NULL,
-    "usage: isoshape --version\n"
-    "       isoshape version\n"
-    "\n"
-    "Prints the versions of isoshape and of the CHOLMOD it runs with (and was built\n"
-    "against), and the BLAS that is loaded, with the file it was loaded from.\n",
-    version_options,
-    NULL,
-    version_main};
+    .name = "version",
+    .usage = "usage: isoshape --version\n"
+             "       isoshape version\n"
+             "\n"
+             "Prints the versions of isoshape and of the CHOLMOD it runs with (and was built\n"
+             "against), and the BLAS that is loaded, with the file it was loaded from.\n",
+    .opts = version_options,
+    .main = version_main};
 
 static int version_main(int argc, char **argv)
 {

@@ -65,14 +65,13 @@ static void print_summary(const iso_scene *s)
 static const iso_cli__opt check_options[] = {{0}};
 
 const iso_cli__cmd iso_cli__check_cmd = {
-    "check",
-    "validate a scene file without running it",
-    "usage: isoshape check SCENE\n"
-    "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
-    "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n",
-    check_options,
-    NULL,
-    iso_cli__check};
+    .name = "check",
+    .summary = "validate a scene file without running it",
+    .usage = "usage: isoshape check SCENE\n"
+             "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
+             "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n",
+    .opts = check_options,
+    .main = iso_cli__check};
 
 int iso_cli__check(int argc, char **argv)
 {

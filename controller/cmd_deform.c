@@ -117,17 +117,16 @@ static const iso_cli__opt deform_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__deform_cmd = {
-    "deform",
-    "integrate the deformation of a mesh as its handle moves to its final pose",
-    "usage: isoshape deform --mesh M --sel S --def D [options]\n"
-    "       isoshape deform --shape NAME [--resolution N] [options]\n"
-    "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
-    "\n"
-    "Moves the handle from its rest pose to the pose D along a screw motion and\n"
-    "integrates the free vertices along the isometry-preserving field.\n",
-    deform_options,
-    NULL,
-    iso_cli__deform};
+    .name = "deform",
+    .summary = "integrate the deformation of a mesh as its handle moves to its final pose",
+    .usage = "usage: isoshape deform --mesh M --sel S --def D [options]\n"
+             "       isoshape deform --shape NAME [--resolution N] [options]\n"
+             "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
+             "\n"
+             "Moves the handle from its rest pose to the pose D along a screw motion and\n"
+             "integrates the free vertices along the isometry-preserving field.\n",
+    .opts = deform_options,
+    .main = iso_cli__deform};
 
 /* The problem's options exclude each other, and --steps excludes --tol.
  * Returns -1 when all fit, else 2 after saying why. */

@@ -10,16 +10,15 @@
 static const iso_cli__opt devices_options[] = {{0}};
 
 const iso_cli__cmd iso_cli__devices_cmd = {
-    "devices",
-    "list input devices, usable or why not",
-    "usage: isoshape devices\n"
-    "\n"
-    "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
-    "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
-    "devices (libusb), each usable or with the reason it is not.\n",
-    devices_options,
-    NULL,
-    iso_cli__devices};
+    .name = "devices",
+    .summary = "list input devices, usable or why not",
+    .usage = "usage: isoshape devices\n"
+             "\n"
+             "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
+             "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
+             "devices (libusb), each usable or with the reason it is not.\n",
+    .opts = devices_options,
+    .main = iso_cli__devices};
 
 int iso_cli__devices(int argc, char **argv)
 {

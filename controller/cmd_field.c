@@ -37,18 +37,18 @@ static const iso_cli__opt field_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__field_cmd = {
-    "field",
-    "solve the deformation field once, at the rest pose",
-    "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
-    "--out F\n"
-    "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
-    "\n"
-    "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
-    "handle vertices (label 2) move with the velocities in V, and free vertices\n"
-    "(label 1) get the velocities that preserve lengths best.\n",
-    field_options,
-    NULL,
-    iso_cli__field};
+    .name = "field",
+    .summary = "solve the deformation field once, at the rest pose",
+    .usage =
+        "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
+        "--out F\n"
+        "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
+        "\n"
+        "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
+        "handle vertices (label 2) move with the velocities in V, and free vertices\n"
+        "(label 1) get the velocities that preserve lengths best.\n",
+    .opts = field_options,
+    .main = iso_cli__field};
 
 /* Reads one velocity per handle vertex into vc (3*nv). Returns 0, or -1
  * after naming V's line. */

@@ -54,16 +54,15 @@ static const iso_cli__opt inspect_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__inspect_cmd = {
-    "inspect",
-    "print a device recording, record by record, decoded",
-    "usage: isoshape inspect FILE [--no-bytes]\n"
-    "\n"
-    "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
-    "every record with its time, source, raw bytes and decoded events.\n"
-    "Damaged records and a torn end are reported with their byte offsets.\n",
-    inspect_options,
-    NULL,
-    iso_cli__inspect};
+    .name = "inspect",
+    .summary = "print a device recording, record by record, decoded",
+    .usage = "usage: isoshape inspect FILE [--no-bytes]\n"
+             "\n"
+             "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
+             "every record with its time, source, raw bytes and decoded events.\n"
+             "Damaged records and a torn end are reported with their byte offsets.\n",
+    .opts = inspect_options,
+    .main = iso_cli__inspect};
 
 int iso_cli__inspect(int argc, char **argv)
 {

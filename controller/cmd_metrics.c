@@ -21,17 +21,16 @@ static const iso_cli__opt metrics_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__metrics_cmd = {
-    "metrics",
-    "distortion between an original mesh and a deformed copy",
-    "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
-    "\n"
-    "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
-    "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
-    "the largest and the root-mean-square relative edge length change, each printed\n"
-    "with what it measures.\n",
-    metrics_options,
-    NULL,
-    iso_cli__metrics};
+    .name = "metrics",
+    .summary = "distortion between an original mesh and a deformed copy",
+    .usage = "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
+             "\n"
+             "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
+             "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
+             "the largest and the root-mean-square relative edge length change, each printed\n"
+             "with what it measures.\n",
+    .opts = metrics_options,
+    .main = iso_cli__metrics};
 
 int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, size_t why_cap)
 {

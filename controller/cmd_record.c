@@ -162,15 +162,14 @@ static const iso_cli__opt record_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__record_cmd = {
-    "record",
-    "record live input devices (3D mouse, serial, GPIO) while running them",
-    "usage: isoshape record -o FILE SOURCE... [options]\n"
-    "\n"
-    "Records live input devices (devices/RECORDING.md) while running the device side\n"
-    "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n",
-    record_options,
-    NULL,
-    iso_cli__record};
+    .name = "record",
+    .summary = "record live input devices (3D mouse, serial, GPIO) while running them",
+    .usage = "usage: isoshape record -o FILE SOURCE... [options]\n"
+             "\n"
+             "Records live input devices (devices/RECORDING.md) while running the device side\n"
+             "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n",
+    .opts = record_options,
+    .main = iso_cli__record};
 
 /* Returns -1 to go on, else the exit status (0 after --help). */
 static int parse_args(int argc, char **argv, record_args *a)

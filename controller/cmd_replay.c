@@ -169,19 +169,18 @@ static const iso_cli__opt replay_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__replay_cmd = {
-    "replay",
-    "replay a device recording, deterministically, at any speed",
-    "usage: isoshape replay FILE [options]\n"
-    "\n"
-    "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
-    "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
-    "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
-    "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
-    "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
-    "\n",
-    replay_options,
-    NULL,
-    iso_cli__replay};
+    .name = "replay",
+    .summary = "replay a device recording, deterministically, at any speed",
+    .usage = "usage: isoshape replay FILE [options]\n"
+             "\n"
+             "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
+             "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
+             "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
+             "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
+             "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
+             "\n",
+    .opts = replay_options,
+    .main = iso_cli__replay};
 
 /* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
  * error. */

@@ -72,21 +72,21 @@ static const iso_cli__opt run_options[] = {
     {0}};
 
 const iso_cli__cmd iso_cli__run_cmd = {
-    "run",
-    "run a scene: devices or a replay drive the mesh in real time",
-    "usage: isoshape run SCENE [options]\n"
-    "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
-    "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
-    "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
-    "  line on a terminal and a summary at the end.\n"
-    "\n",
-    run_options,
-    "\n"
-    "  Output files are written whole or not at all (a temporary name, then a\n"
-    "  rename), and their folders are checked before the run starts. Exit status:\n"
-    "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
-    "  the run (after a clean shutdown: files written, actuators safe).\n",
-    iso_cli__run_scene};
+    .name = "run",
+    .summary = "run a scene: devices or a replay drive the mesh in real time",
+    .usage = "usage: isoshape run SCENE [options]\n"
+             "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
+             "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
+             "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
+             "  line on a terminal and a summary at the end.\n"
+             "\n",
+    .opts = run_options,
+    .after = "\n"
+             "  Output files are written whole or not at all (a temporary name, then a\n"
+             "  rename), and their folders are checked before the run starts. Exit status:\n"
+             "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
+             "  the run (after a clean shutdown: files written, actuators safe).\n",
+    .main = iso_cli__run_scene};
 
 /* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
  * error. */
