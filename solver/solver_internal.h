@@ -121,6 +121,12 @@ void iso_solver__threads_end(iso_solver *s);
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
 
+/* Sorts n edges (endpoints a[k] and b[k]) along a Z-order curve through
+ * their midpoints at the rest pose (order.c): order[k] is the edge at
+ * position k, ties broken by edge index, so the order is fixed. 0, or −1
+ * when out of memory. */
+int iso_solver__z_order(const iso_mesh *m, int n, const int *a, const int *b, int *order);
+
 /* The C assembly path. Its plans are made at the first call and freed by
  * iso_solver__cpu_plan_destroy (NULL is a no-op). */
 typedef struct iso_solver__cpu_plan iso_solver__cpu_plan;
