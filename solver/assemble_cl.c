@@ -506,31 +506,60 @@ static size_t padded(int n, size_t wg)
     return ((size_t)n + wg - 1) / wg * wg;
 }
 
-/* The pair items, in element-list order. Each triangle element's Q1 goes
- * with the first pair item whose Ti or Tj it is (q1_el: the element, −1
- * once carried). */
-static int plan_pairs(iso_solver *s, iso_cl_assembler *cl, plan *p, int *q1_el, iso_err *err)
+/* The pair elements' indices (the first of each mirrored two) in
+ * element-list order, into *out (n of them). */
+static int pair_elements(const iso_solver *s, int **out, int *n, iso_err *err)
 {
-    const int *tri = iso_mesh_triangles(s->m);
-    int n = 0;
+    *n = 0;
+    *out = malloc(((size_t)s->nel + 1) * sizeof **out);
+    if (!*out)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     for (int i = 0; i < s->nel; i++)
         if (s->el[i].kind == 2) {
             if (i + 1 >= s->nel || !iso_solver__is_mirror(&s->el[i], &s->el[i + 1]))
                 return iso_err_set(err, ISO_EINVAL, -1,
                                    "OpenCL: internal error: pair element %d has no mirror", i);
-            n++;
-            i++;
+            (*out)[(*n)++] = i++;
         }
+    return ISO_OK;
+}
+
+/* The pair items in Z-order (iso_solver__z_order: what one item touches in
+ * x, the fit records and the slots, the next ones touch again; the slots
+ * of one block are in this order too). Each triangle element's Q1 goes
+ * with the first pair element, in element-list order, whose Ti or Tj it
+ * is, as on the C path (q1_el: the element, −1 once carried). */
+static int plan_pairs(iso_solver *s, iso_cl_assembler *cl, plan *p, int *q1_el, iso_err *err)
+{
+    const int *tri = iso_mesh_triangles(s->m);
+    int n, *pe = NULL;
+    int rc = pair_elements(s, &pe, &n, err);
     int np = cl->np = (int)padded(n, cl->wg[K_PAIR]);
+    int *carry = malloc(((size_t)n + 1) * sizeof *carry),
+        *ends = malloc(2 * ((size_t)n + 1) * sizeof *ends);
+    int *order = malloc(((size_t)n + 1) * sizeof *order);
     p->pair_work = malloc(((size_t)PAIR_ROWS * (size_t)np + 1) * sizeof(int));
-    if (!p->pair_work)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    if (rc == ISO_OK && (!carry || !ends || !order || !p->pair_work))
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int k = 0; k < n && rc == ISO_OK; k++) {
+        const element *e = &s->el[pe[k]];
+        int ti = e->tri, tj = s->el[pe[k] + 1].tri, map[4];
+        carry[k] = (q1_el[ti] >= 0 ? CARRY_I : 0) | (q1_el[tj] >= 0 ? CARRY_J : 0);
+        if (q1_el[ti] >= 0)
+            q1_el[ti] = -1;
+        if (q1_el[tj] >= 0)
+            q1_el[tj] = -1;
+        iso_solver__edge_layout(e, map);
+        ends[k] = e->v[map[0]];
+        ends[n + k] = e->v[map[1]];
+    }
+    if (rc == ISO_OK && iso_solver__z_order(s->m, n, ends, ends + n, order) != 0)
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     int *w = p->pair_work;
-    for (int i = 0; i < s->nel; i++) {
+    for (int j = 0; j < n && rc == ISO_OK; j++) {
+        int k = order[j], i = pe[k];
         const element *e = &s->el[i];
-        if (e->kind != 2)
-            continue;
-        int j = cl->n_pair++, ti = e->tri, tj = s->el[i + 1].tri, map[4];
+        int ti = e->tri, tj = s->el[i + 1].tri, map[4];
         /* the edge layout (a, b, p, q): the shared edge in Ti's order,
          * Ti's third corner, Tj's third corner */
         iso_solver__edge_layout(e, map);
@@ -538,25 +567,25 @@ static int plan_pairs(iso_solver *s, iso_cl_assembler *cl, plan *p, int *q1_el, 
             w[l * np + j] = e->v[map[l]];
         w[4 * np + j] = fit_item(cl, p, tri, ti, i);
         w[5 * np + j] = fit_item(cl, p, tri, tj, i + 1);
-        w[6 * np + j] = (q1_el[ti] >= 0 ? CARRY_I : 0) | (q1_el[tj] >= 0 ? CARRY_J : 0);
-        if (q1_el[ti] >= 0)
-            q1_el[ti] = -1;
-        if (q1_el[tj] >= 0)
-            q1_el[tj] = -1;
-        for (int l = 0, b = 0, o = 0; l < 4; l++)
-            for (int m = l; m < 4; m++, b++) {
+        w[6 * np + j] = carry[k];
+        for (int l = 0, b = 0, o = 0; l < 4 && rc == ISO_OK; l++)
+            for (int m = l; m < 4 && rc == ISO_OK; m++, b++) {
                 int *step = l != m ? &w[(17 + o++) * np + j] : NULL;
                 if (plan_block(s, p, e, map[l], map[m], &w[(7 + b) * np + j], step) != 0)
-                    return iso_err_set(err, ISO_ENOMEM, -1,
-                                       "out of memory planning the OpenCL assembly");
+                    rc = iso_err_set(err, ISO_ENOMEM, -1,
+                                     "out of memory planning the OpenCL assembly");
             }
-        i++;
+        cl->n_pair++;
     }
-    if (n > 0 && pad_items(p, w, PAIR_ROWS, n, np, 7, 10) != 0)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
-    for (int j = n; j < np; j++) /* padding carries no Q1 */
+    if (rc == ISO_OK && n > 0 && pad_items(p, w, PAIR_ROWS, n, np, 7, 10) != 0)
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int j = n; j < np && rc == ISO_OK; j++) /* padding carries no Q1 */
         w[6 * np + j] = 0;
-    return ISO_OK;
+    free(pe);
+    free(carry);
+    free(ends);
+    free(order);
+    return rc;
 }
 
 /* The restoration items, in element-list order. */
@@ -602,6 +631,40 @@ static int plan_restoration(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_er
     return ISO_OK;
 }
 
+/* Numbers A's blocks in the order the element kernels first add to them,
+ * so that the slots of the blocks an item adds to lie near those of the
+ * items before it (its neighbours, in Z-order), instead of all over the
+ * buffer at A's column order: fewer lines fetched for the scattered
+ * writes. reduce_blocks runs in this order too; each block's place in A is
+ * in its blk_dst. */
+static int order_blocks(iso_cl_assembler *cl, plan *p)
+{
+    int nb = cl->n_blocks, next = 0;
+    int *renum = malloc(((size_t)nb + 1) * sizeof *renum);
+    int *dst = malloc(4 * ((size_t)nb + 1) * sizeof *dst);
+    if (!renum || !dst) {
+        free(renum);
+        free(dst);
+        return -1;
+    }
+    for (int b = 0; b < nb; b++)
+        renum[b] = -1;
+    for (size_t i = 0; i < p->n[C_A]; i++)
+        if (renum[p->c[C_A][i].key] < 0)
+            renum[p->c[C_A][i].key] = next++;
+    for (int b = 0; b < nb; b++) /* one no element adds to: none, in practice */
+        if (renum[b] < 0)
+            renum[b] = next++;
+    for (size_t i = 0; i < p->n[C_A]; i++)
+        p->c[C_A][i].key = renum[p->c[C_A][i].key];
+    for (int b = 0; b < nb; b++)
+        memcpy(dst + 4 * renum[b], p->blk_dst + 4 * b, 4 * sizeof *dst);
+    free(p->blk_dst);
+    p->blk_dst = dst;
+    free(renum);
+    return 0;
+}
+
 /* The slots: A's blocks, handle blocks, linear parts, then the slots
  * nothing reads, each numbered in element-list order within its key. */
 static int plan_slots(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
@@ -615,6 +678,8 @@ static int plan_slots(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err
         if (p->c[C_A][i].key < 0)
             return iso_err_set(err, ISO_EINVAL, -1,
                                "OpenCL: internal error: an element block is not in the pattern");
+    if (order_blocks(cl, p) != 0)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     if (number_slots(p, C_A, cl->n_blocks, p->blk_dst, 0, 9, &p->blk_ptr, NULL) != 0 ||
         number_slots(p, C_HANDLE, s->nf, NULL, cl->hbase = p->blk_ptr[cl->n_blocks], 9, &p->hb_ptr,
                      &p->hb_vtx) != 0 ||
@@ -643,16 +708,17 @@ static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
     }
     for (int t = 0; t < nt; t++)
         p->fit_of_tri[t] = q1_el[t] = -1;
-    /* The fit items in element-list order: Q1's triangles and pairs' Ti. */
-    const int *tri = iso_mesh_triangles(s->m);
-    for (int i = 0; i < s->nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind == 1 || e->kind == 2)
-            fit_item(cl, p, tri, e->tri, i);
-        if (e->kind == 1)
-            q1_el[e->tri] = i;
-    }
+    for (int i = 0; i < s->nel; i++)
+        if (s->el[i].kind == 1)
+            q1_el[s->el[i].tri] = i;
+    /* The fit items: made in the pair items' order (plan_pairs), so that
+     * neighbours' records are near each other; then every element's
+     * triangle, so that each knows the first element that uses it. */
     int rc = plan_pairs(s, cl, p, q1_el, err);
+    const int *tri = iso_mesh_triangles(s->m);
+    for (int i = 0; i < s->nel && rc == ISO_OK; i++)
+        if (s->el[i].kind == 1 || s->el[i].kind == 2)
+            fit_item(cl, p, tri, s->el[i].tri, i);
     /* Every triangle element's Q1 goes with one of its interior edges. There
      * always is one: a triangle with no interior edge is a part of the mesh
      * of its own, which iso_solver_create refuses unless its three vertices
