@@ -211,7 +211,7 @@ INLINE void fit_lanes(const vd x[9], iso_weighting w, vd f[ISO_ELEM__FIT_STRIDE]
     f[ISO_ELEM__FIT_BAD] = (vd)((vm)((vd){0} + 1.0) & ~ok);
 }
 
-ISO_CLONES int iso_elem__fits(const iso_elem__fit_batch *b, iso_weighting w)
+ISO_CLONES static int fits_batch(const iso_elem__fit_batch *b, iso_weighting w)
 {
     vd x[9], f[ISO_ELEM__FIT_STRIDE];
     gather_points(b->x4, b->v[0], b->v[1], x, x + 3);
@@ -474,7 +474,7 @@ INLINE void edge_lanes(const vd x[12], const vd fi[ISO_ELEM__FIT_EDGE],
     put_diag(Q33, q + iso_elem__edge_block(3, 3));
 }
 
-ISO_CLONES void iso_elem__edges(iso_elem__edge_batch *b)
+ISO_CLONES static void edges_batch(iso_elem__edge_batch *b)
 {
     vd x[12], fi[16], fj[16], w[4];
     vm tr[6];
@@ -501,9 +501,9 @@ ISO_CLONES void iso_elem__edges(iso_elem__edge_batch *b)
     edge_lanes(x, fi, fj, w, tr, b->q);
 }
 
-ISO_CLONES void iso_elem__edge_one(const double x[12], const double fi[ISO_ELEM__FIT_EDGE],
-                                   const double fj[ISO_ELEM__FIT_EDGE], const double w[4],
-                                   vd q[ISO_ELEM__EDGE_VALUES])
+ISO_CLONES static void edge_one(const double x[12], const double fi[ISO_ELEM__FIT_EDGE],
+                                const double fj[ISO_ELEM__FIT_EDGE], const double w[4],
+                                vd q[ISO_ELEM__EDGE_VALUES])
 {
     vd xv[12], fiv[ISO_ELEM__FIT_EDGE], fjv[ISO_ELEM__FIT_EDGE], wv[4];
     vm tr[6] = {{0}};
@@ -519,4 +519,23 @@ ISO_CLONES void iso_elem__edge_one(const double x[12], const double fi[ISO_ELEM_
     for (int i = 0; i < 4; i++)
         wv[i] = (vd){0} + w[i];
     edge_lanes(xv, fiv, fjv, wv, tr, q);
+}
+
+/* The entry points: the clones are static, since GCC 12 exports a cloned
+ * function's resolver whatever its visibility says (test_exports). */
+int iso_elem__fits(const iso_elem__fit_batch *b, iso_weighting w)
+{
+    return fits_batch(b, w);
+}
+
+void iso_elem__edges(iso_elem__edge_batch *b)
+{
+    edges_batch(b);
+}
+
+void iso_elem__edge_one(const double x[12], const double fi[ISO_ELEM__FIT_EDGE],
+                        const double fj[ISO_ELEM__FIT_EDGE], const double w[4],
+                        vd q[ISO_ELEM__EDGE_VALUES])
+{
+    edge_one(x, fi, fj, w, q);
 }
