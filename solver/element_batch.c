@@ -1,13 +1,15 @@
 /* solver/element_batch.c -- rigid fits and interior-edge blocks in batches
  * of lanes (element_internal.h), the arithmetic of the C assembly path.
  *
- * The entry points are compiled three times, for AVX-512, AVX2 and the
- * x86-64 baseline, and the loader picks the widest the processor has
- * (GCC's target_clones). Every lane does the same operations in the same
- * order whichever runs, and nothing is contracted into fused multiply-adds
- * (ISO C mode), so the three give the same bits.
+ * The work behind each entry point is compiled three times, for AVX-512,
+ * AVX2 and the x86-64 baseline, and the loader picks the widest the
+ * processor has (GCC's target_clones). Every lane does the same operations
+ * in the same order whichever runs, and nothing is contracted into fused
+ * multiply-adds (ISO C mode), so the three give the same bits (cactus A
+ * and right-hand side compared across all three; test_element_batch holds
+ * a batch to the scalar code's bits).
  *
- * They read their inputs by reference: a lane's rows (a fit record, a
+ * Inputs are read by reference: a lane's rows (a fit record, a
  * vertex's coordinates) are loaded whole and turned into the structure of
  * arrays by an 8x8 transpose in registers, not stored lane by lane into
  * memory and read back as vectors, which waits on every store. */
