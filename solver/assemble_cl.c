@@ -1,40 +1,34 @@
 /* solver/assemble_cl.c -- the OpenCL assembly path (solver_internal.h).
  *
- * Per evaluation, three kernels fill an element buffer and two reduce it:
- *   fit_triangles  per triangle: the rigid fit (kept in a fit buffer, so
- *                  it is computed once per evaluation however many pairs
- *                  use it);
- *   pair_edges     per interior edge: ω(Q2_ij + Q2_ji) in the closed form of
- *                  iso_elem_edge_from_fits; both ordered pairs share the
- *                  same four vertices, so one record serves both. It also
- *                  adds (1−ω)Q1 of Ti and Tj where it carries them: every
- *                  triangle element is carried by one of its interior
- *                  edges, whose blocks include all of its own, so Q1 has
- *                  no records (a third of the buffer's bytes, and the
- *                  kernels' time is mostly the buffer's traffic);
- *   restore_edges  per edge, with restoration on: μ times its block and
- *                  its linear part;
- *   reduce_blocks  per 3x3 block of A_ff, reduce_rhs per free vertex: sum
- *                  the records listed for it in a gather map (CSR) built
- *                  once here from the slot map, in a fixed order.
- * Every record holds only what reaches A_ff or the right-hand side, already
- * weighted: upper 3x3 diagonal blocks, off-diagonal blocks with the rows of
- * their first vertex (the gather map lists a block whose other vertex has
- * the lower free index as −offset − 1, and reduce_blocks reads it
- * transposed), and per vertex the triple −Σ_handles Q vc (+ the
- * restoration's linear part).
- * The element kernels are written so that PoCL runs the work-items of a
- * group as vector lanes (check with POCL_VECTORIZER_REMARKS=1): their items
- * are padded to whole work-groups (no bounds check), nothing branches on
- * the data (selects instead, a singular fit is a status, not an early
- * return), every loop is unrolled and every helper inlined, so private
- * arrays are registers, and square roots are Clang's builtin (an
- * instruction; PoCL's sqrt is a call).
- * The reductions write every entry of A's value array and of B, straight
- * into s->A->x and s->B->x (wrapped as CL_MEM_USE_HOST_PTR buffers and left
- * mapped for reading between evaluations), so there are no atomics, no
- * host-side scatter and no allocation per evaluation, and the sums are
- * bit-identical from run to run. */
+ * Per evaluation, three kernels compute element blocks into a buffer of
+ * slots and two sum them:
+ *   fit_triangles  per triangle: the rigid fit, into a record (computed once
+ *                  per evaluation however many edges use it);
+ *   pair_edges     per interior edge: both ordered pairs' ω Q2 and the
+ *                  (1 − ω) Q1 of the triangles it carries, as one 12x12 block
+ *                  (element_batch.c's form: every triangle element is
+ *                  carried by one of its interior edges, whose blocks
+ *                  include all of its own);
+ *   restore_edges  per edge, with restoration on: μ times its block and its
+ *                  linear part;
+ *   reduce_blocks  per 3x3 block of A_ff, and reduce_rhs per free vertex:
+ *                  the sums.
+ * Where each element block goes is planned once, here: every 3x3 block an
+ * element kernel computes has a slot (nine values, or a diagonal block's
+ * upper six), and the slots of one block of A_ff are consecutive, in
+ * element-list order. So the element kernels write each block straight to
+ * its place (in the orientation A needs: the rows of the lower free
+ * index), and reduce_blocks sums a contiguous run of slots with no index
+ * to look up; blocks of a free and a handle vertex go to slots per free
+ * vertex, which reduce_rhs multiplies by the handle's velocity; blocks
+ * that reach neither go to slots of their own that nothing reads.
+ * The sums write every entry of A's value array and of B, straight into
+ * s->A->x and s->B->x (wrapped as CL_MEM_USE_HOST_PTR buffers and left
+ * mapped for reading between evaluations): no atomics, no host-side
+ * scatter, no allocation per evaluation, and sums in a fixed order,
+ * bit-identical from run to run. The element kernels are written so that
+ * PoCL runs the work-items of a group as vector lanes
+ * (assemble_cl_kernels.h says how). */
 #ifdef ISO_WITH_OPENCL
 
 #include <ctype.h>
@@ -53,12 +47,11 @@ typedef iso_solver__element element;
 typedef struct iso_cl_assembler iso_cl_assembler;
 #define local_count iso_solver__local_count
 
-/* Record sizes (doubles) for 2, 3, 4 local vertices: 6 per diagonal block,
- * 9 per pair of vertices, 3 right-hand-side values per vertex. */
-#define RECORD_SIZE(nl) (6 * (nl) + 9 * ((nl) * ((nl)-1) / 2) + 3 * (nl))
 #define FIT_STRIDE 16 /* must match the kernels' FIT_STRIDE */
-#define VF_FIXED (-1)
-#define VF_HANDLE (-2)
+#define PAIR_ROWS 23  /* rows of the pair kernel's work list */
+#define REST_ROWS 5   /* rows of the restoration kernel's work list */
+#define CARRY_I 64    /* pair flags: adds Ti's Q1, Tj's Q1 */
+#define CARRY_J 128
 
 enum { K_FIT, K_PAIR, K_RESTORE, K_BLOCKS, K_RHS, K_COUNT };
 static const char *const kernel_names[K_COUNT] = {"fit_triangles", "pair_edges", "restore_edges",
@@ -72,22 +65,22 @@ struct iso_cl_assembler {
     cl_kernel k[K_COUNT];
     size_t wg[K_COUNT];
     /* static inputs, uploaded once */
-    cl_mem vflag, fit_work, pair_work, rest_work, rest_par;
-    cl_mem blk_dst, blk_ptr, blk_src, rhs_ptr, rhs_src;
+    cl_mem fit_work, pair_work, rest_work, rest_lin, rest_par;
+    cl_mem blk_dst, blk_ptr, hb_ptr, hb_vtx, lin_ptr;
     /* per evaluation */
-    cl_mem x, vc, fit, elem, status;
+    cl_mem x, vc, fit, slot, pivot;
     cl_mem A, B; /* wrap s->A->x and s->B->x */
     double *A_host, *B_host;
     size_t nnz, nx;
     int n_fit, n_pair, n_rest, n_blocks, nf;
-    int np;        /* pair items padded to whole work-groups */
-    int nfp;       /* fit items padded to whole work-groups */
-    int nrp;       /* restoration items padded to whole work-groups */
-    int pair_base; /* the first pair record in the element buffer */
+    int np;    /* pair items padded to whole work-groups */
+    int nfp;   /* fit items padded to whole work-groups */
+    int nrp;   /* restoration items padded to whole work-groups */
+    int hbase; /* where the handle blocks' slots start in slot */
     int mapped;
-    int *status_host; /* n_fit, wrapped by `status` */
-    int *first_el;    /* per fit item: first element (list order) using it as Ti or Q1 */
-    int *tri_of;      /* per fit item: its triangle */
+    double *pivot_host; /* nfp: each fit's last Cholesky pivot, wrapped by `pivot` */
+    int *first_el;      /* per fit item: first element (list order) using it as Ti or Q1 */
+    int *tri_of;        /* per fit item: its triangle */
     char device[128];
 };
 
@@ -316,21 +309,33 @@ static int build_program(iso_cl_assembler *cl, iso_err *err)
     return ISO_OK;
 }
 
-/* ===== work lists and gather maps ======================================= */
+/* ===== the plan: work lists and slots =================================== */
+
+/* A block (or linear part) an element kernel computes, and the int of a
+ * work list that gets the offset of its slot: key is the block of A_ff it
+ * adds to (A), or the free vertex (handle blocks, linear parts); hv the
+ * handle vertex of a handle block. */
+typedef struct contrib {
+    int key, hv;
+    int *at;
+} contrib;
+
+enum { C_A, C_HANDLE, C_LIN, C_DUMP, C_KINDS };
 
 /* Host-side lists built once; freed after upload. */
 typedef struct plan {
-    int *fit_work;  /* 4 per fit item */
-    int *pair_work; /* 6 rows of np: the pair items, value-major */
-    int *rest_work; /* 4 per restoration item */
-    double *rest_par;
-    int *fit_of_tri; /* per triangle: fit item or −1 */
-    int *blk_of_pos; /* per value of A: the block starting there, or −1 */
-    int *blk_dst;    /* 4 per block */
-    int *gb, *go;    /* (block, record offset) contributions, in work order */
-    int *gr, *gro;   /* (free vertex, record offset) contributions */
-    size_t ngb, ngr, nrec;
-    int *blk_ptr, *blk_src, *rhs_ptr, *rhs_src;
+    int *fit_work;    /* 4 per fit item */
+    int *pair_work;   /* PAIR_ROWS rows of np */
+    int *rest_work;   /* REST_ROWS rows of nrp: v0, v1, slots of blocks 00, 01, 11 */
+    int *rest_lin;    /* 2 rows of nrp: slots of the linear parts at v0, v1 */
+    double *rest_par; /* 2 rows of nrp: rest length, w_e */
+    int *fit_of_tri;  /* per triangle: fit item or −1 */
+    int *blk_of_pos;  /* per value of A: the block starting there, or −1 */
+    int *blk_dst;     /* 4 per block */
+    contrib *c[C_KINDS];
+    size_t n[C_KINDS], cap[C_KINDS];
+    int *blk_ptr, *hb_ptr, *hb_vtx, *lin_ptr;
+    size_t nslot; /* doubles in the slot buffer */
 } plan;
 
 static void plan_free(plan *p)
@@ -338,18 +343,17 @@ static void plan_free(plan *p)
     free(p->fit_work);
     free(p->pair_work);
     free(p->rest_work);
+    free(p->rest_lin);
     free(p->rest_par);
     free(p->fit_of_tri);
     free(p->blk_of_pos);
     free(p->blk_dst);
-    free(p->gb);
-    free(p->go);
-    free(p->gr);
-    free(p->gro);
+    for (int k = 0; k < C_KINDS; k++)
+        free(p->c[k]);
     free(p->blk_ptr);
-    free(p->blk_src);
-    free(p->rhs_ptr);
-    free(p->rhs_src);
+    free(p->hb_ptr);
+    free(p->hb_vtx);
+    free(p->lin_ptr);
 }
 
 /* Fit item of triangle t (made on first use); `el` the element index that
@@ -360,7 +364,7 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
     if (f < 0) {
         f = p->fit_of_tri[t] = cl->n_fit++;
         memcpy(p->fit_work + 4 * f, tri + 3 * t, 3 * sizeof(int));
-        p->fit_work[4 * f + 3] = -1;
+        p->fit_work[4 * f + 3] = 0;
         cl->first_el[f] = el;
         cl->tri_of[f] = t;
     }
@@ -369,62 +373,88 @@ static int fit_item(iso_cl_assembler *cl, plan *p, const int *tri, int t, int el
     return f;
 }
 
-/* Records where a record's blocks and right-hand-side triples go. The
- * record's local vertex x is element e's local vertex map[x] (nl of them);
- * the record sits at offset `rec`. */
-static void gather_record(const iso_solver *s, plan *p, const element *e, const int *map, int nl,
-                          int rec, int force_rhs)
+static int add_contrib(plan *p, int kind, int key, int hv, int *at)
 {
-    int enl = local_count(e), pair = 0, handle = force_rhs;
-    const int *sl = s->slots + e->slot;
-    int fv[4];
-    for (int a = 0; a < nl; a++) {
-        int v = e->v[map[a]];
-        fv[a] = s->free_of[v];
-        handle |= fv[a] < 0 && s->r->kind[v] == ISO_HANDLE;
+    if (p->n[kind] == p->cap[kind]) {
+        size_t cap = p->cap[kind] ? 2 * p->cap[kind] : 1024;
+        contrib *c = realloc(p->c[kind], cap * sizeof *c);
+        if (!c)
+            return -1;
+        p->c[kind] = c;
+        p->cap[kind] = cap;
     }
-    for (int a = 0; a < nl; a++)
-        if (fv[a] >= 0) {
-            p->gb[p->ngb] = p->blk_of_pos[sl[3 * (map[a] * enl + map[a])]];
-            p->go[p->ngb++] = rec + 6 * a;
-        }
-    for (int a = 0; a < nl; a++)
-        for (int b = a + 1; b < nl; b++, pair++) {
-            if (fv[a] < 0 || fv[b] < 0)
-                continue;
-            int lo = fv[a] < fv[b] ? map[a] : map[b], hi = fv[a] < fv[b] ? map[b] : map[a];
-            int off = rec + 6 * nl + 9 * pair; /* rows of a, columns of b */
-            p->gb[p->ngb] = p->blk_of_pos[sl[3 * (lo * enl + hi)]];
-            p->go[p->ngb++] = fv[a] < fv[b] ? off : -off - 1; /* rows of b: transposed */
-        }
-    if (!handle)
-        return;
-    for (int a = 0; a < nl; a++)
-        if (fv[a] >= 0) {
-            p->gr[p->ngr] = fv[a];
-            p->gro[p->ngr++] = rec + 6 * nl + 9 * pair + 3 * a;
-        }
+    p->c[kind][p->n[kind]++] = (contrib){key, hv, at};
+    return 0;
 }
 
-/* Stable counting sort of (key, value) into CSR: order within a key is the
- * order of contribution, which is what makes the sums reproducible. */
-static int make_csr(const int *key, const int *val, size_t n, int nkeys, int **ptr, int **src)
+/* Plans block (la, lb) of element e (local vertices; the block's rows are
+ * la's): its slot offset goes to *at, and, if step is not NULL, the step
+ * between its rows in the slot, 3, or 1 where it is to be written
+ * transposed (the rows of lb), since a slot holds the rows of the lower
+ * free index (A), or of the free vertex (handle block). */
+static int plan_block(const iso_solver *s, plan *p, const element *e, int la, int lb, int *at,
+                      int *step)
 {
-    *ptr = calloc((size_t)nkeys + 1, sizeof **ptr);
-    *src = malloc((n + 1) * sizeof **src);
-    int *cur = malloc(((size_t)nkeys + 1) * sizeof *cur);
-    if (!*ptr || !*src || !cur) {
-        free(cur);
+    int nl = local_count(e), va = e->v[la], vb = e->v[lb];
+    int fa = s->free_of[va], fb = s->free_of[vb];
+    const int *sl = s->slots + e->slot;
+    if (step)
+        *step = 3;
+    if (fa >= 0 && fb >= 0) {
+        int lo = fa <= fb ? la : lb, hi = lo == la ? lb : la;
+        if (step && fa > fb)
+            *step = 1;
+        return add_contrib(p, C_A, p->blk_of_pos[sl[3 * (lo * nl + hi)]], 0, at);
+    }
+    if (la != lb && (fa >= 0) != (fb >= 0)) {
+        int f = fa >= 0 ? fa : fb, h = fa >= 0 ? vb : va;
+        if (s->r->kind[h] == ISO_HANDLE) {
+            if (step && fb >= 0)
+                *step = 1;
+            return add_contrib(p, C_HANDLE, f, h, at);
+        }
+    }
+    return add_contrib(p, C_DUMP, 0, 0, at);
+}
+
+/* Numbers the slots of one kind: stable by key, so that each key's slots
+ * are consecutive, in the order planned (element-list order). From offset
+ * `base` on, `size` doubles a slot, or 6 where `diag` (A's blocks, may be
+ * NULL) flags the key as a diagonal block. ptr (nkeys + 1) gets the offset
+ * of each key's first slot, hv (may be NULL) each slot's handle vertex. */
+static int number_slots(plan *p, int kind, int nkeys, const int *diag, int base, int size,
+                        int **ptr, int **hv)
+{
+    size_t n = p->n[kind];
+    const contrib *c = p->c[kind];
+    int *count = calloc((size_t)nkeys + 1, sizeof *count);
+    int *next = malloc(((size_t)nkeys + 1) * sizeof *next);
+    *ptr = malloc(((size_t)nkeys + 1) * sizeof **ptr);
+    if (!count || !next || !*ptr || (hv && !(*hv = malloc((n + 1) * sizeof **hv)))) {
+        free(count);
+        free(next);
         return -1;
     }
     for (size_t i = 0; i < n; i++)
-        (*ptr)[key[i] + 1]++;
-    for (int k = 0; k < nkeys; k++)
-        (*ptr)[k + 1] += (*ptr)[k];
-    memcpy(cur, *ptr, (size_t)nkeys * sizeof *cur);
-    for (size_t i = 0; i < n; i++)
-        (*src)[cur[key[i]]++] = val[i];
-    free(cur);
+        count[c[i].key]++;
+    int at = base, slots = 0;
+    for (int k = 0; k < nkeys; k++) {
+        int nk = count[k];
+        (*ptr)[k] = next[k] = at;
+        at += nk * (diag && diag[4 * k + 3] ? 6 : size);
+        count[k] = slots; /* now: the number of k's first slot */
+        slots += nk;
+    }
+    (*ptr)[nkeys] = at;
+    for (size_t i = 0; i < n; i++) {
+        int k = c[i].key;
+        *c[i].at = next[k];
+        next[k] += diag && diag[4 * k + 3] ? 6 : size;
+        if (hv)
+            (*hv)[count[k]++] = c[i].hv;
+    }
+    free(count);
+    free(next);
     return 0;
 }
 
@@ -456,165 +486,259 @@ static int find_blocks(const iso_solver *s, iso_cl_assembler *cl, plan *p)
     return 0;
 }
 
-/* Builds the work lists for the three element kernels and the gather maps
- * of the two reductions, in element-list order. */
+/* Pads a work list of `rows` rows from n items to np (whole work-groups):
+ * a padding item repeats item 0, but its slots (rows slot0 to slot0 +
+ * nslots − 1) are slots of its own that nothing reads. */
+static int pad_items(plan *p, int *work, int rows, int n, int np, int slot0, int nslots)
+{
+    for (int j = n; j < np; j++)
+        for (int r = 0; r < rows; r++) {
+            work[r * np + j] = work[r * np];
+            if (r >= slot0 && r < slot0 + nslots &&
+                add_contrib(p, C_DUMP, 0, 0, &work[r * np + j]) != 0)
+                return -1;
+        }
+    return 0;
+}
+
+static size_t padded(int n, size_t wg)
+{
+    return ((size_t)n + wg - 1) / wg * wg;
+}
+
+/* The pair elements' indices (the first of each mirrored two) in
+ * element-list order, into *out (n of them). */
+static int pair_elements(const iso_solver *s, int **out, int *n, iso_err *err)
+{
+    *n = 0;
+    *out = malloc(((size_t)s->nel + 1) * sizeof **out);
+    if (!*out)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int i = 0; i < s->nel; i++)
+        if (s->el[i].kind == 2) {
+            if (i + 1 >= s->nel || !iso_solver__is_mirror(&s->el[i], &s->el[i + 1]))
+                return iso_err_set(err, ISO_EINVAL, -1,
+                                   "OpenCL: internal error: pair element %d has no mirror", i);
+            (*out)[(*n)++] = i++;
+        }
+    return ISO_OK;
+}
+
+/* The pair items in Z-order (iso_solver__z_order: what one item touches in
+ * x, the fit records and the slots, the next ones touch again; the slots
+ * of one block are in this order too). Each triangle element's Q1 goes
+ * with the first pair element, in element-list order, whose Ti or Tj it
+ * is, as on the C path (q1_el: the element, −1 once carried). */
+static int plan_pairs(iso_solver *s, iso_cl_assembler *cl, plan *p, int *q1_el, iso_err *err)
+{
+    const int *tri = iso_mesh_triangles(s->m);
+    int n, *pe = NULL;
+    int rc = pair_elements(s, &pe, &n, err);
+    int np = cl->np = (int)padded(n, cl->wg[K_PAIR]);
+    int *carry = malloc(((size_t)n + 1) * sizeof *carry),
+        *ends = malloc(2 * ((size_t)n + 1) * sizeof *ends);
+    int *order = malloc(((size_t)n + 1) * sizeof *order);
+    p->pair_work = malloc(((size_t)PAIR_ROWS * (size_t)np + 1) * sizeof(int));
+    if (rc == ISO_OK && (!carry || !ends || !order || !p->pair_work))
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int k = 0; k < n && rc == ISO_OK; k++) {
+        const element *e = &s->el[pe[k]];
+        int ti = e->tri, tj = s->el[pe[k] + 1].tri, map[4];
+        carry[k] = (q1_el[ti] >= 0 ? CARRY_I : 0) | (q1_el[tj] >= 0 ? CARRY_J : 0);
+        if (q1_el[ti] >= 0)
+            q1_el[ti] = -1;
+        if (q1_el[tj] >= 0)
+            q1_el[tj] = -1;
+        iso_solver__edge_layout(e, map);
+        ends[k] = e->v[map[0]];
+        ends[n + k] = e->v[map[1]];
+    }
+    if (rc == ISO_OK && iso_solver__z_order(s->m, n, ends, ends + n, order) != 0)
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    int *w = p->pair_work;
+    for (int j = 0; j < n && rc == ISO_OK; j++) {
+        int k = order[j], i = pe[k];
+        const element *e = &s->el[i];
+        int ti = e->tri, tj = s->el[i + 1].tri, map[4];
+        /* the edge layout (a, b, p, q): the shared edge in Ti's order,
+         * Ti's third corner, Tj's third corner */
+        iso_solver__edge_layout(e, map);
+        for (int l = 0; l < 4; l++)
+            w[l * np + j] = e->v[map[l]];
+        w[4 * np + j] = fit_item(cl, p, tri, ti, i);
+        w[5 * np + j] = fit_item(cl, p, tri, tj, i + 1);
+        w[6 * np + j] = carry[k];
+        for (int l = 0, b = 0, o = 0; l < 4 && rc == ISO_OK; l++)
+            for (int m = l; m < 4 && rc == ISO_OK; m++, b++) {
+                int *step = l != m ? &w[(17 + o++) * np + j] : NULL;
+                if (plan_block(s, p, e, map[l], map[m], &w[(7 + b) * np + j], step) != 0)
+                    rc = iso_err_set(err, ISO_ENOMEM, -1,
+                                     "out of memory planning the OpenCL assembly");
+            }
+        cl->n_pair++;
+    }
+    if (rc == ISO_OK && n > 0 && pad_items(p, w, PAIR_ROWS, n, np, 7, 10) != 0)
+        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int j = n; j < np && rc == ISO_OK; j++) /* padding carries no Q1 */
+        w[6 * np + j] = 0;
+    free(pe);
+    free(carry);
+    free(ends);
+    free(order);
+    return rc;
+}
+
+/* The restoration items, in element-list order. */
+static int plan_restoration(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
+{
+    int n = 0;
+    for (int i = 0; i < s->nel; i++)
+        n += s->el[i].kind == 3;
+    int nr = cl->nrp = (int)padded(n, cl->wg[K_RESTORE]);
+    p->rest_work = malloc(((size_t)REST_ROWS * (size_t)nr + 1) * sizeof(int));
+    p->rest_lin = malloc((2 * (size_t)nr + 1) * sizeof(int));
+    p->rest_par = malloc((2 * (size_t)nr + 1) * sizeof(double));
+    if (!p->rest_work || !p->rest_lin || !p->rest_par)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    int *w = p->rest_work, *lin = p->rest_lin;
+    for (int i = 0; i < s->nel; i++) {
+        const element *e = &s->el[i];
+        if (e->kind != 3)
+            continue;
+        int j = cl->n_rest++, rc = 0;
+        w[j] = e->v[0];
+        w[nr + j] = e->v[1];
+        p->rest_par[j] = s->rest_len[e->tri];
+        p->rest_par[nr + j] = s->edge_w[e->tri];
+        /* blocks 00, 01, 11: symmetric, so never written transposed */
+        rc |= plan_block(s, p, e, 0, 0, &w[2 * nr + j], NULL);
+        rc |= plan_block(s, p, e, 0, 1, &w[3 * nr + j], NULL);
+        rc |= plan_block(s, p, e, 1, 1, &w[4 * nr + j], NULL);
+        for (int end = 0; end < 2; end++) {
+            int f = s->free_of[e->v[end]];
+            rc |= add_contrib(p, f >= 0 ? C_LIN : C_DUMP, f, 0, &lin[end * nr + j]);
+        }
+        if (rc != 0)
+            return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    }
+    if (n > 0 &&
+        (pad_items(p, w, REST_ROWS, n, nr, 2, 3) != 0 || pad_items(p, lin, 2, n, nr, 0, 2) != 0))
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    for (int j = n; j < nr; j++) {
+        p->rest_par[j] = p->rest_par[0];
+        p->rest_par[nr + j] = p->rest_par[nr];
+    }
+    return ISO_OK;
+}
+
+/* Numbers A's blocks in the order the element kernels first add to them,
+ * so that the slots of the blocks an item adds to lie near those of the
+ * items before it (its neighbours, in Z-order), instead of all over the
+ * buffer at A's column order: fewer lines fetched for the scattered
+ * writes. reduce_blocks runs in this order too; each block's place in A is
+ * in its blk_dst. */
+static int order_blocks(iso_cl_assembler *cl, plan *p)
+{
+    int nb = cl->n_blocks, next = 0;
+    int *renum = malloc(((size_t)nb + 1) * sizeof *renum);
+    int *dst = malloc(4 * ((size_t)nb + 1) * sizeof *dst);
+    if (!renum || !dst) {
+        free(renum);
+        free(dst);
+        return -1;
+    }
+    for (int b = 0; b < nb; b++)
+        renum[b] = -1;
+    for (size_t i = 0; i < p->n[C_A]; i++)
+        if (renum[p->c[C_A][i].key] < 0)
+            renum[p->c[C_A][i].key] = next++;
+    for (int b = 0; b < nb; b++) /* one no element adds to: none, in practice */
+        if (renum[b] < 0)
+            renum[b] = next++;
+    for (size_t i = 0; i < p->n[C_A]; i++)
+        p->c[C_A][i].key = renum[p->c[C_A][i].key];
+    for (int b = 0; b < nb; b++)
+        memcpy(dst + 4 * renum[b], p->blk_dst + 4 * b, 4 * sizeof *dst);
+    free(p->blk_dst);
+    p->blk_dst = dst;
+    free(renum);
+    return 0;
+}
+
+/* The slots: A's blocks, handle blocks, linear parts, then the slots
+ * nothing reads, each numbered in element-list order within its key. */
+static int plan_slots(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
+{
+    size_t most = 9 * (p->n[C_A] + p->n[C_HANDLE] + p->n[C_DUMP]) + 3 * p->n[C_LIN];
+    if (most > INT_MAX)
+        return iso_err_set(err, ISO_ENOMEM, -1,
+                           "OpenCL: the slot buffer (%zu values) is too large for int offsets",
+                           most);
+    for (size_t i = 0; i < p->n[C_A]; i++)
+        if (p->c[C_A][i].key < 0)
+            return iso_err_set(err, ISO_EINVAL, -1,
+                               "OpenCL: internal error: an element block is not in the pattern");
+    if (order_blocks(cl, p) != 0)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    if (number_slots(p, C_A, cl->n_blocks, p->blk_dst, 0, 9, &p->blk_ptr, NULL) != 0 ||
+        number_slots(p, C_HANDLE, s->nf, NULL, cl->hbase = p->blk_ptr[cl->n_blocks], 9, &p->hb_ptr,
+                     &p->hb_vtx) != 0 ||
+        number_slots(p, C_LIN, s->nf, NULL, p->hb_ptr[s->nf], 3, &p->lin_ptr, NULL) != 0)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    size_t dbase = (size_t)p->lin_ptr[s->nf];
+    for (size_t i = 0; i < p->n[C_DUMP]; i++)
+        *p->c[C_DUMP][i].at = (int)(dbase + 9 * i);
+    p->nslot = dbase + 9 * p->n[C_DUMP];
+    return ISO_OK;
+}
+
+/* Builds the work lists of the three element kernels and the slots. */
 static int make_plan(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
 {
-    const iso_mesh *m = s->m;
-    int nt = iso_mesh_triangle_count(m), nel = s->nel;
-    const int *tri = iso_mesh_triangles(m);
-    size_t cap = (size_t)nel + 1;
+    int nt = iso_mesh_triangle_count(s->m);
     p->fit_work = malloc(4 * ((size_t)nt + 1 + cl->wg[K_FIT]) * sizeof(int));
     p->fit_of_tri = malloc(((size_t)nt + 1) * sizeof(int));
     cl->first_el = malloc(((size_t)nt + 1) * sizeof(int));
     cl->tri_of = malloc(((size_t)nt + 1) * sizeof(int));
-    p->rest_work = malloc(4 * (cap + cl->wg[K_RESTORE]) * sizeof(int));
-    p->rest_par = malloc(2 * (cap + cl->wg[K_RESTORE]) * sizeof(double));
-    p->gb = malloc(10 * cap * sizeof(int));
-    p->go = malloc(10 * cap * sizeof(int));
-    p->gr = malloc(4 * cap * sizeof(int));
-    p->gro = malloc(4 * cap * sizeof(int));
-    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !p->rest_work ||
-        !p->rest_par || !p->gb || !p->go || !p->gr || !p->gro || find_blocks(s, cl, p) != 0)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
-    for (int t = 0; t < nt; t++)
-        p->fit_of_tri[t] = -1;
-
-    /* The fit items first, padded to whole work-groups. */
-    for (int i = 0; i < nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind == 1 || e->kind == 2)
-            fit_item(cl, p, tri, e->tri, i);
-        if (e->kind == 2 && i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
-            fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
-            i++;
-        }
-    }
-    size_t wgf = cl->wg[K_FIT];
-    cl->nfp = (int)(((size_t)cl->n_fit + wgf - 1) / wgf * wgf);
-    for (int f = 0; f < cl->nfp; f++) {
-        if (f >= cl->n_fit) /* padding: item 0 again */
-            memcpy(p->fit_work + 4 * f, p->fit_work, 3 * sizeof(int));
-        p->fit_work[4 * f + 3] = 0;
-    }
-    /* Which pair item carries each triangle element's Q1: the first whose
-     * Ti or Tj it is (q1_el: the element, −1 once carried). */
     int *q1_el = malloc(((size_t)nt + 1) * sizeof *q1_el);
-    if (!q1_el)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
-    for (int t = 0; t < nt; t++)
-        q1_el[t] = -1;
-    for (int i = 0; i < nel; i++)
-        if (s->el[i].kind == 1)
-            q1_el[s->el[i].tri] = i;
-    size_t rec = 0;
-    /* Pair items are padded to np, whole work-groups, so that the kernel
-     * needs no bounds check; their work list is value-major over np. */
-    int n_items = 0;
-    for (int i = 0; i < nel; i++)
-        if (s->el[i].kind == 2) {
-            n_items++;
-            i += i + 1 < nel && iso_solver__is_mirror(&s->el[i], &s->el[i + 1]);
-        }
-    size_t wg = cl->wg[K_PAIR];
-    cl->np = (int)(((size_t)n_items + wg - 1) / wg * wg);
-    int np = cl->np;
-    p->pair_work = malloc(8 * ((size_t)np + 1) * sizeof(int));
-    if (!p->pair_work) {
+    if (!p->fit_work || !p->fit_of_tri || !cl->first_el || !cl->tri_of || !q1_el ||
+        find_blocks(s, cl, p) != 0) {
         free(q1_el);
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
     }
-    /* Each triangle element's Q1 goes with the first pair item whose Ti or
-     * Tj it is. There always is one: a triangle with no interior edge is a
-     * part of the mesh of its own, which iso_solver_create refuses unless
-     * its three vertices are constrained, and then it is no element. */
-    for (int i = 0, j = 0; i < nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind != 2)
-            continue;
-        int ti = e->tri, tj = -1;
-        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1]))
-            tj = s->el[++i].tri;
-        p->pair_work[6 * np + j] = q1_el[ti] >= 0;
-        if (q1_el[ti] >= 0)
-            q1_el[ti] = -1;
-        p->pair_work[7 * np + j] = tj >= 0 && q1_el[tj] >= 0;
-        if (tj >= 0 && q1_el[tj] >= 0)
-            q1_el[tj] = -1;
-        j++;
-    }
     for (int t = 0; t < nt; t++)
-        if (q1_el[t] >= 0) {
-            free(q1_el);
-            return iso_err_set(err, ISO_EINVAL, -1,
-                               "OpenCL: internal error: triangle %d is an element, but no "
-                               "interior edge carries it",
-                               t);
-        }
+        p->fit_of_tri[t] = q1_el[t] = -1;
+    for (int i = 0; i < s->nel; i++)
+        if (s->el[i].kind == 1)
+            q1_el[s->el[i].tri] = i;
+    /* The fit items: made in the pair items' order (plan_pairs), so that
+     * neighbours' records are near each other; then every element's
+     * triangle, so that each knows the first element that uses it. */
+    int rc = plan_pairs(s, cl, p, q1_el, err);
+    const int *tri = iso_mesh_triangles(s->m);
+    for (int i = 0; i < s->nel && rc == ISO_OK; i++)
+        if (s->el[i].kind == 1 || s->el[i].kind == 2)
+            fit_item(cl, p, tri, s->el[i].tri, i);
+    /* Every triangle element's Q1 goes with one of its interior edges. There
+     * always is one: a triangle with no interior edge is a part of the mesh
+     * of its own, which iso_solver_create refuses unless its three vertices
+     * are constrained, and then it is no element. */
+    for (int t = 0; t < nt && rc == ISO_OK; t++)
+        if (q1_el[t] >= 0)
+            rc = iso_err_set(err, ISO_EINVAL, -1,
+                             "OpenCL: internal error: triangle %d is an element, but no "
+                             "interior edge carries it",
+                             t);
     free(q1_el);
-    int pair_base = (int)rec;
-    for (int i = 0; i < nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind != 2)
-            continue;
-        /* Record order (a, b, p, q): the shared edge in Ti's order, Ti's
-         * third corner, Tj's third corner; so the kernel's indices are
-         * constants. map: record local -> e's local. */
-        int map[4], j = cl->n_pair;
-        iso_solver__edge_layout(e, map);
-        for (int l = 0; l < 4; l++)
-            p->pair_work[l * np + j] = e->v[map[l]];
-        p->pair_work[4 * np + j] = fit_item(cl, p, tri, e->tri, i);
-        p->pair_work[5 * np + j] = -1;
-        if (i + 1 < nel && iso_solver__is_mirror(e, &s->el[i + 1])) {
-            p->pair_work[5 * np + j] = fit_item(cl, p, tri, s->el[i + 1].tri, i + 1);
-            i++;
-        }
-        gather_record(s, p, e, map, 4, (int)rec + RECORD_SIZE(4) * j, 0);
-        cl->n_pair++;
-    }
-    for (int j = cl->n_pair; j < np; j++) /* padding: item 0 again, without mirror or Q1 */
-        for (int r = 0; r < 8; r++)
-            p->pair_work[r * np + j] = r >= 5 ? (r == 5 ? -1 : 0) : p->pair_work[r * np];
-    rec += (size_t)RECORD_SIZE(4) * (size_t)np;
-    cl->pair_base = pair_base;
-    for (int i = 0; i < nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind != 3)
-            continue;
-        int *w = p->rest_work + 4 * cl->n_rest;
-        w[0] = e->v[0];
-        w[1] = e->v[1];
-        w[2] = (int)rec;
-        w[3] = 0;
-        p->rest_par[2 * cl->n_rest] = s->rest_len[e->tri];
-        p->rest_par[2 * cl->n_rest + 1] = s->edge_w[e->tri];
-        static const int id[2] = {0, 1};
-        gather_record(s, p, e, id, 2, (int)rec, 1);
-        rec += RECORD_SIZE(2);
-        cl->n_rest++;
-    }
-    /* padding to whole work-groups: item 0 again, into records of its own */
-    size_t wgr = cl->wg[K_RESTORE];
-    cl->nrp = (int)(((size_t)cl->n_rest + wgr - 1) / wgr * wgr);
-    for (int j = cl->n_rest; j < cl->nrp; j++) {
-        memcpy(p->rest_work + 4 * j, p->rest_work, 4 * sizeof(int));
-        memcpy(p->rest_par + 2 * j, p->rest_par, 2 * sizeof(double));
-        p->rest_work[4 * j + 2] = (int)rec;
-        rec += RECORD_SIZE(2);
-    }
-    if (rec > INT_MAX)
-        return iso_err_set(err, ISO_ENOMEM, -1,
-                           "OpenCL: the element buffer (%zu values) is too large for int offsets",
-                           rec);
-    p->nrec = rec;
-    for (size_t i = 0; i < p->ngb; i++)
-        if (p->gb[i] < 0)
-            return iso_err_set(err, ISO_EINVAL, -1,
-                               "OpenCL: internal error: an element block is not in the pattern");
-    if (make_csr(p->gb, p->go, p->ngb, cl->n_blocks, &p->blk_ptr, &p->blk_src) != 0 ||
-        make_csr(p->gr, p->gro, p->ngr, s->nf, &p->rhs_ptr, &p->rhs_src) != 0)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the OpenCL assembly");
+    if (rc == ISO_OK)
+        rc = plan_restoration(s, cl, p, err);
+    if (rc == ISO_OK)
+        rc = plan_slots(s, cl, p, err);
+    if (rc != ISO_OK)
+        return rc;
+    cl->nfp = (int)padded(cl->n_fit, cl->wg[K_FIT]);
+    for (int f = cl->n_fit; f < cl->nfp; f++) /* padding: item 0 again, into its own record */
+        memcpy(p->fit_work + 4 * f, p->fit_work, 4 * sizeof(int));
     return ISO_OK;
 }
 
@@ -640,49 +764,38 @@ static int make_buffer(iso_cl_assembler *cl, cl_mem *out, cl_mem_flags flags, si
 
 #define RO_COPY (CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR)
 
+/* A read-only buffer from a host list: a table of them keeps upload short. */
+typedef struct upload_item {
+    cl_mem *mem;
+    const void *host;
+    size_t bytes;
+    const char *what;
+} upload_item;
+
 static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
 {
-    int *vflag = malloc(((size_t)s->nv + 1) * sizeof *vflag);
-    if (!vflag)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
-    for (int i = 0; i < s->nv; i++)
-        vflag[i] = s->free_of[i] >= 0            ? s->free_of[i]
-                   : s->r->kind[i] == ISO_HANDLE ? VF_HANDLE
-                                                 : VF_FIXED;
-    size_t I = sizeof(int), D = sizeof(double);
-    int rc = make_buffer(cl, &cl->vflag, RO_COPY, (size_t)s->nv * I, vflag, "vertex flag", err);
-    free(vflag);
-    cl->status_host = malloc(((size_t)cl->nfp + 1) * I);
-    if (!cl->status_host)
+    size_t I = sizeof(int), D = sizeof(double), nf = (size_t)s->nf;
+    cl->pivot_host = malloc(((size_t)cl->nfp + 1) * D);
+    if (!cl->pivot_host)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory");
     cl->A_host = s->A->x;
     cl->B_host = s->B->x;
+    const upload_item ro[] = {
+        {&cl->fit_work, p->fit_work, 4 * (size_t)cl->nfp * I, "triangle list"},
+        {&cl->pair_work, p->pair_work, PAIR_ROWS * (size_t)cl->np * I, "pair list"},
+        {&cl->rest_work, p->rest_work, REST_ROWS * (size_t)cl->nrp * I, "edge list"},
+        {&cl->rest_lin, p->rest_lin, 2 * (size_t)cl->nrp * I, "edge list"},
+        {&cl->rest_par, p->rest_par, 2 * (size_t)cl->nrp * D, "edge parameter"},
+        {&cl->blk_dst, p->blk_dst, 4 * (size_t)cl->n_blocks * I, "block"},
+        {&cl->blk_ptr, p->blk_ptr, ((size_t)cl->n_blocks + 1) * I, "block slot"},
+        {&cl->hb_ptr, p->hb_ptr, (nf + 1) * I, "handle slot"},
+        {&cl->hb_vtx, p->hb_vtx, p->n[C_HANDLE] * I, "handle vertex"},
+        {&cl->lin_ptr, p->lin_ptr, (nf + 1) * I, "linear-part slot"},
+    };
+    int rc = ISO_OK;
+    for (size_t i = 0; i < sizeof ro / sizeof ro[0] && rc == ISO_OK; i++)
+        rc = make_buffer(cl, ro[i].mem, RO_COPY, ro[i].bytes, (void *)ro[i].host, ro[i].what, err);
     cl_mem_flags use = CL_MEM_READ_WRITE | CL_MEM_USE_HOST_PTR;
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->fit_work, RO_COPY, 4 * (size_t)cl->nfp * I, p->fit_work,
-                         "triangle list", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->pair_work, RO_COPY, 8 * (size_t)cl->np * I, p->pair_work,
-                         "pair list", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_work, RO_COPY, 4 * (size_t)cl->nrp * I, p->rest_work,
-                         "edge list", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rest_par, RO_COPY, 2 * (size_t)cl->nrp * D, p->rest_par,
-                         "edge parameter", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->blk_dst, RO_COPY, 4 * (size_t)cl->n_blocks * I, p->blk_dst,
-                         "block", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->blk_ptr, RO_COPY, ((size_t)cl->n_blocks + 1) * I, p->blk_ptr,
-                         "block gather", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->blk_src, RO_COPY, p->ngb * I, p->blk_src, "block gather", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rhs_ptr, RO_COPY, ((size_t)s->nf + 1) * I, p->rhs_ptr,
-                         "rhs gather", err);
-    if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->rhs_src, RO_COPY, p->ngr * I, p->rhs_src, "rhs gather", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->x, CL_MEM_READ_ONLY, cl->nx * D, NULL, "position", err);
     if (rc == ISO_OK)
@@ -691,47 +804,47 @@ static int upload(iso_solver *s, iso_cl_assembler *cl, plan *p, iso_err *err)
         rc = make_buffer(cl, &cl->fit, CL_MEM_READ_WRITE, (size_t)cl->nfp * FIT_STRIDE * D, NULL,
                          "rigid fit", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->elem, CL_MEM_READ_WRITE, p->nrec * D, NULL, "element", err);
+        rc = make_buffer(cl, &cl->slot, CL_MEM_READ_WRITE, p->nslot * D, NULL, "slot", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->status, use, (size_t)cl->nfp * I, cl->status_host, "status", err);
+        rc = make_buffer(cl, &cl->pivot, use, (size_t)cl->nfp * D, cl->pivot_host, "pivot", err);
     if (rc == ISO_OK)
         rc = make_buffer(cl, &cl->A, use, cl->nnz * D, cl->A_host, "matrix", err);
     if (rc == ISO_OK)
-        rc = make_buffer(cl, &cl->B, use, (size_t)(3 * s->nf) * D, cl->B_host, "right-hand side",
-                         err);
+        rc = make_buffer(cl, &cl->B, use, 3 * nf * D, cl->B_host, "right-hand side", err);
     return rc;
 }
 
 /* ===== kernel arguments ================================================= */
 
 /* restore_edges' τ: set here and again at every evaluation (it may change). */
-#define RESTORE_ARG_TAU 3
+#define RESTORE_ARG_TAU 5
 
 #define ARG(k, i, v) (rc |= clSetKernelArg((k), (i), sizeof(v), &(v)))
 
 static int set_args(iso_solver *s, iso_cl_assembler *cl, iso_err *err)
 {
     cl_int rc = CL_SUCCESS;
-    cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA;
-    cl_double w1 = 1.0 - s->o.omega, w2 = s->o.omega, mu = s->o.restore_mu, tau = s->o.restore_tau;
-    cl_int nb = cl->n_blocks, nf = s->nf;
+    /* 1: the kernels' stride between a record's fields (assemble_cl_kernels.h) */
+    cl_int weighting = s->o.weighting == ISO_WEIGHT_AREA, unit = 1;
+    cl_double omega = s->o.omega, mu = s->o.restore_mu, tau = s->o.restore_tau;
+    cl_int nb = cl->n_blocks, nf = s->nf, np = cl->np, nr = cl->nrp;
+    cl_int hbase = cl->hbase;
     cl_kernel k = cl->k[K_FIT];
-    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, cl->x), ARG(k, 3, cl->fit);
-    ARG(k, 4, cl->status);
-    cl_int np = cl->np, base = cl->pair_base;
+    ARG(k, 0, cl->fit_work), ARG(k, 1, weighting), ARG(k, 2, unit), ARG(k, 3, cl->x);
+    ARG(k, 4, cl->fit), ARG(k, 5, cl->pivot);
     k = cl->k[K_PAIR];
-    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, weighting), ARG(k, 3, w1);
-    ARG(k, 4, w2), ARG(k, 5, cl->x), ARG(k, 6, cl->vc), ARG(k, 7, cl->vflag);
-    ARG(k, 8, cl->fit), ARG(k, 9, cl->elem), ARG(k, 10, base);
+    ARG(k, 0, cl->pair_work), ARG(k, 1, np), ARG(k, 2, omega), ARG(k, 3, unit);
+    ARG(k, 4, cl->x), ARG(k, 5, cl->fit), ARG(k, 6, cl->slot);
     k = cl->k[K_RESTORE];
-    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_par), ARG(k, 2, mu), ARG(k, RESTORE_ARG_TAU, tau);
-    ARG(k, 4, cl->x), ARG(k, 5, cl->vc), ARG(k, 6, cl->vflag), ARG(k, 7, cl->elem);
+    ARG(k, 0, cl->rest_work), ARG(k, 1, cl->rest_lin), ARG(k, 2, cl->rest_par), ARG(k, 3, nr);
+    ARG(k, 4, mu), ARG(k, RESTORE_ARG_TAU, tau), ARG(k, 6, unit), ARG(k, 7, cl->x);
+    ARG(k, 8, cl->slot);
     k = cl->k[K_BLOCKS];
-    ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, cl->blk_src), ARG(k, 3, nb);
-    ARG(k, 4, cl->elem), ARG(k, 5, cl->A);
+    ARG(k, 0, cl->blk_dst), ARG(k, 1, cl->blk_ptr), ARG(k, 2, nb), ARG(k, 3, cl->slot);
+    ARG(k, 4, cl->A);
     k = cl->k[K_RHS];
-    ARG(k, 0, cl->rhs_ptr), ARG(k, 1, cl->rhs_src), ARG(k, 2, nf), ARG(k, 3, cl->elem);
-    ARG(k, 4, cl->B);
+    ARG(k, 0, cl->hb_ptr), ARG(k, 1, cl->hb_vtx), ARG(k, 2, cl->lin_ptr), ARG(k, 3, nf);
+    ARG(k, 4, hbase), ARG(k, 5, cl->slot), ARG(k, 6, cl->vc), ARG(k, 7, cl->B);
     /* OR-ing error codes loses which one; any failure here is a bug. */
     return rc == CL_SUCCESS ? ISO_OK : cl_fail(err, "clSetKernelArg", rc);
 }
@@ -816,7 +929,7 @@ static cl_int unmap_outputs(iso_cl_assembler *cl)
     cl->mapped = 0;
     cl_int rc = clEnqueueUnmapMemObject(cl->q, cl->A, cl->A_host, 0, NULL, NULL);
     rc |= clEnqueueUnmapMemObject(cl->q, cl->B, cl->B_host, 0, NULL, NULL);
-    rc |= clEnqueueUnmapMemObject(cl->q, cl->status, cl->status_host, 0, NULL, NULL);
+    rc |= clEnqueueUnmapMemObject(cl->q, cl->pivot, cl->pivot_host, 0, NULL, NULL);
     return rc;
 }
 
@@ -828,10 +941,10 @@ void iso_solver__cl_destroy(iso_cl_assembler *cl)
         unmap_outputs(cl);
         clFinish(cl->q);
     }
-    cl_mem *mems[] = {&cl->vflag,   &cl->fit_work, &cl->pair_work, &cl->rest_work, &cl->rest_par,
-                      &cl->blk_dst, &cl->blk_ptr,  &cl->blk_src,   &cl->rhs_ptr,   &cl->rhs_src,
-                      &cl->x,       &cl->vc,       &cl->fit,       &cl->elem,      &cl->status,
-                      &cl->A,       &cl->B};
+    cl_mem *mems[] = {&cl->fit_work, &cl->pair_work, &cl->rest_work, &cl->rest_lin, &cl->rest_par,
+                      &cl->blk_dst,  &cl->blk_ptr,   &cl->hb_ptr,    &cl->hb_vtx,   &cl->lin_ptr,
+                      &cl->x,        &cl->vc,        &cl->fit,       &cl->slot,     &cl->pivot,
+                      &cl->A,        &cl->B};
     for (size_t i = 0; i < sizeof mems / sizeof mems[0]; i++)
         release_mem(mems[i]);
     for (int i = 0; i < K_COUNT; i++)
@@ -843,7 +956,7 @@ void iso_solver__cl_destroy(iso_cl_assembler *cl)
         clReleaseCommandQueue(cl->q);
     if (cl->ctx)
         clReleaseContext(cl->ctx);
-    free(cl->status_host);
+    free(cl->pivot_host);
     free(cl->first_el);
     free(cl->tri_of);
     free(cl);
@@ -900,19 +1013,20 @@ int iso_solver__cl_assemble(iso_cl_assembler *cl, iso_solver *s, const double *x
     void *pb = pa ? clEnqueueMapBuffer(cl->q, cl->B, CL_FALSE, CL_MAP_READ, 0,
                                        3 * (size_t)cl->nf * sizeof(double), 0, NULL, NULL, &crc)
                   : NULL;
-    void *ps = pb ? clEnqueueMapBuffer(cl->q, cl->status, CL_TRUE, CL_MAP_READ, 0,
-                                       (size_t)cl->n_fit * sizeof(int), 0, NULL, NULL, &crc)
+    void *ps = pb ? clEnqueueMapBuffer(cl->q, cl->pivot, CL_TRUE, CL_MAP_READ, 0,
+                                       (size_t)cl->n_fit * sizeof(double), 0, NULL, NULL, &crc)
                   : NULL;
     if (!pa || !pb || !ps)
         return cl_fail(err, "reading back the matrix", crc);
     cl->mapped = 1;
     /* A USE_HOST_PTR buffer maps at its host pointer (OpenCL 1.2, 5.4.2). */
-    if (pa != (void *)cl->A_host || pb != (void *)cl->B_host || ps != (void *)cl->status_host)
+    if (pa != (void *)cl->A_host || pb != (void *)cl->B_host || ps != (void *)cl->pivot_host)
         return iso_err_set(err, ISO_EIO, -1, "OpenCL: %s mapped a host-pointer buffer elsewhere",
                            cl->device);
+    /* a fit is singular where its last pivot is not positive (fit_triangles) */
     int bad = -1;
     for (int f = 0; f < cl->n_fit; f++)
-        if (cl->status_host[f] && (bad < 0 || cl->first_el[f] < cl->first_el[bad]))
+        if (!(cl->pivot_host[f] > 0) && (bad < 0 || cl->first_el[f] < cl->first_el[bad]))
             bad = f;
     if (bad >= 0)
         return iso_err_set(err, ISO_ENUMERIC, -1,

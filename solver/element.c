@@ -3,6 +3,7 @@
  * Notation follows docs/method.md. N_T = σ (J ⊗ I3) with J = [[2,1,1],
  * [1,2,1],[1,1,2]]; σ = 1/24 (param) or A_T/12 (area). The best rigid fit
  * does not depend on σ, so R is computed with σ = 1 and σ enters Q only. */
+#include "element_internal.h"
 #include "iso_element.h"
 
 #include <math.h>
@@ -366,182 +367,8 @@ void iso_elem_q2_from_fit(const iso_elem_fit *fi, const double xi[9], const doub
 
 /* ===== one interior edge, both ordered pairs ===========================
  *
- * iso_elem_q2_from_fit's block (l, m) is
- *     (c_lᵀ J c_m) I + [w_l]× B_m + ([w_m]× B_l)ᵀ + B_lᵀ T B_m,   B_l = W [r_l]×.
- * With B_lᵀ = −[r_l]× W and G = W T W, the last term is −[r_l]× G [r_m]×;
- * splitting it evenly between the block and its transpose gives
- *     block(l, m) = (c_lᵀ J c_m) I + Z_lm + Z_mlᵀ,
- *     Z_lm = P_l [r_m]×,   P_l = [w_l]× W − ½ [r_l]× G,
- * with r of the target's own corner (not in the source's fit) taken as 0.
- * Four 3x3 P and twelve Z (each row a cross product) replace the forty
- * 3x3 products of the general form, and only the upper triangle is
- * written: no per-block branches on which local vertex is which, since the
- * layout (a, b, p, q) fixes it. The OpenCL kernel pair_edges does the same
- * arithmetic in the same order. */
-
-/* Both ordered pairs of an edge go through the same arithmetic with
- * different data, so they run side by side in the two lanes of a vector:
- * lane 0 is (Ti, Tj), lane 1 is (Tj, Ti). GCC's and Clang's generic vectors
- * compile to SSE2 on x86-64 (its baseline) and to scalar code elsewhere;
- * each lane's rounding is that of the scalar code. */
-typedef double v2d __attribute__((vector_size(16)));
-
-/* C = [a]× M for a full 3x3 M: column j is a × M[:, j]. Written out: at
- * -O2 GCC keeps 3-trip loops as loops, at three times the instructions. */
-static inline void cross_left(const v2d a[3], const v2d M[9], v2d C[9])
-{
-    C[0] = a[1] * M[6] - a[2] * M[3];
-    C[1] = a[1] * M[7] - a[2] * M[4];
-    C[2] = a[1] * M[8] - a[2] * M[5];
-    C[3] = a[2] * M[0] - a[0] * M[6];
-    C[4] = a[2] * M[1] - a[0] * M[7];
-    C[5] = a[2] * M[2] - a[0] * M[8];
-    C[6] = a[0] * M[3] - a[1] * M[0];
-    C[7] = a[0] * M[4] - a[1] * M[1];
-    C[8] = a[0] * M[5] - a[1] * M[2];
-}
-
-/* C = M [r]× for a full 3x3 M: row i is M[i, :] × r. */
-static inline void cross_right(const v2d M[9], const v2d r[3], v2d C[9])
-{
-    C[0] = M[1] * r[2] - M[2] * r[1];
-    C[1] = M[2] * r[0] - M[0] * r[2];
-    C[2] = M[0] * r[1] - M[1] * r[0];
-    C[3] = M[4] * r[2] - M[5] * r[1];
-    C[4] = M[5] * r[0] - M[3] * r[2];
-    C[5] = M[3] * r[1] - M[4] * r[0];
-    C[6] = M[7] * r[2] - M[8] * r[1];
-    C[7] = M[8] * r[0] - M[6] * r[2];
-    C[8] = M[6] * r[1] - M[7] * r[0];
-}
-
-/* C = A B for full 3x3 A, B. */
-static inline void mul3(const v2d A[9], const v2d B[9], v2d C[9])
-{
-#define MUL3_ROW(i)                                                                                \
-    C[3 * i] = A[3 * i] * B[0] + A[3 * i + 1] * B[3] + A[3 * i + 2] * B[6];                        \
-    C[3 * i + 1] = A[3 * i] * B[1] + A[3 * i + 1] * B[4] + A[3 * i + 2] * B[7];                    \
-    C[3 * i + 2] = A[3 * i] * B[2] + A[3 * i + 1] * B[5] + A[3 * i + 2] * B[8]
-    MUL3_ROW(0);
-    MUL3_ROW(1);
-    MUL3_ROW(2);
-#undef MUL3_ROW
-}
-
-/* The 3x3 blocks of one ordered pair in its pair layout (0, 1, s, t): the
- * shared corners, the source's third corner, the target's third corner.
- * The corners come in the source's frame (r0, r1, rt); the source's third
- * is −r0 − r1, which the frame's centring makes it to rounding and which
- * keeps the translations exactly in the null space of the h-terms. W: the
- * source's S⁻¹ (full). Out: Z_lm for l = 0..3 and m = 0..2 (Z[3 l + m]);
- * the block (l, m) is cjc_lm I + Z_lm + Z_mlᵀ, Z_l3 = 0. */
-static void ordered_pair_z(const v2d r0[3], const v2d r1[3], const v2d rt[3], const v2d W[9],
-                           v2d Z[12][9])
-{
-    v2d sq[3], T[9], M[9], G[9], P0[9], P1[9], P2[9], P3[9], C[9];
-    for (int a = 0; a < 3; a++)
-        sq[a] = r0[a] + r1[a] + rt[a];
-        /* T = Σ_g (|g|² I − g gᵀ) over g = the target's corners r0, r1, rt and sq */
-#define OUTER4(i, j) (r0[i] * r0[j] + r1[i] * r1[j] + rt[i] * rt[j] + sq[i] * sq[j])
-    v2d o00 = OUTER4(0, 0), o11 = OUTER4(1, 1), o22 = OUTER4(2, 2), tr = o00 + o11 + o22;
-    T[0] = tr - o00, T[4] = tr - o11, T[8] = tr - o22;
-    T[1] = T[3] = -OUTER4(0, 1);
-    T[2] = T[6] = -OUTER4(0, 2);
-    T[5] = T[7] = -OUTER4(1, 2);
-#undef OUTER4
-    mul3(T, W, M);
-    mul3(W, M, G);
-    /* P_l = [w_l]× W − ½ [r_l]× G (the target's own corner has no r), with
-     * w_l = Σ_k c_kl (q_k + Σq): w0 = r0 − sq/3, w1 = r1 − sq/3, w2 = −4 sq/3,
-     * w3 = rt + sq. Grouped by what they share, H = W − G/2 and K = [sq]× W:
-     * P0 = [r0]× H − K/3, P1 = [r1]× H − K/3, P2 = [r0 + r1]× G / 2 − 4 K/3
-     * (r_s = −r0 − r1), P3 = [rt + sq]× W: five 3x3 cross products, not seven. */
-    v2d H[9], K[9], r01[3], w3[3];
-    for (int i = 0; i < 9; i++)
-        H[i] = W[i] - 0.5 * G[i];
-    for (int a = 0; a < 3; a++) {
-        r01[a] = r0[a] + r1[a];
-        w3[a] = rt[a] + sq[a];
-    }
-    cross_left(r0, H, P0);
-    cross_left(r1, H, P1);
-    cross_left(sq, W, K);
-    cross_left(r01, G, C);
-    cross_left(w3, W, P3);
-    for (int i = 0; i < 9; i++) {
-        v2d k3 = K[i] * (1.0 / 3.0);
-        P0[i] -= k3;
-        P1[i] -= k3;
-        P2[i] = 0.5 * C[i] - 4.0 * k3;
-    }
-    /* Z_lm = P_l [r_m]× for m = 0, 1; Z_l2 = −Z_l0 − Z_l1 since r_s = −r0 − r1 */
-    const v2d *P[4] = {P0, P1, P2, P3};
-    for (int l = 0; l < 4; l++) {
-        cross_right(P[l], r0, Z[3 * l]);
-        cross_right(P[l], r1, Z[3 * l + 1]);
-        for (int i = 0; i < 9; i++)
-            Z[3 * l + 2][i] = -(Z[3 * l][i] + Z[3 * l + 1][i]);
-    }
-}
-
-/* Adds both lanes' blocks (Z of ordered_pair_z), weighted by wv, to the
- * edge block Q's upper triangle. A pair's block (l, m) is
- * cjc_lm I + Z_lm + Z_mlᵀ in the pair layout (0, 1, s, t); in the edge
- * layout (a, b, p, q), s and t sit at 2 and 3 for lane 0 (source Ti) and at
- * 3 and 2 for lane 1, whose (s, t) block lands transposed in (p, q). The
- * constants are c_lᵀ J c_m of the pair layout. */
-static void add_edge_blocks(const v2d Z[12][9], v2d wv, double Q[144])
-{
-    static const v2d zero[9];
-#define AT(l, m) (Q + 36 * (l) + 3 * (m))
-#define DIAG(l0, l1, cjc, Zb)                                                                      \
-    do {                                                                                           \
-        double *q0 = AT(l0, l0), *q1 = AT(l1, l1);                                                 \
-        UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = i; j < 3; j++)                    \
-        {                                                                                          \
-            v2d v = wv * ((i == j ? (cjc) : 0.0) + (Zb)[3 * i + j] + (Zb)[3 * j + i]);             \
-            q0[12 * i + j] += v[0];                                                                \
-            q1[12 * i + j] += v[1];                                                                \
-        }                                                                                          \
-    } while (0)
-#define OFF(q0, q1, tr1, cjc, Za, Zbt)                                                             \
-    do {                                                                                           \
-        UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = 0; j < 3; j++)                    \
-        {                                                                                          \
-            v2d v = wv * ((i == j ? (cjc) : 0.0) + (Za)[3 * i + j] + (Zbt)[3 * j + i]);            \
-            (q0)[12 * i + j] += v[0];                                                              \
-            (q1)[(tr1) ? 12 * j + i : 12 * i + j] += v[1];                                         \
-        }                                                                                          \
-    } while (0)
-    DIAG(0, 0, 2.0 / 3.0, Z[0]);
-    OFF(AT(0, 1), AT(0, 1), 0, -1.0 / 3.0, Z[1], Z[3]);
-    OFF(AT(0, 2), AT(0, 3), 0, 0.0, Z[2], Z[6]);
-    OFF(AT(0, 3), AT(0, 2), 0, -1.0 / 3.0, zero, Z[9]);
-    DIAG(1, 1, 2.0 / 3.0, Z[4]);
-    OFF(AT(1, 2), AT(1, 3), 0, 0.0, Z[5], Z[7]);
-    OFF(AT(1, 3), AT(1, 2), 0, -1.0 / 3.0, zero, Z[10]);
-    DIAG(2, 3, 4.0 / 3.0, Z[8]);
-    OFF(AT(2, 3), AT(2, 3), 1, -4.0 / 3.0, zero, Z[11]);
-    DIAG(3, 2, 2.0, zero);
-#undef OFF
-#undef DIAG
-#undef AT
-}
-
-/* Lane `lane` of the corners xl[o0], xl[o1], xl[ot] (edge layout indices)
- * and of W, taken to the frame of fit f with its inverse scale. */
-static void load_lane(const iso_elem_fit_core *f, const double xl[12], int ot, int lane, v2d r[9],
-                      v2d W[9])
-{
-    const int at[3] = {0, 1, ot};
-    for (int k = 0; k < 3; k++)
-        for (int a = 0; a < 3; a++)
-            r[3 * k + a][lane] = (xl[3 * at[k] + a] - f->c[a]) * f->inv_s - f->d[a];
-    const double *w = f->W;
-    const double full[9] = {w[0], w[1], w[2], w[1], w[3], w[4], w[2], w[4], w[5]};
-    for (int i = 0; i < 9; i++)
-        W[i][lane] = full[i];
-}
+ * The C path computes edges in batches (element_batch.c, which derives the
+ * closed form); one edge is a batch whose every lane holds it. */
 
 void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k)
 {
@@ -552,53 +379,33 @@ void iso_elem_fit_core_of(const iso_elem_fit *f, iso_elem_fit_core *k)
     memcpy(k->W, f->W, sizeof k->W);
 }
 
-/* Adds each lane's source triangle's Q1 / σ, weighted by qv, to the edge
- * block Q's upper triangle. Q1 / σ block (k, l) over the source's corners
- * (0, 1, s) is (J_kl − 4/3) I + X_kl, X_kl = [r_k]× W [r_l]×; with
- * r_s = −r0 − r1, X_0s = −X00 − X01, X_1s = −X01ᵀ − X11 and
- * X_ss = X00 + X01 + X01ᵀ + X11. The source's third corner s sits at 2
- * (lane 0, Ti) or 3 (lane 1, Tj) of the edge layout. */
-static void add_q1_blocks(const v2d r0[3], const v2d r1[3], const v2d W[9], v2d qv, double Q[144])
+/* A fit core as the first ISO_ELEM__FIT_EDGE fields of a batch record. */
+static void core_to_record(const iso_elem_fit_core *f, double rec[ISO_ELEM__FIT_EDGE])
 {
-    v2d Y[9], X00[9], X01[9], X11[9];
-    cross_right(W, r0, Y);
-    cross_left(r0, Y, X00);
-    cross_right(W, r1, Y);
-    cross_left(r0, Y, X01);
-    cross_left(r1, Y, X11);
-    UNROLL3 for (int i = 0; i < 3; i++) UNROLL3 for (int j = 0; j < 3; j++)
-    {
-        double d = i == j ? 2.0 / 3.0 : 0.0, o = i == j ? -1.0 / 3.0 : 0.0;
-        v2d x00 = X00[3 * i + j], x01 = X01[3 * i + j], x10 = X01[3 * j + i];
-        v2d x11 = X11[3 * i + j];
-        v2d b01 = qv * (o + x01), b0s = qv * (o - (x00 + x01)), b1s = qv * (o - (x10 + x11));
-        Q[12 * i + 3 + j] += b01[0] + b01[1];
-        Q[12 * i + 6 + j] += b0s[0];
-        Q[12 * i + 9 + j] += b0s[1];
-        Q[12 * (3 + i) + 6 + j] += b1s[0];
-        Q[12 * (3 + i) + 9 + j] += b1s[1];
-        if (j < i)
-            continue;
-        v2d b00 = qv * (d + x00), b11 = qv * (d + x11);
-        v2d bss = qv * (d + (x00 + x01 + x10 + x11));
-        Q[12 * i + j] += b00[0] + b00[1];
-        Q[12 * (3 + i) + 3 + j] += b11[0] + b11[1];
-        Q[12 * (6 + i) + 6 + j] += bss[0];
-        Q[12 * (9 + i) + 9 + j] += bss[1];
-    }
+    memset(rec, 0, ISO_ELEM__FIT_EDGE * sizeof *rec);
+    memcpy(rec + ISO_ELEM__FIT_C, f->c, sizeof f->c);
+    rec[ISO_ELEM__FIT_INVS] = f->inv_s;
+    memcpy(rec + ISO_ELEM__FIT_D, f->d, sizeof f->d);
+    memcpy(rec + ISO_ELEM__FIT_W, f->W, sizeof f->W);
 }
 
 void iso_elem_edge_from_fits(const iso_elem_fit_core *fi, const iso_elem_fit_core *fj,
                              const double xl[12], double wi, double wj, double qi, double qj,
                              double Q[144])
 {
-    v2d r[9], W[9], Z[12][9];
-    load_lane(fi, xl, 3, 0, r, W);           /* (Ti, Tj): pair layout (a, b, p, q) */
-    load_lane(fj ? fj : fi, xl, 2, 1, r, W); /* (Tj, Ti): pair layout (a, b, q, p) */
-    ordered_pair_z(r, r + 3, r + 6, W, Z);
-    add_edge_blocks((const v2d(*)[9])Z, (v2d){wi, wj}, Q);
-    if (qi != 0 || qj != 0)
-        add_q1_blocks(r, r + 3, W, (v2d){qi, qj}, Q);
+    double ri[ISO_ELEM__FIT_EDGE], rj[ISO_ELEM__FIT_EDGE];
+    const double w[4] = {wi, wj, qi, qj};
+    iso_elem__vd q[ISO_ELEM__EDGE_VALUES];
+    core_to_record(fi, ri);
+    core_to_record(fj ? fj : fi, rj);
+    iso_elem__edge_one(xl, ri, rj, w, q);
+    for (int l = 0; l < 4; l++)
+        for (int m = l; m < 4; m++) {
+            const iso_elem__vd *v = q + iso_elem__edge_block(l, m);
+            for (int i = 0, n = 0; i < 3; i++)
+                for (int j = l == m ? i : 0; j < 3; j++)
+                    Q[12 * (3 * l + i) + 3 * m + j] += v[n++][0];
+        }
 }
 
 int iso_elem_q1(const double x[9], iso_weighting w, double Q[81])

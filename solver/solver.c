@@ -586,9 +586,7 @@ void iso_solver_destroy(iso_solver *s)
     free(s->vert_of);
     free(s->el);
     free(s->slots);
-    free(s->fits);
-    free(s->fit_stamp);
-    free(s->q1_carry);
+    iso_solver__cpu_plan_destroy(s->cpu);
     free(s->rest_len);
     free(s->edge_w);
     free(s);

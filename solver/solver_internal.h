@@ -80,13 +80,10 @@ struct iso_solver {
     cholmod_sparse *A;
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
-    cholmod_dense *work[4];  /* PCG: residual, preconditioned residual, direction, A·direction */
-    int have_factor;         /* L holds a numeric factor of some earlier A */
-    double factor_flops;     /* CHOLMOD's Common->fl after analysis */
-    iso_elem_fit_core *fits; /* C path: per triangle, the current evaluation's fit */
-    unsigned *fit_stamp;     /* fits[t] is current when fit_stamp[t] == fit_epoch */
-    unsigned char *q1_carry; /* C path: per element, which edge adds which Q1 (assemble_cpu.c) */
-    unsigned fit_epoch;
+    cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
+    int have_factor;        /* L holds a numeric factor of some earlier A */
+    double factor_flops;    /* CHOLMOD's Common->fl after analysis */
+    struct iso_solver__cpu_plan *cpu; /* C path's plans (assemble_cpu.c), made at first use */
     int last_cg_iters; /* iterations of the previous PCG solve, −1 after a direct one */
     int cg_failures;   /* consecutive PCG attempts at factor age 1 that failed */
     int cg_skip;       /* evaluations left before PCG is tried again */
@@ -114,11 +111,6 @@ static inline void iso_solver__progress(const struct iso_solver *s)
         s->progress(s->progress_ctx);
 }
 
-/* Element matrix Q (dimension 3·nl) of a triangle or pair element at
- * positions x; −1 if its triangle is degenerate. */
-int iso_solver__element_matrix(const iso_solver_opts *o, const iso_solver__element *e,
-                               const double *x, double *Q);
-
 /* Applies opts.threads at creation (after the analysis, which knows the
  * factorization's flops) and undoes its process-wide part at destroy. */
 void iso_solver__threads_begin(iso_solver *s);
@@ -129,8 +121,17 @@ void iso_solver__threads_end(iso_solver *s);
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
 
-/* The C assembly path. */
+/* Sorts n edges (endpoints a[k] and b[k]) along a Z-order curve through
+ * their midpoints at the rest pose (order.c): order[k] is the edge at
+ * position k, ties broken by edge index, so the order is fixed. 0, or −1
+ * when out of memory. */
+int iso_solver__z_order(const iso_mesh *m, int n, const int *a, const int *b, int *order);
+
+/* The C assembly path. Its plans are made at the first call and freed by
+ * iso_solver__cpu_plan_destroy (NULL is a no-op). */
+typedef struct iso_solver__cpu_plan iso_solver__cpu_plan;
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
+void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p);
 
 /* The OpenCL path (assemble_cl.c, compiled when ISO_WITH_OPENCL is defined).
  * create: after the pattern and slot map exist; builds the kernels and the
