@@ -68,8 +68,6 @@ static void act_notice(void *ctx, const char *line)
     fprintf(l->log, "isoshape %s: %s\n", l->cmd, line);
 }
 
-/* The scene's actuator channels and link, in the sink's own terms (sim/
- * does not read scene files). */
 /* The e-stop inputs the sender reads by itself: the embedder's probe and
  * the devices' e-stop lines (the hub outlives the sinks). */
 static int estop_inputs(void *ctx)
@@ -79,6 +77,9 @@ static int estop_inputs(void *ctx)
         return 1;
     return l->hub && iso_dev_hub_estop_probe(l->hub); /* 0 without e-stop inputs */
 }
+
+/* The scene's actuator channels and link, in the sink's own terms (sim/
+ * does not read scene files). */
 
 static int open_actuators(iso_loop *l, iso_err *err)
 {

@@ -364,18 +364,6 @@ static double *cactus_scene_run(double hz_scale, double share, long *cg, int *nv
     return x;
 }
 
-/* Largest Euclidean norm of a vertex's difference. */
-static double vertex_max_diff(const double *a, const double *b, int nv)
-{
-    double m = 0;
-    for (int i = 0; i < nv; i++) {
-        double d0 = a[3 * i] - b[3 * i], d1 = a[3 * i + 1] - b[3 * i + 1],
-               d2 = a[3 * i + 2] - b[3 * i + 2];
-        m = fmax(m, sqrt(d0 * d0 + d1 * d1 + d2 * d2));
-    }
-    return m;
-}
-
 static void cg_tolerance_follows_the_integrator(void **state)
 {
     (void)state;
@@ -385,8 +373,8 @@ static void cg_tolerance_follows_the_integrator(void **state)
     double *x = cactus_scene_run(1, ISO_INTEGRATE_CG_SHARE, &cg[0], &nv, &diag, &bench);
     double *exact = cactus_scene_run(1, 0, &cg[1], &nv, &diag, &bench);
     double *fine = cactus_scene_run(8, 0, &cg[2], &nv, &diag, &bench);
-    double d_cg = vertex_max_diff(x, exact, nv) / diag;
-    double d_int = vertex_max_diff(exact, fine, nv) / diag;
+    double d_cg = iso_test_vertex_max_diff(x, exact, nv) / diag;
+    double d_int = iso_test_vertex_max_diff(exact, fine, nv) / diag;
     printf("cactus scene (%s, %d vertices), 60 Hz PEC, adaptive refactoring:\n",
            bench ? "benchmark" : "the scene's fallback, the built-in shape", nv);
     printf("  CG at share %.2g against 1e-12 solves: %.3g of the diagonal (%ld against %ld "

@@ -690,18 +690,6 @@ static void guess_is_where_cg_starts(void **state)
     bumpy_deinit(&bp);
 }
 
-/* Largest Euclidean norm of a vertex's difference a − b. */
-static double vertex_max_diff(const double *a, const double *b, int nv)
-{
-    double m = 0;
-    for (int i = 0; i < nv; i++) {
-        double d0 = a[3 * i] - b[3 * i], d1 = a[3 * i + 1] - b[3 * i + 1],
-               d2 = a[3 * i + 2] - b[3 * i + 2];
-        m = fmax(m, sqrt(d0 * d0 + d1 * d1 + d2 * d2));
-    }
-    return m;
-}
-
 /* iso_solver_set_cg_target: PCG stops when z = (LLᵀ)⁻¹ r is within the
  * target at every free vertex and adds z, so the error left against a
  * direct solve is within the target too; a tighter target costs more
@@ -731,7 +719,7 @@ static void cg_target_bounds_the_error(void **state)
     for (int i = 0; i < n; i++)
         x[i] += 0.05 * v0[i];
     assert_int_equal(iso_solver_field(always, x, bp.vc, ref, &err), ISO_OK);
-    double top = iso_test_max_abs(ref, (size_t)n), start = vertex_max_diff(v0, ref, nv);
+    double top = iso_test_max_abs(ref, (size_t)n), start = iso_test_vertex_max_diff(v0, ref, nv);
     static const double share[4] = {1e-2, 1e-4, 1e-7, 0};
     long iters[4];
     for (int k = 0; k < 4; k++) {
@@ -742,7 +730,7 @@ static void cg_target_bounds_the_error(void **state)
         iso_solver_get_stats(s, &c);
         assert_int_equal(c.factorizations, a.factorizations); /* PCG served each */
         iters[k] = c.cg_iterations - a.cg_iterations;
-        double e = vertex_max_diff(v, ref, nv);
+        double e = iso_test_vertex_max_diff(v, ref, nv);
         printf("CG target %.0e of the field: %ld iterations, error %.3g of the field (start "
                "%.3g)\n",
                share[k], iters[k], e / top, start / top);

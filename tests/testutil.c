@@ -49,6 +49,17 @@ double iso_test_max_abs(const double *a, size_t n)
     return m;
 }
 
+double iso_test_vertex_max_diff(const double *a, const double *b, int nv)
+{
+    double m = 0;
+    for (int i = 0; i < nv; i++) {
+        double d0 = a[3 * i] - b[3 * i], d1 = a[3 * i + 1] - b[3 * i + 1],
+               d2 = a[3 * i + 2] - b[3 * i + 2];
+        m = fmax(m, sqrt(d0 * d0 + d1 * d1 + d2 * d2));
+    }
+    return m;
+}
+
 /* The end of the JSON string that starts at s (at its opening quote). */
 static const char *string_end(const char *s)
 {

@@ -25,6 +25,8 @@ int iso_test_benchmark(char *buf, size_t cap, const char *rel);
 double iso_test_max_abs_diff(const double *a, const double *b, size_t n);
 /* max |a_i| */
 double iso_test_max_abs(const double *a, size_t n);
+/* Largest Euclidean norm of a vertex's difference a - b (nv xyz triples). */
+double iso_test_vertex_max_diff(const double *a, const double *b, int nv);
 
 /* Every object key in the JSON text is snake_case ([a-z][a-z0-9_]*, the
  * key style of every command's output, common/iso_json.h). Returns 1, or 0
