@@ -9,6 +9,11 @@
 #include <math.h>
 #include <string.h>
 
+#define FIT_T double
+#define FIT_MASK int
+#define FIT_SQRT sqrt
+#include "element_fit.h"
+
 const char *const iso_weighting_names[] = {"param", "area", NULL};
 
 /* GCC at -O2 keeps 3-trip loops as loops; unrolled in the assembly's hot
@@ -24,33 +29,16 @@ static const double J3[3][3] = {{2, 1, 1}, {1, 2, 1}, {1, 1, 2}};
 
 void iso_elem_frame(const double x[9], double c[3], double *s)
 {
-    double ss = 0;
-    for (int a = 0; a < 3; a++)
-        c[a] = (x[a] + x[3 + a] + x[6 + a]) / 3.0;
-    for (int k = 0; k < 3; k++)
-        for (int a = 0; a < 3; a++) {
-            double d = x[3 * k + a] - c[a];
-            ss += d * d;
-        }
-    *s = sqrt(ss / 3.0);
-}
-
-static double triangle_area(const double x[9])
-{
-    double e1[3], e2[3];
-    for (int a = 0; a < 3; a++) {
-        e1[a] = x[3 + a] - x[a];
-        e2[a] = x[6 + a] - x[a];
-    }
-    double n0 = e1[1] * e2[2] - e1[2] * e2[1];
-    double n1 = e1[2] * e2[0] - e1[0] * e2[2];
-    double n2 = e1[0] * e2[1] - e1[1] * e2[0];
-    return 0.5 * sqrt(n0 * n0 + n1 * n1 + n2 * n2);
+    fit_centre(x, c, s);
 }
 
 double iso_elem_n_scale(const double x[9], iso_weighting w)
 {
-    return w == ISO_WEIGHT_AREA ? triangle_area(x) / 12.0 : 1.0 / 24.0;
+    if (w != ISO_WEIGHT_AREA)
+        return 1.0 / 24.0;
+    double area;
+    fit_area(x, &area);
+    return area / 12.0;
 }
 
 void iso_elem_eval_matrix(const double x[9], const double c[3], double s, double E[54])
@@ -218,38 +206,13 @@ static inline void frame_points(const iso_elem_fit *f, const double *x, int n, d
 
 int iso_elem_fit_compute(const double x[9], iso_elem_fit *f)
 {
-    iso_elem_frame(x, f->c, &f->s);
-    double s = f->s, r[9];
-    f->inv_s = 1.0 / s; /* one division, not one per point */
-    memset(f->d, 0, sizeof f->d);
-    frame_points(f, x, 3, r);
-    for (int a = 0; a < 3; a++)
-        f->d[a] = (r[a] + r[3 + a] + r[6 + a]) / 3.0;
-    frame_points(f, x, 3, r);
-    double S00 = 0, S11 = 0, S22 = 0, S01 = 0, S02 = 0, S12 = 0;
-    for (int k = 0; k < 3; k++) {
-        double a0 = r[3 * k], a1 = r[3 * k + 1], a2 = r[3 * k + 2];
-        S00 += a1 * a1 + a2 * a2;
-        S11 += a0 * a0 + a2 * a2;
-        S22 += a0 * a0 + a1 * a1;
-        S01 -= a0 * a1;
-        S02 -= a0 * a2;
-        S12 -= a1 * a2;
-    }
-    /* Cholesky of S; a pivot that is not positive (or s = 0, which makes
-     * everything NaN) means the triangle has degenerated. */
-    double L00 = sqrt(S00), L10 = S01 / L00, L20 = S02 / L00;
-    double d1 = S11 - L10 * L10, L11 = sqrt(d1), L21 = (S12 - L20 * L10) / L11;
-    double d2 = S22 - L20 * L20 - L21 * L21, L22 = sqrt(d2);
-    if (!(s > 0) || !(S00 > 0) || !(d1 > 0) || !(d2 > 0))
+    double r[9];
+    int ok;
+    fit_triangle(x, f->c, &f->s, &f->inv_s, f->d, r, f->W, &ok);
+    if (!ok)
         return -1;
-    double I00 = 1.0 / L00, I11 = 1.0 / L11, I22 = 1.0 / L22;
-    double I10 = -L10 * I00 * I11, I21 = -L21 * I11 * I22;
-    double I20 = -(L20 * I00 + L21 * I10) * I22;
-    double w00 = I00 * I00 + I10 * I10 + I20 * I20, w01 = I10 * I11 + I20 * I21, w02 = I20 * I22,
-           w11 = I11 * I11 + I21 * I21, w12 = I21 * I22, w22 = I22 * I22;
-    double W[9] = {w00, w01, w02, w01, w11, w12, w02, w12, w22};
-    f->W[0] = w00, f->W[1] = w01, f->W[2] = w02, f->W[3] = w11, f->W[4] = w12, f->W[5] = w22;
+    const double *u = f->W;
+    double W[9] = {u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]};
     double *R = f->R;
     memset(R, 0, 27 * sizeof(double));
     for (int l = 0; l < 3; l++) {

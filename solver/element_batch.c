@@ -52,6 +52,19 @@ INLINE void sqrt_lanes(vd *v)
               sqrt(r[4]), sqrt(r[5]), sqrt(r[6]), sqrt(r[7])};
 }
 
+/* The fit's arithmetic, in lanes: the scalar fit's lines (element.c). The
+ * root is a value there; here, a statement expression, since a vector
+ * returned by value changes the ABI between the clones (-Wpsabi). */
+#define FIT_T vd
+#define FIT_MASK vm
+#define FIT_SQRT(v)                                                                                \
+    __extension__({                                                                                \
+        vd fit_root_ = (v);                                                                        \
+        sqrt_lanes(&fit_root_);                                                                    \
+        fit_root_;                                                                                 \
+    })
+#include "element_fit.h"
+
 /* ----- lanes from rows ----- */
 
 typedef double v4d __attribute__((vector_size(32)));
@@ -116,80 +129,14 @@ INLINE void gather_fits(const double *fits, const int *t, vd f[16])
 
 /* ===== fits ==============================================================
  *
- * iso_elem_fit_compute (element.c) and iso_elem_n_scale, lane by lane, in
- * the same order of operations: a fit decides whether a triangle has
- * degenerated, and near that edge this, the scalar code and the OpenCL
- * kernel fit_triangles must decide alike. */
-
-INLINE void fit_frame(const vd x[9], vd c[3], vd *s, vd *inv, vd d[3], vd r[9])
-{
-    vd ss = {0};
-#pragma GCC unroll 16
-    for (int a = 0; a < 3; a++)
-        c[a] = (x[a] + x[3 + a] + x[6 + a]) / 3.0;
-#pragma GCC unroll 16
-    for (int k = 0; k < 3; k++)
-#pragma GCC unroll 16
-        for (int a = 0; a < 3; a++) {
-            vd t = x[3 * k + a] - c[a];
-            ss += t * t;
-        }
-    *s = ss / 3.0;
-    sqrt_lanes(s);
-    *inv = 1.0 / *s;
-#pragma GCC unroll 16
-    for (int i = 0; i < 9; i++)
-        r[i] = (x[i] - c[i % 3]) * *inv - 0.0;
-#pragma GCC unroll 16
-    for (int a = 0; a < 3; a++)
-        d[a] = (r[a] + r[3 + a] + r[6 + a]) / 3.0;
-#pragma GCC unroll 16
-    for (int i = 0; i < 9; i++)
-        r[i] = (x[i] - c[i % 3]) * *inv - d[i % 3];
-}
-
-INLINE void area_sigma(const vd x[9], vd *sigma)
-{
-    vd e1[3], e2[3];
-#pragma GCC unroll 16
-    for (int a = 0; a < 3; a++) {
-        e1[a] = x[3 + a] - x[a];
-        e2[a] = x[6 + a] - x[a];
-    }
-    vd n0 = e1[1] * e2[2] - e1[2] * e2[1];
-    vd n1 = e1[2] * e2[0] - e1[0] * e2[2];
-    vd n2 = e1[0] * e2[1] - e1[1] * e2[0];
-    vd n = n0 * n0 + n1 * n1 + n2 * n2;
-    sqrt_lanes(&n);
-    *sigma = 0.5 * n / 12.0;
-}
+ * iso_elem_fit_compute (element.c) and iso_elem_n_scale, lane by lane: the
+ * same lines (element_fit.h) on vectors. */
 
 INLINE void fit_lanes(const vd x[9], iso_weighting w, vd f[ISO_ELEM__FIT_STRIDE])
 {
     vd c[3], s, inv, d[3], r[9];
-    fit_frame(x, c, &s, &inv, d, r);
-    vd S00 = {0}, S11 = {0}, S22 = {0}, S01 = {0}, S02 = {0}, S12 = {0};
-#pragma GCC unroll 16
-    for (int k = 0; k < 3; k++) {
-        vd a0 = r[3 * k], a1 = r[3 * k + 1], a2 = r[3 * k + 2];
-        S00 += a1 * a1 + a2 * a2;
-        S11 += a0 * a0 + a2 * a2;
-        S22 += a0 * a0 + a1 * a1;
-        S01 -= a0 * a1;
-        S02 -= a0 * a2;
-        S12 -= a1 * a2;
-    }
-    vd L00 = S00;
-    sqrt_lanes(&L00);
-    vd L10 = S01 / L00, L20 = S02 / L00;
-    vd d1 = S11 - L10 * L10, L11 = d1;
-    sqrt_lanes(&L11);
-    vd L21 = (S12 - L20 * L10) / L11;
-    vd d2 = S22 - L20 * L20 - L21 * L21, L22 = d2;
-    sqrt_lanes(&L22);
-    vd I00 = 1.0 / L00, I11 = 1.0 / L11, I22 = 1.0 / L22;
-    vd I10 = -L10 * I00 * I11, I21 = -L21 * I11 * I22;
-    vd I20 = -(L20 * I00 + L21 * I10) * I22;
+    vm ok;
+    fit_triangle(x, c, &s, &inv, d, r, f + ISO_ELEM__FIT_W, &ok);
 #pragma GCC unroll 16
     for (int a = 0; a < 3; a++) {
         f[ISO_ELEM__FIT_C + a] = c[a];
@@ -197,19 +144,11 @@ INLINE void fit_lanes(const vd x[9], iso_weighting w, vd f[ISO_ELEM__FIT_STRIDE]
     }
     f[ISO_ELEM__FIT_INVS] = inv;
     f[ISO_ELEM__FIT_S] = s;
-    f[ISO_ELEM__FIT_W] = I00 * I00 + I10 * I10 + I20 * I20;
-    f[ISO_ELEM__FIT_W + 1] = I10 * I11 + I20 * I21;
-    f[ISO_ELEM__FIT_W + 2] = I20 * I22;
-    f[ISO_ELEM__FIT_W + 3] = I11 * I11 + I21 * I21;
-    f[ISO_ELEM__FIT_W + 4] = I21 * I22;
-    f[ISO_ELEM__FIT_W + 5] = I22 * I22;
-    if (w == ISO_WEIGHT_AREA)
-        area_sigma(x, &f[ISO_ELEM__FIT_SIGMA]);
-    else
+    if (w == ISO_WEIGHT_AREA) {
+        fit_area(x, &f[ISO_ELEM__FIT_SIGMA]);
+        f[ISO_ELEM__FIT_SIGMA] /= 12.0;
+    } else
         f[ISO_ELEM__FIT_SIGMA] = (vd){0} + 1.0 / 24.0;
-    /* a pivot that is not positive (or s = 0, which makes everything NaN)
-     * means the triangle has degenerated: !(v > 0) is v <= 0 or NaN */
-    vm ok = (s > 0) & (S00 > 0) & (d1 > 0) & (d2 > 0);
     f[ISO_ELEM__FIT_BAD] = (vd)((vm)((vd){0} + 1.0) & ~ok);
 }
 
