@@ -60,7 +60,7 @@ static iso_scene *scene(const char *driver, const char *devices, double hz)
 }
 
 typedef struct run_out {
-    long ticks, misses, skipped;
+    long ticks, misses, skipped, handovers;
     double strain;
     iso_pose handle;
     double *x; /* final positions, owned */
@@ -78,6 +78,7 @@ static void run(iso_scene *sc, const iso_loop_opts *o, run_out *r)
     r->ticks = s.ticks;
     r->misses = s.misses;
     r->skipped = s.skipped;
+    r->handovers = s.solver.handovers;
     r->strain = s.metrics.max_edge_strain;
     r->handle = *iso_loop_commanded_pose(l, 0);
     size_t n = 3 * (size_t)iso_mesh_vertex_count(sc->mesh);
@@ -246,6 +247,45 @@ static void slowed_replay_keeps_the_motion(void **state)
     assert_true(slow.strain <= 1.5 * fast.strain);
     free(fast.x);
     free(slow.x);
+    iso_scene_destroy(sc);
+}
+
+/* ---- the factorization worker -------------------------------------------------- */
+
+/* With solver.worker_lag the factor each tick uses is fixed by evaluation
+ * counts, so real time gives the bits --fast gives: in --fast the ticks
+ * come as fast as they can and often wait for the worker; paced at half
+ * speed (a tick every ~33 ms of wall time) the worker is always done
+ * first. Without misses the step sequence is the same, and so must be
+ * every bit of the mesh. */
+static void worker_gives_the_same_bits_in_real_time(void **state)
+{
+    (void)state;
+    iso_scene *sc = scene_text("name: t\n"
+                               "mesh: {shape: cactus, resolution: 1}\n"
+                               "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                               "      driver: {screw: {def: builtin, duration: 1.0}}\n"
+                               "solver: {assembly: cpu, refactor: adaptive, worker_lag: 2}\n"
+                               "integrator: {abm: pec}\n"
+                               "tick_hz: 60\n");
+    iso_loop_opts o = fast_opts();
+    o.duration_s = 0.5;
+    run_out fast, paced;
+    run(sc, &o, &fast);
+    o.fast = 0;
+    o.speed = 0.5;
+    run(sc, &o, &paced);
+    size_t n = 3 * (size_t)iso_mesh_vertex_count(sc->mesh);
+    printf("worker lag 2: %ld ticks, %ld factors handed over (--fast), %ld (paced, %ld missed)\n",
+           fast.ticks, fast.handovers, paced.handovers, paced.misses);
+    assert_true(fast.handovers > 0);
+    assert_int_equal(paced.ticks, fast.ticks);
+    assert_int_equal(paced.skipped, 0);
+    assert_int_equal(paced.handovers, fast.handovers);
+    if (memcmp(fast.x, paced.x, n * sizeof *fast.x) != 0)
+        fail_msg("paced run differs from --fast by %g", max_diff3(fast.x, paced.x, n));
+    free(fast.x);
+    free(paced.x);
     iso_scene_destroy(sc);
 }
 
@@ -466,6 +506,7 @@ int main(void)
         cmocka_unit_test(slowed_replay_keeps_the_motion),
         cmocka_unit_test(restoration_in_the_loop_is_no_worse),
         cmocka_unit_test(cg_tolerance_follows_the_integrator),
+        cmocka_unit_test(worker_gives_the_same_bits_in_real_time),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
