@@ -8,7 +8,8 @@
  * written there (the benchmark problem or the built-in shape of its name,
  * its screw over 2 s, ABM3 PEC, adaptive refactoring, 60 Hz), built here
  * from the same text without the live view, so that the command needs no
- * source tree. The bench's --assembly, --cl-device and --cg-tol apply. */
+ * source tree. The bench's --assembly, --cl-device, --cg-tol and
+ * --worker-lag apply. */
 #include "internal.h"
 
 #include <math.h>
@@ -35,10 +36,11 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
              "    - name: top\n"
              "      driver: {screw: {def: builtin, duration: 2.0}}\n"
              "solver: {omega: 0.333, weighting: param, restore: off, assembly: %s,\n"
-             "         refactor: adaptive, cg_tol: %.17g}\n"
+             "         refactor: adaptive, cg_tol: %.17g, worker_lag: %d}\n"
              "integrator: {steps_per_tick: 1, abm: pec}\n"
              "tick_hz: 60\n",
-             name, name, name, res, iso_names_get(iso_assembly_names, so->assembly), so->cg_tol);
+             name, name, name, res, iso_names_get(iso_assembly_names, so->assembly), so->cg_tol,
+             so->worker_lag);
     iso_scene_opts opts = {.bench_find = iso_cli__scene_bench_find, .bench_ctx = (void *)bench_dir};
     return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
 }
@@ -56,6 +58,7 @@ static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
     iso_solver_opts so = sc->solver;
     so.assembly = ISO_ASSEMBLY_CPU; /* the solve does not depend on who assembled */
     so.refactor = ISO_REFACTOR_ALWAYS;
+    so.worker_lag = 0;
     int nv = iso_mesh_vertex_count(sc->mesh);
     const double *x = iso_mesh_positions(sc->mesh);
     double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
@@ -118,6 +121,7 @@ int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolut
         row->evaluations = s.solver.evaluations;
         row->cg_iterations = s.solver.cg_iterations;
         row->factorizations = s.solver.factorizations;
+        row->handovers = s.solver.handovers;
         iso_loop_destroy(l); /* frees the engine's solver before the bare one */
         l = NULL;
         rc = bare_solve(sc, reps, &row->bare_solve_ms, err);
@@ -137,19 +141,20 @@ void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n)
     printf("\nreal time: each benchmark scene (its screw over 2 s, ABM3 PEC, adaptive "
            "refactoring, 60 Hz) through the tick engine, as fast as possible; a tick is "
            "timed from wake to published; one bare solve of the same system in the same run\n");
-    printf("%-10s %8s %5s %8s %9s %9s | %9s %12s | %8s %6s %5s\n", "scene", "vertices", "ticks",
+    printf("%-10s %8s %5s %8s %9s %9s | %9s %12s | %8s %6s %5s %5s\n", "scene", "vertices", "ticks",
            "ticks/s", "median ms", "p99 ms", "solve ms", "median/solve", "ev/tick", "CG/ev",
-           "facts");
+           "facts", "bg");
     for (int i = 0; i < n; i++) {
         const iso_cli__rt_row *r = &rows[i];
         double ev = r->evaluations > 0 ? (double)r->evaluations : NAN;
-        printf("%-9s%s %8d %5ld %8.1f %9.2f %9.2f | %9.2f %12.1f | %8d %6.2f %5ld\n", r->scene,
+        printf("%-9s%s %8d %5ld %8.1f %9.2f %9.2f | %9.2f %12.1f | %8d %6.2f %5ld %5ld\n", r->scene,
                r->builtin ? "*" : " ", r->vertices, r->ticks, r->ticks_per_s, r->median_ms,
                r->p99_ms, r->bare_solve_ms, over_solve(r), r->max_step_evaluations,
-               (double)r->cg_iterations / ev, r->factorizations);
+               (double)r->cg_iterations / ev, r->factorizations, r->handovers);
     }
     printf("ev/tick: the most field evaluations one tick made; CG/ev: PCG iterations per "
-           "evaluation; facts: factorizations; * built-in shape\n");
+           "evaluation; facts: factorizations on the tick's thread; bg: factors the worker handed "
+           "over (solver.worker_lag); * built-in shape\n");
 }
 
 #define RT(key, type, member) key, type, offsetof(iso_cli__rt_row, member)
@@ -168,6 +173,7 @@ static const iso_json_field rt_counts[] = {
     {RT("evaluations", ISO_JSON_LONG, evaluations)},
     {RT("cg_iterations", ISO_JSON_LONG, cg_iterations)},
     {RT("factorizations", ISO_JSON_LONG, factorizations)},
+    {RT("handovers", ISO_JSON_LONG, handovers)},
 };
 
 void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n)

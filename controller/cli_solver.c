@@ -32,9 +32,6 @@ void iso_cli__solver_threads(iso_solver_threads *t)
 /* The options, as table fragments the commands include                       */
 /* ------------------------------------------------------------------------ */
 
-#define STR_(x) #x
-#define STR(x) STR_(x)
-
 const iso_cli__opt iso_cli__assembly_options[] = {
     {"assembly", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, assembly), NULL,
      .help =
@@ -60,13 +57,21 @@ const iso_cli__opt iso_cli__refactor_options[] = {
  * it is no tolerance at all. */
 const iso_cli__opt iso_cli__cg_tol_options[] = {
     {"cg-tol", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, cg_tol), "T",
-     .help = "adaptive: CG's relative residual, %R, default " STR(ISO_CLI_DEFAULT_CG_TOL),
+     .help = "adaptive: CG's relative residual, %R, default " ISO_CLI_STR(ISO_CLI_DEFAULT_CG_TOL),
      ISO_CLI_GT(0), ISO_CLI_LT(1)},
+    {0}};
+
+const iso_cli__opt iso_cli__worker_options[] = {
+    {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_solver_opts, worker_lag), "N",
+     .help = "adaptive: 0 (default) factors on the evaluating thread; N %R factors on a worker "
+             "thread, each factor used from N evaluations after its matrix's",
+     ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
     {0}};
 
 const iso_cli__opt iso_cli__solver_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__assembly_options},
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__refactor_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__worker_options},
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__cg_tol_options},
     {0}};
 

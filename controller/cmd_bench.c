@@ -46,6 +46,7 @@ typedef struct bench_args {
     int only;                 /* --refactor: one iso_refactor, or -1 for both */
     int scheme_on[N_SCHEMES]; /* indexed by iso_refactor */
     iso_solver_opts so;
+    int rt_worker_lag; /* the real-time table's solver.worker_lag */
 } bench_args;
 
 /* One problem under one scheme: the run with the median time. */
@@ -146,6 +147,10 @@ static const iso_cli__opt bench_options[] = {
      .table = iso_cli__assembly_options},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
      .table = iso_cli__cg_tol_options},
+    {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
+     .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
+             "that of the shipped scenes, " ISO_CLI_STR(ISO_CLI_RT_WORKER_LAG),
+     ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
     {0}};
 
 const iso_cli__cmd iso_cli__bench_cmd = {
@@ -169,6 +174,7 @@ static int parse_args(int argc, char **argv, bench_args *a)
     iso_cli__solver_opts_default(&a->so);
     a->so.restore_mu = 0.0; /* the paper's method exactly */
     a->only = -1;
+    a->rt_worker_lag = ISO_CLI_RT_WORKER_LAG;
     int status = iso_cli__parse(&iso_cli__bench_cmd, argc, argv, a, NULL, 0, NULL);
     if (status >= 0)
         return status;
@@ -635,7 +641,9 @@ int iso_cli__bench_run(int argc, char **argv)
             continue;
         if (a.tty)
             fprintf(stderr, "isoshape bench: %s in real time ...\n", problems[k].name);
-        if (iso_cli__bench_realtime(problems[k].name, a.src.bench_dir, res_k, &a.so,
+        iso_solver_opts rt_so = a.so;
+        rt_so.worker_lag = a.rt_worker_lag;
+        if (iso_cli__bench_realtime(problems[k].name, a.src.bench_dir, res_k, &rt_so,
                                     a.quick ? 3 : 5, &res->rt[res->n_rt++], &err) != ISO_OK) {
             iso_cli__fail("bench", "%s in real time: %s", problems[k].name, err.msg);
             goto out;

@@ -208,13 +208,25 @@ const char *iso_cli__blas_config(void);
 
 #define ISO_CLI_DEFAULT_CG_TOL 1e-10
 
+/* A macro's value as a string literal, for help lines. */
+#define ISO_CLI_STR_(x) #x
+#define ISO_CLI_STR(x) ISO_CLI_STR_(x)
+
 /* The solver options, as table fragments whose rows' values go into an
  * iso_solver_opts (include them at its offset): --assembly and --cl-device;
- * --refactor; --cg-tol; the three together (bench says --refactor its own
- * way); and the field's weights --omega and --weighting. */
+ * --refactor; --cg-tol; --worker-lag; the four together (bench says
+ * --refactor its own way); and the field's weights --omega and --weighting. */
 extern const iso_cli__opt iso_cli__assembly_options[];
 extern const iso_cli__opt iso_cli__refactor_options[];
 extern const iso_cli__opt iso_cli__cg_tol_options[];
+extern const iso_cli__opt iso_cli__worker_options[];
+
+/* The real-time scenes' factorization worker (the config/scenes files,
+ * solver.worker_lag), which bench's real-time table follows by default:
+ * three 60 Hz ticks leave a cactus factorization (~25-30 ms on one core)
+ * 20 ms to spare, and a lag of two made ticks wait for the worker when the
+ * second core was busy. */
+#define ISO_CLI_RT_WORKER_LAG 3
 extern const iso_cli__opt iso_cli__solver_options[];
 extern const iso_cli__opt iso_cli__weight_options[];
 
@@ -305,7 +317,7 @@ double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 typedef struct iso_cli__rt_row {
     char scene[32];
     int builtin, vertices, max_step_evaluations;
-    long ticks, evaluations, cg_iterations, factorizations;
+    long ticks, evaluations, cg_iterations, factorizations, handovers;
     double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
     double bare_solve_ms;                  /* one solve of the same system, median */
 } iso_cli__rt_row;
@@ -313,7 +325,8 @@ typedef struct iso_cli__rt_row {
 /* Runs the benchmark scene `name` (config/scenes/<name>.yaml as written, the
  * built-in shape at `resolution` standing in when the problem is absent)
  * through the tick engine as fast as possible, then times reps bare solves
- * of its system. so gives the assembly, OpenCL device and CG tolerance. */
+ * of its system. so gives the assembly, OpenCL device, CG tolerance and
+ * the factorization worker's lag. */
 int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolution,
                             const iso_solver_opts *so, int reps, iso_cli__rt_row *row,
                             iso_err *err);

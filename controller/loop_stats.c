@@ -153,6 +153,12 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
         1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
         1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
         s->integ.max_step_cg_iterations, s->solver.cg_capped);
+    if (sc->solver.worker_lag > 0)
+        fprintf(f,
+                "              worker lag %d: %ld factors handed over, %.1f s factoring, "
+                "waits %.2f ms/evaluation\n",
+                sc->solver.worker_lag, s->solver.handovers, s->solver.t_worker,
+                1e3 * s->solver.t_wait / ev);
     fprintf(f, "  distortion  of the mesh against its rest pose (e' and e: an edge now and at "
                "rest)\n");
     iso_metrics_print(f, "    ", &s->metrics);
@@ -243,6 +249,9 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_number(j, "assembly_s", s->solver.t_assembly);
     iso_json_number(j, "factor_s", s->solver.t_factor);
     iso_json_number(j, "solve_s", s->solver.t_solve);
+    iso_json_int(j, "worker_handovers", s->solver.handovers);
+    iso_json_number(j, "worker_s", s->solver.t_worker);
+    iso_json_number(j, "worker_wait_s", s->solver.t_wait);
     iso_json_close(j);
     iso_json_object(j, "metrics");
     size_t n;

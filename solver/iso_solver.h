@@ -117,7 +117,20 @@ typedef struct iso_solver_opts {
     double restore_mu;          /* ≥ 0 */
     double restore_tau;         /* > 0 when restore_mu > 0; in the path's time units */
     iso_solver_threads threads; /* what the solver may do to thread settings */
+    /* Adaptive only: 0 (default), each factorization runs on the evaluating
+     * thread when PCG asks for one; N in [1, ISO_SOLVER_WORKER_LAG_MAX], a
+     * worker thread of the solver's own factors the matrices in the
+     * background and each factor is handed over N evaluations after the
+     * evaluation whose matrix it is (that evaluation waits if the worker is
+     * late). Which factor serves which evaluation depends on evaluation
+     * counts only, so results are bit-identical from run to run whatever
+     * the timing. The worker takes one core while it factors; it runs
+     * under the default scheduling policy and with all signals blocked
+     * (solver/worker.c says why). */
+    int worker_lag;
 } iso_solver_opts;
+
+#define ISO_SOLVER_WORKER_LAG_MAX 100
 
 ISO_API void iso_solver_opts_default(iso_solver_opts *o);
 
@@ -207,6 +220,11 @@ typedef struct iso_solver_stats {
     double t_assembly, t_factor, t_solve; /* seconds, summed */
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
+    /* The factorization worker (worker_lag > 0): factors it handed over,
+     * seconds the evaluations waited for it, seconds it spent factoring.
+     * factorizations and t_factor count the evaluating thread's only. */
+    long handovers;
+    double t_wait, t_worker;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 

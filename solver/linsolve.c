@@ -111,6 +111,25 @@ static void omp_end(const iso_solver *s, int before)
 
 /* ===== factor and solve ================================================= */
 
+/* A factorization's outcome (cholmod_factorize's result, Common->status
+ * and L->minor) as a status and a message naming the row that failed. */
+static int factor_outcome(const iso_solver *s, int ok, int status, long minor, iso_err *err)
+{
+    if (!ok || status < CHOLMOD_OK)
+        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD factorization failed (status %d)",
+                           status);
+    if (status == CHOLMOD_NOT_POSDEF || minor < 3L * s->nf) {
+        int row = (int)minor;
+        int f = row / 3, v = s->vert_of[f < s->nf ? f : s->nf - 1];
+        return iso_err_set(err, ISO_ENUMERIC, row,
+                           "%s: the free-free system is not positive definite at row %d "
+                           "(vertex %d, %c component): the constraints do not pin the motion "
+                           "there, or the mesh has degenerated",
+                           iso_mesh_origin(s->m), row, v, "xyz"[row % 3]);
+    }
+    return ISO_OK;
+}
+
 static int factorize(iso_solver *s, iso_err *err)
 {
     double t0 = iso_clock_now();
@@ -119,18 +138,9 @@ static int factorize(iso_solver *s, iso_err *err)
     omp_end(s, levels);
     s->st.t_factor += iso_clock_now() - t0;
     s->have_factor = 0;
-    if (!ok || s->c.status < CHOLMOD_OK)
-        return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD factorization failed (status %d)",
-                           s->c.status);
-    if (s->c.status == CHOLMOD_NOT_POSDEF || s->L->minor < s->L->n) {
-        int row = (int)s->L->minor;
-        int f = row / 3, v = s->vert_of[f < s->nf ? f : s->nf - 1];
-        return iso_err_set(err, ISO_ENUMERIC, row,
-                           "%s: the free-free system is not positive definite at row %d "
-                           "(vertex %d, %c component): the constraints do not pin the motion "
-                           "there, or the mesh has degenerated",
-                           iso_mesh_origin(s->m), row, v, "xyz"[row % 3]);
-    }
+    int rc = factor_outcome(s, ok, s->c.status, (long)s->L->minor, err);
+    if (rc != ISO_OK)
+        return rc;
     s->have_factor = 1;
     s->st.factorizations++;
     iso_solver__progress(s);
@@ -360,6 +370,8 @@ static int want_reuse(iso_solver *s)
     }
     if (s->last_cg_iters >= (3 * s->o.cg_max_iter) / 4)
         return 0; /* the previous solve nearly spent the budget: refactor now */
+    if (s->w)
+        return 1; /* the worker keeps the factor young; no horizon to learn */
     if (s->reuse_horizon > 0 && s->factor_age > s->reuse_horizon)
         return 0;
     if (s->cg_skip > 0) {
@@ -397,11 +409,54 @@ static void after_factorization(iso_solver *s)
     }
 }
 
+/* ===== the factorization worker (worker.c) ============================== */
+
+/* The policy, in evaluation counts only, so that the bits never depend on
+ * how fast the worker was: an evaluation whose factor is not of its own
+ * matrix (age ≥ 1) and finds the worker idle gives it a copy of its
+ * matrix; worker_lag evaluations later that factor is handed over (the
+ * evaluation waits for it if need be) with age worker_lag, and the next
+ * copy goes at once. So on a smooth path the factor in use is worker_lag
+ * to 2 worker_lag − 1 evaluations old, and no evaluation factors on its
+ * own thread unless PCG fails (the stated fallback, want_reuse). A factor
+ * the evaluating thread made after the copy was taken is younger than the
+ * worker's, which is then not taken. */
+static int worker_step(iso_solver *s, iso_err *err)
+{
+    if (s->w_pending && s->w_eval == s->w_due) {
+        int lag = s->o.worker_lag, take = !s->have_factor || s->factor_age > lag;
+        double t0 = iso_clock_now();
+        int status = 0, ok;
+        long minor = 0;
+        ok = iso_solver__worker_finish(s->w, take ? &s->L : NULL, &status, &minor);
+        s->st.t_wait += iso_clock_now() - t0;
+        s->w_pending = 0;
+        if (take) {
+            s->have_factor = 0;
+            int rc = factor_outcome(s, ok, status, minor, err);
+            if (rc != ISO_OK)
+                return rc;
+            s->have_factor = 1;
+            s->factor_age = lag;
+            s->st.handovers++;
+        }
+    }
+    if (!s->w_pending && s->have_factor && s->factor_age >= 1) {
+        iso_solver__worker_start(s->w, s->A);
+        s->w_pending = 1;
+        s->w_due = s->w_eval + s->o.worker_lag;
+    }
+    return ISO_OK;
+}
+
 int iso_solver__linsolve(iso_solver *s, iso_err *err)
 {
     int rc;
     if (s->have_factor)
         s->factor_age++;
+    s->w_eval++;
+    if (s->w && (rc = worker_step(s, err)) != ISO_OK)
+        return rc;
     if (want_reuse(s)) {
         if ((rc = ensure_work(s, err)) != ISO_OK)
             return rc;

@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "iso_clock.h"
+#include "iso_names.h"
 #include "solver_internal.h"
 
 const char *const iso_assembly_names[] = {"cpu", "opencl", NULL};
@@ -38,6 +39,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->refactor = ISO_REFACTOR_ALWAYS;
     o->cg_tol = 1e-10;
     o->cg_max_iter = 12;
+    o->worker_lag = 0;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
@@ -57,6 +59,14 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
     if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
         return iso_err_set(err, ISO_EINVAL, -1, "restoration time constant tau = %g must be > 0",
                            o->restore_tau);
+    if (o->worker_lag < 0 || o->worker_lag > ISO_SOLVER_WORKER_LAG_MAX)
+        return iso_err_set(err, ISO_EINVAL, -1, "worker_lag = %d is outside [0, %d]", o->worker_lag,
+                           ISO_SOLVER_WORKER_LAG_MAX);
+    if (o->worker_lag > 0 && o->refactor != ISO_REFACTOR_ADAPTIVE)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "worker_lag = %d asks for a factorization worker, which only the "
+                           "adaptive scheme uses (refactor is %s)",
+                           o->worker_lag, iso_names_get(iso_refactor_names, (int)o->refactor));
     if (o->threads.omp != ISO_SOLVER_OMP_CALLER && o->threads.omp != ISO_SOLVER_OMP_LEAVE)
         return iso_err_set(err, ISO_EINVAL, -1, "unknown OpenMP thread policy %d",
                            (int)o->threads.omp);
@@ -560,6 +570,11 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         return rc;
     }
     iso_solver__threads_begin(s);
+    if (s->o.worker_lag > 0 && s->nf > 0 &&
+        (rc = iso_solver__worker_create(s, &s->w, err)) != ISO_OK) {
+        iso_solver_destroy(s);
+        return rc;
+    }
     s->st.n_free = s->nf;
     *out = s;
     return ISO_OK;
@@ -569,6 +584,7 @@ void iso_solver_destroy(iso_solver *s)
 {
     if (!s)
         return;
+    iso_solver__worker_destroy(s->w);
     iso_solver__threads_end(s);
 #ifdef ISO_WITH_OPENCL
     iso_solver__cl_destroy(s->cl);
@@ -603,6 +619,7 @@ void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 {
     *st = s->st;
+    st->t_worker = s->w ? iso_solver__worker_busy(s->w) : 0.0;
 }
 
 /* ===== evaluation ======================================================= */

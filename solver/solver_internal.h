@@ -93,6 +93,10 @@ struct iso_solver {
     double cg_target;  /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
     int budget_on;     /* a shared iteration budget is open */
     int budget_used;   /* its iterations spent since it opened or since a factorization */
+    struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
+    long w_eval;                  /* evaluations so far (linsolve calls) */
+    long w_due;                   /* the evaluation that takes the worker's factor */
+    int w_pending;                /* the worker has a job whose factor is not yet taken */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
     int (*omp_get_levels)(void);
@@ -120,6 +124,21 @@ void iso_solver__threads_end(iso_solver *s);
  * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
+
+/* The factorization worker (worker.c). create: after the analysis (it
+ * copies A's pattern and the symbolic factor) and threads_begin (it takes
+ * the OpenMP control). start: copies A's values and wakes the worker,
+ * which must be idle (no job, or its result taken). finish: waits for the
+ * job to end; with L, swaps the worker's factor into *L (the old one
+ * becomes the worker's); returns cholmod_factorize's result and gives
+ * Common->status and L->minor for factor_outcome. busy: seconds spent
+ * factoring so far. */
+typedef struct iso_solver__worker iso_solver__worker;
+int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso_err *err);
+void iso_solver__worker_destroy(iso_solver__worker *w);
+void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A);
+int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor);
+double iso_solver__worker_busy(iso_solver__worker *w);
 
 /* Sorts n edges (endpoints a[k] and b[k]) along a Z-order curve through
  * their midpoints at the rest pose (order.c): order[k] is the edge at

@@ -60,7 +60,7 @@ static iso_scene *scene(const char *driver, const char *devices, double hz)
 }
 
 typedef struct run_out {
-    long ticks, misses, skipped;
+    long ticks, misses, skipped, handovers;
     double strain;
     iso_pose handle;
     double *x; /* final positions, owned */
@@ -78,6 +78,7 @@ static void run(iso_scene *sc, const iso_loop_opts *o, run_out *r)
     r->ticks = s.ticks;
     r->misses = s.misses;
     r->skipped = s.skipped;
+    r->handovers = s.solver.handovers;
     r->strain = s.metrics.max_edge_strain;
     r->handle = *iso_loop_commanded_pose(l, 0);
     size_t n = 3 * (size_t)iso_mesh_vertex_count(sc->mesh);
@@ -249,6 +250,45 @@ static void slowed_replay_keeps_the_motion(void **state)
     iso_scene_destroy(sc);
 }
 
+/* ---- the factorization worker -------------------------------------------------- */
+
+/* With solver.worker_lag the factor each tick uses is fixed by evaluation
+ * counts, so real time gives the bits --fast gives: in --fast the ticks
+ * come as fast as they can and often wait for the worker; paced at half
+ * speed (a tick every ~33 ms of wall time) the worker is always done
+ * first. Without misses the step sequence is the same, and so must be
+ * every bit of the mesh. */
+static void worker_gives_the_same_bits_in_real_time(void **state)
+{
+    (void)state;
+    iso_scene *sc = scene_text("name: t\n"
+                               "mesh: {shape: cactus, resolution: 1}\n"
+                               "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                               "      driver: {screw: {def: builtin, duration: 1.0}}\n"
+                               "solver: {assembly: cpu, refactor: adaptive, worker_lag: 2}\n"
+                               "integrator: {abm: pec}\n"
+                               "tick_hz: 60\n");
+    iso_loop_opts o = fast_opts();
+    o.duration_s = 0.5;
+    run_out fast, paced;
+    run(sc, &o, &fast);
+    o.fast = 0;
+    o.speed = 0.5;
+    run(sc, &o, &paced);
+    size_t n = 3 * (size_t)iso_mesh_vertex_count(sc->mesh);
+    printf("worker lag 2: %ld ticks, %ld factors handed over (--fast), %ld (paced, %ld missed)\n",
+           fast.ticks, fast.handovers, paced.handovers, paced.misses);
+    assert_true(fast.handovers > 0);
+    assert_int_equal(paced.ticks, fast.ticks);
+    assert_int_equal(paced.skipped, 0);
+    assert_int_equal(paced.handovers, fast.handovers);
+    if (memcmp(fast.x, paced.x, n * sizeof *fast.x) != 0)
+        fail_msg("paced run differs from --fast by %g", max_diff3(fast.x, paced.x, n));
+    free(fast.x);
+    free(paced.x);
+    iso_scene_destroy(sc);
+}
+
 /* ---- restoration in the loop -------------------------------------------------- */
 
 /* The built-in bar's twist at 60 Hz under PEC, the shipped scenes' mode:
@@ -328,9 +368,10 @@ static int find_benchmark(void *ctx, const char *name, char *mesh, char *sel, ch
 }
 
 /* The cactus scene as written, on the C assembly, at tick_hz × hz_scale,
- * with CG's share of the step error `share` (0: cg_tol 1e-12). */
-static double *cactus_scene_run(double hz_scale, double share, long *cg, int *nv, double *diag,
-                                int *benchmark)
+ * with CG's share of the step error `share` (0: cg_tol 1e-12) and the
+ * solver's worker_lag. */
+static double *cactus_scene_run(double hz_scale, double share, int worker_lag, long *cg, int *nv,
+                                double *diag, int *benchmark)
 {
     char path[1200];
     snprintf(path, sizeof path, "%s/cactus.yaml", scenes_dir());
@@ -344,6 +385,7 @@ static double *cactus_scene_run(double hz_scale, double share, long *cg, int *nv
     sc->solver.assembly = ISO_ASSEMBLY_CPU; /* bit-identical everywhere, no kernel build */
     sc->tick_hz *= hz_scale;
     sc->integrate.cg_share = share;
+    sc->solver.worker_lag = worker_lag;
     if (share == 0)
         sc->solver.cg_tol = 1e-12;
     iso_loop_opts o = fast_opts();
@@ -364,29 +406,38 @@ static double *cactus_scene_run(double hz_scale, double share, long *cg, int *nv
     return x;
 }
 
+/* The same with the factorization worker (solver.worker_lag 2): its older
+ * factors change how PCG gets there, not where the target lets it stop. */
 static void cg_tolerance_follows_the_integrator(void **state)
 {
     (void)state;
-    long cg[3];
+    long cg[4];
     int nv, bench;
     double diag;
-    double *x = cactus_scene_run(1, ISO_INTEGRATE_CG_SHARE, &cg[0], &nv, &diag, &bench);
-    double *exact = cactus_scene_run(1, 0, &cg[1], &nv, &diag, &bench);
-    double *fine = cactus_scene_run(8, 0, &cg[2], &nv, &diag, &bench);
+    double *x = cactus_scene_run(1, ISO_INTEGRATE_CG_SHARE, 0, &cg[0], &nv, &diag, &bench);
+    double *xw = cactus_scene_run(1, ISO_INTEGRATE_CG_SHARE, 2, &cg[3], &nv, &diag, &bench);
+    double *exact = cactus_scene_run(1, 0, 0, &cg[1], &nv, &diag, &bench);
+    double *fine = cactus_scene_run(8, 0, 0, &cg[2], &nv, &diag, &bench);
     double d_cg = iso_test_vertex_max_diff(x, exact, nv) / diag;
+    double d_worker = iso_test_vertex_max_diff(xw, exact, nv) / diag;
     double d_int = iso_test_vertex_max_diff(exact, fine, nv) / diag;
     printf("cactus scene (%s, %d vertices), 60 Hz PEC, adaptive refactoring:\n",
            bench ? "benchmark" : "the scene's fallback, the built-in shape", nv);
     printf("  CG at share %.2g against 1e-12 solves: %.3g of the diagonal (%ld against %ld "
            "CG iterations)\n",
            ISO_INTEGRATE_CG_SHARE, d_cg, cg[0], cg[1]);
+    printf("  the same with the factorization worker (worker_lag 2): %.3g (%ld CG iterations)\n",
+           d_worker, cg[3]);
     printf("  integrator's own error (1e-12 solves, against 480 Hz): %.3g of the diagonal\n",
            d_int);
-    printf("  CG's part of it: %.3g (required below 0.1)\n", d_cg / d_int);
+    printf("  CG's part of it: %.3g, with the worker %.3g (required below 0.1)\n", d_cg / d_int,
+           d_worker / d_int);
     assert_true(d_int > 0);
     assert_true(d_cg < 0.1 * d_int);
+    assert_true(d_worker < 0.1 * d_int);
     assert_true(cg[0] < cg[1]);
     free(x);
+    free(xw);
     free(exact);
     free(fine);
 }
@@ -455,6 +506,7 @@ int main(void)
         cmocka_unit_test(slowed_replay_keeps_the_motion),
         cmocka_unit_test(restoration_in_the_loop_is_no_worse),
         cmocka_unit_test(cg_tolerance_follows_the_integrator),
+        cmocka_unit_test(worker_gives_the_same_bits_in_real_time),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
