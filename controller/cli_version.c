@@ -147,7 +147,14 @@ void iso_cli__print_version(void)
 
 static const iso_cli__opt version_options[] = {{0}};
 
-static int version_main(int argc, char **argv);
+static int version_main(int argc, char **argv)
+{
+    int status = iso_cli__parse(&iso_cli__version_cmd, argc, argv, NULL, NULL, 0, NULL);
+    if (status >= 0)
+        return status;
+    iso_cli__print_version();
+    return 0;
+}
 
 const iso_cli__cmd iso_cli__version_cmd = {
     .name = "version",
@@ -158,12 +165,3 @@ const iso_cli__cmd iso_cli__version_cmd = {
              "against), and the BLAS that is loaded, with the file it was loaded from.\n",
     .opts = version_options,
     .main = version_main};
-
-static int version_main(int argc, char **argv)
-{
-    int status = iso_cli__parse(&iso_cli__version_cmd, argc, argv, NULL, NULL, 0, NULL);
-    if (status >= 0)
-        return status;
-    iso_cli__print_version();
-    return 0;
-}

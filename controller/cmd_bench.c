@@ -153,20 +153,6 @@ static const iso_cli__opt bench_options[] = {
      ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
     {0}};
 
-const iso_cli__cmd iso_cli__bench_cmd = {
-    .name = "bench",
-    .summary = "time the four benchmark problems against the paper and this machine",
-    .usage =
-        "usage: isoshape bench [--quick] [--json] [--benchmark-dir DIR] [--reps N] [options]\n"
-        "\n"
-        "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
-        "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
-        "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
-        "Then runs each problem's scene in real time (as fast as possible) beside one bare "
-        "solve.\n",
-    .opts = bench_options,
-    .main = iso_cli__bench_run};
-
 /* Returns -1 to go on, else the exit status (0 after --help). */
 static int parse_args(int argc, char **argv, bench_args *a)
 {
@@ -609,7 +595,7 @@ static void print_json(const bench_args *a, const bench_result *res)
 /* The command                                                                */
 /* ------------------------------------------------------------------------ */
 
-int iso_cli__bench_run(int argc, char **argv)
+static int bench_main(int argc, char **argv)
 {
     bench_args a;
     int status = parse_args(argc, argv, &a);
@@ -666,3 +652,17 @@ out:
     free(res);
     return status;
 }
+
+const iso_cli__cmd iso_cli__bench_cmd = {
+    .name = "bench",
+    .summary = "time the four benchmark problems against the paper and this machine",
+    .usage =
+        "usage: isoshape bench [--quick] [--json] [--benchmark-dir DIR] [--reps N] [options]\n"
+        "\n"
+        "Runs the four benchmark problems (cactus, bar, cylinder, bumpplane) with the paper's\n"
+        "method, once per refactoring scheme, and measures this machine's limits beside them:\n"
+        "dense dgemm's rate and one bare CHOLMOD factorization and solve of the cactus system.\n"
+        "Then runs each problem's scene in real time (as fast as possible) beside one bare "
+        "solve.\n",
+    .opts = bench_options,
+    .main = bench_main};

@@ -64,16 +64,7 @@ static void print_summary(const iso_scene *s)
 
 static const iso_cli__opt check_options[] = {{0}};
 
-const iso_cli__cmd iso_cli__check_cmd = {
-    .name = "check",
-    .summary = "validate a scene file without running it",
-    .usage = "usage: isoshape check SCENE\n"
-             "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
-             "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n",
-    .opts = check_options,
-    .main = iso_cli__check};
-
-int iso_cli__check(int argc, char **argv)
+static int check_main(int argc, char **argv)
 {
     const char *path = NULL;
     int status = iso_cli__parse(&iso_cli__check_cmd, argc, argv, NULL, &path, 1, NULL);
@@ -102,3 +93,12 @@ int iso_cli__check(int argc, char **argv)
     iso_scene_destroy(s);
     return 0;
 }
+
+const iso_cli__cmd iso_cli__check_cmd = {
+    .name = "check",
+    .summary = "validate a scene file without running it",
+    .usage = "usage: isoshape check SCENE\n"
+             "  Validates a scene file (config/SCENES.md) without running it: loads the\n"
+             "  mesh and regions, builds the solver, prints a summary. Exit 0 if valid.\n",
+    .opts = check_options,
+    .main = check_main};

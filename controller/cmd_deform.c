@@ -116,18 +116,6 @@ static const iso_cli__opt deform_options[] = {
      .table = iso_cli__solver_options},
     {0}};
 
-const iso_cli__cmd iso_cli__deform_cmd = {
-    .name = "deform",
-    .summary = "integrate the deformation of a mesh as its handle moves to its final pose",
-    .usage = "usage: isoshape deform --mesh M --sel S --def D [options]\n"
-             "       isoshape deform --shape NAME [--resolution N] [options]\n"
-             "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
-             "\n"
-             "Moves the handle from its rest pose to the pose D along a screw motion and\n"
-             "integrates the free vertices along the isometry-preserving field.\n",
-    .opts = deform_options,
-    .main = iso_cli__deform};
-
 /* The problem's options exclude each other, and --steps excludes --tol.
  * Returns -1 when all fit, else 2 after saying why. */
 static int check_args(const char *cmd, deform_args *a)
@@ -343,7 +331,7 @@ static int run(const deform_args *a, const iso_cli__problem *p, double *x, repor
     return rc;
 }
 
-int iso_cli__deform(int argc, char **argv)
+static int deform_main(int argc, char **argv)
 {
     deform_args a;
     int status = parse_args(argc, argv, &a);
@@ -388,3 +376,15 @@ out:
     iso_cli__problem_deinit(&p);
     return status;
 }
+
+const iso_cli__cmd iso_cli__deform_cmd = {
+    .name = "deform",
+    .summary = "integrate the deformation of a mesh as its handle moves to its final pose",
+    .usage = "usage: isoshape deform --mesh M --sel S --def D [options]\n"
+             "       isoshape deform --shape NAME [--resolution N] [options]\n"
+             "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
+             "\n"
+             "Moves the handle from its rest pose to the pose D along a screw motion and\n"
+             "integrates the free vertices along the isometry-preserving field.\n",
+    .opts = deform_options,
+    .main = deform_main};

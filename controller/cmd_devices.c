@@ -9,18 +9,7 @@
 
 static const iso_cli__opt devices_options[] = {{0}};
 
-const iso_cli__cmd iso_cli__devices_cmd = {
-    .name = "devices",
-    .summary = "list input devices, usable or why not",
-    .usage = "usage: isoshape devices\n"
-             "\n"
-             "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
-             "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
-             "devices (libusb), each usable or with the reason it is not.\n",
-    .opts = devices_options,
-    .main = iso_cli__devices};
-
-int iso_cli__devices(int argc, char **argv)
+static int devices_main(int argc, char **argv)
 {
     int status = iso_cli__parse(&iso_cli__devices_cmd, argc, argv, NULL, NULL, 0, NULL);
     if (status >= 0)
@@ -43,3 +32,14 @@ int iso_cli__devices(int argc, char **argv)
     printf("%zu found, %zu usable\n", n, usable);
     return 0;
 }
+
+const iso_cli__cmd iso_cli__devices_cmd = {
+    .name = "devices",
+    .summary = "list input devices, usable or why not",
+    .usage = "usage: isoshape devices\n"
+             "\n"
+             "Lists the input devices this build can see: 3D mice (hidapi, spacenavd),\n"
+             "serial adapters (libserialport), GPIO chips (libgpiod) and known USB\n"
+             "devices (libusb), each usable or with the reason it is not.\n",
+    .opts = devices_options,
+    .main = devices_main};

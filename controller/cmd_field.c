@@ -36,20 +36,6 @@ static const iso_cli__opt field_options[] = {
      .table = iso_cli__solver_options},
     {0}};
 
-const iso_cli__cmd iso_cli__field_cmd = {
-    .name = "field",
-    .summary = "solve the deformation field once, at the rest pose",
-    .usage =
-        "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
-        "--out F\n"
-        "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
-        "\n"
-        "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
-        "handle vertices (label 2) move with the velocities in V, and free vertices\n"
-        "(label 1) get the velocities that preserve lengths best.\n",
-    .opts = field_options,
-    .main = iso_cli__field};
-
 /* Reads one velocity per handle vertex into vc (3*nv). Returns 0, or -1
  * after naming V's line. */
 static int read_velocities(const char *path, const iso_regions *r, double *vc)
@@ -165,7 +151,7 @@ static int parse_args(int argc, char **argv, field_args *a)
     return -1;
 }
 
-int iso_cli__field(int argc, char **argv)
+static int field_main(int argc, char **argv)
 {
     const char *cmd = "field";
     field_args a;
@@ -218,3 +204,17 @@ out:
     iso_shape_deinit(&sh);
     return status;
 }
+
+const iso_cli__cmd iso_cli__field_cmd = {
+    .name = "field",
+    .summary = "solve the deformation field once, at the rest pose",
+    .usage =
+        "usage: isoshape field --mesh M --sel S --velocity V [--omega W] [--weighting param|area] "
+        "--out F\n"
+        "       isoshape field --shape NAME [--resolution N] --velocity V ... --out F\n"
+        "\n"
+        "Solves the field once at the rest pose: fixed vertices (label 0) stand still,\n"
+        "handle vertices (label 2) move with the velocities in V, and free vertices\n"
+        "(label 1) get the velocities that preserve lengths best.\n",
+    .opts = field_options,
+    .main = field_main};

@@ -53,18 +53,7 @@ static const iso_cli__opt inspect_options[] = {
      .help = "leave out each record's raw bytes", .flag = 0},
     {0}};
 
-const iso_cli__cmd iso_cli__inspect_cmd = {
-    .name = "inspect",
-    .summary = "print a device recording, record by record, decoded",
-    .usage = "usage: isoshape inspect FILE [--no-bytes]\n"
-             "\n"
-             "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
-             "every record with its time, source, raw bytes and decoded events.\n"
-             "Damaged records and a torn end are reported with their byte offsets.\n",
-    .opts = inspect_options,
-    .main = iso_cli__inspect};
-
-int iso_cli__inspect(int argc, char **argv)
+static int inspect_main(int argc, char **argv)
 {
     const char *path = NULL;
     inspect_args a = {1};
@@ -145,3 +134,14 @@ int iso_cli__inspect(int argc, char **argv)
     iso_dev_rec_reader_deinit(&r);
     return 0;
 }
+
+const iso_cli__cmd iso_cli__inspect_cmd = {
+    .name = "inspect",
+    .summary = "print a device recording, record by record, decoded",
+    .usage = "usage: isoshape inspect FILE [--no-bytes]\n"
+             "\n"
+             "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
+             "every record with its time, source, raw bytes and decoded events.\n"
+             "Damaged records and a torn end are reported with their byte offsets.\n",
+    .opts = inspect_options,
+    .main = inspect_main};

@@ -20,18 +20,6 @@ static const iso_cli__opt metrics_options[] = {
      .flag = 1},
     {0}};
 
-const iso_cli__cmd iso_cli__metrics_cmd = {
-    .name = "metrics",
-    .summary = "distortion between an original mesh and a deformed copy",
-    .usage = "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
-             "\n"
-             "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
-             "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
-             "the largest and the root-mean-square relative edge length change, each printed\n"
-             "with what it measures.\n",
-    .opts = metrics_options,
-    .main = iso_cli__metrics};
-
 int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, size_t why_cap)
 {
     int nv = iso_mesh_vertex_count(a), nt = iso_mesh_triangle_count(a);
@@ -52,7 +40,7 @@ int iso_cli__same_connectivity(const iso_mesh *a, const iso_mesh *b, char *why, 
     return 1;
 }
 
-int iso_cli__metrics(int argc, char **argv)
+static int metrics_main(int argc, char **argv)
 {
     const char *cmd = "metrics", *path[2] = {NULL, NULL};
     metrics_args a = {0};
@@ -97,3 +85,15 @@ out:
     iso_mesh_destroy(m[1]);
     return status;
 }
+
+const iso_cli__cmd iso_cli__metrics_cmd = {
+    .name = "metrics",
+    .summary = "distortion between an original mesh and a deformed copy",
+    .usage = "usage: isoshape metrics ORIGINAL DEFORMED [--json]\n"
+             "\n"
+             "Distortion of DEFORMED against ORIGINAL (OFF, OBJ or PLY; same vertices and\n"
+             "triangles in the same order): the paper's metricErr, areaErr and angleErr, and\n"
+             "the largest and the root-mean-square relative edge length change, each printed\n"
+             "with what it measures.\n",
+    .opts = metrics_options,
+    .main = metrics_main};

@@ -161,16 +161,6 @@ static const iso_cli__opt record_options[] = {
      .table = iso_cli__dev_map_options},
     {0}};
 
-const iso_cli__cmd iso_cli__record_cmd = {
-    .name = "record",
-    .summary = "record live input devices (3D mouse, serial, GPIO) while running them",
-    .usage = "usage: isoshape record -o FILE SOURCE... [options]\n"
-             "\n"
-             "Records live input devices (devices/RECORDING.md) while running the device side\n"
-             "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n",
-    .opts = record_options,
-    .main = iso_cli__record};
-
 /* Returns -1 to go on, else the exit status (0 after --help). */
 static int parse_args(int argc, char **argv, record_args *a)
 {
@@ -198,7 +188,7 @@ static int parse_args(int argc, char **argv, record_args *a)
     return -1;
 }
 
-int iso_cli__record(int argc, char **argv)
+static int record_main(int argc, char **argv)
 {
     const char *cmd = "record";
     record_args a;
@@ -263,3 +253,13 @@ int iso_cli__record(int argc, char **argv)
            ctx.late ? " (some ticks ran late)" : "");
     return status;
 }
+
+const iso_cli__cmd iso_cli__record_cmd = {
+    .name = "record",
+    .summary = "record live input devices (3D mouse, serial, GPIO) while running them",
+    .usage = "usage: isoshape record -o FILE SOURCE... [options]\n"
+             "\n"
+             "Records live input devices (devices/RECORDING.md) while running the device side\n"
+             "of the loop, until --duration or Ctrl-C. Sources (any number, up to 16):\n",
+    .opts = record_options,
+    .main = record_main};

@@ -168,20 +168,6 @@ static const iso_cli__opt replay_options[] = {
      .table = iso_cli__dev_map_options},
     {0}};
 
-const iso_cli__cmd iso_cli__replay_cmd = {
-    .name = "replay",
-    .summary = "replay a device recording, deterministically, at any speed",
-    .usage = "usage: isoshape replay FILE [options]\n"
-             "\n"
-             "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
-             "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
-             "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
-             "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
-             "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
-             "\n",
-    .opts = replay_options,
-    .main = iso_cli__replay};
-
 /* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
  * error. */
 static int parse(int argc, char **argv, replay_args *a)
@@ -207,7 +193,7 @@ static int parse(int argc, char **argv, replay_args *a)
     return -1;
 }
 
-int iso_cli__replay(int argc, char **argv)
+static int replay_main(int argc, char **argv)
 {
     const char *cmd = "replay";
     replay_args a;
@@ -289,3 +275,17 @@ int iso_cli__replay(int argc, char **argv)
         free(sc);
     return status;
 }
+
+const iso_cli__cmd iso_cli__replay_cmd = {
+    .name = "replay",
+    .summary = "replay a device recording, deterministically, at any speed",
+    .usage = "usage: isoshape replay FILE [options]\n"
+             "\n"
+             "Replays a recording (devices/RECORDING.md) through the tick engine that\n"
+             "`isoshape run` uses: the decoders and the mapping, one tick at each of its TICK\n"
+             "records, and prints a summary: ticks, a checksum of every tick's handle commands,\n"
+             "and each handle's commanded pose. The result is the same bit for bit at any speed\n"
+             "unless the machine falls behind in real time (then late ticks merge, as in `run`).\n"
+             "\n",
+    .opts = replay_options,
+    .main = replay_main};

@@ -71,23 +71,6 @@ static const iso_cli__opt run_options[] = {
      .help = "no status line and no summary", .flag = 1},
     {0}};
 
-const iso_cli__cmd iso_cli__run_cmd = {
-    .name = "run",
-    .summary = "run a scene: devices or a replay drive the mesh in real time",
-    .usage = "usage: isoshape run SCENE [options]\n"
-             "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
-             "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
-             "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
-             "  line on a terminal and a summary at the end.\n"
-             "\n",
-    .opts = run_options,
-    .after = "\n"
-             "  Output files are written whole or not at all (a temporary name, then a\n"
-             "  rename), and their folders are checked before the run starts. Exit status:\n"
-             "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
-             "  the run (after a clean shutdown: files written, actuators safe).\n",
-    .main = iso_cli__run_scene};
-
 /* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
  * error. */
 static int parse(int argc, char **argv, run_args *a)
@@ -194,7 +177,7 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     return status;
 }
 
-int iso_cli__run_scene(int argc, char **argv)
+static int run_main(int argc, char **argv)
 {
     run_args a;
     memset(&a, 0, sizeof a);
@@ -238,3 +221,20 @@ int iso_cli__run_scene(int argc, char **argv)
     iso_scene_destroy(sc);
     return status == 0 && sig ? 128 + sig : status;
 }
+
+const iso_cli__cmd iso_cli__run_cmd = {
+    .name = "run",
+    .summary = "run a scene: devices or a replay drive the mesh in real time",
+    .usage = "usage: isoshape run SCENE [options]\n"
+             "  Runs a scene file (config/SCENES.md): each tick reads the devices (or a\n"
+             "  replayed recording, or the scripted drivers), advances the mesh by one ABM\n"
+             "  step of one tick, and publishes it to the scene's sinks. Prints a live status\n"
+             "  line on a terminal and a summary at the end.\n"
+             "\n",
+    .opts = run_options,
+    .after = "\n"
+             "  Output files are written whole or not at all (a temporary name, then a\n"
+             "  rename), and their folders are checked before the run starts. Exit status:\n"
+             "  0 done, 1 failed, 2 bad options; 130 or 143 when SIGINT or SIGTERM stopped\n"
+             "  the run (after a clean shutdown: files written, actuators safe).\n",
+    .main = run_main};

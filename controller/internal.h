@@ -20,18 +20,6 @@
 
 #define ISO_CLI_PATH_MAX 4096
 
-/* Subcommands: argv[0] is the subcommand's name. Return the exit status. */
-int iso_cli__deform(int argc, char **argv);
-int iso_cli__field(int argc, char **argv);
-int iso_cli__metrics(int argc, char **argv);
-int iso_cli__bench_run(int argc, char **argv); /* `isoshape bench` */
-int iso_cli__record(int argc, char **argv);
-int iso_cli__replay(int argc, char **argv);
-int iso_cli__inspect(int argc, char **argv);
-int iso_cli__devices(int argc, char **argv);
-int iso_cli__check(int argc, char **argv);
-int iso_cli__run_scene(int argc, char **argv); /* `isoshape run` */
-
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
 
@@ -155,7 +143,10 @@ int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, con
  * replay: a table fragment whose rows' values go into an iso_dev_map_opts. */
 extern const iso_cli__opt iso_cli__dev_map_options[];
 
-/* The subcommands (controller/cmd_*.c, cli_version.c). */
+/* The subcommands (controller/cmd_*.c, cli_version.c), each at the end of
+ * its file after its main, which is static: main() reaches it through the
+ * table alone. A main's argv[0] is the subcommand's name; it returns the
+ * exit status. */
 extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__metrics_cmd,
     iso_cli__bench_cmd, iso_cli__record_cmd, iso_cli__replay_cmd, iso_cli__inspect_cmd,
     iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__version_cmd;
