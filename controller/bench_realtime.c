@@ -59,6 +59,7 @@ static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
     so.assembly = ISO_ASSEMBLY_CPU; /* the solve does not depend on who assembled */
     so.refactor = ISO_REFACTOR_ALWAYS;
     so.worker_lag = 0;
+    iso_cli__solver_threads(&so.threads); /* as the tick engine's solver had them */
     int nv = iso_mesh_vertex_count(sc->mesh);
     const double *x = iso_mesh_positions(sc->mesh);
     double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
@@ -103,6 +104,7 @@ int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolut
         o.rt = 0;
         o.display = 0;
         o.cl_device = so->cl_device;
+        iso_cli__solver_threads(&o.threads); /* as `isoshape run` does */
         o.cmd = "bench";
         rc = iso_loop_create(sc, &o, &l, err);
     }
