@@ -54,7 +54,8 @@ static const scene_key solver_keys[] = {
      .help = "isometry restoration: edge lengths pulled back with time constant tau",
      .dflt = "off"},
     {"assembly", SK_ENUM, FIELD(iso_solver_opts, assembly), .names = iso_assembly_names,
-     .help = "where the system is assembled (opencl falls back to cpu with a notice)",
+     .help = "who assembles the system: cpu, opencl, or auto (OpenCL on a GPU, else cpu); "
+             "without a usable device cpu runs, with a notice",
      .dflt = "cpu"},
     {"refactor", SK_ENUM, FIELD(iso_solver_opts, refactor), .names = iso_refactor_names,
      .help = "always factor, or reuse the factor as PCG's preconditioner", .dflt = "always"},

@@ -3,8 +3,8 @@
  *
  * The command's defaults differ from the library's on purpose: the library
  * defaults to the paper's scheme on the C path (what a caller embedding it
- * expects), while the command asks for the fastest path and lets the
- * library fall back, with a one-line notice, where OpenCL is missing. */
+ * expects), while the command asks for the fastest path: auto, OpenCL on a
+ * GPU where there is one, else the C path (with a one-line notice). */
 #include "internal.h"
 
 #include <stdio.h>
@@ -15,7 +15,7 @@
 void iso_cli__solver_opts_default(iso_solver_opts *so)
 {
     iso_solver_opts_default(so);
-    so->assembly = ISO_ASSEMBLY_OPENCL;
+    so->assembly = ISO_ASSEMBLY_AUTO;
     so->refactor = ISO_REFACTOR_ADAPTIVE;
     so->cg_tol = ISO_CLI_DEFAULT_CG_TOL;
     iso_cli__solver_threads(&so->threads);
@@ -34,13 +34,13 @@ void iso_cli__solver_threads(iso_solver_threads *t)
 
 const iso_cli__opt iso_cli__assembly_options[] = {
     {"assembly", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, assembly), NULL,
-     .help =
-         "who fills the system each evaluation (default opencl); without a usable OpenCL device "
-         "the C path runs, with a notice",
+     .help = "who fills the system each evaluation: cpu, the C path; opencl, OpenCL kernels; auto "
+             "(default), OpenCL on a GPU when there is one, else the C path (faster on a CPU). "
+             "Without a usable device the C path runs, with a notice",
      .names = iso_assembly_names},
     {"cl-device", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_solver_opts, cl_device), "SPEC",
      .help = "OpenCL device: P:D platform/device indices or part of a name (default: the first CPU "
-             "device)",
+             "device; under auto, the first GPU or accelerator)",
      .nonempty = 1},
     {0}};
 

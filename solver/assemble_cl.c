@@ -172,9 +172,13 @@ static int parse_indices(const char *want, int *p, int *d)
     return 0;
 }
 
-/* Picks the device opts.cl_device asks for (iso_solver.h). ISO_ENOTSUP with
- * the reason when there is none. */
-static int select_device(const char *want, cl_device_id *out, iso_err *err)
+static int has_fp64(cl_device_id dev);
+
+/* Picks the device opts.cl_device asks for (iso_solver.h); without one, the
+ * first device of type `kind` (CPU; or, for the auto assembly, GPU or
+ * accelerator with double precision, so that a later one with it is not
+ * passed over). ISO_ENOTSUP with the reason when there is none. */
+static int select_device(const char *want, cl_device_type kind, cl_device_id *out, iso_err *err)
 {
     cl_platform_id plat[MAX_PLATFORMS];
     cl_uint np = 0;
@@ -221,7 +225,7 @@ static int select_device(const char *want, cl_device_id *out, iso_err *err)
                 cl_device_type type = 0;
                 if (clGetDeviceInfo(dev[d], CL_DEVICE_TYPE, sizeof type, &type, NULL) !=
                         CL_SUCCESS ||
-                    !(type & CL_DEVICE_TYPE_CPU))
+                    !(type & kind) || (kind != CL_DEVICE_TYPE_CPU && !has_fp64(dev[d])))
                     continue;
             }
             *out = dev[d];
@@ -231,16 +235,23 @@ static int select_device(const char *want, cl_device_id *out, iso_err *err)
     if (want)
         return iso_err_set(err, ISO_ENOTSUP, -1, "no device or platform name contains \"%s\"",
                            want);
-    return iso_err_set(err, ISO_ENOTSUP, -1, "no CPU device found on %u platform(s)", np);
+    return iso_err_set(
+        err, ISO_ENOTSUP, -1, "no %s found on %u platform(s)",
+        kind == CL_DEVICE_TYPE_CPU ? "CPU device" : "GPU or accelerator with double precision", np);
 }
 
 /* The kernels need doubles; a device without them cannot run this path. */
-static int check_fp64(cl_device_id dev, const char *name, iso_err *err)
+static int has_fp64(cl_device_id dev)
 {
     cl_device_fp_config fp = 0;
     if (clGetDeviceInfo(dev, CL_DEVICE_DOUBLE_FP_CONFIG, sizeof fp, &fp, NULL) != CL_SUCCESS)
         fp = 0;
-    if (fp == 0)
+    return fp != 0;
+}
+
+static int check_fp64(cl_device_id dev, const char *name, iso_err *err)
+{
+    if (!has_fp64(dev))
         return iso_err_set(err, ISO_ENOTSUP, -1,
                            "device \"%s\" has no double precision (cl_khr_fp64), which the "
                            "assembly needs",
@@ -885,7 +896,10 @@ int iso_solver__cl_create(iso_solver *s, iso_cl_assembler **out, iso_err *err)
     cl->nf = s->nf;
     cl->nnz = (size_t)((int *)s->A->p)[3 * s->nf];
     cl->nx = 3 * (size_t)s->nv;
-    int rc = select_device(s->o.cl_device, &cl->dev, err);
+    cl_device_type kind = s->o.assembly == ISO_ASSEMBLY_AUTO
+                              ? CL_DEVICE_TYPE_GPU | CL_DEVICE_TYPE_ACCELERATOR
+                              : CL_DEVICE_TYPE_CPU;
+    int rc = select_device(s->o.cl_device, kind, &cl->dev, err);
     if (rc == ISO_OK) {
         device_string(cl->dev, CL_DEVICE_NAME, cl->device, sizeof cl->device);
         rc = check_fp64(cl->dev, cl->device, err);

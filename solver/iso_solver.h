@@ -30,6 +30,12 @@ typedef enum iso_assembly {
     ISO_ASSEMBLY_CPU = 0, /* the C path (library default) */
     ISO_ASSEMBLY_OPENCL,  /* OpenCL kernels; falls back to CPU with a notice
                              when no platform or device is usable */
+    /* OpenCL on the first GPU or accelerator with double precision (or on
+     * cl_device when one is named), else the C path with a notice: on a
+     * CPU the C path is the faster (cactus: 1.6 ms an evaluation on one
+     * core, PoCL 2.7-3.2 ms on two), and PoCL's threads would share the
+     * cores with the factorization worker (worker_lag). */
+    ISO_ASSEMBLY_AUTO,
 } iso_assembly;
 
 /* When to compute a fresh numeric factor. */
@@ -42,7 +48,7 @@ typedef enum iso_refactor {
 } iso_refactor;
 
 /* The enums' names, indexed by value (common/iso_names.h): "cpu",
- * "opencl"; "adaptive", "always". Scenes, options and output use these. */
+ * "opencl", "auto"; "adaptive", "always". Scenes, options and output use these. */
 ISO_API extern const char *const iso_assembly_names[];
 ISO_API extern const char *const iso_refactor_names[];
 
@@ -96,8 +102,10 @@ typedef struct iso_solver_opts {
     iso_weighting weighting; /* default ISO_WEIGHT_PARAM */
     iso_assembly assembly;   /* default ISO_ASSEMBLY_CPU */
     const char *cl_device;   /* OpenCL device: NULL = the first CPU device
-                                (PoCL), else "P:D" platform/device indices or
-                                a substring of the device or platform name */
+                                (PoCL; under auto, the first GPU or
+                                accelerator), else "P:D" platform/device
+                                indices or a substring of the device or
+                                platform name */
     iso_refactor refactor;   /* default ISO_REFACTOR_ALWAYS in the library */
     double cg_tol;           /* adaptive: relative residual, default 1e-10; with a target
                                 (iso_solver_set_cg_target) whichever is met first ends CG */
@@ -126,7 +134,10 @@ typedef struct iso_solver_opts {
      * counts only, so results are bit-identical from run to run whatever
      * the timing. The worker takes one core while it factors; it runs
      * under the default scheduling policy and with all signals blocked
-     * (solver/worker.c says why). */
+     * (solver/worker.c says why). Give the BLAS one thread
+     * (ISO_SOLVER_BLAS_SIZED, or OPENBLAS_NUM_THREADS=1): a threaded BLAS
+     * spreads the worker's factorization over the evaluating thread's
+     * core too (the cactus's median tick went from 16 to 28 ms). */
     int worker_lag;
 } iso_solver_opts;
 

@@ -22,7 +22,7 @@
 #include "iso_names.h"
 #include "solver_internal.h"
 
-const char *const iso_assembly_names[] = {"cpu", "opencl", NULL};
+const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
 const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
 
 typedef iso_solver__element element;
@@ -509,13 +509,16 @@ static int start_opencl(iso_solver *s, iso_err *err)
     iso_err why;
     iso_err_clear(&why);
     int rc = iso_solver__cl_create(s, &s->cl, &why);
-    if (rc == ISO_OK)
+    if (rc == ISO_OK) {
+        s->o.assembly = ISO_ASSEMBLY_OPENCL;
         return ISO_OK;
+    }
     if (rc != ISO_ENOTSUP)
         return iso_err_set(err, rc, why.offset, "%s", why.msg);
     /* The reason is one of assemble_cl.c's short sentences; the precision
      * only keeps the notice (256 bytes) from tripping -Wformat-truncation. */
-    snprintf(s->notice, sizeof s->notice, "OpenCL: %.200s; using the C assembly", why.msg);
+    snprintf(s->notice, sizeof s->notice, "%s: %.200s; using the C assembly",
+             s->o.assembly == ISO_ASSEMBLY_AUTO ? "assembly auto" : "OpenCL", why.msg);
 #else
     snprintf(s->notice, sizeof s->notice,
              "OpenCL: this build has no OpenCL support; using the C assembly");
@@ -563,7 +566,7 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         rc = build_pattern(s, err);
     if (rc == ISO_OK)
         rc = analyse(s, err);
-    if (rc == ISO_OK && s->o.assembly == ISO_ASSEMBLY_OPENCL)
+    if (rc == ISO_OK && s->o.assembly != ISO_ASSEMBLY_CPU)
         rc = start_opencl(s, err);
     if (rc != ISO_OK) {
         iso_solver_destroy(s);

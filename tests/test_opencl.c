@@ -10,7 +10,11 @@
  *   (b) each path is bit-identical from run to run;
  *   (c) a triangle that degenerates is reported by both paths alike;
  *   (d) a device that does not exist gives the C path and a notice;
- *   (e) whole field evaluations agree.
+ *   (e) whole field evaluations agree;
+ *   (f) the auto assembly takes OpenCL on a GPU or accelerator with double
+ *       precision where this machine has one (listed here through the
+ *       OpenCL API itself), else the C path with a notice, never a CPU
+ *       device unless it is named.
  * Speed is not a test's business: tests/tools/assembly_bench prints the
  * median assembly time of each path, measured in the same run.
  *
@@ -21,6 +25,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#ifdef ISO_TEST_HAVE_CL /* the OpenCL API, to list the devices (f) */
+#include <CL/cl.h>
+#endif
 
 #include "iso_mesh.h"
 #include "iso_regions.h"
@@ -387,6 +395,76 @@ static void fields_agree(void **state)
     problem_free(&p);
 }
 
+#ifdef ISO_TEST_HAVE_CL
+/* The GPU and accelerator devices with double precision, and the "P:D"
+ * of the first CPU device ("" if none), as listed by OpenCL. */
+static int list_devices(char *cpu, size_t cap)
+{
+    cl_platform_id plat[16];
+    cl_uint np = 0;
+    int gpus = 0;
+    cpu[0] = '\0';
+    if (clGetPlatformIDs(16, plat, &np) != CL_SUCCESS)
+        return 0;
+    for (cl_uint p = 0; p < np && p < 16; p++) {
+        cl_device_id dev[16];
+        cl_uint nd = 0;
+        if (clGetDeviceIDs(plat[p], CL_DEVICE_TYPE_ALL, 16, dev, &nd) != CL_SUCCESS)
+            continue;
+        for (cl_uint d = 0; d < nd && d < 16; d++) {
+            cl_device_type type = 0;
+            cl_device_fp_config fp = 0;
+            clGetDeviceInfo(dev[d], CL_DEVICE_TYPE, sizeof type, &type, NULL);
+            clGetDeviceInfo(dev[d], CL_DEVICE_DOUBLE_FP_CONFIG, sizeof fp, &fp, NULL);
+            if ((type & (CL_DEVICE_TYPE_GPU | CL_DEVICE_TYPE_ACCELERATOR)) && fp)
+                gpus++;
+            if ((type & CL_DEVICE_TYPE_CPU) && !cpu[0])
+                snprintf(cpu, cap, "%u:%u", p, d);
+        }
+    }
+    return gpus;
+}
+
+static void auto_takes_a_gpu_or_the_c_path(void **state)
+{
+    (void)state;
+    problem p;
+    problem_shape(&p, "bar");
+    char cpu[32];
+    int gpus = list_devices(cpu, sizeof cpu);
+    iso_solver_opts o;
+    iso_solver_opts_default(&o);
+    o.assembly = ISO_ASSEMBLY_AUTO;
+    iso_solver *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_solver_create(p.m, &p.r, &o, &s, &err), ISO_OK);
+    const char *n = iso_solver_notice(s);
+    printf("auto: %d GPU or accelerator device(s) with doubles listed; %s\n", gpus,
+           s->cl ? "OpenCL runs" : n);
+    if (gpus > 0) {
+        assert_non_null(s->cl);
+        assert_int_equal(s->o.assembly, ISO_ASSEMBLY_OPENCL);
+        assert_string_equal(n, "");
+    } else {
+        assert_null(s->cl);
+        assert_int_equal(s->o.assembly, ISO_ASSEMBLY_CPU);
+        if (!strstr(n, "assembly auto: no GPU or accelerator") ||
+            !strstr(n, "using the C assembly"))
+            fail_msg("notice \"%s\"", n);
+    }
+    iso_solver_destroy(s);
+    if (cpu[0]) { /* a named device wins, a CPU one included */
+        o.cl_device = cpu;
+        assert_int_equal(iso_solver_create(p.m, &p.r, &o, &s, &err), ISO_OK);
+        assert_non_null(s->cl);
+        assert_int_equal(s->o.assembly, ISO_ASSEMBLY_OPENCL);
+        iso_solver_destroy(s);
+    }
+    problem_free(&p);
+}
+#endif
+
 /* Exits 77 with the reason when the OpenCL path cannot start here. */
 static void skip_without_opencl(void)
 {
@@ -423,6 +501,9 @@ int main(void)
         cmocka_unit_test(degenerate_triangle_reported_alike),
         cmocka_unit_test(missing_device_falls_back),
         cmocka_unit_test(fields_agree),
+#ifdef ISO_TEST_HAVE_CL
+        cmocka_unit_test(auto_takes_a_gpu_or_the_c_path),
+#endif
     };
     return cmocka_run_group_tests_name("opencl", t, NULL, NULL);
 }
