@@ -149,7 +149,7 @@ static const iso_cli__opt bench_options[] = {
      .table = iso_cli__cg_tol_options},
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
      .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
-             "that of the shipped scenes, " ISO_CLI_STR(ISO_CLI_RT_WORKER_LAG),
+             "each shipped scene's: " ISO_CLI_STR(ISO_CLI_RT_WORKER_LAG) ", 0 for the bumpplane",
      ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
     {0}};
 
@@ -160,7 +160,7 @@ static int parse_args(int argc, char **argv, bench_args *a)
     iso_cli__solver_opts_default(&a->so);
     a->so.restore_mu = 0.0; /* the paper's method exactly */
     a->only = -1;
-    a->rt_worker_lag = ISO_CLI_RT_WORKER_LAG;
+    a->rt_worker_lag = -1; /* each scene's own */
     int status = iso_cli__parse(&iso_cli__bench_cmd, argc, argv, a, NULL, 0, NULL);
     if (status >= 0)
         return status;
@@ -628,7 +628,8 @@ static int bench_main(int argc, char **argv)
         if (a.tty)
             fprintf(stderr, "isoshape bench: %s in real time ...\n", problems[k].name);
         iso_solver_opts rt_so = a.so;
-        rt_so.worker_lag = a.rt_worker_lag;
+        rt_so.worker_lag =
+            a.rt_worker_lag >= 0 ? a.rt_worker_lag : iso_cli__rt_worker_lag(problems[k].name);
         if (iso_cli__bench_realtime(problems[k].name, a.src.bench_dir, res_k, &rt_so,
                                     a.quick ? 3 : 5, &res->rt[res->n_rt++], &err) != ISO_OK) {
             iso_cli__fail("bench", "%s in real time: %s", problems[k].name, err.msg);

@@ -216,8 +216,10 @@ extern const iso_cli__opt iso_cli__worker_options[];
  * solver.worker_lag), which bench's real-time table follows by default:
  * three 60 Hz ticks leave a cactus factorization (~25-30 ms on one core)
  * 20 ms to spare, and a lag of two made ticks wait for the worker when the
- * second core was busy. */
+ * second core was busy. The bumpplane has none (iso_cli__rt_worker_lag). */
 #define ISO_CLI_RT_WORKER_LAG 3
+/* The shipped scene `name`'s worker_lag. */
+int iso_cli__rt_worker_lag(const char *name);
 extern const iso_cli__opt iso_cli__solver_options[];
 extern const iso_cli__opt iso_cli__weight_options[];
 
