@@ -618,7 +618,8 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
             return iso_err_set(err, ISO_ENOMEM, -1, "emulated MCU: out of memory");
         iso_err qerr;
         iso_err_clear(&qerr);
-        if (qemu_open(e, qemu, elf, &qerr) == ISO_OK) {
+        int qrc = qemu_open(e, qemu, elf, &qerr);
+        if (qrc == ISO_OK) {
             info->used = ISO_ACT_EMU_QEMU;
             snprintf(info->line, sizeof info->line,
                      "actuators: emulated MCU: the firmware ELF %.300s in %.300s -M mps2-an385 "
@@ -629,10 +630,16 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
             *out = &e->base;
             return ISO_OK;
         }
+        /* Never a failure without a reason. Seen twice in CI under load and
+         * never reproduced; every path of qemu_open names its error, so
+         * the state it left is what the next occurrence must tell. */
+        if (qerr.code == ISO_OK)
+            iso_err_set(&qerr, ISO_EIO, -1,
+                        "%s: QEMU did not start, and said nothing why (status %d, pid %d, "
+                        "listening %d, socket %d, %.0f ms after launch)",
+                        e->what, qrc, atomic_load(&e->qemu), e->lfd >= 0, e->sock >= 0,
+                        (double)(iso_clock_us() - e->launched_us) / 1e3);
         emu_close(&e->base);
-        if (qerr.code == ISO_OK) /* never a success without a link (seen once in CI) */
-            iso_err_set(&qerr, ISO_EIO, -1, "%s: QEMU did not start, and said nothing why",
-                        "emulated MCU (QEMU)");
         if (mode == ISO_ACT_EMU_QEMU)
             return iso_err_set(err, qerr.code, -1, "%s", qerr.msg);
         snprintf(why, sizeof why, "QEMU did not start: %s", qerr.msg);
