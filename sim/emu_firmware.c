@@ -524,7 +524,12 @@ static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *er
     snprintf(e->qemu_path, sizeof e->qemu_path, "%s", qemu);
     snprintf(e->elf, sizeof e->elf, "%s", elf);
     int rc = qemu_launch(e, err);
-    while (rc == ISO_OK && (rc = qemu_accept(e, 50, err)) == 1) {
+    if (rc != ISO_OK)
+        return rc;
+    /* qemu_accept ends with ISO_OK, or an error once QEMU exits or
+     * QEMU_CONNECT_MS pass; 1 means poll again. (Tested as `rc == ISO_OK &&
+     * (rc = ...) == 1`, the loop ended after one 50 ms poll with rc = 1.) */
+    while ((rc = qemu_accept(e, 50, err)) == 1) {
     }
     return rc;
 }

@@ -10,6 +10,7 @@
  * (the rate limit) and generous otherwise: CI runs this on two loaded
  * cores, also under ASan. */
 #define _GNU_SOURCE
+#include <limits.h>
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
@@ -18,6 +19,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -803,6 +805,51 @@ static void auto_falls_back_to_native_and_says_why(void **state)
         unsetenv("ISO_FB_QEMU");
 }
 
+/* A QEMU that takes longer than one poll (50 ms) to connect its UART, as on
+ * a loaded machine, still connects: open waits up to its limit. (It used
+ * to return after the first poll with a status that was neither success
+ * nor a named error: "QEMU did not start, and said nothing why" in CI.) A
+ * wrapper script delays the real QEMU by 300 ms. */
+static void slow_qemu_still_connects(void **state)
+{
+    (void)state;
+    char qemu[PATH_MAX] = "", script[PATH_MAX];
+    const char *old = getenv("ISO_FB_QEMU");
+    if (old)
+        snprintf(qemu, sizeof qemu, "%s", old);
+    else if (access("/usr/bin/qemu-system-arm", X_OK) == 0)
+        snprintf(qemu, sizeof qemu, "/usr/bin/qemu-system-arm");
+    if (!qemu[0]) {
+        print_message("skipped: no qemu-system-arm in /usr/bin and no ISO_FB_QEMU\n");
+        skip();
+    }
+    iso_test_tmp(script, sizeof script, "slow_qemu.sh");
+    FILE *f = fopen(script, "w");
+    assert_non_null(f);
+    fprintf(f, "#!/bin/sh\nsleep 0.3\nexec '%s' \"$@\"\n", qemu);
+    fclose(f);
+    assert_int_equal(chmod(script, 0755), 0);
+    setenv("ISO_FB_QEMU", script, 1);
+    iso_link *l = NULL;
+    iso_act_emu_info info;
+    iso_err err;
+    iso_err_clear(&err);
+    int rc = iso_act_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err);
+    if (old)
+        setenv("ISO_FB_QEMU", qemu, 1);
+    else
+        unsetenv("ISO_FB_QEMU");
+    if (rc == ISO_ENOTSUP) { /* no firmware ELF in this build */
+        print_message("skipped: %s\n", err.msg);
+        skip();
+    }
+    if (rc != ISO_OK)
+        fail_msg("open with a QEMU 300 ms slow to start: status %d: %s", rc, err.msg);
+    assert_non_null(l);
+    assert_int_equal(info.used, ISO_ACT_EMU_QEMU);
+    iso_link_close(l);
+}
+
 static void mcu_channel_count_disagreement(void **state)
 {
     (void)state;
@@ -1524,6 +1571,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(waiting_for_the_first_tick_keeps_the_mcu_armed),
         cmocka_unit_test(qemu_end_to_end),
         cmocka_unit_test(qemu_keeps_the_terminal_quiet),
+        cmocka_unit_test(slow_qemu_still_connects),
         cmocka_unit_test(auto_falls_back_to_native_and_says_why),
         cmocka_unit_test(mcu_channel_count_disagreement),
         cmocka_unit_test(scene_link_emulated_forms_and_errors),
