@@ -635,9 +635,10 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
             *out = &e->base;
             return ISO_OK;
         }
-        /* Never a failure without a reason. Seen twice in CI under load and
-         * never reproduced; every path of qemu_open names its error, so
-         * the state it left is what the next occurrence must tell. */
+        /* Never a failure without a reason. Every path of qemu_open names
+         * its error now (b2ebb62 fixed the one that did not: a slow QEMU
+         * ended its accept loop with status 1); should another appear, the
+         * message carries the state it left. */
         if (qerr.code == ISO_OK)
             iso_err_set(&qerr, ISO_EIO, -1,
                         "%s: QEMU did not start, and said nothing why (status %d, pid %d, "

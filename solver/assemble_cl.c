@@ -41,17 +41,20 @@
 #include <CL/cl.h>
 
 #include "assemble_cl_kernels.h"
+#include "element_internal.h"
 #include "solver_internal.h"
 
 typedef iso_solver__element element;
 typedef struct iso_cl_assembler iso_cl_assembler;
 #define local_count iso_solver__local_count
 
-#define FIT_STRIDE 16 /* must match the kernels' FIT_STRIDE */
-#define PAIR_ROWS 23  /* rows of the pair kernel's work list */
-#define REST_ROWS 5   /* rows of the restoration kernel's work list */
-#define CARRY_I 64    /* pair flags: adds Ti's Q1, Tj's Q1 */
-#define CARRY_J 128
+/* The fit record and the pair flags are element_internal.h's, which the
+ * kernels' FIT_STRIDE and CARRY_I/J repeat inside their source text. */
+#define FIT_STRIDE ISO_ELEM__FIT_STRIDE
+#define CARRY_I ISO_ELEM__EDGE_CARRY_I
+#define CARRY_J ISO_ELEM__EDGE_CARRY_J
+#define PAIR_ROWS 23 /* rows of the pair kernel's work list */
+#define REST_ROWS 5  /* rows of the restoration kernel's work list */
 
 enum { K_FIT, K_PAIR, K_RESTORE, K_BLOCKS, K_RHS, K_COUNT };
 static const char *const kernel_names[K_COUNT] = {"fit_triangles", "pair_edges", "restore_edges",

@@ -232,7 +232,8 @@ typedef struct iso_solver_stats {
     int n_free;                           /* free vertices */
     long nnz_a, nnz_l;                    /* stored entries of A_ff (upper) and of L */
     /* The factorization worker (worker_lag > 0): factors it handed over,
-     * seconds the evaluations waited for it, seconds it spent factoring.
+     * seconds the evaluations waited for it, seconds it spent on the jobs
+     * taken back so far (taken or not; a job still running is not counted).
      * factorizations and t_factor count the evaluating thread's only. */
     long handovers;
     double t_wait, t_worker;

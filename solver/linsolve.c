@@ -423,14 +423,14 @@ static void after_factorization(iso_solver *s)
  * worker's, which is then not taken. */
 static int worker_step(iso_solver *s, iso_err *err)
 {
-    if (s->w_pending && s->w_eval == s->w_due) {
+    if (s->w_left > 0 && --s->w_left == 0) {
         int lag = s->o.worker_lag, take = !s->have_factor || s->factor_age > lag;
-        double t0 = iso_clock_now();
-        int status = 0, ok;
+        double t0 = iso_clock_now(), busy = 0;
+        int status = 0;
         long minor = 0;
-        ok = iso_solver__worker_finish(s->w, take ? &s->L : NULL, &status, &minor);
+        int ok = iso_solver__worker_finish(s->w, take ? &s->L : NULL, &status, &minor, &busy);
         s->st.t_wait += iso_clock_now() - t0;
-        s->w_pending = 0;
+        s->st.t_worker += busy;
         if (take) {
             s->have_factor = 0;
             int rc = factor_outcome(s, ok, status, minor, err);
@@ -441,10 +441,9 @@ static int worker_step(iso_solver *s, iso_err *err)
             s->st.handovers++;
         }
     }
-    if (!s->w_pending && s->have_factor && s->factor_age >= 1) {
+    if (s->w_left == 0 && s->have_factor) { /* its age is ≥ 1 here: not this matrix's */
         iso_solver__worker_start(s->w, s->A);
-        s->w_pending = 1;
-        s->w_due = s->w_eval + s->o.worker_lag;
+        s->w_left = s->o.worker_lag;
     }
     return ISO_OK;
 }
@@ -454,7 +453,6 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
     int rc;
     if (s->have_factor)
         s->factor_age++;
-    s->w_eval++;
     if (s->w && (rc = worker_step(s, err)) != ISO_OK)
         return rc;
     if (want_reuse(s)) {

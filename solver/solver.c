@@ -622,7 +622,6 @@ void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 {
     *st = s->st;
-    st->t_worker = s->w ? iso_solver__worker_busy(s->w) : 0.0;
 }
 
 /* ===== evaluation ======================================================= */

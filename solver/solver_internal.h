@@ -94,9 +94,7 @@ struct iso_solver {
     int budget_on;     /* a shared iteration budget is open */
     int budget_used;   /* its iterations spent since it opened or since a factorization */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
-    long w_eval;                  /* evaluations so far (linsolve calls) */
-    long w_due;                   /* the evaluation that takes the worker's factor */
-    int w_pending;                /* the worker has a job whose factor is not yet taken */
+    int w_left;                   /* evaluations until the worker's job is taken; 0: no job */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
     int (*omp_get_levels)(void);
@@ -131,14 +129,14 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err);
  * which must be idle (no job, or its result taken). finish: waits for the
  * job to end; with L, swaps the worker's factor into *L (the old one
  * becomes the worker's); returns cholmod_factorize's result and gives
- * Common->status and L->minor for factor_outcome. busy: seconds spent
- * factoring so far. */
+ * Common->status and L->minor for factor_outcome, and the seconds the job
+ * took. */
 typedef struct iso_solver__worker iso_solver__worker;
 int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso_err *err);
 void iso_solver__worker_destroy(iso_solver__worker *w);
 void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A);
-int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor);
-double iso_solver__worker_busy(iso_solver__worker *w);
+int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor,
+                              double *seconds);
 
 /* Sorts n edges (endpoints a[k] and b[k]) along a Z-order curve through
  * their midpoints at the rest pose (order.c): order[k] is the edge at

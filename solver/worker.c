@@ -38,7 +38,7 @@ struct iso_solver__worker {
     cholmod_sparse *A; /* the values to factor (a copy of the solver's A) */
     cholmod_factor *L; /* the worker's factor; swapped with the solver's at hand-over */
     void (*omp_set_levels)(int);
-    double t_busy; /* seconds spent factoring, summed (read after a join) */
+    double t_job; /* seconds the ended job took */
 };
 
 static void *worker_main(void *arg)
@@ -58,7 +58,7 @@ static void *worker_main(void *arg)
         double dt = iso_clock_now() - t0;
         pthread_mutex_lock(&w->mu);
         w->ok = ok;
-        w->t_busy += dt;
+        w->t_job = dt;
         w->job = 0;
         w->done = 1;
         pthread_cond_broadcast(&w->cv);
@@ -151,13 +151,15 @@ void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A)
     pthread_mutex_unlock(&w->mu);
 }
 
-int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor)
+int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor,
+                              double *seconds)
 {
     pthread_mutex_lock(&w->mu);
     while (!w->done)
         pthread_cond_wait(&w->cv, &w->mu);
     w->done = 0;
     int ok = w->ok;
+    *seconds = w->t_job;
     pthread_mutex_unlock(&w->mu);
     *status = w->c.status;
     *minor = (long)w->L->minor;
@@ -167,12 +169,4 @@ int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *st
         w->L = t;
     }
     return ok;
-}
-
-double iso_solver__worker_busy(iso_solver__worker *w)
-{
-    pthread_mutex_lock(&w->mu);
-    double t = w->t_busy;
-    pthread_mutex_unlock(&w->mu);
-    return t;
 }
