@@ -20,15 +20,21 @@ const char *iso_names_get(const char *const *names, int value)
     return "?";
 }
 
-const char *iso_names_list(const char *const *names, const char *last, char *buf, size_t cap)
+const char *iso_names_join(const char *const *names, const char *sep, const char *last, char *buf,
+                           size_t cap)
 {
     size_t len = 0;
     if (cap)
         buf[0] = '\0';
     for (int i = 0; names[i] && len < cap; i++) {
-        const char *sep = i == 0 ? "" : names[i + 1] ? ", " : last;
-        int n = snprintf(buf + len, cap - len, "%s%s", sep, names[i]);
+        const char *gap = i == 0 ? "" : names[i + 1] ? sep : last;
+        int n = snprintf(buf + len, cap - len, "%s%s", gap, names[i]);
         len += n > 0 ? (size_t)n : 0;
     }
     return buf;
+}
+
+const char *iso_names_list(const char *const *names, const char *last, char *buf, size_t cap)
+{
+    return iso_names_join(names, ", ", last, buf, cap);
 }

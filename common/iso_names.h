@@ -16,8 +16,12 @@
 ISO_API int iso_names_find(const char *const *names, const char *word);
 /* The name of `value`, or "?" when the table has none. */
 ISO_API const char *iso_names_get(const char *const *names, int value);
+/* The names joined into buf: sep between them, last before the last one
+ * ("a|b|c" with sep = last = "|"). Returns buf. */
+ISO_API const char *iso_names_join(const char *const *names, const char *sep, const char *last,
+                                   char *buf, size_t cap);
 /* The names as a phrase into buf: "a, b or c" with last = " or ", or
- * "a, b, c" with last = ", ". Returns buf. */
+ * "a, b, c" with last = ", " (iso_names_join with sep ", "). Returns buf. */
 ISO_API const char *iso_names_list(const char *const *names, const char *last, char *buf,
                                    size_t cap);
 

@@ -45,15 +45,6 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
     return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
 }
 
-/* 0 for the bumpplane: its factorization (~9 GFLOP) keeps the BLAS on
- * both cores, so a worker only competes with the tick: 0.9 ticks/s with
- * one, 2.2 without (run --fast, 30 ticks); the tick's own factorizations
- * went from 256 to 725 ms. */
-int iso_cli__rt_worker_lag(const char *name)
-{
-    return strcmp(name, "bumpplane") == 0 ? 0 : ISO_CLI_RT_WORKER_LAG;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -112,14 +103,12 @@ int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolut
     FILE *quiet = fopen("/dev/null", "w");
     if (rc == ISO_OK) {
         iso_loop_opts o;
-        iso_loop_opts_default(&o);
+        iso_cli__loop_opts_default(&o, "bench");
         o.log = quiet; /* NULL (no /dev/null): stderr */
         o.fast = 1;
         o.rt = 0;
         o.display = 0;
         o.cl_device = so->cl_device;
-        iso_cli__solver_threads(&o.threads); /* as `isoshape run` does */
-        o.cmd = "bench";
         rc = iso_loop_create(sc, &o, &l, err);
     }
     if (rc == ISO_OK)

@@ -10,12 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* A mapping number in the range devices/ holds it to. */
-static int map_number(const char *field, double v, char *why, size_t cap)
-{
-    return iso_dev_map_check(field, v, why, cap) == 0 ? 0 : -1;
-}
-
 /* --sensitivity L,A: m/s on the three translation axes, rad/s on the
  * three rotation axes, at full deflection. */
 static int set_sensitivity(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
@@ -28,7 +22,8 @@ static int set_sensitivity(const iso_cli__opt *o, void *dst, const char *val, ch
         snprintf(why, cap, "expected L,A (m/s and rad/s at full scale)");
         return -1;
     }
-    if (map_number("sensitivity", l, why, cap) != 0 || map_number("sensitivity", a, why, cap) != 0)
+    if (iso_dev_map_check("sensitivity", l, why, cap) != 0 ||
+        iso_dev_map_check("sensitivity", a, why, cap) != 0)
         return -1;
     for (int k = 0; k < 3; k++) {
         m->sensitivity[k] = l;
@@ -46,7 +41,7 @@ static int set_every_axis(const iso_cli__opt *o, void *dst, const char *val, cha
     snprintf(field, sizeof field, "%s", o->name);
     for (char *c = field; *c; c++)
         *c = *c == '-' ? '_' : *c;
-    if (map_number(field, v, why, cap) != 0)
+    if (iso_dev_map_check(field, v, why, cap) != 0)
         return -1;
     for (int k = 0; k < 6; k++)
         axes[k] = v;

@@ -75,19 +75,6 @@ static int in_range(const iso_cli__opt *o, double v)
     return 1;
 }
 
-/* The names of an enum joined by sep: "cpu|opencl". */
-static const char *join_names(const char *const *names, const char *sep, char *buf, size_t cap)
-{
-    size_t len = 0;
-    if (cap)
-        buf[0] = '\0';
-    for (int i = 0; names[i] && len < cap; i++) {
-        int n = snprintf(buf + len, cap - len, "%s%s", i ? sep : "", names[i]);
-        len += n > 0 ? (size_t)n : 0;
-    }
-    return buf;
-}
-
 /* ------------------------------------------------------------------------ */
 /* Parsing                                                                    */
 /* ------------------------------------------------------------------------ */
@@ -268,25 +255,6 @@ int iso_cli__opts_parse(const char *cmd, const iso_cli__opt *opts, int argc, cha
     return ISO_OK;
 }
 
-int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
-                   int max_pos, int *n_pos)
-{
-    iso_err err;
-    int n = 0;
-    iso_err_clear(&err);
-    int rc = iso_cli__opts_parse(c->name, c->opts, argc, argv, args, pos, pos ? max_pos : 0,
-                                 n_pos ? n_pos : &n, &err);
-    if (rc == ISO_CLI_HELP) {
-        iso_cli__help(c, stdout);
-        return 0;
-    }
-    if (rc != ISO_OK) {
-        iso_cli__fail(c->name, "%s", err.msg);
-        return 2;
-    }
-    return -1;
-}
-
 /* ------------------------------------------------------------------------ */
 /* --help                                                                     */
 /* ------------------------------------------------------------------------ */
@@ -348,7 +316,7 @@ static void print_row(const iso_cli__opt *o, FILE *f)
     char left[160], names[128], text[1024];
     const char *meta = o->metavar;
     if (o->kind == ISO_CLI_OPT_ENUM)
-        meta = join_names(o->names, "|", names, sizeof names);
+        meta = iso_names_join(o->names, "|", "|", names, sizeof names);
     char spelling[64];
     iso_cli__opt_spelling(o, spelling, sizeof spelling);
     int n;
@@ -381,10 +349,29 @@ void iso_cli__opts_print(const iso_cli__opt *opts, FILE *f)
     }
 }
 
-void iso_cli__help(const iso_cli__cmd *c, FILE *f)
+static void print_help(const iso_cli__cmd *c, FILE *f)
 {
     fputs(c->usage, f);
     iso_cli__opts_print(c->opts, f);
     if (c->after)
         fputs(c->after, f);
+}
+
+int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, const char **pos,
+                   int max_pos, int *n_pos)
+{
+    iso_err err;
+    int n = 0;
+    iso_err_clear(&err);
+    int rc = iso_cli__opts_parse(c->name, c->opts, argc, argv, args, pos, pos ? max_pos : 0,
+                                 n_pos ? n_pos : &n, &err);
+    if (rc == ISO_CLI_HELP) {
+        print_help(c, stdout);
+        return 0;
+    }
+    if (rc != ISO_OK) {
+        iso_cli__fail(c->name, "%s", err.msg);
+        return 2;
+    }
+    return -1;
 }

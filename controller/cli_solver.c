@@ -11,6 +11,7 @@
 #include <stdlib.h>
 
 #include "iso_element.h"
+#include "iso_loop.h"
 
 void iso_cli__solver_opts_default(iso_solver_opts *so)
 {
@@ -19,6 +20,13 @@ void iso_cli__solver_opts_default(iso_solver_opts *so)
     so->refactor = ISO_REFACTOR_ADAPTIVE;
     so->cg_tol = ISO_CLI_DEFAULT_CG_TOL;
     iso_cli__solver_threads(&so->threads);
+}
+
+void iso_cli__loop_opts_default(iso_loop_opts *o, const char *cmd)
+{
+    iso_loop_opts_default(o);
+    iso_cli__solver_threads(&o->threads);
+    o->cmd = cmd;
 }
 
 void iso_cli__solver_threads(iso_solver_threads *t)
@@ -44,7 +52,7 @@ const iso_cli__opt iso_cli__assembly_options[] = {
      .nonempty = 1},
     {0}};
 
-const iso_cli__opt iso_cli__refactor_options[] = {
+static const iso_cli__opt refactor_options[] = {
     {"refactor", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, refactor), NULL,
      .help =
          "always: factor every evaluation (the paper's scheme); adaptive (default): reuse the last "
@@ -61,7 +69,7 @@ const iso_cli__opt iso_cli__cg_tol_options[] = {
      ISO_CLI_GT(0), ISO_CLI_LT(1)},
     {0}};
 
-const iso_cli__opt iso_cli__worker_options[] = {
+static const iso_cli__opt worker_options[] = {
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_solver_opts, worker_lag), "N",
      .help = "adaptive: 0 (default) factors on the evaluating thread; N %R factors on a worker "
              "thread, each factor used from N evaluations after its matrix's",
@@ -70,8 +78,8 @@ const iso_cli__opt iso_cli__worker_options[] = {
 
 const iso_cli__opt iso_cli__solver_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__assembly_options},
-    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__refactor_options},
-    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__worker_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = refactor_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = worker_options},
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__cg_tol_options},
     {0}};
 

@@ -138,7 +138,9 @@ const char *iso_cli__blas_config(void)
     return c ? c : "";
 }
 
-void iso_cli__print_version(void)
+/* The version lines of --version: isoshape, CHOLMOD (run time and build
+ * time) and the BLAS that is loaded, with its resolved path. */
+static void print_version(void)
 {
     printf("isoshape %s\n", ISO_VERSION);
     print_cholmod();
@@ -152,7 +154,7 @@ static int version_main(int argc, char **argv)
     int status = iso_cli__parse(&iso_cli__version_cmd, argc, argv, NULL, NULL, 0, NULL);
     if (status >= 0)
         return status;
-    iso_cli__print_version();
+    print_version();
     return 0;
 }
 

@@ -38,12 +38,6 @@ typedef struct deform_args {
 /* Options                                                                    */
 /* ------------------------------------------------------------------------ */
 
-/* --start's names, indexed by ISO_INTEGRATE_START_* (solver/ has no table
- * of them). */
-static const char *const start_names[] = {"rk4", "adams", NULL};
-_Static_assert(ISO_INTEGRATE_START_RK4 == 0 && ISO_INTEGRATE_START_ADAMS == 1,
-               "start_names is indexed by ISO_INTEGRATE_START_*");
-
 /* --restore MU,TAU (MU >= 0, TAU > 0 when MU > 0) or off (MU = 0: the
  * paper's method exactly), into the solver options at dst. */
 static int set_restore(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
@@ -96,7 +90,7 @@ static const iso_cli__opt deform_options[] = {
      .help =
          "how the Adams history starts: rk4 (default, the paper's) or adams, the real-time loop's "
          "(orders 1, 2, 3)",
-     .names = start_names},
+     .names = iso_integrate_start_names},
     {"restore", ISO_CLI_OPT_CALL, ISO_CLI_AT(deform_args, so, iso_solver_opts), "MU,TAU",
      .help =
          "isometry restoration (beyond the paper): each edge's length relaxes to its rest length "

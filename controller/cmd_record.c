@@ -219,9 +219,7 @@ static int record_main(int argc, char **argv)
     sigaction(SIGTERM, &sa, NULL);
     record_ctx ctx = {a.quiet, (long)llround(1000.0 / a.tick_ms), 0, a.tick_ms};
     iso_loop_opts lo;
-    iso_loop_opts_default(&lo);
-    iso_cli__solver_threads(&lo.threads);
-    lo.cmd = cmd;
+    iso_cli__loop_opts_default(&lo, cmd);
     lo.rt = 0;
     lo.display = 0;
     lo.duration_s = a.duration > 0 ? a.duration : a.duration == 0 ? 1e-12 : 0;

@@ -173,8 +173,7 @@ static const iso_cli__opt replay_options[] = {
 static int parse(int argc, char **argv, replay_args *a)
 {
     const char *cmd = "replay";
-    int n_pos = 0;
-    int status = iso_cli__parse(&iso_cli__replay_cmd, argc, argv, a, &a->path, 1, &n_pos);
+    int status = iso_cli__parse(&iso_cli__replay_cmd, argc, argv, a, &a->path, 1, NULL);
     if (status >= 0)
         return status;
     if (!a->path) {
@@ -242,9 +241,7 @@ static int replay_main(int argc, char **argv)
     else
         snprintf(label, sizeof label, "%s", a.src.mesh ? a.src.mesh : "");
     iso_loop_opts lo;
-    iso_loop_opts_default(&lo);
-    iso_cli__solver_threads(&lo.threads);
-    lo.cmd = cmd;
+    iso_cli__loop_opts_default(&lo, cmd);
     lo.fast = a.fast;
     lo.speed = a.speed;
     lo.rt = 0;

@@ -75,12 +75,10 @@ static const iso_cli__opt run_options[] = {
  * error. */
 static int parse(int argc, char **argv, run_args *a)
 {
-    iso_loop_opts_default(&a->lo);
+    iso_cli__loop_opts_default(&a->lo, "run");
     a->lo.rt = 1; /* the command runs in real time unless --no-rt */
-    iso_cli__solver_threads(&a->lo.threads);
     a->abm = -1;
-    int n_pos = 0;
-    int status = iso_cli__parse(&iso_cli__run_cmd, argc, argv, a, &a->scene, 1, &n_pos);
+    int status = iso_cli__parse(&iso_cli__run_cmd, argc, argv, a, &a->scene, 1, NULL);
     if (status >= 0)
         return status;
     if (!a->scene) {

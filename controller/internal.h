@@ -129,9 +129,6 @@ typedef struct iso_cli__cmd {
     int (*main)(int argc, char **argv); /* argv[0] is the name; returns the exit status */
 } iso_cli__cmd;
 
-/* Prints c's --help on f. */
-void iso_cli__help(const iso_cli__cmd *c, FILE *f);
-
 /* Parses c's command line into args (as iso_cli__opts_parse), printing
  * --help on stdout or the error on stderr. Returns -1 to go on, else the
  * exit status: 0 after --help, 2 after a usage error. pos and n_pos may be
@@ -182,9 +179,6 @@ struct iso_mesh;
 int iso_cli__same_connectivity(const struct iso_mesh *a, const struct iso_mesh *b, char *why,
                                size_t why_cap);
 
-/* Prints the version lines of --version: isoshape, CHOLMOD (run time and
- * build time) and the BLAS that is loaded, with its resolved path. */
-void iso_cli__print_version(void);
 /* Re-executes the program with OPENBLAS_CORETYPE set when OpenBLAS fell
  * back to its generic kernels on a CPU with AVX2/AVX-512; returns otherwise. */
 void iso_cli__tune_blas(char **argv);
@@ -205,25 +199,15 @@ const char *iso_cli__blas_config(void);
 
 /* The solver options, as table fragments whose rows' values go into an
  * iso_solver_opts (include them at its offset): --assembly and --cl-device;
- * --refactor; --cg-tol; --worker-lag; the four together (bench says
- * --refactor its own way); and the field's weights --omega and --weighting. */
+ * --cg-tol; those with --refactor and --worker-lag (bench says both its own
+ * way); and the field's weights --omega and --weighting. */
 extern const iso_cli__opt iso_cli__assembly_options[];
-extern const iso_cli__opt iso_cli__refactor_options[];
 extern const iso_cli__opt iso_cli__cg_tol_options[];
-extern const iso_cli__opt iso_cli__worker_options[];
 
-/* The real-time scenes' factorization worker (the config/scenes files,
- * solver.worker_lag), which bench's real-time table follows by default:
- * three 60 Hz ticks leave a cactus factorization (~25-30 ms on one core)
- * 20 ms to spare, and a lag of two made ticks wait for the worker when the
- * second core was busy. The bumpplane has none (iso_cli__rt_worker_lag). */
-#define ISO_CLI_RT_WORKER_LAG 3
-/* The shipped scene `name`'s worker_lag. */
-int iso_cli__rt_worker_lag(const char *name);
 extern const iso_cli__opt iso_cli__solver_options[];
 extern const iso_cli__opt iso_cli__weight_options[];
 
-/* The library's defaults with the command's: OpenCL assembly, adaptive
+/* The library's defaults with the command's: auto assembly, adaptive
  * refactoring, CG tolerance ISO_CLI_DEFAULT_CG_TOL, and the command's
  * thread settings (iso_cli__solver_threads). */
 void iso_cli__solver_opts_default(iso_solver_opts *so);
@@ -234,6 +218,11 @@ void iso_cli__solver_opts_default(iso_solver_opts *so);
  * A user who sets OMP_MAX_ACTIVE_LEVELS or OMP_THREAD_LIMIT, or
  * OPENBLAS_NUM_THREADS, keeps that choice: the solver then leaves it. */
 void iso_cli__solver_threads(iso_solver_threads *t);
+
+/* The tick engine's defaults with the command's thread settings and name
+ * (cmd: "run", "replay", ...), for every command that runs the engine. */
+struct iso_loop_opts;
+void iso_cli__loop_opts_default(struct iso_loop_opts *o, const char *cmd);
 
 /* Prints iso_solver_notice() as "isoshape <cmd>: <notice>" on stderr, one
  * line; nothing when the notice is empty. */

@@ -517,6 +517,7 @@ void iso_stepper_destroy(iso_stepper *st)
 }
 
 const char *const iso_abm_mode_names[] = {"pece", "pec", NULL};
+const char *const iso_integrate_start_names[] = {"rk4", "adams", NULL};
 
 const char *iso_abm_mode_name(iso_abm_mode mode)
 {

@@ -61,6 +61,8 @@ typedef struct iso_integrate_opts {
  *   ADAMS: the real-time stepper's start (iso_stepper_step), for comparing
  *          the two: Adams steps of order 1, 2, then 3. */
 enum { ISO_INTEGRATE_START_RK4 = 0, ISO_INTEGRATE_START_ADAMS = 1 };
+/* Their names, indexed by value (iso_names.h): "rk4", "adams". */
+ISO_API extern const char *const iso_integrate_start_names[];
 
 ISO_API void iso_integrate_opts_default(iso_integrate_opts *o);
 
