@@ -23,9 +23,6 @@
  * scene file, the selection's line:col and its key. (scene_build.c) */
 int iso_scene__build(iso_scene *s, const iso_scene_opts *opts, iso_err *err);
 
-/* Joins a name from the scene with the scene's folder (absolute names stay). */
-int iso_scene__resolve(const iso_scene *s, const char *name, char *out, size_t cap);
-
 /* Levenshtein distance, capped at 255 (nearest-key suggestions). */
 int iso_scene__distance(const char *a, const char *b);
 
@@ -178,8 +175,9 @@ const char *iso_scene__type_name(fnode *n);
 /* The nearest of `known` (NULL-terminated) to `word`, or NULL if none is close. */
 const char *iso_scene__nearest(const char *word, const char *const *known);
 /* Refuses `word` at node n (scene key `key`), ISO_EPARSE: "WHAT; did you
- * mean 'NEAREST'? (LABEL: a, b, c)", or without the suggestion when no
- * known word is close. known is NULL-terminated. */
+ * mean 'NEAREST'? (LABEL a, b, c)", or without the suggestion when no
+ * known word is close (LABEL: "expected one of", "devices:", ...). known is
+ * NULL-terminated. */
 int iso_scene__refuse_word(scene_ctx *c, fnode *n, const char *key, const char *what,
                            const char *word, const char *const *known, const char *label);
 /* Checks that every key of map is a plain scalar among `known`. */
@@ -194,10 +192,8 @@ const scene_key *iso_scene__row(const scene_section *sec, const char *name);
 const char *iso_scene__scalar(scene_ctx *c, fnode *n);
 int iso_scene__to_double(scene_ctx *c, fnode *n, const char *key, double *out);
 int iso_scene__to_long(scene_ctx *c, fnode *n, const char *key, long lo, long hi, long *out);
-int iso_scene__to_bool(scene_ctx *c, fnode *n, const char *key, int *out);
 /* One of `names` (NULL-terminated); *out is its index. */
 int iso_scene__to_enum(scene_ctx *c, fnode *n, const char *key, const char *const *names, int *out);
-int iso_scene__to_string(scene_ctx *c, fnode *n, const char *key, char *out, size_t cap);
 /* A file to read: resolved against the scene's folder, and unless parsing
  * only, a readable regular file. */
 int iso_scene__to_file(scene_ctx *c, fnode *n, const char *key, char *out, size_t cap);

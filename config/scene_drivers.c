@@ -227,7 +227,7 @@ static int store_device(scene_ctx *c, const scene_key *k, fnode *v, const char *
                                "no device '%s': the scene's devices list is empty", t);
     char what[300];
     snprintf(what, sizeof what, "no device '%s'", t);
-    return iso_scene__refuse_word(c, v, key, what, t, names, "devices");
+    return iso_scene__refuse_word(c, v, key, what, t, names, "devices:");
 }
 
 static const scene_key driver_keys[] = {

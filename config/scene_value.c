@@ -68,7 +68,7 @@ int iso_scene__to_long(scene_ctx *c, fnode *n, const char *key, long lo, long hi
     return ISO_OK;
 }
 
-int iso_scene__to_bool(scene_ctx *c, fnode *n, const char *key, int *out)
+static int to_bool(scene_ctx *c, fnode *n, const char *key, int *out)
 {
     static const char *const yes[] = {"true", "yes", "on", NULL};
     static const char *const no[] = {"false", "no", "off", NULL};
@@ -84,23 +84,20 @@ int iso_scene__to_bool(scene_ctx *c, fnode *n, const char *key, int *out)
 int iso_scene__to_enum(scene_ctx *c, fnode *n, const char *key, const char *const *names, int *out)
 {
     const char *t = iso_scene__scalar(c, n);
-    char all[256];
-    iso_names_list(names, ", ", all, sizeof all);
-    if (!t)
+    if (!t) {
+        char all[256];
+        iso_names_list(names, ", ", all, sizeof all);
         return iso_scene__fail(c, n, ISO_EPARSE, key, "expected one of %s, found %s", all,
                                iso_scene__type_name(n));
+    }
     if ((*out = iso_names_find(names, t)) >= 0)
         return ISO_OK;
-    const char *near = iso_scene__nearest(t, names);
-    if (near)
-        return iso_scene__fail(c, n, ISO_EPARSE, key,
-                               "unknown value '%s'; did you mean '%s'? (expected one of %s)", t,
-                               near, all);
-    return iso_scene__fail(c, n, ISO_EPARSE, key, "unknown value '%s' (expected one of %s)", t,
-                           all);
+    char what[300];
+    snprintf(what, sizeof what, "unknown value '%.250s'", t);
+    return iso_scene__refuse_word(c, n, key, what, t, names, "expected one of");
 }
 
-int iso_scene__to_string(scene_ctx *c, fnode *n, const char *key, char *out, size_t cap)
+static int to_string(scene_ctx *c, fnode *n, const char *key, char *out, size_t cap)
 {
     const char *t = iso_scene__scalar(c, n);
     if (!t || !*t)
@@ -127,7 +124,8 @@ static int to_vec3(scene_ctx *c, fnode *n, const char *key, double v[3])
     return ISO_OK;
 }
 
-int iso_scene__resolve(const iso_scene *s, const char *name, char *out, size_t cap)
+/* Joins a name from the scene with the scene's folder (absolute names stay). */
+static int resolve(const iso_scene *s, const char *name, char *out, size_t cap)
 {
     int n = name[0] == '/' || !s->dir[0] ? snprintf(out, cap, "%s", name)
                                          : snprintf(out, cap, "%s/%s", s->dir, name);
@@ -137,10 +135,10 @@ int iso_scene__resolve(const iso_scene *s, const char *name, char *out, size_t c
 int iso_scene__to_file(scene_ctx *c, fnode *n, const char *key, char *out, size_t cap)
 {
     char name[ISO_SCENE_PATH_MAX];
-    int rc = iso_scene__to_string(c, n, key, name, sizeof name);
+    int rc = to_string(c, n, key, name, sizeof name);
     if (rc)
         return rc;
-    if (iso_scene__resolve(c->s, name, out, cap) != 0)
+    if (resolve(c->s, name, out, cap) != 0)
         return iso_scene__fail(c, n, ISO_EINVAL, key, "path '%s' is too long", name);
     if (!c->check_files)
         return ISO_OK;
@@ -279,7 +277,7 @@ static int read_enum(scene_ctx *c, const scene_key *k, fnode *v, const char *key
     if (rc)
         return rc;
     if (k->flags & SK_AS_TEXT)
-        return iso_scene__to_string(c, v, key, out, k->size);
+        return to_string(c, v, key, out, k->size);
     i += k->first;
     memcpy(out, &i, sizeof i);
     return ISO_OK;
@@ -299,8 +297,8 @@ static int read_file(scene_ctx *c, const scene_key *k, fnode *v, const char *key
 static int read_path(scene_ctx *c, const scene_key *k, fnode *v, const char *key, char *out)
 {
     char name[ISO_SCENE_PATH_MAX];
-    int rc = iso_scene__to_string(c, v, key, name, sizeof name);
-    if (rc == ISO_OK && iso_scene__resolve(c->s, name, out, k->size) != 0)
+    int rc = to_string(c, v, key, name, sizeof name);
+    if (rc == ISO_OK && resolve(c->s, name, out, k->size) != 0)
         rc = iso_scene__fail(c, v, ISO_EINVAL, key, "path too long");
     return rc;
 }
@@ -313,8 +311,8 @@ int iso_scene__read(scene_ctx *c, const scene_key *k, fnode *v, const char *key,
     switch (k->kind) {
     case SK_NUMBER: return read_number(c, k, v, key, at);
     case SK_INT: return read_int(c, k, v, key, at);
-    case SK_BOOL: return iso_scene__to_bool(c, v, key, at);
-    case SK_STRING: return iso_scene__to_string(c, v, key, at, k->size);
+    case SK_BOOL: return to_bool(c, v, key, at);
+    case SK_STRING: return to_string(c, v, key, at, k->size);
     case SK_FILE: return read_file(c, k, v, key, at);
     case SK_PATH: return read_path(c, k, v, key, at);
     case SK_ENUM: return read_enum(c, k, v, key, at);

@@ -148,8 +148,6 @@ const char *iso_scene__nearest(const char *word, const char *const *known)
     return best && bd <= (len > 4 ? len / 2 : 2) ? best : NULL;
 }
 
-/* Refuses key `ks` (node k) of the mapping at `path`: `why` says for what
- * ("unknown key" or "unknown key for kind tty"), with the nearest of known. */
 int iso_scene__refuse_word(scene_ctx *c, fnode *n, const char *key, const char *what,
                            const char *word, const char *const *known, const char *label)
 {
@@ -157,17 +155,19 @@ int iso_scene__refuse_word(scene_ctx *c, fnode *n, const char *key, const char *
     iso_names_list(known, ", ", all, sizeof all);
     const char *near = iso_scene__nearest(word, known);
     if (near)
-        return iso_scene__fail(c, n, ISO_EPARSE, key, "%s; did you mean '%s'? (%s: %s)", what, near,
+        return iso_scene__fail(c, n, ISO_EPARSE, key, "%s; did you mean '%s'? (%s %s)", what, near,
                                label, all);
-    return iso_scene__fail(c, n, ISO_EPARSE, key, "%s (%s: %s)", what, label, all);
+    return iso_scene__fail(c, n, ISO_EPARSE, key, "%s (%s %s)", what, label, all);
 }
 
+/* Refuses key `ks` (node k) of the mapping at `path`: `why` says for what
+ * ("unknown key" or "unknown key for kind tty"), with the nearest of known. */
 static int refuse_key(scene_ctx *c, fnode *k, const char *path, const char *ks, const char *why,
                       const char *const *known)
 {
     char key[ISO_SCENE_KEY_MAX];
     iso_scene__join(key, sizeof key, path, ks);
-    return iso_scene__refuse_word(c, k, key, why, ks, known, "expected one of");
+    return iso_scene__refuse_word(c, k, key, why, ks, known, "expected one of:");
 }
 
 /* The text of map's key in pair p; refuses a key that is not a plain scalar. */

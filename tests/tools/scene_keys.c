@@ -11,35 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-void iso_scene__doc_table(FILE *out); /* config/internal.h */
+#include "iso_file.h"
 
-static char *slurp(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    char *buf = NULL;
-    size_t n = 0, cap = 0, got;
-    char chunk[4096];
-    while ((got = fread(chunk, 1, sizeof chunk, f)) > 0) {
-        if (n + got + 1 > cap) {
-            cap = 2 * (n + got + 1);
-            char *grown = realloc(buf, cap);
-            if (!grown) {
-                free(buf);
-                fclose(f);
-                return NULL;
-            }
-            buf = grown;
-        }
-        memcpy(buf + n, chunk, got);
-        n += got;
-    }
-    fclose(f);
-    if (buf)
-        buf[n] = '\0';
-    return buf;
-}
+void iso_scene__doc_table(FILE *out); /* config/internal.h */
 
 /* Writes text with the lines between the markers replaced by the table. */
 static int rewrite(const char *path, const char *text)
@@ -69,9 +43,12 @@ int main(int argc, char **argv)
         iso_scene__doc_table(stdout);
         return 0;
     }
-    char *text = slurp(argv[1]);
-    if (!text) {
-        perror(argv[1]);
+    char *text = NULL;
+    size_t len = 0;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_file_read(argv[1], 0, &text, &len, &err) != ISO_OK) {
+        fprintf(stderr, "scene_keys: %s\n", err.msg);
         return 1;
     }
     int rc = rewrite(argv[1], text);
