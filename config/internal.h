@@ -124,7 +124,15 @@ typedef struct scene_section {
     scene_hook scalar;     /* the short form, when the value is a scalar; NULL: none */
     scene_hook chosen;     /* after the SK_SELECTOR row is read */
     scene_hook end;        /* after every key: rules across keys */
+    /* With SK_ONE_OF rows: the variant's kind, 1 + its place among those
+     * rows (so they are listed in the kind enum's order), is stored as an
+     * int at kind_off in the item. */
+    int stores_kind;
+    size_t kind_off;
 } scene_section;
+
+/* .stores_kind and .kind_off for an int-sized kind member of type. */
+#define KIND_AT(type, member) .stores_kind = 1, .kind_off = offsetof(type, member)
 
 #define FIELD(type, member) offsetof(type, member), sizeof(((type *)0)->member)
 /* Ranges: [a, b], (a, b], (a, b), >= a, > a. */

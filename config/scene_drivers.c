@@ -263,19 +263,13 @@ static int driver_none(scene_ctx *c, scene_map *m)
     return iso_scene__want_map(c, m->node, m->key, iso_scene__driver.what);
 }
 
-static int driver_end(scene_ctx *c, scene_map *m)
-{
-    iso_scene_driver *d = m->obj;
-    (void)c;
-    d->kind = strcmp(m->variant, "device") == 0  ? ISO_SCENE_DRIVE_DEVICE
-              : strcmp(m->variant, "screw") == 0 ? ISO_SCENE_DRIVE_SCREW
-                                                 : ISO_SCENE_DRIVE_KEYFRAMES;
-    return ISO_OK;
-}
+_Static_assert(ISO_SCENE_DRIVE_DEVICE == 1 && ISO_SCENE_DRIVE_SCREW == 2 &&
+                   ISO_SCENE_DRIVE_KEYFRAMES == 3 && sizeof(iso_scene_driver_kind) == sizeof(int),
+               "driver_keys' SK_ONE_OF rows are in iso_scene_driver_kind's order (KIND_AT)");
 
 const scene_section iso_scene__driver = {.name = "regions.handles[].driver",
                                          .what = "none, {device, mapping}, {screw} or {keyframes}",
                                          .keys = driver_keys,
                                          .begin = driver_begin,
                                          .scalar = driver_none,
-                                         .end = driver_end};
+                                         KIND_AT(iso_scene_driver, kind)};

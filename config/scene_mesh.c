@@ -45,15 +45,9 @@ static int mesh_file(scene_ctx *c, scene_map *m)
     return iso_scene__to_file(c, m->node, m->key, src->path, sizeof src->path);
 }
 
-static int mesh_end(scene_ctx *c, scene_map *m)
-{
-    iso_scene_mesh_src *src = m->obj;
-    (void)c;
-    src->kind = strcmp(m->variant, "path") == 0    ? ISO_SCENE_MESH_FILE
-                : strcmp(m->variant, "shape") == 0 ? ISO_SCENE_MESH_SHAPE
-                                                   : ISO_SCENE_MESH_BENCHMARK;
-    return ISO_OK;
-}
+_Static_assert(ISO_SCENE_MESH_FILE == 1 && ISO_SCENE_MESH_SHAPE == 2 &&
+                   ISO_SCENE_MESH_BENCHMARK == 3 && sizeof(iso_scene_mesh_kind) == sizeof(int),
+               "mesh_keys' SK_ONE_OF rows are in iso_scene_mesh_kind's order (KIND_AT)");
 
 const scene_section iso_scene__mesh = {
     .name = "mesh",
@@ -61,4 +55,4 @@ const scene_section iso_scene__mesh = {
     .keys = mesh_keys,
     .begin = mesh_begin,
     .scalar = mesh_file,
-    .end = mesh_end};
+    KIND_AT(iso_scene_mesh_src, kind)};

@@ -112,25 +112,16 @@ static int selection_begin(scene_ctx *c, scene_map *m)
     return ISO_OK;
 }
 
-static int selection_end(scene_ctx *c, scene_map *m)
-{
-    static const char *const kinds[] = {"", "vertices", "box", "sphere", "beyond", NULL};
-    iso_scene_sel *sel = m->obj;
-    (void)c;
-    sel->kind = iso_names_find(kinds, m->variant);
-    return ISO_OK;
-}
-
 _Static_assert(ISO_SCENE_SEL_VERTICES == 1 && ISO_SCENE_SEL_BOX == 2 && ISO_SCENE_SEL_SPHERE == 3 &&
-                   ISO_SCENE_SEL_PLANE == 4,
-               "selection_end's table is in ISO_SCENE_SEL_* order");
+                   ISO_SCENE_SEL_PLANE == 4 && sizeof(iso_scene_sel_kind) == sizeof(int),
+               "selection_keys' SK_ONE_OF rows are in iso_scene_sel_kind's order (KIND_AT)");
 
 /* Used by regions.fixed and each handle's select. */
 static const scene_section selection = {.name = "selection",
                                         .what = "a selection: vertices, box, sphere or beyond",
                                         .keys = selection_keys,
                                         .begin = selection_begin,
-                                        .end = selection_end};
+                                        KIND_AT(iso_scene_sel, kind)};
 
 /* ------------------------------------------------------------------------ */
 /* Handles and regions                                                       */

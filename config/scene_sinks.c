@@ -132,25 +132,16 @@ static int link_word(scene_ctx *c, scene_map *m)
                            "expected " LINK_FORMS ", or emulated alone; found '%s'", word);
 }
 
-static int link_end(scene_ctx *c, scene_map *m)
-{
-    static const char *const kinds[] = {"", "tty", "tcp", "serial", "emulated", NULL};
-    iso_scene_actuators *a = m->obj;
-    (void)c;
-    a->link = iso_names_find(kinds, m->variant);
-    return ISO_OK;
-}
-
 _Static_assert(ISO_SCENE_LINK_TTY == 1 && ISO_SCENE_LINK_TCP == 2 && ISO_SCENE_LINK_SERIAL == 3 &&
-                   ISO_SCENE_LINK_EMULATED == 4,
-               "link_end's table is in ISO_SCENE_LINK_* order");
+                   ISO_SCENE_LINK_EMULATED == 4 && sizeof(iso_scene_link_kind) == sizeof(int),
+               "link_keys' SK_ONE_OF rows are in iso_scene_link_kind's order (KIND_AT)");
 
 static const scene_section actuator_link = {.name = "sinks.actuators.link",
                                             .what = LINK_FORMS ", with baud for tty and serial",
                                             .keys = link_keys,
                                             .begin = link_begin,
                                             .scalar = link_word,
-                                            .end = link_end};
+                                            KIND_AT(iso_scene_actuators, link)};
 
 /* fixed, or a handle by name. */
 static int store_region(scene_ctx *c, const scene_key *k, fnode *v, const char *key, void *obj)

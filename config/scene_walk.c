@@ -266,7 +266,7 @@ static int check_variant(scene_ctx *c, const scene_section *sec, scene_map *m)
 static int choose_one_of(scene_ctx *c, const scene_section *sec, scene_map *m)
 {
     const char *names[ISO_SCENE_SECTION_KEYS + 1];
-    int n = 0, found = 0;
+    int n = 0, found = 0, kind = 0;
     for (const scene_key *k = sec->keys; k->key && n < ISO_SCENE_SECTION_KEYS; k++) {
         if (!(k->flags & SK_ONE_OF))
             continue;
@@ -274,6 +274,7 @@ static int choose_one_of(scene_ctx *c, const scene_section *sec, scene_map *m)
         if (iso_scene__get(m->node, k->key)) {
             found++;
             m->variant = k->key;
+            kind = n;
         }
     }
     names[n] = NULL;
@@ -285,6 +286,8 @@ static int choose_one_of(scene_ctx *c, const scene_section *sec, scene_map *m)
         return iso_scene__fail(c, m->node, ISO_EPARSE, m->key,
                                "expected exactly one of %s, found %d", list, found);
     }
+    if (sec->stores_kind)
+        memcpy((char *)m->obj + sec->kind_off, &kind, sizeof kind);
     return check_variant(c, sec, m);
 }
 
