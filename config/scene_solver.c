@@ -65,6 +65,10 @@ static const scene_key solver_keys[] = {
     {"cg_max_iter", SK_INT, FIELD(iso_solver_opts, cg_max_iter), IN(1, 100000),
      .help = "PCG iterations a tick may spend before it refactors and solves directly",
      .dflt = "12"},
+    {"preconditioner", SK_ENUM, FIELD(iso_solver_opts, preconditioner), .names = iso_precond_names,
+     .help = "adaptive: PCG's preconditioner, the factor turned by each ring's rotation since "
+             "its matrix (rotated) or as it is (plain)",
+     .dflt = "rotated"},
     {"worker_lag", SK_INT, FIELD(iso_solver_opts, worker_lag), IN(0, ISO_SOLVER_WORKER_LAG_MAX),
      .help = "adaptive: 0 factors on the tick's thread; N factors on a worker thread, each factor "
              "used from N evaluations after its matrix's",

@@ -63,10 +63,14 @@ static const iso_cli__opt refactor_options[] = {
 /* Below ~1e-16 relative the residual cannot fall further in double
  * precision, so CG would only stall and force a refactor each time; at 1
  * it is no tolerance at all. */
-const iso_cli__opt iso_cli__cg_tol_options[] = {
+const iso_cli__opt iso_cli__pcg_options[] = {
     {"cg-tol", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, cg_tol), "T",
      .help = "adaptive: CG's relative residual, %R, default " ISO_CLI_STR(ISO_CLI_DEFAULT_CG_TOL),
      ISO_CLI_GT(0), ISO_CLI_LT(1)},
+    {"preconditioner", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, preconditioner), NULL,
+     .help = "adaptive: CG's preconditioner, rotated (default): the last factor turned by each "
+             "vertex ring's rotation since, or plain: the factor as it is",
+     .names = iso_precond_names},
     {0}};
 
 static const iso_cli__opt worker_options[] = {
@@ -80,7 +84,7 @@ const iso_cli__opt iso_cli__solver_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__assembly_options},
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = refactor_options},
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = worker_options},
-    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__cg_tol_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__pcg_options},
     {0}};
 
 /* At omega 0 a flat region makes the system singular, and above 1 the

@@ -154,7 +154,7 @@ static const iso_cli__opt bench_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
      .table = iso_cli__assembly_options},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
-     .table = iso_cli__cg_tol_options},
+     .table = iso_cli__pcg_options},
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
      .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
              "each shipped scene's: " ISO_CLI_STR(RT_WORKER_LAG) ", 0 for the bumpplane",

@@ -199,10 +199,10 @@ const char *iso_cli__blas_config(void);
 
 /* The solver options, as table fragments whose rows' values go into an
  * iso_solver_opts (include them at its offset): --assembly and --cl-device;
- * --cg-tol; those with --refactor and --worker-lag (bench says both its own
+ * --cg-tol and --preconditioner; those with --refactor and --worker-lag (bench says both its own
  * way); and the field's weights --omega and --weighting. */
 extern const iso_cli__opt iso_cli__assembly_options[];
-extern const iso_cli__opt iso_cli__cg_tol_options[];
+extern const iso_cli__opt iso_cli__pcg_options[];
 
 extern const iso_cli__opt iso_cli__solver_options[];
 extern const iso_cli__opt iso_cli__weight_options[];

@@ -158,6 +158,36 @@ static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_
     return ISO_OK;
 }
 
+/* PCG's preconditioner: Z = Q L⁻ᵀL⁻¹ Qᵀ R with the rotated preconditioner
+ * (Q from rotations_now), else as precondition. */
+static int precondition_pcg(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_err *err)
+{
+    if (!s->frame)
+        return precondition(s, R, Z, err);
+    cholmod_dense *T = s->work[4];
+    iso_solver__rotate(s->rot, s->nf, R->x, T->x, 1);
+    int rc = precondition(s, T, Z, err);
+    if (rc == ISO_OK)
+        iso_solver__rotate(s->rot, s->nf, (*Z)->x, (*Z)->x, 0);
+    return rc;
+}
+
+/* The rotations from L's frame to this evaluation's positions. */
+static void rotations_now(iso_solver *s)
+{
+    if (s->frame)
+        iso_solver__rotations(s->frame, s->x_now, s->rot_s, s->rot_n, s->rot);
+}
+
+/* L is of this evaluation's matrix: so is its frame. */
+static void frame_now(iso_solver *s)
+{
+    if (!s->frame)
+        return;
+    memcpy(iso_solver__frame_positions(s->frame), s->x_now, (size_t)s->nv * 3 * sizeof(double));
+    iso_solver__frame_prepare(s->frame);
+}
+
 static int check_finite(const iso_solver *s, iso_err *err)
 {
     const double *X = s->X->x;
@@ -176,6 +206,7 @@ static int direct_solve(iso_solver *s, iso_err *err)
         return rc;
     double t0 = iso_clock_now();
     rc = precondition(s, s->B, &s->X, err);
+    frame_now(s);
     s->st.t_solve += iso_clock_now() - t0;
     s->last_cg_iters = -1;
     return rc;
@@ -200,7 +231,7 @@ static int matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *er
 
 static int ensure_work(iso_solver *s, iso_err *err)
 {
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < ISO_SOLVER__WORK; i++)
         if (!s->work[i] &&
             !(s->work[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c)))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
@@ -296,7 +327,8 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
     double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
     if (rnorm <= g.res_target)
         return 1;
-    if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
+    rotations_now(s);
+    if ((rc = precondition_pcg(s, R, &s->work[1], err)) != ISO_OK)
         return rc;
     double *z = s->work[1]->x;
     if (reached_z(s, &g, z, 0))
@@ -327,7 +359,7 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
         prev = rnorm;
         if (!(g.z_target > 0) && hopeless(&g, r0norm, rnorm, NULL, s->nf, *iters, cap))
             return *capped = 1, 0;
-        if ((rc = precondition(s, R, &s->work[1], err)) != ISO_OK)
+        if ((rc = precondition_pcg(s, R, &s->work[1], err)) != ISO_OK)
             return rc;
         z = s->work[1]->x;
         if (reached_z(s, &g, z, *iters))
@@ -428,7 +460,8 @@ static int worker_step(iso_solver *s, iso_err *err)
         double t0 = iso_clock_now(), busy = 0;
         int status = 0;
         long minor = 0;
-        int ok = iso_solver__worker_finish(s->w, take ? &s->L : NULL, &status, &minor, &busy);
+        int ok =
+            iso_solver__worker_finish(s->w, take ? &s->L : NULL, &s->frame, &status, &minor, &busy);
         s->st.t_wait += iso_clock_now() - t0;
         s->st.t_worker += busy;
         if (take) {
@@ -442,7 +475,7 @@ static int worker_step(iso_solver *s, iso_err *err)
         }
     }
     if (s->w_left == 0 && s->have_factor) { /* its age is ≥ 1 here: not this matrix's */
-        iso_solver__worker_start(s->w, s->A);
+        iso_solver__worker_start(s->w, s->A, s->x_now);
         s->w_left = s->o.worker_lag;
     }
     return ISO_OK;

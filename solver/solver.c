@@ -24,6 +24,7 @@
 
 const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
 const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
+const char *const iso_precond_names[] = {"rotated", "plain", NULL};
 
 typedef iso_solver__element element;
 #define local_count iso_solver__local_count
@@ -39,6 +40,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->refactor = ISO_REFACTOR_ALWAYS;
     o->cg_tol = 1e-10;
     o->cg_max_iter = 12;
+    o->preconditioner = ISO_PRECOND_ROTATED;
     o->worker_lag = 0;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
@@ -59,6 +61,9 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
     if (o->restore_mu > 0.0 && !(o->restore_tau > 0.0 && isfinite(o->restore_tau)))
         return iso_err_set(err, ISO_EINVAL, -1, "restoration time constant tau = %g must be > 0",
                            o->restore_tau);
+    if (o->preconditioner != ISO_PRECOND_ROTATED && o->preconditioner != ISO_PRECOND_PLAIN)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown preconditioner %d",
+                           (int)o->preconditioner);
     if (o->worker_lag < 0 || o->worker_lag > ISO_SOLVER_WORKER_LAG_MAX)
         return iso_err_set(err, ISO_EINVAL, -1, "worker_lag = %d is outside [0, %d]", o->worker_lag,
                            ISO_SOLVER_WORKER_LAG_MAX);
@@ -528,6 +533,22 @@ static int start_opencl(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
+/* The rotated preconditioner's frame and scratch (rotate.c), when PCG will
+ * run with it. */
+static int start_rotations(iso_solver *s, iso_err *err)
+{
+    if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || s->o.preconditioner != ISO_PRECOND_ROTATED ||
+        s->nf == 0)
+        return ISO_OK;
+    s->frame = iso_solver__frame_create(s);
+    s->rot_s = malloc((size_t)s->nv * 9 * sizeof(double));
+    s->rot_n = malloc((size_t)s->nv * 3 * sizeof(double));
+    s->rot = malloc((size_t)s->nf * 9 * sizeof(double));
+    if (!s->frame || !s->rot_s || !s->rot_n || !s->rot)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rotated preconditioner");
+    return ISO_OK;
+}
+
 double iso_solver_factor_flops(const iso_solver *s)
 {
     return s->factor_flops;
@@ -568,6 +589,8 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         rc = analyse(s, err);
     if (rc == ISO_OK && s->o.assembly != ISO_ASSEMBLY_CPU)
         rc = start_opencl(s, err);
+    if (rc == ISO_OK)
+        rc = start_rotations(s, err);
     if (rc != ISO_OK) {
         iso_solver_destroy(s);
         return rc;
@@ -598,8 +621,12 @@ void iso_solver_destroy(iso_solver *s)
     cholmod_free_dense(&s->X, &s->c);
     cholmod_free_dense(&s->Y, &s->c);
     cholmod_free_dense(&s->E, &s->c);
-    for (int i = 0; i < 4; i++)
+    for (int i = 0; i < ISO_SOLVER__WORK; i++)
         cholmod_free_dense(&s->work[i], &s->c);
+    iso_solver__frame_destroy(s->frame);
+    free(s->rot_s);
+    free(s->rot_n);
+    free(s->rot);
     cholmod_finish(&s->c);
     free(s->free_of);
     free(s->vert_of);
@@ -663,6 +690,7 @@ int iso_solver_field_from(iso_solver *s, const double *x, const double *vc, cons
         rc = assemble(s, x, vc, err);
     s->st.t_assembly += iso_clock_now() - t0;
     iso_solver__progress(s);
+    s->x_now = x;
     if (rc == ISO_OK && s->nf > 0)
         rc = iso_solver__linsolve(s, err); /* times its own phases */
     if (rc != ISO_OK)

@@ -62,6 +62,8 @@ static inline void iso_solver__edge_layout(const iso_solver__element *e, int map
     map[3] = 3;
 }
 
+#define ISO_SOLVER__WORK 5
+
 struct iso_solver {
     const iso_mesh *m;
     const iso_regions *r;
@@ -80,10 +82,11 @@ struct iso_solver {
     cholmod_sparse *A;
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
-    cholmod_dense *work[4]; /* PCG: residual, preconditioned residual, direction, A·direction */
-    int have_factor;        /* L holds a numeric factor of some earlier A */
-    double factor_flops;    /* CHOLMOD's Common->fl after analysis */
-    struct iso_solver__cpu_plan *cpu; /* C path's plans (assemble_cpu.c), made at first use */
+    cholmod_dense *work[ISO_SOLVER__WORK]; /* PCG: residual, preconditioned residual,
+                                              direction, A·direction, rotated residual */
+    int have_factor;                       /* L holds a numeric factor of some earlier A */
+    double factor_flops;                   /* CHOLMOD's Common->fl after analysis */
+    struct iso_solver__cpu_plan *cpu;      /* C path's plans (assemble_cpu.c), made at first use */
     int last_cg_iters; /* iterations of the previous PCG solve, −1 after a direct one */
     int cg_failures;   /* consecutive PCG attempts at factor age 1 that failed */
     int cg_skip;       /* evaluations left before PCG is tried again */
@@ -94,7 +97,14 @@ struct iso_solver {
     int budget_on;     /* a shared iteration budget is open */
     int budget_used;   /* its iterations spent since it opened or since a factorization */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
-    int w_left;                   /* evaluations until the worker's job is taken; 0: no job */
+    /* The rotated preconditioner (rotate.c), adaptive with
+     * ISO_PRECOND_ROTATED only, else NULL: L's frame, this evaluation's
+     * positions, and scratch for the rotations (9 nv, 3 nv) and the
+     * rotations themselves (9 nf). */
+    struct iso_solver__frame *frame;
+    const double *x_now;
+    double *rot_s, *rot_n, *rot;
+    int w_left; /* evaluations until the worker's job is taken; 0: no job */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
     int (*omp_get_levels)(void);
@@ -123,20 +133,39 @@ void iso_solver__threads_end(iso_solver *s);
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
 
+/* The rotated preconditioner (rotate.c). A frame holds the positions a
+ * factor's matrix was assembled at and what the rotations need of them
+ * alone; it reads the solver's mesh and vert_of, which outlive it. create:
+ * NULL when out of memory. positions: the 3 nv positions to fill, after
+ * which prepare (on any one thread) makes the rest. rotations: each free
+ * vertex's rotation R (9 nf, row-major) from the frame's positions to x,
+ * with scratch S (9 nv) and n (3 nv). rotate: out_i = R_i in_i, or R_iᵀ
+ * in_i with transpose (in may be out). */
+typedef struct iso_solver__frame iso_solver__frame;
+iso_solver__frame *iso_solver__frame_create(const iso_solver *s);
+void iso_solver__frame_destroy(iso_solver__frame *fr);
+double *iso_solver__frame_positions(iso_solver__frame *fr);
+void iso_solver__frame_prepare(iso_solver__frame *fr);
+void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double *S, double *n,
+                           double *R);
+void iso_solver__rotate(const double *R, int nf, const double *in, double *out, int transpose);
+
 /* The factorization worker (worker.c). create: after the analysis (it
  * copies A's pattern and the symbolic factor) and threads_begin (it takes
- * the OpenMP control). start: copies A's values and wakes the worker,
- * which must be idle (no job, or its result taken). finish: waits for the
- * job to end; with L, swaps the worker's factor into *L (the old one
- * becomes the worker's); returns cholmod_factorize's result and gives
- * Common->status and L->minor for factor_outcome, and the seconds the job
- * took. */
+ * the OpenMP control); with the solver's frame it keeps one of its own.
+ * start: copies A's values (and x, the positions they were assembled at,
+ * when there are frames) and wakes the worker, which must be idle (no job,
+ * or its result taken); the worker factors and prepares its frame.
+ * finish: waits for the job to end; with L, swaps the worker's factor into
+ * *L and its frame into *frame (the old ones become the worker's); returns
+ * cholmod_factorize's result and gives Common->status and L->minor for
+ * factor_outcome, and the seconds the job took. */
 typedef struct iso_solver__worker iso_solver__worker;
 int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso_err *err);
 void iso_solver__worker_destroy(iso_solver__worker *w);
-void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A);
-int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor,
-                              double *seconds);
+void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A, const double *x);
+int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, iso_solver__frame **frame,
+                              int *status, long *minor, double *seconds);
 
 /* Sorts n edges (endpoints a[k] and b[k]) along a Z-order curve through
  * their midpoints at the rest pose (order.c): order[k] is the edge at

@@ -33,12 +33,14 @@ struct iso_solver__worker {
     int job;  /* a factorization is asked for */
     int done; /* it has ended (status in ok) */
     int quit;
-    int ok;            /* the ended job's cholmod_factorize result */
-    cholmod_common c;  /* the worker's own; only the worker touches it while a job runs */
-    cholmod_sparse *A; /* the values to factor (a copy of the solver's A) */
-    cholmod_factor *L; /* the worker's factor; swapped with the solver's at hand-over */
+    int ok;                   /* the ended job's cholmod_factorize result */
+    cholmod_common c;         /* the worker's own; only the worker touches it while a job runs */
+    cholmod_sparse *A;        /* the values to factor (a copy of the solver's A) */
+    cholmod_factor *L;        /* the worker's factor; swapped with the solver's at hand-over */
+    iso_solver__frame *frame; /* its frame (rotate.c), likewise; NULL without the solver's */
     void (*omp_set_levels)(int);
     double t_job; /* seconds the ended job took */
+    int nv;       /* vertices, for the frame's positions */
 };
 
 static void *worker_main(void *arg)
@@ -55,6 +57,8 @@ static void *worker_main(void *arg)
         pthread_mutex_unlock(&w->mu);
         double t0 = iso_clock_now();
         int ok = cholmod_factorize(w->A, w->L, &w->c);
+        if (w->frame)
+            iso_solver__frame_prepare(w->frame);
         double dt = iso_clock_now() - t0;
         pthread_mutex_lock(&w->mu);
         w->ok = ok;
@@ -99,9 +103,12 @@ int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso
     w->c.final_ll = s->c.final_ll;
     w->c.supernodal = s->c.supernodal;
     w->omp_set_levels = s->omp_set_levels;
+    w->nv = s->nv;
     w->A = cholmod_copy_sparse(s->A, &w->c);
     w->L = w->A ? cholmod_copy_factor(s->L, &w->c) : NULL;
-    int ok = w->A && w->L && pthread_mutex_init(&w->mu, NULL) == 0;
+    if (s->frame)
+        w->frame = iso_solver__frame_create(s);
+    int ok = w->A && w->L && (!s->frame || w->frame) && pthread_mutex_init(&w->mu, NULL) == 0;
     if (ok && pthread_cond_init(&w->cv, NULL) != 0) {
         pthread_mutex_destroy(&w->mu);
         ok = 0;
@@ -112,6 +119,7 @@ int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso
         ok = 0;
     }
     if (!ok) {
+        iso_solver__frame_destroy(w->frame);
         cholmod_free_sparse(&w->A, &w->c);
         cholmod_free_factor(&w->L, &w->c);
         cholmod_finish(&w->c);
@@ -134,25 +142,29 @@ void iso_solver__worker_destroy(iso_solver__worker *w)
     pthread_join(w->thread, NULL);
     pthread_cond_destroy(&w->cv);
     pthread_mutex_destroy(&w->mu);
+    iso_solver__frame_destroy(w->frame);
     cholmod_free_sparse(&w->A, &w->c);
     cholmod_free_factor(&w->L, &w->c);
     cholmod_finish(&w->c);
     free(w);
 }
 
-void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A)
+void iso_solver__worker_start(iso_solver__worker *w, const cholmod_sparse *A, const double *x)
 {
     pthread_mutex_lock(&w->mu);
-    /* The worker is idle (no job, or its result was taken): its A is ours. */
+    /* The worker is idle (no job, or its result was taken): its A and frame
+     * are ours. */
     memcpy(w->A->x, A->x, (size_t)((const int *)A->p)[A->ncol] * sizeof(double));
+    if (w->frame)
+        memcpy(iso_solver__frame_positions(w->frame), x, (size_t)w->nv * 3 * sizeof(double));
     w->job = 1;
     w->done = 0;
     pthread_cond_broadcast(&w->cv);
     pthread_mutex_unlock(&w->mu);
 }
 
-int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *status, long *minor,
-                              double *seconds)
+int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, iso_solver__frame **frame,
+                              int *status, long *minor, double *seconds)
 {
     pthread_mutex_lock(&w->mu);
     while (!w->done)
@@ -167,6 +179,11 @@ int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, int *st
         cholmod_factor *t = *L;
         *L = w->L;
         w->L = t;
+    }
+    if (L && frame && w->frame) {
+        iso_solver__frame *t = *frame;
+        *frame = w->frame;
+        w->frame = t;
     }
     return ok;
 }

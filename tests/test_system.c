@@ -578,7 +578,10 @@ static void bumpy_deinit(bumpy *b)
  * Every field agrees with the always-refactor one to 1e-7 of its largest
  * entry (CG stops at 1e-10 relative residual; A_ff's condition number here
  * is ~1e3), the factor was reused, and at least one attempt found it too
- * stale and refactored; a second adaptive run is bit-identical to the first. */
+ * stale and refactored; a second adaptive run is bit-identical to the first.
+ * Those runs precondition with the plain factor (the policy under test);
+ * the rotated preconditioner then meets the same tolerance along the same
+ * path. */
 static void factor_reuse_matches_refactoring(void **state)
 {
     (void)state;
@@ -586,16 +589,17 @@ static void factor_reuse_matches_refactoring(void **state)
     bumpy_init(&bp);
     int n = 3 * bp.fm.nv, evals = 24;
     double *x = malloc(sizeof(double) * (size_t)n);
-    double *v[3];
-    for (int k = 0; k < 3; k++) {
+    double *v[4];
+    for (int k = 0; k < 4; k++) {
         v[k] = malloc(sizeof(double) * (size_t)n * (size_t)evals);
         assert_non_null(v[k]);
     }
     assert_non_null(x);
-    iso_solver_stats st[3];
-    for (int run = 0; run < 3; run++) {
+    iso_solver_stats st[4];
+    for (int run = 0; run < 4; run++) {
         iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
         o.refactor = run == 0 ? ISO_REFACTOR_ALWAYS : ISO_REFACTOR_ADAPTIVE;
+        o.preconditioner = run == 3 ? ISO_PRECOND_ROTATED : ISO_PRECOND_PLAIN;
         iso_solver *s = NULL;
         iso_err err;
         iso_err_clear(&err);
@@ -616,30 +620,131 @@ static void factor_reuse_matches_refactoring(void **state)
         iso_solver_get_stats(s, &st[run]);
         iso_solver_destroy(s);
     }
-    for (int e = 0; e < evals; e++) {
-        const double *a = v[0] + (size_t)n * (size_t)e, *c = v[1] + (size_t)n * (size_t)e;
-        double ref = iso_test_max_abs(a, (size_t)n), diff = iso_test_max_abs_diff(a, c, (size_t)n);
-        if (!(diff <= 1e-7 * ref))
-            fail_msg("evaluation %d: adaptive vs always %g (|v| %g)", e, diff, ref);
-    }
+    for (int run = 1; run < 4; run += 2)
+        for (int e = 0; e < evals; e++) {
+            const double *a = v[0] + (size_t)n * (size_t)e, *c = v[run] + (size_t)n * (size_t)e;
+            double ref = iso_test_max_abs(a, (size_t)n);
+            double diff = iso_test_max_abs_diff(a, c, (size_t)n);
+            if (!(diff <= 1e-7 * ref))
+                fail_msg("evaluation %d: adaptive (%s) vs always %g (|v| %g)", e,
+                         run == 3 ? "rotated" : "plain", diff, ref);
+        }
     assert_int_equal(st[0].factorizations, evals);
     assert_true(st[1].factorizations < evals);
     assert_true(st[1].factorizations > 1);
     assert_true(st[1].cg_iterations > 0);
     assert_true(st[1].refactors > 0);
     assert_memory_equal(v[1], v[2], sizeof(double) * (size_t)n * (size_t)evals);
-    printf("adaptive: %ld of %d evaluations factorized, %ld CG iterations, %ld refactors\n",
-           st[1].factorizations, evals, st[1].cg_iterations, st[1].refactors);
-    for (int k = 0; k < 3; k++)
+    for (int run = 1; run < 4; run += 2)
+        printf("adaptive, %s: %ld of %d evaluations factorized, %ld CG iterations, %ld refactors\n",
+               run == 3 ? "rotated" : "plain", st[run].factorizations, evals, st[run].cg_iterations,
+               st[run].refactors);
+    for (int k = 0; k < 4; k++)
         free(v[k]);
     free(x);
+    bumpy_deinit(&bp);
+}
+
+/* The rotated preconditioner (ISO_PRECOND_ROTATED) under a closed form: A
+ * is equivariant under rotation, so after the factor was made at x, the
+ * system at R x (handle velocities turned alike) is the factor's turned by
+ * Q = diag(R): the preconditioner is exact, PCG ends after one iteration,
+ * and the field is R times the field at x (to 1e-9 of its largest entry;
+ * CG's residual tolerance is 1e-10). With the plain factor PCG gives up on
+ * the same turn (or needs more than 3 iterations) and factors afresh. Then the whole mesh shrunk to
+ * half (no ring turned rigidly: every vertex falls back to the plain factor) still meets the
+ * tolerance against a fresh factorization. */
+static void rotated_factor_is_exact_under_a_turn(void **state)
+{
+    (void)state;
+    bumpy bp;
+    bumpy_init(&bp);
+    int nv = bp.fm.nv, n = 3 * nv;
+    double *x = malloc(sizeof(double) * (size_t)n), *vc = malloc(sizeof(double) * (size_t)n);
+    double *v0 = malloc(sizeof(double) * (size_t)n), *v1 = malloc(sizeof(double) * (size_t)n);
+    assert_true(x && vc && v0 && v1);
+    /* R: 0.7 rad about (1, 2, 3)/|.|, by Rodrigues' formula */
+    double k[3] = {1, 2, 3}, kn = sqrt(14.0), th = 0.7, R[9];
+    for (int a = 0; a < 3; a++)
+        k[a] /= kn;
+    double c = cos(th), sn = sin(th);
+    for (int r = 0; r < 3; r++)
+        for (int q = 0; q < 3; q++) {
+            double cross_kq = r == q ? 0 : (r + 1) % 3 == q ? -k[3 - r - q] : k[3 - r - q];
+            R[3 * r + q] = (r == q ? c : 0) + (1 - c) * k[r] * k[q] + sn * cross_kq;
+        }
+    long iters[2], facts[2];
+    for (int pre = 0; pre < 2; pre++) {
+        iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
+        o.refactor = ISO_REFACTOR_ADAPTIVE;
+        o.preconditioner = pre == 0 ? ISO_PRECOND_ROTATED : ISO_PRECOND_PLAIN;
+        iso_solver *s = NULL;
+        iso_err err;
+        iso_err_clear(&err);
+        assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+        assert_int_equal(iso_solver_field(s, bp.fm.x, bp.vc, v0, &err), ISO_OK); /* factors */
+        for (int i = 0; i < nv; i++)
+            for (int r = 0; r < 3; r++) {
+                const double *p = bp.fm.x + 3 * i, *u = bp.vc + 3 * i;
+                x[3 * i + r] = R[3 * r] * p[0] + R[3 * r + 1] * p[1] + R[3 * r + 2] * p[2] + 0.3;
+                vc[3 * i + r] = R[3 * r] * u[0] + R[3 * r + 1] * u[1] + R[3 * r + 2] * u[2];
+            }
+        iso_solver_stats a, b;
+        iso_solver_get_stats(s, &a);
+        assert_int_equal(iso_solver_field(s, x, vc, v1, &err), ISO_OK);
+        iso_solver_get_stats(s, &b);
+        iters[pre] = b.cg_iterations - a.cg_iterations;
+        facts[pre] = b.factorizations - a.factorizations;
+        if (pre == 0) {
+            double top = iso_test_max_abs(v0, (size_t)n), worst = 0;
+            for (int i = 0; i < nv; i++)
+                for (int r = 0; r < 3; r++) {
+                    const double *u = v0 + 3 * i;
+                    double want = R[3 * r] * u[0] + R[3 * r + 1] * u[1] + R[3 * r + 2] * u[2];
+                    worst = fmax(worst, fabs(v1[3 * i + r] - want));
+                }
+            printf("turned 0.7 rad: the field is R v to %.2g of |v|\n", worst / top);
+            assert_true(worst <= 1e-9 * top);
+        }
+        iso_solver_destroy(s);
+    }
+    printf("after the turn: rotated %ld CG iterations and %ld factorizations, plain %ld and %ld\n",
+           iters[0], facts[0], iters[1], facts[1]);
+    assert_true(iters[0] <= 1);
+    assert_int_equal(facts[0], 0); /* the turned factor served */
+    assert_true(facts[1] == 1 || iters[1] > 3);
+
+    /* Shrunk to half: F_i = I/2 is no rotation, so Q_i = I. */
+    iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
+    iso_solver *s = NULL, *always = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    assert_int_equal(iso_solver_field(s, bp.fm.x, bp.vc, v0, &err), ISO_OK);
+    for (int i = 0; i < n; i++)
+        x[i] = 0.5 * bp.fm.x[i];
+    assert_int_equal(iso_solver_field(always, x, bp.vc, v0, &err), ISO_OK);
+    assert_int_equal(iso_solver_field(s, x, bp.vc, v1, &err), ISO_OK);
+    double top = iso_test_max_abs(v0, (size_t)n);
+    assert_true(iso_test_max_abs_diff(v0, v1, (size_t)n) <= 1e-7 * top);
+    iso_solver_destroy(s);
+    iso_solver_destroy(always);
+    free(x);
+    free(vc);
+    free(v0);
+    free(v1);
     bumpy_deinit(&bp);
 }
 
 /* iso_solver_field_from: PCG starts from the guess. Started from the exact
  * solution (an always-refactor solver's field at the same point) it needs
  * no iteration; started from zero it needs more than from the previous
- * solution; every start meets the tolerance (1e-7 of the field, as above). */
+ * solution; every start meets the tolerance (1e-7 of the field, as above).
+ * With the plain factor: the rotated one preconditions this small turn so
+ * well that zero and the previous solution both take 4 iterations. */
 static void guess_is_where_cg_starts(void **state)
 {
     (void)state;
@@ -657,6 +762,7 @@ static void guess_is_where_cg_starts(void **state)
     o.refactor = ISO_REFACTOR_ALWAYS;
     assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
     o.refactor = ISO_REFACTOR_ADAPTIVE;
+    o.preconditioner = ISO_PRECOND_PLAIN;
     assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
     memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
     assert_int_equal(iso_solver_field(s, x, bp.vc, v, &err), ISO_OK); /* factors */
@@ -759,6 +865,7 @@ int main(void)
         cmocka_unit_test(solver_matches_dense_solve),
         cmocka_unit_test(ill_posed_constraints_are_refused),
         cmocka_unit_test(factor_reuse_matches_refactoring),
+        cmocka_unit_test(rotated_factor_is_exact_under_a_turn),
         cmocka_unit_test(guess_is_where_cg_starts),
         cmocka_unit_test(cg_target_bounds_the_error),
     };
