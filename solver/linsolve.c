@@ -176,7 +176,7 @@ static int precondition_pcg(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, 
 static void rotations_now(iso_solver *s)
 {
     if (s->frame)
-        iso_solver__rotations(s->frame, s->x_now, s->rot_s, s->rot_n, s->rot);
+        iso_solver__rotations(s->frame, s->x_now, s->rot);
 }
 
 /* L is of this evaluation's matrix: so is its frame. */

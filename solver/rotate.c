@@ -26,14 +26,22 @@
 
 #include "solver_internal.h"
 
+struct iso_solver__rings {
+    int nf;
+    const int *vert_of; /* the solver's */
+    int *nb_start;      /* nf + 1: free vertex i's neighbours are nb[nb_start[i]..] */
+    int *nb;
+    int *tr_start; /* nf + 1: its triangles, each as its other two corners */
+    int *tr;       /* (2 per triangle, in the triangle's order) */
+};
+
 struct iso_solver__frame {
-    const iso_solver *s; /* topology only: mesh, vert_of (outlive the frame) */
-    int ne;
+    const iso_solver__rings *g;
+    int nv;
     double *x;    /* 3 nv: the positions the factor's matrix was assembled at */
-    double *f;    /* 3 ne: the edges at x (b − a) */
-    double *m;    /* 3 nv: the scaled vertex normals at x */
+    double *f;    /* 3 per ring entry: x_j − x_i there */
+    double *m;    /* 3 nf: the scaled vertex normals there */
     double *pinv; /* 9 nf: P_i⁻¹, or all zero where P_i is singular (R_i = I) */
-    double *p;    /* 9 nv: scratch for P */
 };
 
 /* ===== small 3×3 helpers (row-major) ==================================== */
@@ -53,7 +61,7 @@ static double norm3(const double *a)
 }
 
 /* M += u wᵀ */
-static void add_outer(double *M, const double *u, const double *w)
+static inline void add_outer(double *M, const double *u, const double *w)
 {
     for (int r = 0; r < 3; r++)
         for (int c = 0; c < 3; c++)
@@ -119,42 +127,116 @@ static void orthogonalize(double *F)
     memcpy(F, identity3, sizeof identity3);
 }
 
-/* ===== the factor's frame ================================================ */
+/* ===== the rings (topology, made once) =================================== */
 
-/* n: each vertex's area-weighted normal at x (unnormalised). */
-static void vertex_normals(const iso_solver *s, const double *x, double *n)
+void iso_solver__rings_destroy(iso_solver__rings *g)
 {
-    int nt = iso_mesh_triangle_count(s->m);
-    const int *tri = iso_mesh_triangles(s->m);
-    memset(n, 0, (size_t)s->nv * 3 * sizeof(double));
-    for (int t = 0; t < nt; t++) {
-        const int *v = tri + 3 * t;
-        double e1[3], e2[3], c[3];
-        for (int a = 0; a < 3; a++) {
-            e1[a] = x[3 * v[1] + a] - x[3 * v[0] + a];
-            e2[a] = x[3 * v[2] + a] - x[3 * v[0] + a];
-        }
-        cross(e1, e2, c);
-        for (int k = 0; k < 3; k++)
-            for (int a = 0; a < 3; a++)
-                n[3 * v[k] + a] += c[a];
-    }
+    if (!g)
+        return;
+    free(g->nb_start);
+    free(g->nb);
+    free(g->tr_start);
+    free(g->tr);
+    free(g);
 }
 
-iso_solver__frame *iso_solver__frame_create(const iso_solver *s)
+/* Turns counts (n + 1 entries, the last 0) into starts; returns the total. */
+static int counts_to_starts(int *start, int n)
+{
+    int sum = 0;
+    for (int i = 0; i <= n; i++) {
+        int c = start[i];
+        start[i] = sum;
+        sum += c;
+    }
+    return sum;
+}
+
+iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of,
+                                            const int *free_of)
+{
+    iso_solver__rings *g = calloc(1, sizeof *g);
+    if (!g)
+        return NULL;
+    g->nf = nf;
+    g->vert_of = vert_of;
+    int ne = iso_mesh_edge_count(m), nt = iso_mesh_triangle_count(m);
+    const int *ed = iso_mesh_edges(m), *tri = iso_mesh_triangles(m);
+    g->nb_start = calloc((size_t)nf + 1, sizeof(int));
+    g->tr_start = calloc((size_t)nf + 1, sizeof(int));
+    if (!g->nb_start || !g->tr_start)
+        goto fail;
+    for (int k = 0; k < 2 * ne; k++)
+        if (free_of[ed[k]] >= 0)
+            g->nb_start[free_of[ed[k]]]++;
+    for (int k = 0; k < 3 * nt; k++)
+        if (free_of[tri[k]] >= 0)
+            g->tr_start[free_of[tri[k]]]++;
+    int n_nb = counts_to_starts(g->nb_start, nf), n_tr = counts_to_starts(g->tr_start, nf);
+    g->nb = malloc(((size_t)n_nb + 1) * sizeof(int));
+    g->tr = malloc((2 * (size_t)n_tr + 1) * sizeof(int));
+    if (!g->nb || !g->tr)
+        goto fail;
+    /* fill, advancing each start; then shift the starts back */
+    for (int k = 0; k < 2 * ne; k++) {
+        int i = free_of[ed[k]];
+        if (i >= 0)
+            g->nb[g->nb_start[i]++] = ed[k ^ 1];
+    }
+    for (int t = 0; t < nt; t++)
+        for (int c = 0; c < 3; c++) {
+            int i = free_of[tri[3 * t + c]];
+            if (i < 0)
+                continue;
+            int at = 2 * g->tr_start[i]++;
+            g->tr[at] = tri[3 * t + (c + 1) % 3];
+            g->tr[at + 1] = tri[3 * t + (c + 2) % 3];
+        }
+    for (int i = nf; i > 0; i--) {
+        g->nb_start[i] = g->nb_start[i - 1];
+        g->tr_start[i] = g->tr_start[i - 1];
+    }
+    g->nb_start[0] = g->tr_start[0] = 0;
+    return g;
+fail:
+    iso_solver__rings_destroy(g);
+    return NULL;
+}
+
+/* The area-weighted normal of free vertex i's ring at x (unnormalised),
+ * scaled to length want (0 where it vanishes). */
+static void ring_normal(const iso_solver__rings *g, int i, const double *x, double want, double *n)
+{
+    const double *p = x + 3 * g->vert_of[i];
+    n[0] = n[1] = n[2] = 0;
+    for (int k = g->tr_start[i]; k < g->tr_start[i + 1]; k++) {
+        const double *a = x + 3 * g->tr[2 * k], *b = x + 3 * g->tr[2 * k + 1];
+        double u[3] = {a[0] - p[0], a[1] - p[1], a[2] - p[2]};
+        double w[3] = {b[0] - p[0], b[1] - p[1], b[2] - p[2]}, c[3];
+        cross(u, w, c);
+        for (int q = 0; q < 3; q++)
+            n[q] += c[q];
+    }
+    double len = norm3(n), k = len > 0 ? want / len : 0;
+    for (int q = 0; q < 3; q++)
+        n[q] *= k;
+}
+
+/* ===== the factor's frame ================================================ */
+
+iso_solver__frame *iso_solver__frame_create(const iso_solver__rings *g, int nv)
 {
     iso_solver__frame *fr = calloc(1, sizeof *fr);
     if (!fr)
         return NULL;
-    fr->s = s;
-    fr->ne = iso_mesh_edge_count(s->m);
-    size_t nv = (size_t)s->nv, nf = (size_t)s->nf, ne = (size_t)fr->ne;
-    fr->x = malloc(3 * nv * sizeof(double));
-    fr->f = malloc((3 * ne + 1) * sizeof(double));
-    fr->m = malloc(3 * nv * sizeof(double));
+    fr->g = g;
+    fr->nv = nv;
+    size_t nf = (size_t)g->nf, n_nb = (size_t)g->nb_start[g->nf];
+    fr->x = malloc(3 * (size_t)nv * sizeof(double));
+    fr->f = malloc((3 * n_nb + 1) * sizeof(double));
+    fr->m = malloc((3 * nf + 1) * sizeof(double));
     fr->pinv = malloc((9 * nf + 1) * sizeof(double));
-    fr->p = malloc(9 * nv * sizeof(double));
-    if (!fr->x || !fr->f || !fr->m || !fr->pinv || !fr->p) {
+    if (!fr->x || !fr->f || !fr->m || !fr->pinv) {
         iso_solver__frame_destroy(fr);
         return NULL;
     }
@@ -169,7 +251,6 @@ void iso_solver__frame_destroy(iso_solver__frame *fr)
     free(fr->f);
     free(fr->m);
     free(fr->pinv);
-    free(fr->p);
     free(fr);
 }
 
@@ -180,64 +261,48 @@ double *iso_solver__frame_positions(iso_solver__frame *fr)
 
 void iso_solver__frame_prepare(iso_solver__frame *fr)
 {
-    const iso_solver *s = fr->s;
-    const int *ed = iso_mesh_edges(s->m);
-    double *P = fr->p;
-    memset(P, 0, (size_t)s->nv * 9 * sizeof(double));
-    for (int k = 0; k < fr->ne; k++) {
-        int a = ed[2 * k], b = ed[2 * k + 1];
-        double *f = fr->f + 3 * k;
-        for (int q = 0; q < 3; q++)
-            f[q] = fr->x[3 * b + q] - fr->x[3 * a + q];
-        add_outer(P + 9 * a, f, f);
-        add_outer(P + 9 * b, f, f);
-    }
-    vertex_normals(s, fr->x, fr->m);
-    for (int i = 0; i < s->nf; i++) {
-        int v = s->vert_of[i];
-        double *m = fr->m + 3 * v, *Pv = P + 9 * v, *Y = fr->pinv + 9 * i;
+    const iso_solver__rings *g = fr->g;
+    const double *y = fr->x;
+    for (int i = 0; i < g->nf; i++) {
+        const double *p = y + 3 * g->vert_of[i];
+        double P[9] = {0}, *m = fr->m + 3 * i, *Y = fr->pinv + 9 * i;
+        for (int k = g->nb_start[i]; k < g->nb_start[i + 1]; k++) {
+            const double *q = y + 3 * g->nb[k];
+            double *f = fr->f + 3 * k;
+            for (int a = 0; a < 3; a++)
+                f[a] = q[a] - p[a];
+            add_outer(P, f, f);
+        }
         /* |m|² = half the ring's trace: the normal weighs like one in-plane axis */
-        double len = norm3(m), want = sqrt(0.5 * (Pv[0] + Pv[4] + Pv[8]));
-        double k = len > 0 ? want / len : 0;
-        for (int q = 0; q < 3; q++)
-            m[q] *= k;
-        add_outer(Pv, m, m);
-        if (!inverse3(Pv, Y))
+        ring_normal(g, i, y, sqrt(0.5 * (P[0] + P[4] + P[8])), m);
+        add_outer(P, m, m);
+        if (!inverse3(P, Y))
             memset(Y, 0, 9 * sizeof(double));
     }
 }
 
 /* ===== per evaluation ==================================================== */
 
-void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double *S, double *n,
-                           double *R)
+void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double *R)
 {
-    const iso_solver *s = fr->s;
-    const int *ed = iso_mesh_edges(s->m);
-    memset(S, 0, (size_t)s->nv * 9 * sizeof(double));
-    for (int k = 0; k < fr->ne; k++) {
-        int a = ed[2 * k], b = ed[2 * k + 1];
-        const double *f = fr->f + 3 * k;
-        double e[3];
-        for (int q = 0; q < 3; q++)
-            e[q] = x[3 * b + q] - x[3 * a + q];
-        add_outer(S + 9 * a, e, f);
-        add_outer(S + 9 * b, e, f);
-    }
-    vertex_normals(s, x, n);
-    for (int i = 0; i < s->nf; i++) {
-        int v = s->vert_of[i];
-        const double *m = fr->m + 3 * v, *Y = fr->pinv + 9 * i;
-        double *Si = S + 9 * v, *ni = n + 3 * v, *Ri = R + 9 * i;
+    const iso_solver__rings *g = fr->g;
+    for (int i = 0; i < g->nf; i++) {
+        const double *Y = fr->pinv + 9 * i, *m = fr->m + 3 * i;
+        double *Ri = R + 9 * i;
         if (Y[0] == 0) { /* P_i was singular (an SPD inverse has a positive diagonal) */
             memcpy(Ri, identity3, sizeof identity3);
             continue;
         }
-        double len = norm3(ni), k = len > 0 ? norm3(m) / len : 0;
-        for (int q = 0; q < 3; q++)
-            ni[q] *= k;
-        add_outer(Si, ni, m);
-        mul3(Si, Y, Ri);
+        const double *p = x + 3 * g->vert_of[i];
+        double S[9] = {0}, n[3];
+        for (int k = g->nb_start[i]; k < g->nb_start[i + 1]; k++) {
+            const double *q = x + 3 * g->nb[k];
+            double e[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+            add_outer(S, e, fr->f + 3 * k);
+        }
+        ring_normal(g, i, x, norm3(m), n);
+        add_outer(S, n, m);
+        mul3(S, Y, Ri);
         orthogonalize(Ri);
     }
 }

@@ -540,11 +540,10 @@ static int start_rotations(iso_solver *s, iso_err *err)
     if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || s->o.preconditioner != ISO_PRECOND_ROTATED ||
         s->nf == 0)
         return ISO_OK;
-    s->frame = iso_solver__frame_create(s);
-    s->rot_s = malloc((size_t)s->nv * 9 * sizeof(double));
-    s->rot_n = malloc((size_t)s->nv * 3 * sizeof(double));
+    s->rings = iso_solver__rings_create(s->m, s->nf, s->vert_of, s->free_of);
+    s->frame = s->rings ? iso_solver__frame_create(s->rings, s->nv) : NULL;
     s->rot = malloc((size_t)s->nf * 9 * sizeof(double));
-    if (!s->frame || !s->rot_s || !s->rot_n || !s->rot)
+    if (!s->frame || !s->rot)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rotated preconditioner");
     return ISO_OK;
 }
@@ -624,8 +623,7 @@ void iso_solver_destroy(iso_solver *s)
     for (int i = 0; i < ISO_SOLVER__WORK; i++)
         cholmod_free_dense(&s->work[i], &s->c);
     iso_solver__frame_destroy(s->frame);
-    free(s->rot_s);
-    free(s->rot_n);
+    iso_solver__rings_destroy(s->rings);
     free(s->rot);
     cholmod_finish(&s->c);
     free(s->free_of);

@@ -98,12 +98,12 @@ struct iso_solver {
     int budget_used;   /* its iterations spent since it opened or since a factorization */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
     /* The rotated preconditioner (rotate.c), adaptive with
-     * ISO_PRECOND_ROTATED only, else NULL: L's frame, this evaluation's
-     * positions, and scratch for the rotations (9 nv, 3 nv) and the
-     * rotations themselves (9 nf). */
+     * ISO_PRECOND_ROTATED only, else NULL: the rings, L's frame, this
+     * evaluation's positions and its rotations (9 nf). */
+    struct iso_solver__rings *rings;
     struct iso_solver__frame *frame;
     const double *x_now;
-    double *rot_s, *rot_n, *rot;
+    double *rot;
     int w_left; /* evaluations until the worker's job is taken; 0: no job */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
@@ -133,21 +133,25 @@ void iso_solver__threads_end(iso_solver *s);
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
 
-/* The rotated preconditioner (rotate.c). A frame holds the positions a
- * factor's matrix was assembled at and what the rotations need of them
- * alone; it reads the solver's mesh and vert_of, which outlive it. create:
- * NULL when out of memory. positions: the 3 nv positions to fill, after
- * which prepare (on any one thread) makes the rest. rotations: each free
- * vertex's rotation R (9 nf, row-major) from the frame's positions to x,
- * with scratch S (9 nv) and n (3 nv). rotate: out_i = R_i in_i, or R_iᵀ
- * in_i with transpose (in may be out). */
+/* The rotated preconditioner (rotate.c). The rings: each free vertex's
+ * neighbours and triangles, made once (NULL when out of memory); they read
+ * vert_of, which outlives them. A frame holds the positions a factor's
+ * matrix was assembled at and what the rotations need of them alone.
+ * create: NULL when out of memory. positions: the 3 nv positions to fill,
+ * after which prepare (on any one thread) makes the rest. rotations: each
+ * free vertex's rotation R (9 nf, row-major) from the frame's positions to
+ * x. rotate: out_i = R_i in_i, or R_iᵀ in_i with transpose (in may be
+ * out). */
+typedef struct iso_solver__rings iso_solver__rings;
 typedef struct iso_solver__frame iso_solver__frame;
-iso_solver__frame *iso_solver__frame_create(const iso_solver *s);
+iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of,
+                                            const int *free_of);
+void iso_solver__rings_destroy(iso_solver__rings *g);
+iso_solver__frame *iso_solver__frame_create(const iso_solver__rings *g, int nv);
 void iso_solver__frame_destroy(iso_solver__frame *fr);
 double *iso_solver__frame_positions(iso_solver__frame *fr);
 void iso_solver__frame_prepare(iso_solver__frame *fr);
-void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double *S, double *n,
-                           double *R);
+void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double *R);
 void iso_solver__rotate(const double *R, int nf, const double *in, double *out, int transpose);
 
 /* The factorization worker (worker.c). create: after the analysis (it

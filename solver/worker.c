@@ -107,7 +107,7 @@ int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso
     w->A = cholmod_copy_sparse(s->A, &w->c);
     w->L = w->A ? cholmod_copy_factor(s->L, &w->c) : NULL;
     if (s->frame)
-        w->frame = iso_solver__frame_create(s);
+        w->frame = iso_solver__frame_create(s->rings, s->nv);
     int ok = w->A && w->L && (!s->frame || w->frame) && pthread_mutex_init(&w->mu, NULL) == 0;
     if (ok && pthread_cond_init(&w->cv, NULL) != 0) {
         pthread_mutex_destroy(&w->mu);
