@@ -491,7 +491,17 @@ static int analyse(iso_solver *s, iso_err *err)
     int *Ap = s->A->p;
     for (int i = 0; i < Ap[n3]; i++)
         Ax[i] = 1.0;
+    /* AMD and METIS both, keeping the better: CHOLMOD's default tries METIS
+     * only where AMD's ordering looks poor, which missed the benchmark bar
+     * (METIS: nnz(L) 2.99M against 3.49M, 0.99 against 1.41 GFLOP; cactus
+     * keeps AMD). A CHOLMOD built without METIS gets its default. */
+    s->c.nmethods = 3; /* the given ordering (none here), AMD, METIS */
     s->L = cholmod_analyze(s->A, &s->c);
+    if (!s->L) {
+        s->c.nmethods = 0;
+        s->c.status = CHOLMOD_OK;
+        s->L = cholmod_analyze(s->A, &s->c);
+    }
     if (!s->L || s->c.status < CHOLMOD_OK)
         return iso_err_set(err, ISO_ENUMERIC, -1, "CHOLMOD analysis failed (status %d)",
                            s->c.status);
