@@ -73,6 +73,10 @@ static const scene_key solver_keys[] = {
      .help = "adaptive: 0 factors on the tick's thread; N factors on a worker thread, each factor "
              "used from N evaluations after its matrix's",
      .dflt = "0"},
+    {"worker_ahead", SK_BOOL, FIELD(iso_solver_opts, worker_ahead),
+     .help = "with the worker: factor the matrix at the positions extrapolated to the middle of "
+             "the factor's use, instead of the giving evaluation's",
+     .dflt = "true"},
     {.key = NULL},
 };
 

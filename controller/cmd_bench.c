@@ -34,7 +34,7 @@
  * of two made ticks wait when the second core was busy. The bumpplane has
  * none: its factorization (~9 GFLOP) keeps the BLAS on both cores, so a
  * worker only competes with the tick (0.9 ticks/s with one, 2.2 without). */
-#define RT_WORKER_LAG 3
+#define RT_WORKER_LAG 4
 static const struct {
     const char *name;
     double paper_seconds;

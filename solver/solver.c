@@ -42,6 +42,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->cg_max_iter = 12;
     o->preconditioner = ISO_PRECOND_ROTATED;
     o->worker_lag = 0;
+    o->worker_ahead = 1;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
@@ -558,6 +559,18 @@ static int start_rotations(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
+/* The worker's look-ahead (iso_solver_opts.worker_ahead): the last two
+ * evaluations' positions and the job's. */
+static int start_ahead(iso_solver *s, iso_err *err)
+{
+    if (!s->o.worker_ahead)
+        return ISO_OK;
+    for (int i = 0; i < 3; i++)
+        if (!(s->x_seen[i] = malloc((size_t)s->nv * 3 * sizeof(double))))
+            return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the worker's look-ahead");
+    return ISO_OK;
+}
+
 double iso_solver_factor_flops(const iso_solver *s)
 {
     return s->factor_flops;
@@ -606,7 +619,8 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
     }
     iso_solver__threads_begin(s);
     if (s->o.worker_lag > 0 && s->nf > 0 &&
-        (rc = iso_solver__worker_create(s, &s->w, err)) != ISO_OK) {
+        ((rc = start_ahead(s, err)) != ISO_OK ||
+         (rc = iso_solver__worker_create(s, &s->w, err)) != ISO_OK)) {
         iso_solver_destroy(s);
         return rc;
     }
@@ -635,6 +649,8 @@ void iso_solver_destroy(iso_solver *s)
     iso_solver__frame_destroy(s->frame);
     iso_solver__rings_destroy(s->rings);
     free(s->rot);
+    for (int i = 0; i < 3; i++)
+        free(s->x_seen[i]);
     cholmod_finish(&s->c);
     free(s->free_of);
     free(s->vert_of);
@@ -661,7 +677,7 @@ void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 
 /* ===== evaluation ======================================================= */
 
-static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *err)
+int iso_solver__assemble(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
 #ifdef ISO_WITH_OPENCL
     if (s->cl)
@@ -683,6 +699,24 @@ static void start_from(iso_solver *s, const double *guess)
     }
 }
 
+int iso_solver_factor_at(iso_solver *s, const double *x, iso_err *err)
+{
+    if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || s->nf == 0)
+        return ISO_OK;
+    double *vc = calloc((size_t)s->nv * 3, sizeof *vc); /* B is not wanted */
+    if (!vc)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", s->nv);
+    double t0 = iso_clock_now();
+    int rc = iso_solver__assemble(s, x, vc, err);
+    s->st.t_assembly += iso_clock_now() - t0;
+    s->x_now = x;
+    if (rc == ISO_OK)
+        rc = iso_solver__factor_now(s, err);
+    s->x_now = NULL;
+    free(vc);
+    return rc;
+}
+
 int iso_solver_field(iso_solver *s, const double *x, const double *vc, double *v, iso_err *err)
 {
     return iso_solver_field_from(s, x, vc, NULL, v, err);
@@ -695,10 +729,11 @@ int iso_solver_field_from(iso_solver *s, const double *x, const double *vc, cons
     double t0 = iso_clock_now();
     int rc = ISO_OK;
     if (s->nf > 0)
-        rc = assemble(s, x, vc, err);
+        rc = iso_solver__assemble(s, x, vc, err);
     s->st.t_assembly += iso_clock_now() - t0;
     iso_solver__progress(s);
     s->x_now = x;
+    s->vc_now = vc;
     if (rc == ISO_OK && s->nf > 0)
         rc = iso_solver__linsolve(s, err); /* times its own phases */
     if (rc != ISO_OK)

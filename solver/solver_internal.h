@@ -102,8 +102,13 @@ struct iso_solver {
      * evaluation's positions and its rotations (9 nf). */
     struct iso_solver__rings *rings;
     struct iso_solver__frame *frame;
-    const double *x_now;
+    const double *x_now, *vc_now; /* this evaluation's positions and handle velocities */
     double *rot;
+    /* The worker's look-ahead (worker_ahead), else NULL: the positions of
+     * the last two evaluations (x_seen[0] the latest) and of the next job;
+     * n_seen of the first two hold evaluations. */
+    double *x_seen[3];
+    int n_seen;
     int w_left; /* evaluations until the worker's job is taken; 0: no job */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */
@@ -132,6 +137,13 @@ void iso_solver__threads_end(iso_solver *s);
  * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
+
+/* Factors s->A as it is, with its frame at s->x_now (iso_solver_factor_at). */
+int iso_solver__factor_now(iso_solver *s, iso_err *err);
+
+/* Fills s->A's values and s->B at positions x with handle velocities vc,
+ * by whichever assembly path the solver uses (solver.c). */
+int iso_solver__assemble(iso_solver *s, const double *x, const double *vc, iso_err *err);
 
 /* The rotated preconditioner (rotate.c). The rings: each free vertex's
  * neighbours and triangles, made once (NULL when out of memory); they read

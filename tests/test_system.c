@@ -739,6 +739,47 @@ static void rotated_factor_is_exact_under_a_turn(void **state)
     bumpy_deinit(&bp);
 }
 
+/* iso_solver_factor_at: the factor made before the first evaluation
+ * serves it (no factorization of its own, at most one CG iteration at the
+ * same positions) and its field is the fresh factorization's to 1e-7 of
+ * its largest entry; under the paper's scheme the call does nothing. */
+static void factor_at_serves_the_first_evaluation(void **state)
+{
+    (void)state;
+    bumpy bp;
+    bumpy_init(&bp);
+    int n = 3 * bp.fm.nv;
+    double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
+    assert_true(ref && v);
+    iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
+    iso_solver *always = NULL, *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
+    assert_int_equal(iso_solver_factor_at(always, bp.fm.x, &err), ISO_OK);
+    iso_solver_stats st;
+    iso_solver_get_stats(always, &st);
+    assert_int_equal(st.factorizations, 0);
+    assert_int_equal(iso_solver_field(always, bp.fm.x, bp.vc, ref, &err), ISO_OK);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    assert_int_equal(iso_solver_factor_at(s, bp.fm.x, &err), ISO_OK);
+    assert_int_equal(iso_solver_field(s, bp.fm.x, bp.vc, v, &err), ISO_OK);
+    iso_solver_get_stats(s, &st);
+    printf("after iso_solver_factor_at: %ld factorizations, %ld CG iterations\n", st.factorizations,
+           st.cg_iterations);
+    assert_int_equal(st.factorizations, 1);
+    assert_true(st.cg_iterations <= 1);
+    assert_true(iso_test_max_abs_diff(v, ref, (size_t)n) <=
+                1e-7 * iso_test_max_abs(ref, (size_t)n));
+    iso_solver_destroy(always);
+    iso_solver_destroy(s);
+    free(ref);
+    free(v);
+    bumpy_deinit(&bp);
+}
+
 /* iso_solver_field_from: PCG starts from the guess. Started from the exact
  * solution (an always-refactor solver's field at the same point) it needs
  * no iteration; started from zero it needs more than from the previous
@@ -866,6 +907,7 @@ int main(void)
         cmocka_unit_test(ill_posed_constraints_are_refused),
         cmocka_unit_test(factor_reuse_matches_refactoring),
         cmocka_unit_test(rotated_factor_is_exact_under_a_turn),
+        cmocka_unit_test(factor_at_serves_the_first_evaluation),
         cmocka_unit_test(guess_is_where_cg_starts),
         cmocka_unit_test(cg_target_bounds_the_error),
     };
