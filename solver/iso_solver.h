@@ -93,9 +93,12 @@ typedef enum iso_solver_omp {
 typedef enum iso_solver_blas {
     ISO_SOLVER_BLAS_LEAVE = 0, /* never touch the BLAS's thread count (library default) */
     /* Process-wide, for the solver's lifetime: when one factorization costs
-     * less than ISO_SOLVER_BLAS_THREADED_FLOPS, iso_solver_create sets
-     * OpenBLAS to one thread and iso_solver_destroy restores the count it
-     * found; a larger system leaves the count alone. OpenBLAS has one count
+     * less than ISO_SOLVER_BLAS_THREADED_FLOPS, or the solver has a
+     * factorization worker (worker_lag; it takes the other core, and a
+     * threaded BLAS in it competes with the evaluating thread: the
+     * bumpplane ran 1.6 ticks/s so, 4.2 on one thread), iso_solver_create
+     * sets OpenBLAS to one thread and iso_solver_destroy restores the count
+     * it found; otherwise it leaves the count alone. OpenBLAS has one count
      * for the whole process, so this is for a program that runs one solver
      * at a time (the isoshape command), never for solvers in several
      * threads or with overlapping lifetimes: those leave the BLAS alone and

@@ -69,7 +69,7 @@ void iso_solver__threads_begin(iso_solver *s)
         }
     }
     if (s->o.threads.blas != ISO_SOLVER_BLAS_SIZED || s->nf == 0 ||
-        s->factor_flops >= ISO_SOLVER_BLAS_THREADED_FLOPS)
+        (s->factor_flops >= ISO_SOLVER_BLAS_THREADED_FLOPS && s->o.worker_lag == 0))
         return;
     int (*get_threads)(void) = NULL;
     look_up("openblas_get_num_threads", &get_threads, sizeof get_threads);

@@ -306,7 +306,9 @@ static void defaults_leave_settings_alone(void **state)
 }
 
 /* ISO_SOLVER_BLAS_SIZED: one thread while a small system's solver exists,
- * the count it found once it is gone. */
+ * the count it found once it is gone. A large system (the built-in
+ * bumpplane) keeps the count, unless the solver has a factorization
+ * worker: then one thread too. */
 static void sized_blas_lasts_the_solver_lifetime(void **state)
 {
     (void)state;
@@ -330,7 +332,19 @@ static void sized_blas_lasts_the_solver_lifetime(void **state)
     assert_int_equal(c.blas_get(), 1);
     iso_solver_destroy(s);
     assert_int_equal(c.blas_get(), 2);
+    problem plane;
+    problem_init(&plane, "bumpplane", 150); /* ~6 GFLOP a factorization */
+    for (int lag = 0; lag <= 4; lag += 4) {
+        so.refactor = ISO_REFACTOR_ADAPTIVE;
+        so.worker_lag = lag;
+        assert_int_equal(iso_solver_create(plane.mesh, &plane.reg, &so, &s, &err), ISO_OK);
+        assert_true(iso_solver_factor_flops(s) >= ISO_SOLVER_BLAS_THREADED_FLOPS);
+        assert_int_equal(c.blas_get(), lag > 0 ? 1 : 2);
+        iso_solver_destroy(s);
+        assert_int_equal(c.blas_get(), 2);
+    }
     c.blas_set(before);
+    problem_deinit(&plane);
     problem_deinit(&bar);
 }
 
