@@ -498,7 +498,8 @@ static void print_text(const bench_args *a, const bench_result *res)
     printf("\nthis machine\n");
     printf("  dense dgemm, n = %d: %.1f GFLOP/s on %d thread%s, %.1f on one (median of %d): "
            "the ceilings for the factorization's dense kernels (below 4 GFLOP per "
-           "factorization the solver runs them on one thread)\n",
+           "factorization, or with a factorization worker, the solver runs them on one "
+           "thread)\n",
            m->dgemm_n, m->dgemm_gflops, m->dgemm_threads, m->dgemm_threads == 1 ? "" : "s",
            m->dgemm1_gflops, m->dgemm_reps);
     const char *blas = iso_cli__blas_config();
