@@ -51,6 +51,8 @@ typedef struct integ {
     int hist;          /* valid entries of the history f (0..3) */
     double cg_share;   /* CG's share of a step's local error; 0: cg_tol */
     double est, est_h; /* the last third-order step's Milne estimate and length */
+    double start_err;  /* adaptive offline: the local error a step is allowed,
+                          CG's measure without an estimate; 0: cg_tol alone */
 } integ;
 
 /* Places the handle vertices of x at their poses for time t and fills the
@@ -200,13 +202,16 @@ static void extrapolate(const integ *g, const double *t, int n, double tau, doub
  * δ of a solve moves the step by h δ (iso_integrate.h), so CG may stop at
  * δ ≤ share × est / h, est the last third-order step's Milne estimate,
  * scaled by (h / its length)⁴ as the local error is. Without an estimate
- * (a start) the solver's cg_tol holds. */
+ * (a start) est is the error such a step is allowed, start_err, or with
+ * none the solver's cg_tol holds. */
 static void set_cg_target(integ *g, double h)
 {
     double target = 0;
     if (g->cg_share > 0 && g->est > 0) {
         double q = h / g->est_h;
         target = g->cg_share * g->est * (q * q) * (q * q) / h;
+    } else if (g->cg_share > 0 && g->start_err > 0) {
+        target = g->cg_share * g->start_err / h;
     }
     iso_solver_set_cg_target(g->s, target);
 }
@@ -431,6 +436,8 @@ int iso_integrate(iso_solver *s, const iso_mesh *m, const iso_regions *r, const 
     iso_solver_get_restore(s, &g.restore_mu, &g.restore_tau);
     g.restore_kappa = o.restore_kappa;
     g.cg_share = o.cg_share;
+    if (o.steps <= 0) /* adaptive: every step is allowed tol; fixed steps promise nothing */
+        g.start_err = o.tol * iso_mesh_bbox_diagonal(m);
     if (rc == ISO_OK)
         rc = run(&g, &o, x, st, err);
     iso_solver_set_cg_target(s, 0); /* the solver as the caller gave it */

@@ -214,11 +214,96 @@ static void adaptive_lands_on_t1_and_tracks_tol(void **state)
     free(x);
 }
 
+/* The CG iterations of the RK4 start: read when its second step ends. */
+typedef struct start_count {
+    iso_solver *s;
+    long cg_before, cg_start;
+} start_count;
+
+static void on_start_progress(void *ctx, double t, int steps, long evaluations)
+{
+    start_count *c = ctx;
+    (void)t;
+    (void)evaluations;
+    if (steps == 2) {
+        iso_solver_stats st;
+        iso_solver_get_stats(c->s, &st);
+        c->cg_start = st.cg_iterations - c->cg_before;
+    }
+}
+
+/* Adaptive at tol with CG's share `share` (0: cg_tol alone) on solver s;
+ * returns the CG iterations of the RK4 start. */
+static long run_share(problem *p, iso_solver *s, double tol, double share, double *x)
+{
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    io.tol = tol;
+    io.cg_share = share;
+    start_count c = {s, 0, -1};
+    iso_solver_stats st0;
+    iso_solver_get_stats(s, &st0);
+    c.cg_before = st0.cg_iterations;
+    io.progress = on_start_progress;
+    io.progress_ctx = &c;
+    memcpy(x, p->fm.x, sizeof(double) * 3 * (size_t)p->fm.nv);
+    iso_integrate_stats st;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_integrate(s, p->m, &p->r, &p->path, &io, x, &st, &err) != ISO_OK)
+        fail_msg("iso_integrate: %s", err.msg);
+    assert_true(c.cg_start >= 0);
+    return c.cg_start;
+}
+
+/* CG follows the integrator offline too (iso_integrate.h): adaptive at tol
+ * 1e-4, the result differs from the same run with 1e-12 solves by less than
+ * a tenth of that run's own error against the reference; and the RK4 start,
+ * which has no Milne estimate, stops CG at a tenth of the error its steps
+ * are allowed (tol), so it spends fewer iterations than cg_tol would. */
+static void adaptive_cg_follows_the_integrator(void **state)
+{
+    fixture *f = *state;
+    problem *p = &f->p;
+    size_t n = 3 * (size_t)p->fm.nv;
+    double *x = malloc(sizeof(double) * n), *exact = malloc(sizeof(double) * n);
+    double *plain = malloc(sizeof(double) * n);
+    assert_true(x && exact && plain);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.refactor = ISO_REFACTOR_ADAPTIVE;
+    iso_solver *reuse = NULL, *tight = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_solver_create(p->m, &p->r, &so, &reuse, &err) != ISO_OK)
+        fail_msg("iso_solver_create: %s", err.msg);
+    so.cg_tol = 1e-12;
+    if (iso_solver_create(p->m, &p->r, &so, &tight, &err) != ISO_OK)
+        fail_msg("iso_solver_create: %s", err.msg);
+    long it_share = run_share(p, reuse, 1e-4, ISO_INTEGRATE_CG_SHARE, x);
+    long it_tol = run_share(p, reuse, 1e-4, 0, plain);
+    run_share(p, tight, 1e-4, 0, exact);
+    double d_cg = free_error(p, x, exact), d_int = free_error(p, exact, f->ref);
+    print_message("adaptive tol 1e-4: CG at share %.2g differs from 1e-12 solves by %.3g, "
+                  "%.3g of the integrator's own error %.3g; RK4 start %ld CG iterations "
+                  "(%ld with cg_tol alone)\n",
+                  ISO_INTEGRATE_CG_SHARE, d_cg, d_cg / d_int, d_int, it_share, it_tol);
+    assert_true(d_int > 0);
+    assert_true(d_cg < 0.1 * d_int);
+    assert_true(it_share < it_tol);
+    iso_solver_destroy(reuse);
+    iso_solver_destroy(tight);
+    free(x);
+    free(exact);
+    free(plain);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(fixed_steps_converge_at_third_order),
         cmocka_unit_test(adaptive_lands_on_t1_and_tracks_tol),
+        cmocka_unit_test(adaptive_cg_follows_the_integrator),
     };
     return cmocka_run_group_tests_name("integrator", t, setup, teardown);
 }
