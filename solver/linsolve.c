@@ -231,7 +231,8 @@ static int matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *er
 
 static int ensure_work(iso_solver *s, iso_err *err)
 {
-    for (int i = 0; i < ISO_SOLVER__WORK; i++)
+    int n = s->frame ? ISO_SOLVER__WORK : ISO_SOLVER__WORK - 1; /* the last: rotated only */
+    for (int i = 0; i < n; i++)
         if (!s->work[i] &&
             !(s->work[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c)))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
