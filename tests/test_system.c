@@ -571,6 +571,20 @@ static void bumpy_deinit(bumpy *b)
     fx_mesh_free(&b->fm);
 }
 
+/* Two solvers of bp with the options o: one that factors every evaluation
+ * (the reference) and one with adaptive refactoring. */
+static void create_pair(const bumpy *bp, iso_solver_opts o, iso_solver **always, iso_solver **s)
+{
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    if (iso_solver_create(bp->m, &bp->r, &o, always, &err) != ISO_OK)
+        fail_msg("iso_solver_create (always): %s", err.msg);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    if (iso_solver_create(bp->m, &bp->r, &o, s, &err) != ISO_OK)
+        fail_msg("iso_solver_create (adaptive): %s", err.msg);
+}
+
 /* Adaptive refactoring (PCG preconditioned by the cached factor) against a
  * fresh factorization every evaluation, along one sequence of positions
  * that moves like an integrator's: pairs of nearby evaluations (predictor,
@@ -719,10 +733,7 @@ static void rotated_factor_is_exact_under_a_turn(void **state)
     iso_solver *s = NULL, *always = NULL;
     iso_err err;
     iso_err_clear(&err);
-    o.refactor = ISO_REFACTOR_ALWAYS;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
-    o.refactor = ISO_REFACTOR_ADAPTIVE;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    create_pair(&bp, o, &always, &s);
     assert_int_equal(iso_solver_field(s, bp.fm.x, bp.vc, v0, &err), ISO_OK);
     for (int i = 0; i < n; i++)
         x[i] = 0.5 * bp.fm.x[i];
@@ -755,15 +766,12 @@ static void factor_at_serves_the_first_evaluation(void **state)
     iso_solver *always = NULL, *s = NULL;
     iso_err err;
     iso_err_clear(&err);
-    o.refactor = ISO_REFACTOR_ALWAYS;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
+    create_pair(&bp, o, &always, &s);
     assert_int_equal(iso_solver_factor_at(always, bp.fm.x, &err), ISO_OK);
     iso_solver_stats st;
     iso_solver_get_stats(always, &st);
     assert_int_equal(st.factorizations, 0);
     assert_int_equal(iso_solver_field(always, bp.fm.x, bp.vc, ref, &err), ISO_OK);
-    o.refactor = ISO_REFACTOR_ADAPTIVE;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
     assert_int_equal(iso_solver_factor_at(s, bp.fm.x, &err), ISO_OK);
     assert_int_equal(iso_solver_field(s, bp.fm.x, bp.vc, v, &err), ISO_OK);
     iso_solver_get_stats(s, &st);
@@ -800,11 +808,8 @@ static void guess_is_where_cg_starts(void **state)
     iso_solver *always = NULL, *s = NULL;
     iso_err err;
     iso_err_clear(&err);
-    o.refactor = ISO_REFACTOR_ALWAYS;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
-    o.refactor = ISO_REFACTOR_ADAPTIVE;
-    o.preconditioner = ISO_PRECOND_PLAIN;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    o.preconditioner = ISO_PRECOND_PLAIN; /* the reference factors: no PCG to precondition */
+    create_pair(&bp, o, &always, &s);
     memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
     assert_int_equal(iso_solver_field(s, x, bp.vc, v, &err), ISO_OK); /* factors */
     for (int i = 0; i < n; i++)
@@ -856,11 +861,8 @@ static void cg_target_bounds_the_error(void **state)
     iso_solver *always = NULL, *s = NULL;
     iso_err err;
     iso_err_clear(&err);
-    o.refactor = ISO_REFACTOR_ALWAYS;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &always, &err), ISO_OK);
-    o.refactor = ISO_REFACTOR_ADAPTIVE;
-    o.cg_max_iter = 100;
-    assert_int_equal(iso_solver_create(bp.m, &bp.r, &o, &s, &err), ISO_OK);
+    o.cg_max_iter = 100; /* the reference factors: no PCG to cap */
+    create_pair(&bp, o, &always, &s);
     memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
     assert_int_equal(iso_solver_field(s, x, bp.vc, v0, &err), ISO_OK); /* factors */
     for (int i = 0; i < n; i++)
