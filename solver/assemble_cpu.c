@@ -411,10 +411,25 @@ static void assemble_edges(iso_solver *s, const double *vc, double *Ax, double *
 
 /* ===== the other elements ================================================= */
 
-/* Restoration term of edge element e: μ Q, Q = w_e [uuᵀ −uuᵀ; −uuᵀ uuᵀ], and its
- * linear part: the minimiser of vᵀAv + gᵀv solves A v = −g/2, so each free
- * endpoint's right-hand side gets −μ w_e c_e (∓u), c_e = (|e| − L_e)/τ. */
-static void edge_matrix(iso_solver *s, const element *e, const double *x, double *Q, double *rhs)
+/* GCC at -O2 keeps 3-trip loops as loops; unrolled, the block loops below
+ * lose their index arithmetic and the ≤ k bound's branches. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define UNROLL3 _Pragma("GCC unroll 3")
+#else
+#define UNROLL3
+#endif
+
+/* Restoration term of edge element e = (i, j): μ Q, Q = w_e [uuᵀ −uuᵀ;
+ * −uuᵀ uuᵀ], and its linear part: the minimiser of vᵀAv + gᵀv solves
+ * A v = −g/2, so each free endpoint's right-hand side gets −μ w_e c_e (∓u),
+ * c_e = (|e| − L_e)/τ. Added straight into the three blocks (ii, ij, jj)
+ * through the slot map, with a handle endpoint's share moved to the
+ * right-hand side; the generic 6×6 element path (scatter_upper) cost
+ * 42 ns an edge, two thirds of a cactus assembly's time again. The
+ * products and sums are those of that path, in its order, so the result
+ * is the same to the bit. */
+static void restore_edge(iso_solver *s, const element *e, const double *x, const double *vc,
+                         double *Ax, double *rhs)
 {
     const double *a = x + 3 * e->v[0], *b = x + 3 * e->v[1];
     double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
@@ -422,20 +437,39 @@ static void edge_matrix(iso_solver *s, const element *e, const double *x, double
     for (int k = 0; k < 3; k++)
         u[k] /= len;
     double we = s->edge_w[e->tri], c = (len - s->rest_len[e->tri]) / s->o.restore_tau;
-    double mu = s->o.restore_mu;
-    for (int i = 0; i < 6; i++) /* μ Q, upper triangle: what scatter_upper reads */
-        for (int j = i; j < 6; j++) {
-            double sign = (i < 3) == (j < 3) ? 1.0 : -1.0;
-            Q[6 * i + j] = mu * (sign * we * u[i % 3] * u[j % 3]);
-        }
+    double mu = s->o.restore_mu, P[3][3]; /* μ w_e u uᵀ, each entry as (w_e u_r) u_c */
+    UNROLL3 for (int r = 0; r < 3; r++) UNROLL3 for (int q = 0; q < 3; q++) P[r][q] =
+        mu * (we * u[r] * u[q]);
+    int f[2] = {s->free_of[e->v[0]], s->free_of[e->v[1]]};
     for (int end = 0; end < 2; end++) {
-        int f = s->free_of[e->v[end]];
-        if (f < 0)
+        if (f[end] < 0)
             continue;
         double sign = end == 0 ? -1.0 : 1.0;
         for (int k = 0; k < 3; k++)
-            rhs[3 * f + k] -= s->o.restore_mu * we * c * sign * u[k];
+            rhs[3 * f[end] + k] -= mu * we * c * sign * u[k];
     }
+    const int *sl = s->slots + e->slot; /* blocks (0,0), (0,1), (1,0), (1,1) */
+    if (f[0] >= 0 && sl[0] >= 0)
+        UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r <= k; r++) Ax[sl[k] + r] +=
+            P[r][k];
+    if (sl[3] >= 0) { /* rows of i, columns of j: −P */
+        UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r < 3; r++) Ax[sl[3 + k] + r] -=
+            P[r][k];
+    } else if (sl[6] >= 0) { /* rows of j, columns of i */
+        UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r < 3; r++) Ax[sl[6 + k] + r] -=
+            P[k][r];
+    } else if (f[0] >= 0 && s->r->kind[e->v[1]] == ISO_HANDLE) { /* j moves i */
+        const double *v = vc + 3 * e->v[1];
+        UNROLL3 for (int r = 0; r < 3; r++) rhs[3 * f[0] + r] +=
+            P[r][0] * v[0] + P[r][1] * v[1] + P[r][2] * v[2];
+    } else if (f[1] >= 0 && s->r->kind[e->v[0]] == ISO_HANDLE) { /* i moves j */
+        const double *v = vc + 3 * e->v[0];
+        UNROLL3 for (int r = 0; r < 3; r++) rhs[3 * f[1] + r] +=
+            P[0][r] * v[0] + P[1][r] * v[1] + P[2][r] * v[2];
+    }
+    if (f[1] >= 0 && sl[9] >= 0)
+        UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r <= k; r++)
+            Ax[sl[9 + k] + r] += P[r][k];
 }
 
 /* (1 − ω) Q1 of a triangle element no edge carries; −1 if degenerate. */
@@ -454,14 +488,6 @@ static int lone_q1(iso_solver *s, const element *e, const double *x, double *Q)
             Q[9 * i + j] *= w;
     return 0;
 }
-
-/* GCC at -O2 keeps 3-trip loops as loops; unrolled, the block loops below
- * lose their index arithmetic and the ≤ k bound's branches. */
-#if defined(__GNUC__) && !defined(__clang__)
-#define UNROLL3 _Pragma("GCC unroll 3")
-#else
-#define UNROLL3
-#endif
 
 /* Adds the upper triangle of element e's block Q (dimension 3 n, its
  * weight already in) through the slot map. */
@@ -522,10 +548,9 @@ static int assemble_others(iso_solver *s, const double *x, const double *vc, int
         const element *e = &s->el[p->other[i]];
         if ((e->kind == 3) != restoration)
             continue;
-        if (e->kind == 3) {
-            edge_matrix(s, e, x, Q, rhs);
-            scatter_upper(s, e, 2, Q, vc, Ax, rhs);
-        } else if (lone_q1(s, e, x, Q) == 0) {
+        if (e->kind == 3)
+            restore_edge(s, e, x, vc, Ax, rhs);
+        else if (lone_q1(s, e, x, Q) == 0) {
             scatter_upper(s, e, 3, Q, vc, Ax, rhs);
         } else {
             return -1;
