@@ -452,12 +452,12 @@ static void restore_edge(iso_solver *s, const element *e, const double *x, const
     if (f[0] >= 0 && sl[0] >= 0)
         UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r <= k; r++) Ax[sl[k] + r] +=
             P[r][k];
-    if (sl[3] >= 0) { /* rows of i, columns of j: −P */
+    /* Edges are (i, j) with i < j (iso_mesh.h) and free indices follow the
+     * vertices', so when both are free A's upper triangle holds this block (−P)
+     * as rows of i, columns of j: never transposed. */
+    if (sl[3] >= 0) {
         UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r < 3; r++) Ax[sl[3 + k] + r] -=
             P[r][k];
-    } else if (sl[6] >= 0) { /* rows of j, columns of i */
-        UNROLL3 for (int k = 0; k < 3; k++) UNROLL3 for (int r = 0; r < 3; r++) Ax[sl[6 + k] + r] -=
-            P[k][r];
     } else if (f[0] >= 0 && s->r->kind[e->v[1]] == ISO_HANDLE) { /* j moves i */
         const double *v = vc + 3 * e->v[1];
         UNROLL3 for (int r = 0; r < 3; r++) rhs[3 * f[0] + r] +=
