@@ -425,7 +425,7 @@ static void assemble_edges(iso_solver *s, const double *vc, double *Ax, double *
  * c_e = (|e| − L_e)/τ. Added straight into the three blocks (ii, ij, jj)
  * through the slot map, with a handle endpoint's share moved to the
  * right-hand side; the generic 6×6 element path (scatter_upper) cost
- * 42 ns an edge, two thirds of a cactus assembly's time again. The
+ * 42 ns an edge, half as much again as the rest of a cactus assembly. The
  * products and sums are those of that path, in its order, so the result
  * is the same to the bit. */
 static void restore_edge(iso_solver *s, const element *e, const double *x, const double *vc,
