@@ -342,6 +342,9 @@ static void each_coupling(const iso_solver *s, void (*visit)(void *, int, int), 
     }
 }
 
+/* A column-wise pattern: during block_pattern the buckets being filled,
+ * after it the block pattern of A_ff's upper triangle, which the scalar
+ * pattern and the ordering are both made from. */
 typedef struct buckets {
     int *start; /* nf + 1: where each column's rows begin in rows */
     int *rows;
@@ -404,16 +407,14 @@ static int block_pattern(const iso_solver *s, int *bstart, int **brows_out)
     return ISO_OK;
 }
 
-/* Builds the block pattern, the scalar CSC matrix and the slot map. */
-static int build_pattern(iso_solver *s, iso_err *err)
+/* Builds the block pattern into bp (the caller frees its arrays; analyse
+ * orders it), the scalar CSC matrix and the slot map. */
+static int build_pattern(iso_solver *s, buckets *bp, iso_err *err)
 {
-    int *bstart = calloc((size_t)s->nf + 1, sizeof *bstart);
-    int *brows = NULL;
-    int rc = ISO_OK;
-    if (!bstart || block_pattern(s, bstart, &brows) != ISO_OK) {
-        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory building the pattern");
-        goto out;
-    }
+    bp->start = calloc((size_t)s->nf + 1, sizeof *bp->start);
+    if (!bp->start || block_pattern(s, bp->start, &bp->rows) != ISO_OK)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory building the pattern");
+    const int *bstart = bp->start, *brows = bp->rows;
 
     /* Scalar column 3fb+k: 3 rows per off-diagonal block, k+1 of the diagonal. */
     size_t nnz = 0;
@@ -423,10 +424,8 @@ static int build_pattern(iso_solver *s, iso_err *err)
     }
     int n3 = 3 * s->nf;
     s->A = cholmod_allocate_sparse((size_t)n3, (size_t)n3, nnz, 1, 1, 1, CHOLMOD_REAL, &s->c);
-    if (!s->A) {
-        rc = iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate A (%zu entries)", nnz);
-        goto out;
-    }
+    if (!s->A)
+        return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate A (%zu entries)", nnz);
     int *Ap = s->A->p, *Ai = s->A->i;
     Ap[0] = 0;
     for (int f = 0; f < s->nf; f++) {
@@ -452,10 +451,8 @@ static int build_pattern(iso_solver *s, iso_err *err)
         nslots += (size_t)(nl * nl * 3);
     }
     s->slots = malloc((nslots + 1) * sizeof *s->slots);
-    if (!s->slots) {
-        rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the slot map");
-        goto out;
-    }
+    if (!s->slots)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the slot map");
     for (int i = 0; i < s->nel; i++) {
         const element *e = &s->el[i];
         int nl = local_count(e);
@@ -473,10 +470,7 @@ static int build_pattern(iso_solver *s, iso_err *err)
                     dst[k] = Ap[3 * fb + k] + 3 * j;
             }
     }
-out:
-    free(bstart);
-    free(brows);
-    return rc;
+    return ISO_OK;
 }
 
 /* ===== creation ========================================================= */
@@ -514,26 +508,16 @@ static int check_regions(const iso_mesh *m, const iso_regions *r, iso_err *err)
     return ISO_OK;
 }
 
-/* The block pattern of A_ff's upper triangle (nf × nf, unit values) from
- * the scalar one: block (r, f) is there when entry (3r, 3f) is. */
-static cholmod_sparse *block_matrix(iso_solver *s)
+/* The block pattern bp as a CHOLMOD matrix (nf × nf, upper, pattern). */
+static cholmod_sparse *block_matrix(iso_solver *s, const buckets *bp)
 {
-    const int *Ap = s->A->p, *Ai = s->A->i;
-    size_t nnz = 0;
-    for (int q = Ap[0]; q < Ap[3 * s->nf]; q++)
-        nnz += Ai[q] % 3 == 0;
-    cholmod_sparse *B = cholmod_allocate_sparse((size_t)s->nf, (size_t)s->nf, nnz / 3 + 1, 1, 1, 1,
+    size_t nnz = (size_t)bp->start[s->nf];
+    cholmod_sparse *B = cholmod_allocate_sparse((size_t)s->nf, (size_t)s->nf, nnz + 1, 1, 1, 1,
                                                 CHOLMOD_PATTERN, &s->c);
     if (!B)
         return NULL;
-    int *Bp = B->p, *Bi = B->i, n = 0;
-    for (int f = 0; f < s->nf; f++) {
-        Bp[f] = n;
-        for (int q = Ap[3 * f]; q < Ap[3 * f + 1]; q++)
-            if (Ai[q] % 3 == 0)
-                Bi[n++] = Ai[q] / 3;
-    }
-    Bp[s->nf] = n;
+    memcpy(B->p, bp->start, ((size_t)s->nf + 1) * sizeof(int));
+    memcpy(B->i, bp->rows, nnz * sizeof(int));
     return B;
 }
 
@@ -545,9 +529,9 @@ static cholmod_sparse *block_matrix(iso_solver *s)
  * the scalar matrix the two orderings took 37 of the cactus solver's 85 ms
  * of creation. A CHOLMOD built without METIS gets its default. Returns the
  * scalar permutation (3 nf), or NULL with the cause in the Common. */
-static int *block_ordering(iso_solver *s)
+static int *block_ordering(iso_solver *s, const buckets *bp)
 {
-    cholmod_sparse *B = block_matrix(s);
+    cholmod_sparse *B = block_matrix(s, bp);
     if (!B)
         return NULL;
     s->c.nmethods = 3; /* the given ordering (none here), AMD, METIS */
@@ -569,7 +553,7 @@ static int *block_ordering(iso_solver *s)
     return perm;
 }
 
-static int analyse(iso_solver *s, iso_err *err)
+static int analyse(iso_solver *s, const buckets *bp, iso_err *err)
 {
     int n3 = 3 * s->nf;
     if (n3 == 0)
@@ -579,7 +563,7 @@ static int analyse(iso_solver *s, iso_err *err)
     int *Ap = s->A->p;
     for (int i = 0; i < Ap[n3]; i++)
         Ax[i] = 1.0;
-    int *perm = block_ordering(s);
+    int *perm = block_ordering(s, bp);
     if (perm) {
         s->c.nmethods = 1;
         s->c.method[0].ordering = CHOLMOD_GIVEN;
@@ -688,10 +672,13 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
         rc = number_free_vertices(s, err);
     if (rc == ISO_OK)
         rc = build_elements(s, err);
+    buckets bp = {NULL, NULL}; /* the block pattern, until the analysis has ordered it */
     if (rc == ISO_OK)
-        rc = build_pattern(s, err);
+        rc = build_pattern(s, &bp, err);
     if (rc == ISO_OK)
-        rc = analyse(s, err);
+        rc = analyse(s, &bp, err);
+    free(bp.start);
+    free(bp.rows);
     if (rc == ISO_OK && s->o.assembly != ISO_ASSEMBLY_CPU)
         rc = start_opencl(s, err);
     if (rc == ISO_OK)
