@@ -14,6 +14,7 @@
  * arrays by an 8x8 transpose in registers, not stored lane by lane into
  * memory and read back as vectors, which waits on every store. */
 #include "element_internal.h"
+#include "simd_internal.h"
 
 #include <math.h>
 #include <string.h>
@@ -29,16 +30,6 @@ typedef iso_elem__vm vm;
 /* Every loop over lanes, rows or fields is unrolled (#pragma GCC unroll),
  * so that the small arrays of vectors become registers rather than stack
  * slots: cactus assembly 1.87 -> 1.25 ms. */
-
-/* Not under the sanitizers: a clone's resolver runs while the program is
- * being loaded, before their run-time is set up, and ThreadSanitizer's
- * instrumentation of it crashes there. */
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(__clang__) &&                             \
-    !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
-#define ISO_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define ISO_CLONES
-#endif
 
 /* Square roots lane by lane: generic vectors have none, and sqrt() is the
  * correctly rounded root whatever the instruction set. */
