@@ -20,6 +20,7 @@
 
 #include "iso_clock.h"
 #include "solver_internal.h"
+#include "supersolve_internal.h"
 
 /* ===== threads ========================================================== */
 
@@ -147,9 +148,16 @@ static int factorize(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
-/* Z = L⁻ᵀL⁻¹ R with the cached factor, reusing CHOLMOD's workspace. */
+/* Z = L⁻ᵀL⁻¹ R with the cached factor: our supernodal solve
+ * (supersolve_internal.h says why), else CHOLMOD's, reusing its workspace. */
 static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_err *err)
 {
+    if (s->super_work) {
+        if (!*Z && !(*Z = cholmod_zeros(s->L->n, 1, CHOLMOD_REAL, &s->c)))
+            return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the solution");
+        if (iso_solver__super_solve(s->L, R->x, (*Z)->x, s->super_work) == 0)
+            return ISO_OK;
+    }
     int levels = omp_begin(s);
     int ok = cholmod_solve2(CHOLMOD_A, s->L, R, NULL, Z, NULL, &s->Y, &s->E, &s->c);
     omp_end(s, levels);

@@ -21,6 +21,7 @@
 #include "iso_clock.h"
 #include "iso_names.h"
 #include "solver_internal.h"
+#include "supersolve_internal.h"
 
 const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
 const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
@@ -576,6 +577,8 @@ static int analyse(iso_solver *s, const buckets *bp, iso_err *err)
     s->B = cholmod_zeros((size_t)n3, 1, CHOLMOD_REAL, &s->c);
     if (!s->B)
         return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the right-hand side");
+    if (s->L->is_super && !(s->super_work = malloc(iso_solver__super_work(s->L) * sizeof(double))))
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the triangular solves");
     s->st.nnz_a = Ap[n3];
     s->st.nnz_l = (long)s->c.lnz;
     s->factor_flops = s->c.fl;
@@ -714,6 +717,7 @@ void iso_solver_destroy(iso_solver *s)
     cholmod_free_dense(&s->X, &s->c);
     cholmod_free_dense(&s->Y, &s->c);
     cholmod_free_dense(&s->E, &s->c);
+    free(s->super_work);
     for (int i = 0; i < ISO_SOLVER__WORK; i++)
         cholmod_free_dense(&s->work[i], &s->c);
     iso_solver__frame_destroy(s->frame);

@@ -82,6 +82,7 @@ struct iso_solver {
     cholmod_sparse *A;
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
+    double *super_work; /* iso_solver__super_solve's, when L is supernodal; else NULL */
     cholmod_dense *work[ISO_SOLVER__WORK]; /* PCG: residual, preconditioned residual,
                                               direction, A·direction, rotated residual */
     int have_factor;                       /* L holds a numeric factor of some earlier A */
