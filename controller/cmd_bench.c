@@ -245,8 +245,9 @@ static double dgemm_rate_one_thread(int n, int reps, int *threads)
 
 /* Times single evaluations of the cactus system at its rest pose under the
  * paper's scheme and the C assembly: each one is exactly one
- * cholmod_factorize and one cholmod_solve2, whose times the solver's own
- * stats isolate, so the differences are the bare library calls. */
+ * cholmod_factorize and one pair of triangular solves with its factor (the
+ * solver's own, solver/supersolve.c, as every PCG iteration uses), whose
+ * times the solver's stats isolate. */
 static int bare_cholmod(const iso_cli__problem *p, int reps, bench_machine *m, iso_err *err)
 {
     iso_solver_opts so;

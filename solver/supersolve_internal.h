@@ -4,11 +4,12 @@
  * Why our own: cholmod_solve2 does one BLAS call (dtrsv, then dgemv) per
  * supernode and direction. The cactus factor has 857 supernodes of 15
  * columns on average, and at that size the calls' overheads (OpenBLAS takes
- * a lock for its buffers on each) cost about a third of the solve: 1.9 ms
- * against 1.4 ms here, one streaming pass over L each way (L: 2.5M entries,
- * 20 MB; reading 40 MB at this machine's 30 GB/s takes 1.3 ms). On the 40k
- * bumpplane (258 MB, memory-bound) the two take the same time. The solve
- * is most of a PCG iteration, and PCG most of a real-time tick. */
+ * a lock for its buffers on each) cost about a fifth of the solve: 1.76-1.79
+ * ms against 1.44-1.48 ms here (the cactus scene, 300 solves side by side),
+ * one streaming pass over L each way (L: 2.5M entries, 20 MB; reading 40 MB
+ * at this machine's 30 GB/s takes 1.3 ms). On the 40k bumpplane (258 MB,
+ * memory-bound) the two take the same time (38.9 against 39.3 ms). The
+ * solve is most of a PCG iteration, and PCG most of a real-time tick. */
 #ifndef ISO_SOLVER_SUPERSOLVE_INTERNAL_H
 #define ISO_SOLVER_SUPERSOLVE_INTERNAL_H
 
