@@ -23,10 +23,6 @@ typedef iso_elem__vd vd;
 typedef iso_elem__vm vm;
 #define LANES ISO_ELEM__LANES
 
-/* Every helper is inlined into the function that is cloned, or it would be
- * compiled for the baseline alone, with its vectors passed in memory. */
-#define INLINE static inline __attribute__((always_inline))
-
 /* Every loop over lanes, rows or fields is unrolled (#pragma GCC unroll),
  * so that the small arrays of vectors become registers rather than stack
  * slots: cactus assembly 1.87 -> 1.25 ms. */
@@ -34,7 +30,7 @@ typedef iso_elem__vm vm;
 /* Square roots lane by lane: generic vectors have none, and sqrt() is the
  * correctly rounded root whatever the instruction set. */
 _Static_assert(LANES == 8, "sqrt_lanes and the batch layouts assume 8 lanes");
-INLINE void sqrt_lanes(vd *v)
+ISO_INLINE void sqrt_lanes(vd *v)
 {
     /* Built as a vector, not lane by lane in memory: a vector read of
      * values just stored one at a time waits for the stores to retire. */
@@ -61,7 +57,7 @@ INLINE void sqrt_lanes(vd *v)
 typedef double v4d __attribute__((vector_size(32)));
 
 /* r[k] (lane k's row of 8) becomes r[j] (field j of every lane). */
-INLINE void transpose8(vd r[8])
+ISO_INLINE void transpose8(vd r[8])
 {
     vd t[8], u[8];
 #pragma GCC unroll 16
@@ -86,7 +82,7 @@ INLINE void transpose8(vd r[8])
 
 /* The coordinates of vertices va[k] and vb[k] (rows of x4) as lanes: a[0..2]
  * and, unless b is NULL, b[0..2]. */
-INLINE void gather_points(const double *x4, const int *va, const int *vb, vd a[3], vd b[3])
+ISO_INLINE void gather_points(const double *x4, const int *va, const int *vb, vd a[3], vd b[3])
 {
     vd r[8];
 #pragma GCC unroll 16
@@ -106,7 +102,7 @@ INLINE void gather_points(const double *x4, const int *va, const int *vb, vd a[3
 }
 
 /* Fields 0..15 of the fit records rec[k] as lanes. */
-INLINE void gather_fits(const double *fits, const int *t, vd f[16])
+ISO_INLINE void gather_fits(const double *fits, const int *t, vd f[16])
 {
 #pragma GCC unroll 16
     for (int k = 0; k < 8; k++) {
@@ -123,7 +119,7 @@ INLINE void gather_fits(const double *fits, const int *t, vd f[16])
  * iso_elem_fit_compute (element.c) and iso_elem_n_scale, lane by lane: the
  * same lines (element_fit.h) on vectors. */
 
-INLINE void fit_lanes(const vd x[9], iso_weighting w, vd f[ISO_ELEM__FIT_STRIDE])
+ISO_INLINE void fit_lanes(const vd x[9], iso_weighting w, vd f[ISO_ELEM__FIT_STRIDE])
 {
     vd c[3], s, inv, d[3], r[9];
     vm ok;
@@ -195,7 +191,7 @@ ISO_CLONES static int fits_batch(const iso_elem__fit_batch *b, iso_weighting w)
  *    weighted constants. */
 
 /* C = [a]× M: column j is a × M[:, j]. */
-INLINE void cross_left(const vd a[3], const vd M[9], vd C[9])
+ISO_INLINE void cross_left(const vd a[3], const vd M[9], vd C[9])
 {
     C[0] = a[1] * M[6] - a[2] * M[3];
     C[1] = a[1] * M[7] - a[2] * M[4];
@@ -209,7 +205,7 @@ INLINE void cross_left(const vd a[3], const vd M[9], vd C[9])
 }
 
 /* C = M [r]×: row i is M[i, :] × r. */
-INLINE void cross_right(const vd M[9], const vd r[3], vd C[9])
+ISO_INLINE void cross_right(const vd M[9], const vd r[3], vd C[9])
 {
 #pragma GCC unroll 16
     for (int i = 0; i < 3; i++) {
@@ -221,7 +217,7 @@ INLINE void cross_right(const vd M[9], const vd r[3], vd C[9])
 }
 
 /* C += M [r]×. */
-INLINE void add_cross_right(const vd M[9], const vd r[3], vd C[9])
+ISO_INLINE void add_cross_right(const vd M[9], const vd r[3], vd C[9])
 {
 #pragma GCC unroll 16
     for (int i = 0; i < 3; i++) {
@@ -233,7 +229,7 @@ INLINE void add_cross_right(const vd M[9], const vd r[3], vd C[9])
 }
 
 /* A symmetric 3x3 from its upper six (00 01 02 11 12 22). */
-INLINE void full_sym(const vd u[6], vd M[9])
+ISO_INLINE void full_sym(const vd u[6], vd M[9])
 {
     M[0] = u[0], M[1] = M[3] = u[1], M[2] = M[6] = u[2];
     M[4] = u[3], M[5] = M[7] = u[4], M[8] = u[5];
@@ -244,9 +240,9 @@ INLINE void full_sym(const vd u[6], vd M[9])
  * the frame's centring makes it to rounding, and which keeps the
  * translations exactly in the null space), and its three rows P'_0, P'_1,
  * and P'_s (third_is_source) or P'_t. xt: the target's third corner. */
-INLINE void pair_rows(const vd f[ISO_ELEM__FIT_EDGE], const vd xa[3], const vd xb[3],
-                      const vd xt[3], const vd *wvp, const vd *qp, int third_is_source, vd r[9],
-                      vd P[27])
+ISO_INLINE void pair_rows(const vd f[ISO_ELEM__FIT_EDGE], const vd xa[3], const vd xb[3],
+                          const vd xt[3], const vd *wvp, const vd *qp, int third_is_source, vd r[9],
+                          vd P[27])
 {
     vd wv = *wvp, q = *qp;
     const vd *c = f + ISO_ELEM__FIT_C, *d = f + ISO_ELEM__FIT_D, inv = f[ISO_ELEM__FIT_INVS];
@@ -314,8 +310,8 @@ INLINE void pair_rows(const vd f[ISO_ELEM__FIT_EDGE], const vd xa[3], const vd x
 
 /* The edge block's upper blocks among a, b, p (Qf: all nine 3x3 blocks,
  * full, Qf[3 l + m]), from both pairs' rows and the constants. */
-INLINE void blocks_abp(const vd ri[9], const vd Pi[27], const vd rj[9], const vd Pj[27],
-                       const vd w[4], vd Qf[9][9])
+ISO_INLINE void blocks_abp(const vd ri[9], const vd Pi[27], const vd rj[9], const vd Pj[27],
+                           const vd w[4], vd Qf[9][9])
 {
     vd X[9][9];
 #pragma GCC unroll 16
@@ -358,12 +354,12 @@ INLINE void blocks_abp(const vd ri[9], const vd Pi[27], const vd rj[9], const vd
 /* A 3x3 block into q: a diagonal block's upper six (put_diag), or nine
  * values row by row, column by column in the lanes whose tr is all ones
  * (put_off). */
-INLINE void put_diag(const vd B[9], vd *q)
+ISO_INLINE void put_diag(const vd B[9], vd *q)
 {
     q[0] = B[0], q[1] = B[1], q[2] = B[2], q[3] = B[4], q[4] = B[5], q[5] = B[8];
 }
 
-INLINE void put_off(const vd B[9], const vm *tr, vd *q)
+ISO_INLINE void put_off(const vd B[9], const vm *tr, vd *q)
 {
     vm mask = *tr;
 #pragma GCC unroll 16
@@ -373,9 +369,9 @@ INLINE void put_off(const vd B[9], const vm *tr, vd *q)
             q[3 * i + j] = (vd)(((vm)B[3 * j + i] & mask) | ((vm)B[3 * i + j] & ~mask));
 }
 
-INLINE void edge_lanes(const vd x[12], const vd fi[ISO_ELEM__FIT_EDGE],
-                       const vd fj[ISO_ELEM__FIT_EDGE], const vd w[4], const vm tr[6],
-                       vd q[ISO_ELEM__EDGE_VALUES])
+ISO_INLINE void edge_lanes(const vd x[12], const vd fi[ISO_ELEM__FIT_EDGE],
+                           const vd fj[ISO_ELEM__FIT_EDGE], const vd w[4], const vm tr[6],
+                           vd q[ISO_ELEM__EDGE_VALUES])
 {
     vd ri[9], rj[9], Pi[27], Pj[27], Qf[9][9];
     /* (Ti, Tj): target's third q; (Tj, Ti): shared corners a, b, target p */

@@ -10,9 +10,11 @@
  *
  * Not under the sanitizers: a clone's resolver runs while the program is
  * being loaded, before their run-time is set up, and ThreadSanitizer's
- * instrumentation of it crashes there. Every helper a clone calls must be
- * inlined into it (always_inline), or it would be compiled for the baseline
- * alone, with its vectors passed in memory (GCC's -Wpsabi). */
+ * instrumentation of it crashes there.
+ *
+ * ISO_INLINE marks a helper a clone calls: it must be inlined into the
+ * clone, or it would be compiled for the baseline alone, with its vectors
+ * passed in memory (GCC's -Wpsabi). */
 #ifndef ISO_SOLVER_SIMD_INTERNAL_H
 #define ISO_SOLVER_SIMD_INTERNAL_H
 
@@ -22,5 +24,7 @@
 #else
 #define ISO_CLONES
 #endif
+
+#define ISO_INLINE static inline __attribute__((always_inline))
 
 #endif

@@ -32,13 +32,11 @@ typedef double v4 __attribute__((vector_size(4 * sizeof(double))));
         load4_;                                                                                    \
     })
 
-#define INLINE static inline __attribute__((always_inline))
-
 /* t[0..m) += Σ_j X[0..m, j] y[j] over the NC columns of X (leading
  * dimension ld), the panel's sum first, from its first column. NC is a
  * constant where it is inlined, so each panel width gets a loop of its
  * own. */
-INLINE void times_nc(const double *X, int ld, const int NC, const double *y, int m, double *t)
+ISO_INLINE void times_nc(const double *X, int ld, const int NC, const double *y, int m, double *t)
 {
     for (int i = 0; i < m; i++) {
         double sum = X[i] * y[0];
@@ -51,7 +49,7 @@ INLINE void times_nc(const double *X, int ld, const int NC, const double *y, int
 
 /* out[j] = X[0..m, j] · t for the NC columns of X: each in four partial
  * sums (rows i mod 4), added pairwise, then the m mod 4 last rows. */
-INLINE void dots_nc(const double *X, int ld, const int NC, const double *t, int m, double *out)
+ISO_INLINE void dots_nc(const double *X, int ld, const int NC, const double *t, int m, double *out)
 {
     v4 acc[PANEL] = {{0}};
     int m4 = m & ~3;
@@ -71,29 +69,32 @@ INLINE void dots_nc(const double *X, int ld, const int NC, const double *t, int 
 
 /* The two for any panel width ncol in [1, PANEL]. */
 #define BY_WIDTH(call, ncol)                                                                       \
-    switch (ncol) {                                                                                \
-    case 1: call(1); break;                                                                        \
-    case 2: call(2); break;                                                                        \
-    case 3: call(3); break;                                                                        \
-    case 4: call(4); break;                                                                        \
-    case 5: call(5); break;                                                                        \
-    case 6: call(6); break;                                                                        \
-    case 7: call(7); break;                                                                        \
-    default: call(8); break;                                                                       \
-    }
+    do {                                                                                           \
+        switch (ncol) {                                                                            \
+        case 1: call(1); break;                                                                    \
+        case 2: call(2); break;                                                                    \
+        case 3: call(3); break;                                                                    \
+        case 4: call(4); break;                                                                    \
+        case 5: call(5); break;                                                                    \
+        case 6: call(6); break;                                                                    \
+        case 7: call(7); break;                                                                    \
+        default: call(8); break;                                                                   \
+        }                                                                                          \
+    } while (0)
 
 ISO_CLONES static void panel_times(const double *X, int ld, int ncol, const double *y, int m,
-                                   double *t){
+                                   double *t)
+{
 #define TIMES(nc) times_nc(X, ld, nc, y, m, t)
-    BY_WIDTH(TIMES, ncol)
+    BY_WIDTH(TIMES, ncol);
 #undef TIMES
 }
 
-ISO_CLONES
-    static void panel_dots(const double *X, int ld, int ncol, const double *t, int m, double *out)
+ISO_CLONES static void panel_dots(const double *X, int ld, int ncol, const double *t, int m,
+                                  double *out)
 {
 #define DOTS(nc) dots_nc(X, ld, nc, t, m, out)
-    BY_WIDTH(DOTS, ncol)
+    BY_WIDTH(DOTS, ncol);
 #undef DOTS
 }
 
@@ -170,7 +171,7 @@ static void backward_below(const double *X, int ld, int nscol, const int *rows, 
 
 size_t iso_solver__super_work(const cholmod_factor *L)
 {
-    return 3 * (size_t)L->n;
+    return 2 * (size_t)L->n + PANEL;
 }
 
 static int supported(const cholmod_factor *L)

@@ -16,7 +16,8 @@
 #include <cholmod.h>
 #include <stddef.h>
 
-/* Doubles of workspace iso_solver__super_solve needs with L: 3 n. */
+/* Doubles of workspace iso_solver__super_solve needs with L: 2 n + 8 (the
+ * permuted right-hand side, the rows below a supernode, a panel's dots). */
 size_t iso_solver__super_work(const cholmod_factor *L);
 
 /* x = A⁻¹ b, where L is CHOLMOD's supernodal LLᵀ factor of A (permuted:

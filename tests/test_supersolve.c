@@ -113,8 +113,12 @@ static void assert_covers_tails(const cholmod_factor *L)
     assert_true(odd_rows > 0);
 }
 
-static void check_solve(cholmod_sparse *A, fx_rng *rng, cholmod_common *c)
+/* (a) and (b) on the SPD matrix of nb vertices joined by the np pairs. */
+static void check_solve(int nb, const int *pairs, int np, fx_rng *rng)
 {
+    cholmod_common cc, *c = &cc;
+    cholmod_start(c);
+    cholmod_sparse *A = block_matrix(nb, pairs, np, rng, c);
     c->supernodal = CHOLMOD_SUPERNODAL;
     cholmod_factor *L = cholmod_analyze(A, c);
     assert_non_null(L);
@@ -158,38 +162,29 @@ static void check_solve(cholmod_sparse *A, fx_rng *rng, cholmod_common *c)
     cholmod_free_dense(&Xc, c);
     cholmod_free_dense(&B, c);
     cholmod_free_factor(&L, c);
+    cholmod_free_sparse(&A, c);
+    cholmod_finish(c);
 }
 
 static void test_grid(void **state)
 {
     (void)state;
-    cholmod_common c;
-    cholmod_start(&c);
     fx_rng rng = {12};
     int nx = 14, ny = 13, nz = 11, nb = nx * ny * nz;
     int *pairs = malloc((size_t)8 * nb * sizeof *pairs);
-    int np = grid_pairs(nx, ny, nz, pairs);
-    cholmod_sparse *A = block_matrix(nb, pairs, np, &rng, &c);
-    check_solve(A, &rng, &c);
-    cholmod_free_sparse(&A, &c);
+    check_solve(nb, pairs, grid_pairs(nx, ny, nz, pairs), &rng);
     free(pairs);
-    cholmod_finish(&c);
 }
 
 static void test_random_pattern(void **state)
 {
     (void)state;
-    cholmod_common c;
-    cholmod_start(&c);
     fx_rng rng = {34};
     int nb = 700, extra = 900;
     int *pairs = malloc((size_t)2 * (nb + extra) * sizeof *pairs);
     int np = random_pairs(nb, extra, &rng, pairs);
-    cholmod_sparse *A = block_matrix(nb, pairs, np, &rng, &c);
-    check_solve(A, &rng, &c);
-    cholmod_free_sparse(&A, &c);
+    check_solve(nb, pairs, np, &rng);
     free(pairs);
-    cholmod_finish(&c);
 }
 
 static void test_simplicial_refused(void **state)
@@ -206,7 +201,7 @@ static void test_simplicial_refused(void **state)
     assert_non_null(L);
     assert_true(cholmod_factorize(A, L, &c));
     assert_false(L->is_super);
-    double b[90], x[90], work[270];
+    double b[90], x[90], work[2 * 90 + 8];
     for (int i = 0; i < 90; i++)
         b[i] = 1.0, x[i] = -7.0;
     assert_int_equal(iso_solver__super_solve(L, b, x, work), -1);
