@@ -22,15 +22,14 @@
  * 1e-4 that cut the run's CG iterations from 93 to 57 (and a factorization)
  * and moved the result by 6e-6 of the diagonal from 1e-12 solves, 2% of the
  * integrator's own error of 2.8e-4 against 1000 steps (test_integrator
- * checks the same on a plate). Fixed
- * steps and the real-time stepper promise no tolerance, so their starts use
- * the solver's cg_tol alone: on the cactus scene at 60 Hz, whose integrator
- * error is 3e-7 of the diagonal, a 1e-4 allowance at the start made CG 13%
- * of that error. With an estimate, cg_tol's
- * residual still ends CG if it comes first, a floor for steps whose error is
- * far below anything that matters (a slow handle: on the soak scene a tenth
- * of it asked CG for 1e-13 of the diagonal and failed to the fallback,
- * 57 factorizations in 1800 ticks instead of 9). Offline and in real time
+ * checks the same on a plate). Fixed steps and the real-time stepper
+ * promise no tolerance, so their starts use the solver's cg_tol alone: on
+ * the cactus scene at 60 Hz, whose integrator error is 3e-7 of the
+ * diagonal, a 1e-4 allowance at the start made CG 13% of that error. With
+ * an estimate, cg_tol's residual still ends CG if it comes first, a floor
+ * for steps whose error is far below anything that matters (a slow handle:
+ * on the soak scene a tenth of it asked CG for 1e-13 of the diagonal and
+ * failed to the fallback, 57 factorizations in 1800 ticks instead of 9). Offline and in real time
  * alike; with refactor = always every solve is direct and this changes
  * nothing. */
 #ifndef ISO_INTEGRATE_H

@@ -363,48 +363,45 @@ static void put_coupling(void *ctx, int col, int row)
     b->rows[b->start[col]++] = row;
 }
 
-/* The block pattern of A_ff's upper triangle, column by column: bstart
- * (nf + 1) and brows, each column's rows unique and ascending. A bucket
- * per column, then each column deduplicated with a mark and sorted (a
- * column has a dozen rows); a global sort of the couplings cost 15 ms of
+/* The block pattern of A_ff's upper triangle into b, column by column
+ * (b->start zeroed, nf + 1), each column's rows unique and ascending. A
+ * bucket per column, then each column deduplicated with a mark and sorted
+ * (a column has a dozen rows); a global sort of the couplings cost 15 ms of
  * the cactus solver's creation. */
-static int block_pattern(const iso_solver *s, int *bstart, int **brows_out)
+static int block_pattern(const iso_solver *s, buckets *b)
 {
-    int nf = s->nf;
-    buckets b = {bstart, NULL};
-    each_coupling(s, count_coupling, &b);
+    int nf = s->nf, *bstart = b->start;
+    each_coupling(s, count_coupling, b);
     for (int f = 0; f < nf; f++)
         bstart[f + 1] += bstart[f];
-    b.rows = malloc(((size_t)bstart[nf] + 1) * sizeof *b.rows);
+    b->rows = malloc(((size_t)bstart[nf] + 1) * sizeof *b->rows);
     int *mark = malloc(((size_t)nf + 1) * sizeof *mark);
-    if (!b.rows || !mark) {
-        free(b.rows);
+    if (!b->rows || !mark) {
         free(mark);
-        return ISO_ENOMEM;
+        return ISO_ENOMEM; /* b->rows, if any, is the caller's to free */
     }
-    each_coupling(s, put_coupling, &b); /* advances each start to the next column's */
-    int u = 0, begin = 0;
+    each_coupling(s, put_coupling, b); /* advances each start to the next column's */
+    int *rows = b->rows, u = 0, begin = 0;
     for (int f = 0; f < nf; f++)
         mark[f] = -1;
     for (int f = 0; f < nf; f++) {
         int end = bstart[f], first = u;
         for (int q = begin; q < end; q++) {
-            int r = b.rows[q];
+            int r = rows[q];
             if (mark[r] == f)
                 continue;
             mark[r] = f;
+            /* Insert r in order; u <= q, so no unread row is overwritten. */
             int at = u++;
-            for (; at > first && b.rows[at - 1] > r;
-                 at--) /* u <= q: no unread row is overwritten */
-                b.rows[at] = b.rows[at - 1];
-            b.rows[at] = r;
+            for (; at > first && rows[at - 1] > r; at--)
+                rows[at] = rows[at - 1];
+            rows[at] = r;
         }
         begin = end;
         bstart[f] = first;
     }
     bstart[nf] = u;
     free(mark);
-    *brows_out = b.rows;
     return ISO_OK;
 }
 
@@ -413,7 +410,7 @@ static int block_pattern(const iso_solver *s, int *bstart, int **brows_out)
 static int build_pattern(iso_solver *s, buckets *bp, iso_err *err)
 {
     bp->start = calloc((size_t)s->nf + 1, sizeof *bp->start);
-    if (!bp->start || block_pattern(s, bp->start, &bp->rows) != ISO_OK)
+    if (!bp->start || block_pattern(s, bp) != ISO_OK)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory building the pattern");
     const int *bstart = bp->start, *brows = bp->rows;
 
@@ -544,10 +541,10 @@ static int *block_ordering(iso_solver *s, const buckets *bp)
     }
     int *perm = Lb ? malloc(3 * (size_t)s->nf * sizeof *perm) : NULL;
     if (perm) {
-        const int *bp = Lb->Perm;
+        const int *vperm = Lb->Perm; /* the vertices' */
         for (int k = 0; k < s->nf; k++)
             for (int a = 0; a < 3; a++)
-                perm[3 * k + a] = 3 * bp[k] + a;
+                perm[3 * k + a] = 3 * vperm[k] + a;
     }
     cholmod_free_factor(&Lb, &s->c);
     cholmod_free_sparse(&B, &s->c);
