@@ -176,10 +176,10 @@ typedef enum iso_scene_link_kind {
     ISO_SCENE_LINK_TCP = 2,    /* host, port */
     ISO_SCENE_LINK_SERIAL = 3, /* path (libserialport name), baud */
     ISO_SCENE_LINK_EMULATED =
-        4 /* emulation: firmware in QEMU or in-process (sim/iso_actuators.h) */
+        4 /* emulation: firmware in QEMU or in-process (actuators/iso_actuators.h) */
 } iso_scene_link_kind;
 
-/* Which emulated MCU; the values are sim/iso_actuators.h's ISO_ACT_EMU_*. */
+/* Which emulated MCU; the values are actuators/iso_actuators.h's ISO_ACT_EMU_*. */
 typedef enum iso_scene_emu_mode {
     ISO_SCENE_EMU_AUTO = 0,  /* QEMU when it and the firmware ELF are there, else native */
     ISO_SCENE_EMU_QEMU = 1,  /* QEMU or an error */

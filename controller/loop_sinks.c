@@ -78,8 +78,8 @@ static int estop_inputs(void *ctx)
     return l->hub && iso_dev_hub_estop_probe(l->hub); /* 0 without e-stop inputs */
 }
 
-/* The scene's actuator channels and link, in the sink's own terms (sim/
- * does not read scene files). */
+/* The scene's actuator channels and link, in the sink's own terms
+ * (actuators/ does not read scene files). */
 
 static int open_actuators(iso_loop *l, iso_err *err)
 {

@@ -1,4 +1,4 @@
-/* tests/test_actuators.c -- the actuator sink (sim/iso_actuators.h): channel
+/* tests/test_actuators.c -- the actuator sink (actuators/iso_actuators.h): channel
  * values against their closed form, bad specs, and end to end through the
  * firmware bridge to the emulated MCU, natively and in QEMU.
  *

@@ -271,7 +271,7 @@ static void start_qemu(const char *qemu, int port)
             dup2(devnull, 1); /* keep stderr: QEMU's own errors reach the CTest log */
         }
         /* -nic user,restrict=on: the board's lan9118 gets a peer that
-         * reaches nothing, so QEMU does not warn (sim/emu_firmware.c) */
+         * reaches nothing, so QEMU does not warn (actuators/emu_firmware.c) */
         execl(qemu, qemu, "-M", "mps2-an385", "-nodefaults", "-nic", "user,restrict=on", "-display",
               "none", "-monitor", "none", "-serial", serial, "-kernel", ISO_FB_FIRMWARE_ELF,
               (char *)NULL);

@@ -1,5 +1,5 @@
 /* tests/fuzz/fuzz_http.c -- the live view's HTTP request parsing
- * (sim/display_http.c) under arbitrary bytes, as the server hands them
+ * (view/display_http.c) under arbitrary bytes, as the server hands them
  * over: text without NUL bytes (the server refuses those), cut after the
  * first empty line. Every field the parser returns must lie inside the
  * buffer, and the host checks must answer without reading past a field. */

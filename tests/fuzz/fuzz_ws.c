@@ -1,5 +1,5 @@
 /* tests/fuzz/fuzz_ws.c -- the live view's parser of what a browser sends
- * over its WebSocket (sim/display_ws.c) under arbitrary bytes. The parser
+ * over its WebSocket (view/display_ws.c) under arbitrary bytes. The parser
  * runs a byte at a time, so how the bytes arrive must not matter: fed whole
  * and fed in pieces (split where the first byte says), it must stop with
  * the same status after the same frames, or go on with the same state. */

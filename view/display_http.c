@@ -1,4 +1,4 @@
-/* sim/display_http.c -- see display_internal.h: the view's HTTP request
+/* view/display_http.c -- see display_internal.h: the view's HTTP request
  * parsing and host names, apart from the server so that a fuzz target can
  * build them alone (tests/fuzz/fuzz_http.c). */
 #include "display_internal.h"

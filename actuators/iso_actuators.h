@@ -1,4 +1,4 @@
-/* sim/iso_actuators.h -- the actuator sink: chosen mesh points, one axis
+/* actuators/iso_actuators.h -- the actuator sink: chosen mesh points, one axis
  * each, streamed as setpoints to the actuator microcontroller over the
  * firmware bridge (iso_fb_host.h), or to an emulated one.
  *
@@ -80,7 +80,7 @@
  * Link state for a status line: iso_actuators_state() and
  * iso_actuators_link_state(), lock-free, any thread.
  *
- * sim/ does not depend on config/: the controller converts a scene's
+ * actuators/ does not depend on config/: the controller converts a scene's
  * iso_scene_actuators into the structs below. Publish, poll and safe_stop
  * from one thread (the real-time loop); stats, format_stats, mcu_hello,
  * alive, estop, state and link_state from any (the last four lock-free). */

@@ -1,4 +1,4 @@
-/* sim/emu_firmware.c -- an actuator MCU without hardware, behind an
+/* actuators/emu_firmware.c -- an actuator MCU without hardware, behind an
  * iso_link: the real firmware ELF in qemu-system-arm, or the same protocol
  * logic (iso_fb_mcu.c) in a thread. See iso_actuators.h. */
 #define _GNU_SOURCE /* openpty, prctl */
@@ -31,7 +31,7 @@
 
 const char *const iso_act_emu_names[] = {"auto", "qemu", "native", NULL};
 
-/* Where `cmake --install` puts the firmware ELF (sim/CMakeLists.txt); the
+/* Where `cmake --install` puts the firmware ELF (actuators/CMakeLists.txt); the
  * build tree is never looked in: a build puts the ELF next to the isoshape
  * command, and its tests name it in $ISO_FB_FIRMWARE. */
 #ifndef ISO_FB_FIRMWARE_INSTALLED

@@ -1,4 +1,4 @@
-/* sim/iso_shapes.h -- procedural meshes that stand in for the benchmark.
+/* solver/iso_shapes.h -- procedural meshes that stand in for the benchmark.
  *
  * The Botsch–Sorkine benchmark is not openly licensed, so the project ships
  * look-alikes it can always run: each shape comes with the benchmark's kind

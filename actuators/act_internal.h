@@ -1,4 +1,4 @@
-/* sim/act_internal.h -- what the actuator sink (actuators.c) asks of its
+/* actuators/act_internal.h -- what the actuator sink (actuators.c) asks of its
  * emulated link (emu_firmware.c); not installed. */
 #ifndef ISO_ACT_INTERNAL_H
 #define ISO_ACT_INTERNAL_H

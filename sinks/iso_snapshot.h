@@ -1,4 +1,4 @@
-/* sim/iso_snapshot.h -- headless outputs for machines without a browser: a
+/* sinks/iso_snapshot.h -- headless outputs for machines without a browser: a
  * PNG picture of the mesh and a PLY frame sequence.
  *
  * The PNG comes from a small software rasterizer (orthographic camera,

@@ -1,4 +1,4 @@
-/* sim/actuators.c -- see iso_actuators.h. */
+/* actuators/actuators.c -- see iso_actuators.h. */
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>

@@ -1,4 +1,4 @@
-/* sim/display.c -- the live view's API: create, publish, counters and
+/* view/display.c -- the live view's API: create, publish, counters and
  * destroy (see iso_display.h). The server itself is display_server.c. */
 #include "iso_display.h"
 

@@ -1,4 +1,4 @@
-/* sim/display_ws.c -- the few pieces of RFC 6455 the live view needs: the
+/* view/display_ws.c -- the few pieces of RFC 6455 the live view needs: the
  * handshake's accept key (SHA-1 and base64), a server frame header, and a
  * parser for what a browser sends, which only ever discards payloads.
  *

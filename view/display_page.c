@@ -1,4 +1,4 @@
-/* sim/display_page.c -- the viewer page and its script, built into the
+/* view/display_page.c -- the viewer page and its script, built into the
  * library so the display needs no files besides Debian's three.js.
  *
  * The script keeps the wire format of iso_display.h: a JSON topology first,

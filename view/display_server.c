@@ -1,4 +1,4 @@
-/* sim/display_server.c -- the live view's server: one thread, one poll()
+/* view/display_server.c -- the live view's server: one thread, one poll()
  * loop, non-blocking sockets, a fixed table of connections.
  *
  * Why not civetweb, which served this before: Debian 12's civetweb 1.15 is

@@ -1,4 +1,4 @@
-/* sim/display_internal.h -- private to sim/: the page's text, the display's
+/* view/display_internal.h -- private to view/: the page's text, the display's
  * state shared by its API (display.c) and its server (display_server.c),
  * and the WebSocket pieces (display_ws.c). */
 #ifndef ISO_DISPLAY_INTERNAL_H

@@ -1,4 +1,4 @@
-/* sim/iso_display.h -- the live 3D view: a small HTTP + WebSocket server of
+/* view/iso_display.h -- the live 3D view: a small HTTP + WebSocket server of
  * the display's own that serves a three.js page and streams vertex positions.
  *
  * The real-time loop owns an iso_display and calls iso_display_publish()

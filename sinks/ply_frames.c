@@ -1,4 +1,4 @@
-/* sim/ply_frames.c -- a PLY frame sequence (see iso_snapshot.h). */
+/* sinks/ply_frames.c -- a PLY frame sequence (see iso_snapshot.h). */
 #include "iso_snapshot.h"
 
 #include <errno.h>

@@ -1,4 +1,4 @@
-/* sim/snapshot.c -- a software-rendered PNG of the mesh (see iso_snapshot.h).
+/* sinks/snapshot.c -- a software-rendered PNG of the mesh (see iso_snapshot.h).
  *
  * Small on purpose: an orthographic camera, one z-buffer, flat Lambert
  * shading with a light near the eye, and the same distortion colours as the
