@@ -1,4 +1,6 @@
-/* actuators/actuators.c -- see iso_actuators.h. */
+/* actuators/actuators.c -- see iso_actuators.h: the sink's channels, its
+ * creation, what each tick publishes, and its counters. The sender thread
+ * is sender.c, the rules that stop it safety.c. */
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
@@ -8,115 +10,9 @@
 #include <time.h>
 
 #include "act_internal.h"
-#include "iso_actuators.h"
 #include "iso_clock.h"
-#include "iso_fb_host.h"
 
-#define ECHO_SLOTS 128u      /* sent frames kept for the ACK check, by frame seq */
-#define PERIOD_US 10000u     /* the sender's SETPOINTS period: 100 Hz (PROTOCOL.md) */
-#define KEEP_ARMED_US 40000u /* HELLO again this often until the first publish */
-/* The e-stop, the loop watchdog and safe_stop are looked at this often, not
- * only once a period: an e-stop edge sends SAFE within 2 ms (+ the probe). */
-#define HOLD_POLL_US 2000u
-/* The loop watchdog stops setpoints this much before loop_timeout_ms: the
- * MCU brakes 100 ms after the last SETPOINTS *arrives* and checks every
- * 1 ms, and a frame takes ~2 ms on a 115200 baud UART. So the safe state
- * comes within loop_timeout_ms + 100 ms of the loop's last progress. */
-#define STOP_GUARD_US 5000u
-#define LOOP_TIMEOUT_MIN_MS 250 /* the default's floor: max(250, 5 ticks) */
-#define SILENT_US 500000u       /* no frame this long: say so (5 heartbeats) */
-#define REOPEN_MS 50            /* after a loss; an emulation restart never blocks */
-#define STILL_LOST_US 2000000u  /* repeat the loss notice this often */
-
-/* Lock-free means lock-free: alive() and estop() run inside the loop and
- * from an e-stop handler, which must never wait on the sender. */
-_Static_assert(ATOMIC_LLONG_LOCK_FREE == 2, "64-bit atomics are lock-free");
-_Static_assert(ATOMIC_INT_LOCK_FREE == 2, "int atomics are lock-free");
-
-typedef struct act_channel {
-    iso_act_channel spec;
-    int *verts; /* region centroid: its vertices (owned); NULL for a vertex */
-    int n_verts;
-} act_channel;
-
-/* One SETPOINTS frame as it went out. Keyed by the frame's seq, which the
- * ACK echoes: the tick may repeat (the sender re-sends the latest values
- * when the loop has no new tick), the seq never does within 65536 frames. */
-typedef struct echo_slot {
-    uint64_t sent_us; /* before the write, so a preempted write still counts */
-    uint32_t tick;
-    uint16_t seq;
-    uint8_t n, used;
-    int16_t value[ISO_ACT_MAX_CHANNELS];
-} echo_slot;
-
-/* Threads: the loop calls publish; with a link, the sender thread owns the
- * host and the link (host, echo, told_channels are its alone). Everything
- * both touch is under `lock`, held for copies only, never across I/O. */
-struct iso_actuators {
-    act_channel ch[ISO_ACT_MAX_CHANNELS];
-    int n_ch, nv;
-    int top; /* highest configured channel + 1 */
-    iso_act_notice_fn notice;
-    void *notice_ctx;
-
-    iso_link *link; /* owned */
-    iso_fb_host host;
-    int host_up;
-    int told_channels; /* the count notice went out for this MCU description */
-    echo_slot echo[ECHO_SLOTS];
-
-    pthread_t sender;
-    int sender_started;
-    pthread_mutex_t lock;
-    pthread_cond_t cond; /* frames handled, safe state seen, link state changed */
-    /* ---- under lock ---- */
-    int16_t values[ISO_ACT_MAX_CHANNELS]; /* latest published, by channel */
-    uint32_t tick;                        /* and its tick */
-    int have_tick;                        /* the loop has published at least once */
-    int stopped;                          /* safe_stop: send no more SETPOINTS */
-    int quit;                             /* destroy: the sender ends */
-    int link_state;                       /* the host's ISO_FB_HOST_*, after the last step */
-    int mismatch;                         /* the MCU lacks a configured channel */
-    iso_fb_hello hello;                   /* MCU's last answer */
-    int have_hello;
-    int saw_safe; /* safe_stop watches for these */
-    uint64_t safe_us, last_sent_us;
-    uint64_t frames;           /* frames the sender handled, for poll */
-    iso_fb_host_stats host_st; /* the host's counters after the last step */
-    iso_err down;              /* why the link last went down */
-    uint64_t last_publish_us;  /* when the latest publish began */
-    iso_act_stats st;
-
-    /* ---- lock-free, any thread ---- */
-    atomic_ullong progress_us; /* the loop's last alive()/publish(); 0: watchdog not armed */
-    atomic_ullong alive_calls;
-    atomic_int estop_req;   /* iso_actuators_estop() */
-    atomic_ullong estop_us; /* when it was pressed */
-    atomic_int state;       /* ISO_ACT_STATE_* */
-    atomic_uint holds;      /* ISO_ACT_HOLD_* */
-
-    /* ---- the sender thread's alone ---- */
-    uint64_t loop_timeout_us; /* 0: no loop watchdog */
-    int loop_timeout_ms;
-    iso_act_estop_fn estop_probe;
-    void *estop_ctx;
-    unsigned hold;           /* what holds holds */
-    uint64_t fresh_after_us; /* a publish from this time on re-arms after a hold */
-    int prev_host_state, ever_streamed;
-    int lost; /* lost and not streaming again yet */
-    uint64_t lost_us, lost_told_us;
-    uint32_t reopens_seen;
-    int silent;
-    uint64_t silent_from_us;
-    int mcu_safe;   /* the MCU's last word: safe or idle (1), armed (0) */
-    int await_safe; /* streaming stopped: the next safe report confirms it */
-    uint64_t break_us;
-    int break_cause;
-    const char *break_what;
-};
-
-static void say(const iso_actuators *a, const char *line)
+void iso_act__say(const iso_actuators *a, const char *line)
 {
     if (a->notice)
         a->notice(a->notice_ctx, line);
@@ -213,551 +109,6 @@ static int collect_region(act_channel *c, int nv, const iso_regions *r, int i, i
 }
 
 /* ------------------------------------------------------------------------ */
-/* Callbacks from the firmware-bridge host (on the sender thread)             */
-/* ------------------------------------------------------------------------ */
-
-/* Reads a->hello without the lock: only the sender thread writes it. */
-static void tell_channel_disagreement(iso_actuators *a)
-{
-    char line[512];
-    int mcu = a->hello.n_channels;
-    if (a->top > mcu) {
-        snprintf(line, sizeof line,
-                 "actuators: the MCU has %d channel%s but the spec drives channel %d: sending no "
-                 "setpoints (the MCU's watchdog keeps it safe)",
-                 mcu, mcu == 1 ? "" : "s", a->top - 1);
-        say(a, line);
-        return;
-    }
-    int len = snprintf(line, sizeof line,
-                       "actuators: the MCU has %d channels, the spec drives %d:", mcu, a->n_ch);
-    for (int c = 0; c < mcu && len < (int)sizeof line; c++) {
-        int driven = 0;
-        for (int i = 0; i < a->n_ch; i++)
-            driven |= a->ch[i].spec.channel == c;
-        if (!driven)
-            len += snprintf(line + len, sizeof line - (size_t)len,
-                            " channel %d held at its safe %d;", c, a->hello.ch[c].safe);
-    }
-    if (len > 0 && len < (int)sizeof line)
-        line[len - 1] = '\0';
-    say(a, line);
-}
-
-/* Scene limits beyond what the MCU will do are worth one line: the MCU
- * clamps silently, which would look like a tracking error. */
-static void tell_limit_disagreement(iso_actuators *a)
-{
-    for (int i = 0; i < a->n_ch; i++) {
-        const iso_act_channel *c = &a->ch[i].spec;
-        if (c->channel >= a->hello.n_channels)
-            continue;
-        double lo = c->min * c->scale, hi = c->max * c->scale;
-        if (lo > hi) {
-            double t = lo;
-            lo = hi;
-            hi = t;
-        }
-        const iso_fb_channel_info *m = &a->hello.ch[c->channel];
-        if (lo < m->min || hi > m->max) {
-            char line[256];
-            snprintf(line, sizeof line,
-                     "actuators: channel %d spans [%.0f, %.0f] milli-units, the MCU's limits are "
-                     "[%d, %d]; "
-                     "it clamps the rest",
-                     c->channel, lo, hi, m->min, m->max);
-            say(a, line);
-        }
-    }
-}
-
-/* The HELLO as unpacked fills only its n_channels entries; the rest of
- * ch[] is whatever the caller's stack held. Keep a copy with those zeroed
- * and compare only the filled ones, so nothing uninitialised is ever read
- * (valgrind caught the whole-array memcmp). */
-static void copy_hello(iso_fb_hello *dst, const iso_fb_hello *h)
-{
-    memset(dst, 0, sizeof *dst);
-    dst->proto_version = h->proto_version;
-    dst->fw_version = h->fw_version;
-    dst->flags = h->flags;
-    dst->uptime_ms = h->uptime_ms;
-    dst->n_channels = h->n_channels <= ISO_FB_MAX_CHANNELS ? h->n_channels : ISO_FB_MAX_CHANNELS;
-    memcpy(dst->ch, h->ch, dst->n_channels * sizeof h->ch[0]);
-}
-
-/* ------------------------------------------------------------------------ */
-/* Safety: what stopped the streaming, and the MCU's word that it is safe     */
-/* ------------------------------------------------------------------------ */
-
-/* Streaming stopped at t0 because of `what`; the MCU's next safe report
- * confirms it (a later cause replaces an unconfirmed one). Sender thread. */
-static void begin_break(iso_actuators *a, uint64_t t0, int cause, const char *what)
-{
-    a->await_safe = 1;
-    a->break_us = t0;
-    a->break_cause = cause;
-    a->break_what = what;
-}
-
-/* The MCU says it is in its safe state (FAULT, a heartbeat that is not
- * armed, HELLO(BOOT)). Counts the transition, and confirms a break. On the
- * sender thread, from the host's callbacks. */
-static void note_safe(iso_actuators *a, const char *how)
-{
-    int fresh = !a->mcu_safe;
-    a->mcu_safe = 1;
-    int confirm = a->await_safe;
-    double ms = 0;
-    if (confirm) {
-        uint64_t now = iso_clock_us();
-        a->await_safe = 0;
-        ms = now > a->break_us ? (double)(now - a->break_us) / 1000.0 : 0.0;
-    }
-    if (!fresh && !confirm)
-        return;
-    pthread_mutex_lock(&a->lock);
-    a->st.safe_confirms += (uint32_t)fresh;
-    if (confirm) {
-        a->st.last_safe_ms = ms;
-        a->st.last_safe_cause = a->break_cause;
-    }
-    pthread_mutex_unlock(&a->lock);
-    char line[256];
-    if (confirm)
-        snprintf(line, sizeof line,
-                 "actuators: the MCU reports its safe state (%s) %.1f ms after %s", how, ms,
-                 a->break_what);
-    else if (a->hold == 0 && !a->lost && strstr(how, "BOOT"))
-        snprintf(line, sizeof line,
-                 "actuators: the MCU restarted (%s): it is idle at its safe positions; re-arming",
-                 how);
-    else if (a->hold == 0 && !a->lost)
-        snprintf(
-            line, sizeof line,
-            "actuators: the MCU went to its safe state by itself (%s): no setpoints reached it "
-            "in time; re-arming",
-            how);
-    else
-        return;
-    say(a, line);
-}
-
-static void on_hello(void *ctx, const iso_fb_hello *h_in)
-{
-    iso_actuators *a = ctx;
-    if (h_in->flags & ISO_FB_HELLO_BOOT) {
-        note_safe(a, "HELLO(BOOT)");
-        return; /* the unasked one; the answer follows our HELLO */
-    }
-    a->mcu_safe = 0; /* the answer arms it */
-    iso_fb_hello hh;
-    copy_hello(&hh, h_in);
-    const iso_fb_hello *h = &hh;
-    pthread_mutex_lock(&a->lock);
-    int changed = !a->have_hello || a->hello.n_channels != h->n_channels ||
-                  memcmp(a->hello.ch, h->ch, h->n_channels * sizeof h->ch[0]) != 0;
-    a->hello = *h;
-    a->have_hello = 1;
-    a->st.mcu_channels = h->n_channels;
-    a->mismatch = a->top > h->n_channels;
-    pthread_mutex_unlock(&a->lock);
-    if (changed)
-        a->told_channels = 0;
-    if (!a->told_channels) { /* outside the lock: the notice may take its time */
-        a->told_channels = 1;
-        if (a->top > h->n_channels || a->n_ch != h->n_channels)
-            tell_channel_disagreement(a);
-        tell_limit_disagreement(a);
-    }
-}
-
-static void on_ack(void *ctx, const iso_fb_ack *k)
-{
-    iso_actuators *a = ctx;
-    if (k->type != ISO_FB_SETPOINTS)
-        return;
-    const echo_slot *s = &a->echo[k->seq % ECHO_SLOTS];
-    int known = s->used && s->seq == k->seq;
-    int same = known && s->tick == k->tick && s->n == k->n &&
-               memcmp(s->value, k->value, (size_t)k->n * sizeof k->value[0]) == 0;
-    double ms = known ? (double)(iso_clock_us() - s->sent_us) / 1000.0 : 0;
-    pthread_mutex_lock(&a->lock);
-    iso_act_stats *st = &a->st;
-    st->acks++;
-    if (!known) {
-        st->echo_unknown++;
-    } else {
-        st->echo_mismatches += !same;
-        st->rtt_last_ms = ms;
-        st->rtt_avg_ms = (st->rtt_avg_ms * st->rtt_count + ms) / (st->rtt_count + 1);
-        if (st->rtt_count == 0 || ms < st->rtt_min_ms)
-            st->rtt_min_ms = ms;
-        if (ms > st->rtt_max_ms)
-            st->rtt_max_ms = ms;
-        st->rtt_count++;
-    }
-    pthread_mutex_unlock(&a->lock);
-}
-
-static void on_fault(void *ctx, const iso_fb_fault *f)
-{
-    iso_actuators *a = ctx;
-    pthread_mutex_lock(&a->lock);
-    a->st.faults++;
-    a->st.last_fault_reason = f->reason;
-    a->st.last_fault_detail_ms = f->detail;
-    if (!a->saw_safe) {
-        a->saw_safe = 1;
-        a->safe_us = iso_clock_us();
-    }
-    pthread_mutex_unlock(&a->lock);
-    char how[96];
-    if (f->reason == ISO_FB_FAULT_WATCHDOG)
-        snprintf(how, sizeof how, "FAULT watchdog, %u ms after the last setpoints",
-                 (unsigned)f->detail);
-    else if (f->reason == ISO_FB_FAULT_REQUESTED)
-        snprintf(how, sizeof how, "FAULT requested: it obeyed SAFE");
-    else
-        snprintf(how, sizeof how, "FAULT reason %u", (unsigned)f->reason);
-    note_safe(a, how);
-}
-
-static void on_heartbeat(void *ctx, const iso_fb_heartbeat *hb)
-{
-    iso_actuators *a = ctx;
-    pthread_mutex_lock(&a->lock);
-    a->st.heartbeats++;
-    a->st.mcu_state = hb->state;
-    a->st.mcu_uptime_ms = hb->uptime_ms;
-    for (unsigned c = 0; c < hb->n && c < ISO_ACT_MAX_CHANNELS; c++)
-        a->st.mcu_pos[c] = hb->pos[c];
-    if (hb->state != ISO_FB_STATE_ARMED && !a->saw_safe) {
-        a->saw_safe = 1;
-        a->safe_us = iso_clock_us();
-    }
-    pthread_mutex_unlock(&a->lock);
-    if (hb->state == ISO_FB_STATE_ARMED)
-        a->mcu_safe = 0;
-    else
-        note_safe(a, hb->state == ISO_FB_STATE_IDLE ? "heartbeat: idle" : "heartbeat: safe");
-}
-
-/* ------------------------------------------------------------------------ */
-/* The sender thread                                                          */
-/* ------------------------------------------------------------------------ */
-
-static void remember(iso_actuators *a, uint16_t seq, uint32_t tick, const int16_t *v, unsigned n)
-{
-    echo_slot *s = &a->echo[seq % ECHO_SLOTS];
-    s->seq = seq;
-    s->tick = tick;
-    s->n = (uint8_t)n;
-    s->used = 1;
-    s->sent_us = iso_clock_us();
-    memcpy(s->value, v, n * sizeof *v);
-}
-
-/* Loss, reopen, re-arm and silence, each said once as it happens. */
-static void watch_link(iso_actuators *a)
-{
-    uint64_t now = iso_clock_us();
-    int hs = a->host.state, was = a->prev_host_state;
-    char line[640];
-    if (hs == ISO_FB_HOST_DOWN && was != ISO_FB_HOST_DOWN) {
-        a->lost = 1;
-        a->lost_us = a->lost_told_us = now;
-        a->silent = 0;
-        a->mcu_safe = 0; /* unknown until it speaks again */
-        if (!a->hold)
-            begin_break(a, now, 0, "the link was lost");
-        snprintf(line, sizeof line,
-                 "actuators: LINK LOST to the MCU: %.300s. No setpoints reach it; its own watchdog "
-                 "brakes it to its safe state 100 ms after the last ones. Reopening every %d ms%s",
-                 a->host.last_err.msg, REOPEN_MS,
-                 a->hold                    ? " once setpoints may flow again"
-                 : iso_act__emu_is(a->link) ? " (restarting the emulation if it died)"
-                                            : "");
-        say(a, line);
-    } else if (hs == ISO_FB_HOST_DOWN && now - a->lost_told_us >= STILL_LOST_US) {
-        a->lost_told_us = now;
-        snprintf(line, sizeof line, "actuators: link still lost after %.1f s: %.300s",
-                 (double)(now - a->lost_us) / 1e6, a->host.last_err.msg);
-        say(a, line);
-    }
-    if (a->host.stats.reopens != a->reopens_seen) {
-        a->reopens_seen = a->host.stats.reopens;
-        unsigned r = iso_act__emu_restarts(a->link);
-        snprintf(line, sizeof line,
-                 "actuators: link reopened %.0f ms after the loss%s; shaking hands",
-                 (double)(now - a->lost_us) / 1000.0, r ? " (the emulation was restarted)" : "");
-        say(a, line);
-    }
-    if (hs == ISO_FB_HOST_STREAMING) {
-        a->ever_streamed = 1;
-        if (a->lost) {
-            a->lost = 0;
-            snprintf(line, sizeof line,
-                     "actuators: MCU armed again %.0f ms after the link was lost",
-                     (double)(now - a->lost_us) / 1000.0);
-            say(a, line);
-        }
-    }
-    if (hs != ISO_FB_HOST_DOWN && !a->silent && now > a->host.last_rx_us + SILENT_US) {
-        a->silent = 1;
-        a->silent_from_us = a->host.last_rx_us;
-        pthread_mutex_lock(&a->lock);
-        a->st.silences++;
-        pthread_mutex_unlock(&a->lock);
-        snprintf(line, sizeof line,
-                 "actuators: the MCU has been silent for %u ms (no heartbeat, no ack)%s; the link "
-                 "counts as lost after %d ms",
-                 SILENT_US / 1000u, a->hold ? "" : "; setpoints continue",
-                 a->host.opts.link_timeout_ms);
-        say(a, line);
-    } else if (a->silent && a->host.last_rx_us > a->silent_from_us) {
-        a->silent = 0;
-        snprintf(line, sizeof line, "actuators: the MCU answers again after %.0f ms of silence",
-                 (double)(a->host.last_rx_us - a->silent_from_us) / 1000.0);
-        say(a, line);
-    }
-    a->prev_host_state = hs;
-}
-
-static int sink_state(const iso_actuators *a)
-{
-    int hs = a->host.state;
-    if (hs == ISO_FB_HOST_DOWN)
-        return ISO_ACT_STATE_LOST;
-    if (a->hold)
-        return a->mcu_safe ? ISO_ACT_STATE_SAFE : ISO_ACT_STATE_STOPPING;
-    if (a->silent)
-        return ISO_ACT_STATE_SILENT;
-    if (hs == ISO_FB_HOST_STREAMING)
-        return ISO_ACT_STATE_ARMED;
-    return a->ever_streamed ? ISO_ACT_STATE_RECONNECTING : ISO_ACT_STATE_CONNECTING;
-}
-
-/* What the host did, for the other threads: its state, its counters, and
- * why the link went down. Wakes safe_stop and poll. */
-static void share_host(iso_actuators *a, int frames)
-{
-    watch_link(a);
-    atomic_store(&a->state, sink_state(a));
-    pthread_mutex_lock(&a->lock);
-    a->link_state = a->host.state;
-    a->host_st = a->host.stats;
-    if (a->host.state == ISO_FB_HOST_DOWN)
-        a->down = a->host.last_err;
-    a->frames += (uint64_t)frames;
-    pthread_cond_broadcast(&a->cond);
-    pthread_mutex_unlock(&a->lock);
-}
-
-/* Before the loop's first publish (the first tick of a 5k-vertex mesh takes
- * longer than the MCU's 100 ms link watchdog) a HELLO every KEEP_ARMED_US:
- * each one re-arms the MCU holding its current positions and restarts its
- * watchdog (PROTOCOL.md), so the wait never ends in FAULT, whose brake to
- * the safe positions would jerk an MCU that was elsewhere. */
-static void keep_armed(iso_actuators *a)
-{
-    if (a->host.state != ISO_FB_HOST_STREAMING ||
-        iso_clock_us() - a->host.last_hello_us < KEEP_ARMED_US)
-        return;
-    iso_fb_host_rehello(&a->host);
-    iso_fb_host_step(&a->host, 0, NULL, 0); /* sends the HELLO: no setpoints while handshaking */
-}
-
-static void count_event(iso_actuators *a, uint32_t *counter)
-{
-    pthread_mutex_lock(&a->lock);
-    (*counter)++;
-    pthread_mutex_unlock(&a->lock);
-}
-
-/* How the MCU gets to its safe state after a hold begins (PROTOCOL.md). */
-static const char *brake_how(const iso_actuators *a)
-{
-    return iso_fb_host_can_safe(&a->host)
-               ? "SAFE sent: the MCU brakes to its safe state at once"
-               : "the MCU (firmware 1.0, no SAFE) brakes by its link watchdog, 100 ms after the "
-                 "last setpoints it got";
-}
-
-/* The e-stop (the call or the probe), the loop watchdog and safe_stop, as
- * hold bits, each edge said once; returns the bits. A hold that ends leaves
- * ISO_ACT_HOLD_TICK until a publish that began after its end, which re-arms
- * with HELLO: the MCU never chases values computed before the hold. */
-static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64_t last_pub_us)
-{
-    unsigned h = a->hold;
-    char line[320];
-    int req = atomic_load(&a->estop_req) != 0;
-    int es = req || (a->estop_probe && a->estop_probe(a->estop_ctx) != 0);
-    if (es && !(h & ISO_ACT_HOLD_ESTOP)) {
-        uint64_t t0 = req ? atomic_load(&a->estop_us) : now;
-        if (t0 == 0 || t0 > now)
-            t0 = now;
-        h |= ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_TICK;
-        count_event(a, &a->st.estops);
-        begin_break(a, t0, ISO_ACT_HOLD_ESTOP, "the e-stop");
-        snprintf(line, sizeof line, "actuators: E-STOP%s: setpoints stopped %.1f ms after it; %s",
-                 req ? "" : " (probe)", (double)(now - t0) / 1000.0, brake_how(a));
-        say(a, line);
-    } else if (!es && (h & ISO_ACT_HOLD_ESTOP)) {
-        h &= ~(unsigned)ISO_ACT_HOLD_ESTOP;
-        a->fresh_after_us = now;
-        say(a, "actuators: e-stop released: setpoints resume with the loop's next tick (HELLO "
-               "re-arms the MCU where it stands)");
-    }
-    uint64_t p = atomic_load(&a->progress_us);
-    if (a->loop_timeout_us && p) {
-        int stalled = now > p && now - p + STOP_GUARD_US > a->loop_timeout_us;
-        if (stalled && !(h & ISO_ACT_HOLD_LOOP)) {
-            h |= ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_TICK;
-            count_event(a, &a->st.loop_stalls);
-            begin_break(a, p, ISO_ACT_HOLD_LOOP, "the loop's last progress");
-            snprintf(line, sizeof line,
-                     "actuators: LOOP STALLED: no progress for %.0f ms (limit %d ms): setpoints "
-                     "stopped; %s",
-                     (double)(now - p) / 1000.0, a->loop_timeout_ms, brake_how(a));
-            say(a, line);
-        } else if (!stalled && (h & ISO_ACT_HOLD_LOOP)) {
-            h &= ~(unsigned)ISO_ACT_HOLD_LOOP;
-            if (p > a->fresh_after_us)
-                a->fresh_after_us = p;
-            say(a, "actuators: the loop progresses again: setpoints resume with its next tick");
-        }
-    }
-    if (stopped && !(h & ISO_ACT_HOLD_STOP)) {
-        h |= ISO_ACT_HOLD_STOP;
-        begin_break(a, now, ISO_ACT_HOLD_STOP, "the stop");
-    }
-    if ((h & ISO_ACT_HOLD_TICK) &&
-        !(h & (ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_STOP)) &&
-        last_pub_us >= a->fresh_after_us) {
-        h &= ~(unsigned)ISO_ACT_HOLD_TICK;
-        iso_fb_host_rehello(&a->host);
-        say(a, "actuators: re-arming the MCU (HELLO) for the loop's new tick");
-    }
-    a->hold = h;
-    atomic_store(&a->holds, h);
-    return h;
-}
-
-/* The holds now, from the shared state; a hold that begins sends SAFE at
- * once to an MCU that obeys it (the SETPOINTS stop as well, so a lost SAFE
- * still ends in the MCU's watchdog brake). */
-static unsigned holds_now(iso_actuators *a)
-{
-    pthread_mutex_lock(&a->lock);
-    int stopped = a->stopped;
-    uint64_t last_pub = a->last_publish_us;
-    pthread_mutex_unlock(&a->lock);
-    unsigned before = a->hold;
-    unsigned h = update_holds(a, iso_clock_us(), stopped, last_pub);
-    unsigned fresh = h & ~before;
-    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP)  ? ISO_FB_SAFE_ESTOP
-                    : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
-                    : (fresh & ISO_ACT_HOLD_STOP) ? ISO_FB_SAFE_STOP
-                                                  : 0;
-    /* refused without a word when the MCU offers no SAFE or the link is
-     * down: brake_how's notice has said how the MCU gets safe then */
-    if (cause && iso_fb_host_send_safe(&a->host, cause, NULL) == ISO_OK)
-        count_event(a, &a->st.safe_requests);
-    return h;
-}
-
-/* One period's SETPOINTS: the latest values, undriven channels at the MCU's
- * safe position. Nothing before the first publish, while a hold stands
- * (e-stop, loop stall, safe_stop), or while the MCU lacks a driven channel
- * (only the replies are read then). */
-static void send_latest(iso_actuators *a)
-{
-    int16_t vals[ISO_ACT_MAX_CHANNELS], v[ISO_ACT_MAX_CHANNELS];
-    unsigned hold = holds_now(a); /* read right before the write, so the guard holds */
-    pthread_mutex_lock(&a->lock);
-    int have_tick = a->have_tick, mismatch = a->mismatch;
-    uint32_t tick = a->tick;
-    memcpy(vals, a->values, sizeof vals);
-    unsigned n = a->have_hello ? a->hello.n_channels : (unsigned)a->top;
-    for (unsigned c = 0; c < n; c++)
-        v[c] = a->have_hello ? a->hello.ch[c].safe : 0;
-    pthread_mutex_unlock(&a->lock);
-    if (!have_tick || hold || mismatch) {
-        if (!have_tick && !hold) {
-            /* before the first tick: bring the link up, keep the MCU armed */
-            if (a->host.state != ISO_FB_HOST_STREAMING)
-                iso_fb_host_step(&a->host, 0, NULL, 0); /* reopen or HELLO; never SETPOINTS */
-            keep_armed(a);
-        }
-        share_host(a, iso_fb_host_poll(&a->host, 0));
-        return;
-    }
-    for (int i = 0; i < a->n_ch; i++)
-        v[a->ch[i].spec.channel] = vals[a->ch[i].spec.channel];
-    /* Setpoints go out in this step only if the host streams already (its
-     * service sends HELLO, never SETPOINTS, on the way up), and then with
-     * seq = tx_seq. Remember before sending: the ACK may be read inside
-     * this very step. */
-    if (a->host.state == ISO_FB_HOST_STREAMING)
-        remember(a, a->host.tx_seq, tick, v, n);
-    uint64_t t_send = iso_clock_us();
-    uint64_t rx0 = a->host.stats.rx_frames;
-    int sent = iso_fb_host_step(&a->host, tick, v, n);
-    int frames = (int)(a->host.stats.rx_frames - rx0);
-    if (sent == 1) {
-        pthread_mutex_lock(&a->lock);
-        a->st.setpoints_sent++;
-        a->last_sent_us = t_send; /* before the write: the watchdog counts from its arrival */
-        pthread_mutex_unlock(&a->lock);
-    }
-    share_host(a, frames);
-}
-
-static int quitting(iso_actuators *a)
-{
-    pthread_mutex_lock(&a->lock);
-    int q = a->quit;
-    pthread_mutex_unlock(&a->lock);
-    return q;
-}
-
-static void to_timespec(uint64_t us, struct timespec *ts)
-{
-    ts->tv_sec = (time_t)(us / 1000000u);
-    ts->tv_nsec = (long)(us % 1000000u) * 1000;
-}
-
-/* SETPOINTS every PERIOD_US on absolute CLOCK_MONOTONIC deadlines, the
- * replies read in between; a period missed by more than one is skipped, not
- * caught up in a burst. */
-static void *sender_main(void *arg)
-{
-    iso_actuators *a = arg;
-    uint64_t next = iso_clock_us();
-    while (!quitting(a)) {
-        send_latest(a);
-        next += PERIOD_US;
-        uint64_t now = iso_clock_us();
-        if (next + PERIOD_US < now)
-            next = now + PERIOD_US;
-        while ((now = iso_clock_us()) < next) {
-            uint64_t slice = next - now < HOLD_POLL_US ? next - now : HOLD_POLL_US;
-            int frames = 0;
-            if (slice >= 1000u && a->host.state != ISO_FB_HOST_DOWN)
-                frames = iso_fb_host_poll(&a->host, (int)(slice / 1000u));
-            else
-                iso_clock_sleep_until((int64_t)(now + slice) * 1000);
-            unsigned before = a->hold;
-            if (holds_now(a) != before || frames > 0 || a->host.state == ISO_FB_HOST_DOWN)
-                share_host(a, frames);
-        }
-    }
-    return NULL;
-}
-
-/* ------------------------------------------------------------------------ */
 /* Create / destroy                                                           */
 /* ------------------------------------------------------------------------ */
 
@@ -775,7 +126,7 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
         if (rc == ISO_OK && !a->link)
             rc = iso_err_set(err, ISO_EIO, -1, "actuators: the emulated MCU gave no link");
         if (rc == ISO_OK)
-            say(a, info.line);
+            iso_act__say(a, info.line);
         return rc;
     }
     }
@@ -787,28 +138,6 @@ int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_
                          iso_actuators **out, iso_err *err)
 {
     return iso_actuators_create_v2(ch, n_ch, nv, regions, link, opts, NULL, out, err);
-}
-
-/* Reads the safety options into a (defaults for NULL or zero fields). */
-static int take_safety(iso_actuators *a, const iso_act_safety_opts *so, iso_err *err)
-{
-    int tick_ms = so && so->tick_period_ms > 0 ? so->tick_period_ms : 0;
-    int t = so ? so->loop_timeout_ms : 0;
-    if (t > 0 && t < (int)(PERIOD_US / 1000u))
-        return iso_err_set(
-            err, ISO_EINVAL, -1,
-            "actuators: loop_timeout_ms %d is shorter than the sender's %u ms period "
-            "(0 = the default, < 0 = no loop watchdog)",
-            t, PERIOD_US / 1000u);
-    if (t == 0)
-        t = 5 * tick_ms > LOOP_TIMEOUT_MIN_MS ? 5 * tick_ms : LOOP_TIMEOUT_MIN_MS;
-    a->loop_timeout_ms = t;
-    a->loop_timeout_us = t > 0 ? (uint64_t)t * 1000u : 0;
-    if (so) {
-        a->estop_probe = so->estop_probe;
-        a->estop_ctx = so->estop_ctx;
-    }
-    return ISO_OK;
 }
 
 int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const iso_regions *regions,
@@ -846,7 +175,7 @@ int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const i
         a->notice = opts->notice;
         a->notice_ctx = opts->notice_ctx;
     }
-    int rc = take_safety(a, safety, err);
+    int rc = iso_act__take_safety(a, safety, err);
     for (int i = 0; i < n_ch && rc == ISO_OK; i++) {
         if ((rc = check_channel(&ch[i], i, nv, regions, err)) != ISO_OK)
             break;
@@ -869,7 +198,8 @@ int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const i
     if (rc == ISO_OK && link && link->kind != ISO_ACT_LINK_NONE) {
         rc = open_link(a, link, err);
         if (rc == ISO_OK) {
-            iso_fb_host_callbacks cb = {NULL, on_ack, on_fault, on_hello, on_heartbeat, a};
+            iso_fb_host_callbacks cb;
+            iso_act__host_callbacks(a, &cb);
             iso_fb_host_opts ho = {0};
             ho.write_timeout_ms = 1; /* never hold a period */
             ho.reopen_ms = REOPEN_MS;
@@ -882,7 +212,7 @@ int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const i
             atomic_store(&a->state, ISO_ACT_STATE_CONNECTING);
         }
         if (rc == ISO_OK) {
-            if (pthread_create(&a->sender, NULL, sender_main, a) == 0)
+            if (pthread_create(&a->sender, NULL, iso_act__sender_main, a) == 0)
                 a->sender_started = 1;
             else
                 rc = iso_err_set(err, ISO_EIO, -1,
@@ -915,6 +245,12 @@ void iso_actuators_destroy(iso_actuators *a)
     pthread_cond_destroy(&a->cond);
     pthread_mutex_destroy(&a->lock);
     free(a);
+}
+
+static void to_timespec(uint64_t us, struct timespec *ts)
+{
+    ts->tv_sec = (time_t)(us / 1000000u);
+    ts->tv_nsec = (long)(us % 1000000u) * 1000;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1152,64 +488,6 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
     buf[n] = ';';
     buf[n + 1] = ' ';
     return n + 2 + iso_fb_host_stats_format(&hs, buf + n + 2, cap - (size_t)n - 2);
-}
-
-/* ------------------------------------------------------------------------ */
-/* Safety calls from any thread                                               */
-/* ------------------------------------------------------------------------ */
-
-void iso_actuators_alive(iso_actuators *a)
-{
-    if (!a)
-        return;
-    atomic_store_explicit(&a->progress_us, iso_clock_us(), memory_order_relaxed);
-    atomic_fetch_add_explicit(&a->alive_calls, 1, memory_order_relaxed);
-}
-
-void iso_actuators_estop(iso_actuators *a, int on)
-{
-    if (!a)
-        return;
-    if (!on) {
-        atomic_store(&a->estop_req, 0);
-        return;
-    }
-    if (atomic_load(&a->estop_req))
-        return;                                 /* the edge counts, not the level */
-    atomic_store(&a->estop_us, iso_clock_us()); /* before the flag: the sender reads both */
-    atomic_store(&a->estop_req, 1);
-}
-
-int iso_actuators_state(const iso_actuators *a, unsigned *holds)
-{
-    iso_actuators *m = (iso_actuators *)a; /* atomic loads take non-const pointers */
-    if (holds)
-        *holds = m ? atomic_load(&m->holds) : 0;
-    return m ? atomic_load(&m->state) : ISO_ACT_STATE_OFF;
-}
-
-const char *iso_actuators_link_state(const iso_actuators *a)
-{
-    unsigned h;
-    int s = iso_actuators_state(a, &h);
-    switch (s) {
-    case ISO_ACT_STATE_CONNECTING: return "connecting";
-    case ISO_ACT_STATE_ARMED: return "armed";
-    case ISO_ACT_STATE_SILENT: return "silent";
-    case ISO_ACT_STATE_STOPPING:
-        return h & ISO_ACT_HOLD_ESTOP  ? "stopping (e-stop)"
-               : h & ISO_ACT_HOLD_LOOP ? "stopping (loop stalled)"
-               : h & ISO_ACT_HOLD_STOP ? "stopping (stopped)"
-                                       : "stopping";
-    case ISO_ACT_STATE_SAFE:
-        return h & ISO_ACT_HOLD_ESTOP  ? "safe (e-stop)"
-               : h & ISO_ACT_HOLD_LOOP ? "safe (loop stalled)"
-               : h & ISO_ACT_HOLD_STOP ? "safe (stopped)"
-                                       : "safe (waiting for a tick)";
-    case ISO_ACT_STATE_LOST: return "lost";
-    case ISO_ACT_STATE_RECONNECTING: return "reconnecting";
-    }
-    return "off";
 }
 
 int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err)

@@ -1,5 +1,5 @@
 /* controller/loop_internal.h -- what the loop's files share: the loop's
- * state and the helpers of loop_drive.c and loop_sinks.c. Not installed. */
+ * state and the helpers each of its files gives the others. Not installed. */
 #ifndef ISO_LOOP_INTERNAL_H
 #define ISO_LOOP_INTERNAL_H
 
@@ -84,7 +84,21 @@ struct iso_loop {
     int shut;
 };
 
-/* loop.c: the stream time of grid tick k: stream0 + k / tick_hz, rounded
+/* loop_devices.c: the mapping, the devices or the replay, ready to tick. */
+ISO_NODISCARD int iso_loop__devices_open(iso_loop *l, iso_err *err);
+/* One device tick over (l->t_now, t]: drain, map, advance the device-driven
+ * handles' commanded poses; tw gets their twists, *restart a discontinuity. */
+ISO_NODISCARD int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart,
+                                        iso_err *err);
+/* Scripted handles: their exact path pose at the scripted clock. */
+ISO_NODISCARD int iso_loop__scripted_poses(iso_loop *l, double s0, int *restart, iso_err *err);
+/* FNV-1a over n bytes, continuing from h. */
+uint64_t iso_loop__fnv1a(uint64_t h, const void *p, size_t n);
+
+/* loop_tick.c: one tick at wall time `now`. */
+ISO_NODISCARD int iso_loop__tick(iso_loop *l, int64_t now, iso_err *err);
+
+/* loop_run.c: the stream time of grid tick k: stream0 + k / tick_hz, rounded
  * to the nanosecond once (never accumulated). */
 int64_t iso_loop__grid_ns(const iso_loop *l, int64_t k);
 
