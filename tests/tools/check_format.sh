@@ -14,10 +14,10 @@ version=$(clang-format --version | sed -n 's/.*version \([0-9]*\)\..*/\1/p')
 [ "$version" = 14 ] ||
     { echo "SKIP test_format: clang-format $version here; the layout is clang-format 14's"; exit 77; }
 cd "$src" || exit 1
-if [ -d .git ] && command -v git >/dev/null 2>&1; then
+if [ -e .git ] && command -v git >/dev/null 2>&1; then  # a worktree's .git is a file
     files=$(git ls-files '*.c' '*.h')
 else
-    files=$(find common firmware-bridge solver devices sim config controller tests \
+    files=$(find common firmware-bridge solver devices actuators sinks view config controller tests \
         -name '*.c' -o -name '*.h')
 fi
 n=0 bad=0
