@@ -18,7 +18,9 @@
 #       Libs.private with the shared LIBRARY's NEEDED entries: every library
 #       it needs is listed, and every library listed is needed, except the C
 #       library's own parts (m, dl, pthread, rt), which glibc may provide
-#       without a library of their own.
+#       without a library of their own. The C library itself and a
+#       sanitizer's runtime (ISO_SANITIZE: -fsanitize brings it) are not
+#       listed.
 #   check_surface.sh static BUILD_DIR TMP_DIR CC ARCHIVE [LDFLAGS...]
 #       installs likewise with ARCHIVE (the library's objects as a static
 #       archive) as the only libisoshape, then compiles and links a program
@@ -81,7 +83,7 @@ if [ "$mode" = libs ]; then
     sed -n 's/^Libs.private://p' "$pc" | tr ' ' '\n' | sed -n 's/^-l//p' | sort -u \
         >"$tmp/surface-listed.txt"
     readelf -d "$tool" | sed -n 's/.*(NEEDED).*\[lib\(.*\)\.so.*\]/\1/p' |
-        grep -v -e '^c$' -e '^ld-linux' | sort -u >"$tmp/surface-needed.txt"
+        grep -v -x -e c -e asan -e ubsan -e tsan -e lsan | sort -u >"$tmp/surface-needed.txt"
     unlisted=$(comm -13 "$tmp/surface-listed.txt" "$tmp/surface-needed.txt")
     unneeded=$(comm -23 "$tmp/surface-listed.txt" "$tmp/surface-needed.txt" |
         grep -v -x -e m -e dl -e pthread -e rt)
