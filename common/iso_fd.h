@@ -2,7 +2,9 @@
  * through a file descriptor: the firmware bridge's tty and TCP links, the
  * devices' TCP source, the live view's server and the MCU emulator. One
  * connect with a timeout, one read and one write with poll(), so that a
- * port or a socket behaves the same whichever part opened it. */
+ * port or a socket behaves the same whichever part opened it.
+ * Internal to the library: not installed, not exported (CMakeLists.txt,
+ * iso_add_part INTERNAL). */
 #ifndef ISO_FD_H
 #define ISO_FD_H
 
@@ -12,7 +14,7 @@
 #include "iso_err.h"
 
 /* Makes fd non-blocking and close-on-exec. 0, or -1 with errno set. */
-ISO_API int iso_fd_nonblock(int fd);
+int iso_fd_nonblock(int fd);
 
 /* Resolves host (a name or a numeric address) and port, and connects to the
  * first address that answers within timeout_ms (each address gets the whole
@@ -20,22 +22,21 @@ ISO_API int iso_fd_nonblock(int fd);
  * non-blocking, close-on-exec stream socket with Nagle off (small frames must
  * leave at once). Errors are ISO_EIO and name "host:port": "cannot resolve:
  * <reason>" or "cannot connect: <strerror>" (ETIMEDOUT for the timeout). */
-ISO_API ISO_NODISCARD int iso_fd_tcp_connect(const char *host, const char *port, int timeout_ms,
-                                             int *fd, iso_err *err);
+ISO_NODISCARD int iso_fd_tcp_connect(const char *host, const char *port, int timeout_ms, int *fd,
+                                     iso_err *err);
 
 /* Waits up to timeout_ms (0: not at all) for fd to be readable, then reads
  * at most cap bytes. Returns the count, 0 when nothing came in time (or a
  * signal woke the wait), or ISO_EIO: "<what>: peer closed the link" at end
  * of file, "<what>: read: <strerror>", "<what>: link is closed" for fd < 0. */
-ISO_API int iso_fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms,
-                        iso_err *err);
+int iso_fd_read(int fd, const char *what, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err);
 
 /* Writes all n bytes, waiting with poll() while the descriptor is full, for
  * at most timeout_ms in all. is_socket: send() with MSG_NOSIGNAL, so that a
  * vanished peer is an error here and not a SIGPIPE for the whole process.
  * ISO_OK, or ISO_EIO naming `what`: a write error, or "write timed out after
  * T ms (D of N bytes)". */
-ISO_API ISO_NODISCARD int iso_fd_write_all(int fd, const char *what, const uint8_t *buf, size_t n,
-                                           int timeout_ms, int is_socket, iso_err *err);
+ISO_NODISCARD int iso_fd_write_all(int fd, const char *what, const uint8_t *buf, size_t n,
+                                   int timeout_ms, int is_socket, iso_err *err);
 
 #endif

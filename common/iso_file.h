@@ -1,6 +1,7 @@
 /* common/iso_file.h -- reading a whole file into memory, the one way every
  * part does it (meshes, selections, scenes, recordings, the live view's
- * scripts). */
+ * scripts). Internal to the library: not installed, not exported
+ * (CMakeLists.txt, iso_add_part INTERNAL). */
 #ifndef ISO_FILE_H
 #define ISO_FILE_H
 
@@ -15,7 +16,7 @@
  * path: ISO_EIO "PATH: cannot open: <why>" or "PATH: read error at byte
  * offset N: <why>" (offset N), ISO_ENOMEM, ISO_EINVAL "PATH: larger than
  * N bytes". */
-ISO_API ISO_NODISCARD int iso_file_read(const char *path, size_t max, char **out, size_t *len,
-                                        iso_err *err);
+ISO_NODISCARD int iso_file_read(const char *path, size_t max, char **out, size_t *len,
+                                iso_err *err);
 
 #endif

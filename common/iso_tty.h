@@ -1,6 +1,7 @@
 /* common/iso_tty.h -- a terminal device opened raw, for every part that
  * talks to a serial port: the devices' tty input source and the firmware
- * bridge's tty link, so that a port behaves the same in both. */
+ * bridge's tty link, so that a port behaves the same in both. Internal to
+ * the library: not installed, not exported (iso_add_part INTERNAL). */
 #ifndef ISO_TTY_H
 #define ISO_TTY_H
 
@@ -13,6 +14,6 @@
  * stores the descriptor in *fd (-1 on failure). Errors name the path: a
  * rate that is not standard, a failed open (with the dialout-group hint on
  * EACCES), "not a terminal", a failed tcsetattr. */
-ISO_API ISO_NODISCARD int iso_tty_open_raw(const char *path, uint32_t baud, int *fd, iso_err *err);
+ISO_NODISCARD int iso_tty_open_raw(const char *path, uint32_t baud, int *fd, iso_err *err);
 
 #endif

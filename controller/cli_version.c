@@ -17,6 +17,8 @@
 #include <strings.h>
 #include <unistd.h>
 
+#include "iso_version.h"
+
 #define MAX_BLAS_OBJECTS 8
 
 typedef struct blas_scan {
@@ -142,7 +144,7 @@ const char *iso_cli__blas_config(void)
  * time) and the BLAS that is loaded, with its resolved path. */
 static void print_version(void)
 {
-    printf("isoshape %s\n", ISO_VERSION);
+    printf("isoshape %s\n", iso_version()); /* the library this runs with */
     print_cholmod();
     print_blas();
 }

@@ -1,8 +1,9 @@
 /* solver/element.c -- per-element quadratic forms (iso_element.h).
  *
- * Notation follows docs/method.md. N_T = σ (J ⊗ I3) with J = [[2,1,1],
- * [1,2,1],[1,1,2]]; σ = 1/24 (param) or A_T/12 (area). The best rigid fit
- * does not depend on σ, so R is computed with σ = 1 and σ enters Q only. */
+ * Notation follows docs/method.md (sections 2 and 3). N_T = σ (J ⊗ I3)
+ * with J = [[2,1,1], [1,2,1],[1,1,2]]; σ = 1/24 (param) or A_T/12 (area).
+ * The best rigid fit does not depend on σ, so R is computed with σ = 1 and
+ * σ enters Q only. */
 #include "element_internal.h"
 #include "iso_element.h"
 

@@ -1,6 +1,7 @@
 /* solver/iso_element.h -- the per-element quadratic forms of the method
- * (docs/method.md): best rigid fit R_T, the distortion block Q1_T (9x9), and
- * the smoothness block Q2 of an ordered pair of adjacent triangles (12x12).
+ * (docs/method.md, sections 2 and 3): best rigid fit R_T, the distortion
+ * block Q1_T (9x9), and the smoothness block Q2 of an ordered pair of
+ * adjacent triangles (12x12).
  *
  * These are pure functions of the corner positions, shared by the CPU
  * assembly, the tests, and as the reference the OpenCL kernels are checked

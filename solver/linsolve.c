@@ -3,10 +3,11 @@
  * iso_refactor).
  *
  * Why reuse: along a path A(x) changes slowly, and the factor of a recent A
- * is an excellent preconditioner for the current one (docs/performance.md:
- * 11 iterations to 1e-10 one step after the factor, 80 ten steps after). An
- * iteration costs one triangular solve pair and one matrix-vector product,
- * a few percent of a factorization, so reuse pays while the factor is young.
+ * is an excellent preconditioner for the current one (docs/performance.md,
+ * "Why reuse a factor": 11 iterations to 1e-10 one step after the factor,
+ * 80 ten steps after). An iteration costs one triangular solve pair and one
+ * matrix-vector product, a few percent of a factorization, so reuse pays
+ * while the factor is young.
  * The policy: try PCG from the previous solution; if it has not reached the
  * tolerance within cg_max_iter iterations, or stalls, factor afresh and
  * solve directly. When the previous PCG already needed most of the budget,

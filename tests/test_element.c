@@ -1,4 +1,4 @@
-/* tests/test_element.c -- method.md properties 1-3 on single triangles and
+/* tests/test_element.c -- docs/method.md properties 1-3 on single triangles and
  * adjacent pairs (iso_element.h):
  *   (a) a rigid field is in the null space of Q1 and Q2, also far from the
  *       origin, for both weightings;
@@ -418,7 +418,7 @@ static void q2_equals_quadrature(void **state)
  * r_20, ρ_2 = r_01,
  *   S_kk = c (3 ρ_k² + 4α),  S_kl = c (3 ρ_k ρ_l − 2α) (k ≠ l),
  *   c = −1 / (144 α (r_12 + r_20 + r_01)),
- * i.e. the printed constant and diagonal with method.md's corrected
+ * i.e. the printed constant and diagonal with docs/method.md's corrected
  * off-diagonals. This is the param reading (d_T is then scale-free). */
 static void paper_s_matrix_relation(void **state)
 {

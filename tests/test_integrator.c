@@ -1,4 +1,4 @@
-/* tests/test_integrator.c -- method.md property 7 (the issue's test 6): the
+/* tests/test_integrator.c -- docs/method.md property 7: the
  * ABM3 integrator converges at third order on a smooth problem, and its
  * adaptive mode lands on t1 exactly and gets more accurate as tol falls;
  * and, with adaptive refactoring, CG's share of the error stays under a

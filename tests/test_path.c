@@ -1,5 +1,4 @@
-/* tests/test_path.c -- method.md property 6 (the issue's test 7): path
- * dependence.
+/* tests/test_path.c -- docs/method.md property 6: path dependence.
  *
  * (1) There and back: a handle turned by θ(t) = θmax sin(π t) returns to
  *     its rest pose at t = 1. The field is linear in the handle's velocity,

@@ -1,4 +1,4 @@
-/* tests/test_strip.c -- method.md property 4: rolling a flat strip into a
+/* tests/test_strip.c -- docs/method.md property 4: rolling a flat strip into a
  * half cylinder is nearly isometric.
  *
  * The strip lies along x (length 1, 61 vertices) and is a few vertices wide

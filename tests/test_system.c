@@ -1,4 +1,4 @@
-/* tests/test_system.c -- method.md properties 1, 3 and 5 on whole meshes,
+/* tests/test_system.c -- docs/method.md properties 1, 3 and 5 on whole meshes,
  * through iso_assemble_dense, iso_distortion and iso_solver_*:
  *   (a) a rigid field has d = 0 for every ω, also far from the origin;
  *   (b) 1->4 subdivision leaves d1 unchanged (param) or divides it by 4
