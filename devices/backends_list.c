@@ -16,6 +16,7 @@ static const struct {
     {"replay", &always_built},
     {"tty", &always_built},
     {"tcp", &always_built},
+    {"view", &always_built},
     {"hidapi", &iso_dev__hidapi_built},
     {"serialport", &iso_dev__serialport_built},
     {"gpiod", &iso_dev__gpiod_built},

@@ -3,6 +3,7 @@
  * Every decoder counts what it cannot use and skips it; none fails on input.
  * The same code serves a live device and a replay, so a recording decodes to
  * the same events bit for bit. */
+#include "internal.h"
 #include "iso_dev.h"
 
 #include <string.h>
@@ -18,6 +19,7 @@ const char *iso_dev_kind_name(int kind)
     case ISO_DEV_KIND_SPNAV: return "spnav";
     case ISO_DEV_KIND_SERIAL: return "serial";
     case ISO_DEV_KIND_GPIO: return "gpio";
+    case ISO_DEV_KIND_VIEW: return "view";
     default: return "unknown";
     }
 }
@@ -69,7 +71,8 @@ int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t s
     switch (info->kind) {
     case ISO_DEV_KIND_HID:
     case ISO_DEV_KIND_SPNAV:
-    case ISO_DEV_KIND_GPIO: return ISO_OK;
+    case ISO_DEV_KIND_GPIO:
+    case ISO_DEV_KIND_VIEW: return ISO_OK;
     case ISO_DEV_KIND_SERIAL: iso_fb_parser_init((iso_fb_parser *)(void *)d->fb); return ISO_OK;
     default:
         return iso_err_set(err, ISO_EINVAL, -1, "source %u (%s): unknown device kind %d", source,
@@ -303,6 +306,7 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
         d->buttons = 0;
         for (int r = 0; r < ISO_DEV_GPIO_ROLES; r++)
             d->gpio[r].have = 0;
+        d->view.holder = d->view.last_seq = 0; /* a view's control ends; its stop stands */
         if (d->kind == ISO_DEV_KIND_SERIAL) {
             /* A new link: no half frame, no sequence; the counts go on. */
             iso_fb_parser *fb = (iso_fb_parser *)(void *)d->fb;
@@ -321,6 +325,7 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
     case ISO_DEV_KIND_SPNAV: return spnav_decode(d, c->t_ns, c->data, len, ev, cap);
     case ISO_DEV_KIND_SERIAL: return serial_decode(d, c->t_ns, c->data, len, ev, cap);
     case ISO_DEV_KIND_GPIO: return gpio_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_VIEW: return iso_dev__view_decode(d, c->t_ns, c->data, len, ev, cap);
     default: d->n.garbage += (uint32_t)len; return 0;
     }
 }

@@ -25,6 +25,7 @@ typedef struct hub_src {
     char detail[ISO_DEV_NAME_MAX]; /* the source's detail when it was last opened */
     uint8_t present;               /* 0 while gone */
     uint8_t stale;                 /* its twist counted zero in the last tick */
+    uint8_t targeting;             /* a view: a fresh target drove its handle last tick */
     int64_t quiet_from;            /* stream time of the last twist before it went stale */
     uint32_t events, gone, back, stale_count;
     uint8_t estop_line; /* the source has an e-stop input (estop_level answers) */
@@ -196,6 +197,8 @@ int iso_dev_hub_source_stats(const iso_dev_hub *h, size_t i, iso_dev_source_stat
     out->stale = x->stale_count;
     out->present = x->present;
     out->is_stale = x->stale;
+    out->targeting = x->targeting;
+    out->holder = x->dec.view.holder != 0;
     return ISO_OK;
 }
 
@@ -267,6 +270,24 @@ int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
     return iso_dev_rec_writer_close(&h->rec, err);
 }
 
+/* A view's changes of control and its stop, one sentence each (the
+ * recording holds them, so a replay says them again in the same ticks). */
+static void say_view(iso_dev_hub *h, const hub_src *x, const iso_dev_event *ev, size_t k)
+{
+    static const char *const why[] = {"", "the page let go", "the viewer left", "the view stopped"};
+    for (size_t i = 0; i < k; i++) {
+        if (ev[i].kind == ISO_DEV_EV_RELEASE)
+            say(h, "view %s: control released (%s): its handle holds where it is", x->info.name,
+                ev[i].level <= 3 ? why[ev[i].level] : "?");
+        else if (ev[i].kind == ISO_DEV_EV_GPIO && ev[i].line == ISO_DEV_GPIO_ESTOP)
+            say(h,
+                ev[i].level ? "view %s: STOP pressed in a page: handles hold, actuators to their "
+                              "safe state"
+                            : "view %s: stop released in a page",
+                x->info.name);
+    }
+}
+
 /* Records and decodes one chunk into the hub's event buffer. */
 static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
 {
@@ -290,6 +311,8 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
         x->present = 1;
     }
     size_t k = iso_dev_decode(&x->dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
+    if (x->info.kind == ISO_DEV_KIND_VIEW)
+        say_view(h, x, h->ev + h->nev, k);
     x->events += (uint32_t)k;
     h->nev += k;
     return ISO_OK;
@@ -411,18 +434,25 @@ static void watch_stale(iso_dev_hub *h, const iso_dev_map *m, const iso_dev_tick
         uint32_t bit = (uint32_t)1 << i;
         int stale = (out->stale & bit) != 0;
         const char *kind = iso_dev_kind_name(x->info.kind);
+        const int view = x->info.kind == ISO_DEV_KIND_VIEW;
         if (stale && !x->stale) {
             x->stale_count++;
             x->quiet_from = m->src[i].t_twist;
             say(h,
-                "%s %s: no twist sample for more than %g ms: its twist is zero until samples "
-                "resume",
+                view ? "%s %s: no command from the page in control for more than %g ms: its "
+                       "handle holds until commands resume"
+                     : "%s %s: no twist sample for more than %g ms: its twist is zero until "
+                       "samples resume",
                 kind, x->info.name, (double)m->stale_ns[i] / 1e6);
-        } else if (!stale && x->stale && !(out->gone & bit) && m->src[i].has_twist) {
-            say(h, "%s %s: twist samples resumed after %.0f ms without", kind, x->info.name,
-                (double)(m->src[i].t_twist - x->quiet_from) / 1e6);
+        } else if (!stale && x->stale && !(out->gone & bit) &&
+                   (m->src[i].has_twist || m->src[i].has_target)) {
+            say(h,
+                view ? "%s %s: commands resumed after %.0f ms without"
+                     : "%s %s: twist samples resumed after %.0f ms without",
+                kind, x->info.name, (double)(m->src[i].t_twist - x->quiet_from) / 1e6);
         }
         x->stale = (uint8_t)stale;
+        x->targeting = (out->targeting & bit) != 0;
     }
 }
 

@@ -28,6 +28,10 @@ static inline void iso_dev__serial_info(iso_dev_info *info, uint32_t baud)
     info->stop_bits = 1;
 }
 
+/* The view's decoder (decode_view.c): one envelope of len bytes. */
+size_t iso_dev__view_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
+                            iso_dev_event *ev, size_t cap);
+
 /* Each appends at most cap entries and returns how many. */
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap);

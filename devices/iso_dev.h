@@ -37,7 +37,8 @@ typedef enum iso_dev_kind {
     ISO_DEV_KIND_HID = 1,    /* raw HID input reports, report ID first (3D mice) */
     ISO_DEV_KIND_SPNAV = 2,  /* spacenavd events in this library's encoding (RECORDING.md) */
     ISO_DEV_KIND_SERIAL = 3, /* the firmware bridge's byte stream (COBS frames) */
-    ISO_DEV_KIND_GPIO = 4    /* GPIO edges: (role, level) byte pairs */
+    ISO_DEV_KIND_GPIO = 4,   /* GPIO edges: (role, level) byte pairs */
+    ISO_DEV_KIND_VIEW = 5    /* the browser view's commands (see "The browser view" below) */
 } iso_dev_kind;
 
 typedef enum iso_dev_chunk_type {
@@ -70,7 +71,8 @@ typedef struct iso_dev_info {
     uint8_t desc[ISO_DEV_DESC_MAX];
 } iso_dev_info;
 
-ISO_API const char *iso_dev_kind_name(int kind); /* "hid", "spnav", "serial", "gpio"; never NULL */
+/* "hid", "spnav", "serial", "gpio", "view"; never NULL */
+ISO_API const char *iso_dev_kind_name(int kind);
 
 /* ====================================================================== */
 /* Sources: one interface, one backend per file                            */
@@ -220,7 +222,15 @@ typedef enum iso_dev_event_kind {
     ISO_DEV_EV_TWIST = 4,   /* v[0..2] velocity (m/s), v[3..5] angular velocity (rad/s) */
     ISO_DEV_EV_GPIO = 5,    /* line (role), level: debounced, 1 = active */
     ISO_DEV_EV_GONE = 6,
-    ISO_DEV_EV_BACK = 7
+    ISO_DEV_EV_BACK = 7,
+    /* A pose target for handle `line` (the mapping's handle index): v[0..2]
+     * position, v[3..5] rotation vector of the pose rest -> target, in scene
+     * units. A stream of targets goes stale like a twist stream. */
+    ISO_DEV_EV_TARGET = 8,
+    /* The source stops commanding (its controller let go or left): its
+     * target is forgotten and its handle holds where it is. level: the
+     * reason, ISO_DEV_VIEW_END_* */
+    ISO_DEV_EV_RELEASE = 9
 } iso_dev_event_kind;
 
 typedef struct iso_dev_event {
@@ -247,6 +257,11 @@ typedef struct iso_dev_counters {
     uint32_t bounces;       /* GPIO edges the debounce did not take at once */
     uint32_t bad_payloads;  /* serial: HANDLE_SAMPLE frames whose payload does not unpack
                                (counted in bad_frames too) */
+    uint32_t refused;       /* view: well-formed commands not applied (not from the viewer
+                               in control, or a kind the stream does not carry) */
+    uint32_t out_of_order;  /* view: targets whose sequence number did not grow (not applied) */
+    uint32_t grants;        /* view: times a viewer took control */
+    uint32_t releases;      /* view: times control ended (let go, the viewer left) */
 } iso_dev_counters;
 
 /* Serial: the frames the firmware bridge's parser dropped, by reason
@@ -262,6 +277,87 @@ typedef struct iso_dev_gpio_line {
     int64_t t_accept, t_raw;
 } iso_dev_gpio_line;
 
+/* ---- the browser view's commands (ISO_DEV_KIND_VIEW) ------------------- */
+/* What a page of the live view (view/iso_display.h) sends on its WebSocket,
+ * one binary message each, little-endian, and the envelope in which the
+ * view's server hands each to its device (and so to the recording).
+ *
+ * Why a pose target, not a twist: a drag must end where the user let go.
+ * A twist stream is integrated by the loop, so every lost, late or merged
+ * sample moves the end, and the page cannot tell; a target names the end
+ * itself, and the loop reaches it exactly (to round-off) however the
+ * samples were spaced. The mapping bounds the speed at which a handle
+ * follows (ISO_DEV_VIEW_MAX_*), so a target far away is approached over
+ * several ticks instead of jumped to.
+ *
+ * Message, from the page:
+ *   offset 0  u8   version, ISO_DEV_VIEW_VERSION
+ *          1  u8   type, ISO_DEV_VIEW_TAKE ... ISO_DEV_VIEW_UNSTOP
+ *          2  u8   handle: the mapping's handle index (TARGET), else 0
+ *          3  u8   flags, 0
+ *          4  u32  seq: the page's own, from 1, growing on each message
+ *          8  f64  the page's clock when sent, ms (echoed in the view's frames)
+ *         16  6 f64  TARGET only: the pose rest -> target, position (scene
+ *                  units) then rotation vector (rad); |r| <= 4 pi
+ * A message is exactly 16 bytes, or 64 for TARGET; anything else is refused.
+ *
+ * Envelope (one chunk, recorded as is):
+ *   offset 0  u8   what: ISO_DEV_VIEW_MSG (a page's message follows),
+ *                  ISO_DEV_VIEW_GRANT (the connection took control) or
+ *                  ISO_DEV_VIEW_END (its control ended; one reason byte,
+ *                  ISO_DEV_VIEW_END_*, follows)
+ *          1  u32  the connection: the server's number for the WebSocket
+ *          5  ...  the message, or the reason
+ * The server decides who is in control (one viewer at a time, the first to
+ * ask) and forwards TARGETs from that viewer only, STOP and UNSTOP from any
+ * viewer that may command; the decoder checks it all again, so a recording
+ * edited by hand cannot do what a page could not. */
+#define ISO_DEV_VIEW_VERSION 1u
+#define ISO_DEV_VIEW_HEAD 16u       /* bytes of every message */
+#define ISO_DEV_VIEW_TARGET_LEN 64u /* a TARGET message */
+#define ISO_DEV_VIEW_MSG_MAX 64u
+#define ISO_DEV_VIEW_ENVELOPE 5u /* bytes before the message */
+_Static_assert(ISO_DEV_VIEW_ENVELOPE + ISO_DEV_VIEW_MSG_MAX <= ISO_DEV_CHUNK_MAX,
+               "an enveloped message fits one chunk");
+enum {
+    ISO_DEV_VIEW_TAKE = 1,    /* ask for control */
+    ISO_DEV_VIEW_RELEASE = 2, /* give control up */
+    ISO_DEV_VIEW_TARGET = 3,  /* move a handle to a pose */
+    ISO_DEV_VIEW_STOP = 4,    /* the page's stop button: a software e-stop */
+    ISO_DEV_VIEW_UNSTOP = 5   /* its deliberate release */
+};
+enum { ISO_DEV_VIEW_MSG = 1, ISO_DEV_VIEW_GRANT = 2, ISO_DEV_VIEW_END = 3 };
+enum {
+    ISO_DEV_VIEW_END_RELEASED = 1, /* the page let go */
+    ISO_DEV_VIEW_END_LEFT = 2,     /* the viewer disconnected */
+    ISO_DEV_VIEW_END_STOPPED = 3   /* the server stopped (the run ended) */
+};
+/* How fast a view target is followed, at most: the handle's centre moves
+ * ISO_DEV_VIEW_MAX_DIAG_PER_S bounding-box diagonals a second and turns
+ * ISO_DEV_VIEW_MAX_TURN_PER_S radians a second (the loop sets them per
+ * source from the mesh, iso_dev_map_set_limits, live and on replay alike). */
+#define ISO_DEV_VIEW_MAX_DIAG_PER_S 2.0
+#define ISO_DEV_VIEW_MAX_TURN_PER_S 6.283185307179586
+
+/* One parsed message. */
+typedef struct iso_dev_view_msg {
+    uint8_t type, handle;
+    uint32_t seq;
+    double page_ms;
+    double pose[6]; /* TARGET: p, r; else 0 */
+} iso_dev_view_msg;
+
+/* What a view decoder knows of its stream. */
+typedef struct iso_dev_view_state {
+    uint32_t holder;       /* the connection in control, 0 none */
+    uint32_t last_seq;     /* the holder's last accepted sequence number */
+    uint32_t applied_conn; /* the last target applied: its connection, */
+    uint32_t applied_seq;  /* its sequence number */
+    double applied_ms;     /* and its page clock */
+    uint8_t estop;         /* a page's stop is pressed and not released */
+    uint32_t estop_conn;   /* who pressed it */
+} iso_dev_view_state;
+
 typedef struct iso_dev_decoder {
     uint8_t kind, source;
     iso_dev_counters n;
@@ -270,6 +366,7 @@ typedef struct iso_dev_decoder {
     int64_t debounce_ns;
     iso_dev_gpio_line gpio[ISO_DEV_GPIO_ROLES];
     _Alignas(8) unsigned char fb[512]; /* the firmware bridge's iso_fb_parser */
+    iso_dev_view_state view;           /* kind VIEW */
 } iso_dev_decoder;
 
 /* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown
@@ -289,6 +386,41 @@ ISO_API void iso_dev_decoder_drops(const iso_dev_decoder *d, iso_dev_frame_drops
  * for the debounce time. Returns the events written. */
 ISO_API size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now_ns, iso_dev_event *ev,
                                    size_t cap);
+
+/* ---- the browser view --------------------------------------------------- */
+
+/* Parses one page message (the format above). Returns ISO_OK and fills
+ * *out, or ISO_EPARSE with a phrase in why (e.g. "a TARGET message has 64
+ * bytes, not 63"): a wrong version, type, length or flag, a handle on a
+ * message that has none, a sequence number of 0, a clock or pose that is
+ * not finite, a position beyond 1e12 or a rotation beyond 4 pi. why may be
+ * NULL. */
+ISO_API ISO_NODISCARD int iso_dev_view_parse(const uint8_t *p, size_t n, iso_dev_view_msg *out,
+                                             char *why, size_t cap);
+/* Writes a message (what a page sends; for tests and tools). Returns its
+ * length, or ISO_EINVAL for an unknown type or a cap below it. */
+ISO_API int iso_dev_view_encode(const iso_dev_view_msg *m, uint8_t *dst, size_t cap);
+
+/* The source the view's server feeds: a queue of enveloped chunks, filled
+ * from the server's thread (iso_dev_view_push) and read by the hub on the
+ * loop's. Its estop_level answers at once from what was pushed, so a
+ * page's stop reaches the actuators' sender (which reads it every 2 ms)
+ * without waiting for a tick; the same STOP is also decoded in its tick. */
+ISO_API ISO_NODISCARD int iso_dev_view_open(const char *name, iso_dev_source **out, iso_err *err);
+/* Queues one envelope (what, conn, and for ISO_DEV_VIEW_MSG the message,
+ * len <= ISO_DEV_VIEW_MSG_MAX; for ISO_DEV_VIEW_END one reason byte),
+ * stamped now. Thread-safe; takes a lock held for a copy. A STOP or UNSTOP
+ * sets the e-stop level before it returns. The queue holds 256 chunks;
+ * TARGETs may fill all but the last 32, which are kept for the rest, so a
+ * flood of targets never crowds out a stop. Returns ISO_OK, ISO_EINVAL
+ * (not a view source, a bad envelope) or ISO_ENOMEM when full (counted;
+ * what was dropped is said by iso_dev_view_dropped). */
+ISO_API ISO_NODISCARD int iso_dev_view_push(iso_dev_source *s, int what, uint32_t conn,
+                                            const void *msg, size_t len);
+/* Chunks refused because the queue was full; any thread. */
+ISO_API uint32_t iso_dev_view_dropped(iso_dev_source *s);
+/* Is this a view source? */
+ISO_API int iso_dev_is_view(const iso_dev_source *s);
 
 /* The SpaceMouse family (3Dconnexion 0x046d and 0x256f): one HID input
  * report, report ID first. Told apart by length: ID 1 with 7 bytes is
@@ -355,14 +487,17 @@ typedef struct iso_dev_tick {
     uint32_t actions;                     /* bit ISO_DEV_ACT_*: pressed during this tick */
     uint32_t gone;                        /* bit per source that is unplugged */
     uint32_t stale;                       /* bit per source whose twist stream went quiet */
+    uint32_t targeting;                   /* bit per source with a fresh target (a view) */
 } iso_dev_tick;
 
 typedef struct iso_dev_map_src { /* what one source last said */
     int16_t axes[6];
     uint32_t buttons;
     uint8_t has_pose, has_twist;
-    uint8_t stale;   /* 1: its twist is older than the stale time and counts as zero */
-    int64_t t_twist; /* stream time of its last twist sample */
+    uint8_t has_target; /* a view's target for handle `handle` (ISO_DEV_EV_TARGET) */
+    uint8_t handle;
+    uint8_t stale;   /* 1: its twist or target is older than the stale time: ignored */
+    int64_t t_twist; /* stream time of its last twist or target sample */
     double v[6];
 } iso_dev_map_src;
 
@@ -373,6 +508,8 @@ typedef struct iso_dev_map_src { /* what one source last said */
  * now_ns, the stream time, never the wall clock, so a replay reproduces
  * it) that source's twist counts as zero until the next sample. 100 ms is
  * the firmware's own link watchdog and a usual robot-base command timeout.
+ * A view's targets (ISO_DEV_EV_TARGET) go stale the same way: a page
+ * that stops sending stops commanding, and its handle holds where it is.
  * Pose streams hold their last pose (a pose is a target, not a rate). 3D
  * mice (HID axes, spacenavd) are not timed out: their report is the state
  * of the cap, and one held still at a deflection may send nothing new
@@ -386,9 +523,13 @@ typedef struct iso_dev_map {
     iso_dev_map_opts o;
     int active;
     uint8_t clutch, estop;
+    uint32_t estop_by; /* bit per source whose e-stop is pressed; estop = any */
     uint32_t gone;
     iso_dev_map_src src[ISO_DEV_MAX_SOURCES];
     int64_t stale_ns[ISO_DEV_MAX_SOURCES]; /* per source; ISO_DEV_STALE_DEFAULT_NS */
+    /* Per source, the fastest a target is followed: the handle centre's
+     * speed (scene units/s) and turn rate (rad/s); 0 = no bound. */
+    double max_speed[ISO_DEV_MAX_SOURCES], max_turn[ISO_DEV_MAX_SOURCES];
     /* Each handle's centre in rest coordinates (0 unless set): the point
      * device rotations turn about, carried along by the handle's pose. */
     double centre[ISO_DEV_MAX_HANDLES][3];
@@ -412,6 +553,14 @@ ISO_API ISO_NODISCARD int iso_dev_map_init(iso_dev_map *m, const iso_dev_map_opt
  * source to the default). */
 ISO_API ISO_NODISCARD int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns,
                                                 iso_err *err);
+/* Bounds how fast source `source`'s targets are followed (see iso_dev_map):
+ * speed in scene units per second at the handle's centre, turn in radians
+ * per second; 0 leaves one unbounded. A target within both bounds is
+ * reached in one tick; one beyond is approached along the same screw,
+ * reached in as many ticks as the bounds need. ISO_EINVAL for a source
+ * index out of range or a negative or non-finite bound. */
+ISO_API ISO_NODISCARD int iso_dev_map_set_limits(iso_dev_map *m, int source, double speed,
+                                                 double turn, iso_err *err);
 /* Sets handle h's centre (rest coordinates): a twist of the device then
  * turns the handle about R c + p, where it is now, instead of about p. */
 ISO_API void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);
@@ -540,6 +689,8 @@ typedef struct iso_dev_source_stats {
     uint32_t stale;            /* times its twist stream went quiet past its stale time */
     uint8_t present;           /* 1: open now (a replay: as recorded at this point) */
     uint8_t is_stale;          /* 1: its twist counted zero in the last tick */
+    uint8_t targeting;         /* a view: 1 when a fresh target drove its handle last tick */
+    uint8_t holder;            /* a view: 1 while a viewer is in control */
 } iso_dev_source_stats;
 /* Fills *out for source i. ISO_EINVAL (and *out zeroed) if i is not a
  * source. The stale counts are kept by iso_dev_hub_tick. */

@@ -124,6 +124,21 @@ int iso_dev_map_set_stale(iso_dev_map *m, int source, int64_t stale_ns, iso_err 
     return ISO_OK;
 }
 
+int iso_dev_map_set_limits(iso_dev_map *m, int source, double speed, double turn, iso_err *err)
+{
+    if (source < 0 || source >= (int)ISO_DEV_MAX_SOURCES)
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: source %d (must be 0 to %u)",
+                           source, ISO_DEV_MAX_SOURCES - 1);
+    if (!(speed >= 0) || !(turn >= 0) || isinf(speed) || isinf(turn))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "device mapping: source %d: speed %g and turn %g must be finite and "
+                           ">= 0",
+                           source, speed, turn);
+    m->max_speed[source] = speed;
+    m->max_turn[source] = turn;
+    return ISO_OK;
+}
+
 void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3])
 {
     if (h >= 0 && h < (int)ISO_DEV_MAX_HANDLES)
@@ -214,6 +229,39 @@ static void twist_toward(const iso_dev_map_opts *o, const double tgt[6], const i
     }
 }
 
+/* A view's target: the twist that reaches it in this tick, along the same
+ * screw but slower when it would move the handle's centre c (where it is
+ * now) faster than speed or turn it faster than turn (0: no bound). The
+ * target is in scene units: no pose_scale, no pose_gain (the bounds give
+ * the smoothness, and the handle ends on the target). */
+static void twist_to_target(const double tgt[6], const iso_pose *g, const double c[3], double dt,
+                            double speed, double turn, iso_twist *out)
+{
+    memset(out, 0, sizeof *out);
+    if (!(dt > 0))
+        return;
+    iso_twist rv = {{tgt[3], tgt[4], tgt[5]}, {0, 0, 0}};
+    iso_pose T;
+    iso_twist_exp(&rv, 1.0, &T);
+    memcpy(T.p, tgt, sizeof T.p);
+    iso_twist xi;
+    if (iso_twist_between(g, &T, &xi, NULL) != ISO_OK)
+        return;
+    double vel[3];
+    iso_twist_velocity(&xi, c, vel); /* the centre's travel over the whole step */
+    double d = sqrt(vel[0] * vel[0] + vel[1] * vel[1] + vel[2] * vel[2]);
+    double a = sqrt(xi.w[0] * xi.w[0] + xi.w[1] * xi.w[1] + xi.w[2] * xi.w[2]);
+    double k = 1.0 / dt;
+    if (speed > 0 && d > speed * dt)
+        k = fmin(k, speed / d);
+    if (turn > 0 && a > turn * dt)
+        k = fmin(k, turn / a);
+    for (int i = 0; i < 3; i++) {
+        out->w[i] = k * xi.w[i];
+        out->v[i] = k * xi.v[i];
+    }
+}
+
 static void press(iso_dev_map *m, uint32_t before, uint32_t after, iso_dev_tick *out)
 {
     for (int b = 0; b < 32; b++) {
@@ -258,17 +306,32 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
         case ISO_DEV_EV_POSE:
             memcpy(s->v, e->v, sizeof s->v);
             s->has_pose = 1;
-            s->has_twist = 0;
+            s->has_twist = s->has_target = 0;
             break;
         case ISO_DEV_EV_TWIST:
             memcpy(s->v, e->v, sizeof s->v);
             s->has_twist = 1;
-            s->has_pose = 0;
+            s->has_pose = s->has_target = 0;
             s->t_twist = e->t_ns;
             break;
+        case ISO_DEV_EV_TARGET:
+            memcpy(s->v, e->v, sizeof s->v);
+            s->has_target = 1;
+            s->handle = e->line;
+            s->has_pose = s->has_twist = 0;
+            s->t_twist = e->t_ns;
+            break;
+        case ISO_DEV_EV_RELEASE: s->has_target = 0; break;
         case ISO_DEV_EV_GPIO:
             if (e->line == ISO_DEV_GPIO_ESTOP) {
-                m->estop = e->level;
+                if (e->level)
+                    m->estop_by |= bit;
+                else
+                    m->estop_by &= ~bit;
+                m->estop = m->estop_by != 0;
+                if (m->estop) /* what was commanded before a stop is not resumed after it */
+                    for (unsigned j = 0; j < ISO_DEV_MAX_SOURCES; j++)
+                        m->src[j].has_target = 0;
             } else if (e->line == ISO_DEV_GPIO_CLUTCH) {
                 gpio_clutch = e->level ? 2 : 0;
                 if (e->level)
@@ -287,9 +350,11 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
     /* Strictly past the stale time: a sample exactly stale_ns old still counts. */
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         iso_dev_map_src *s = &m->src[i];
-        s->stale = s->has_twist && now_ns - s->t_twist > m->stale_ns[i];
+        s->stale = (s->has_twist || s->has_target) && now_ns - s->t_twist > m->stale_ns[i];
         if (s->stale)
             out->stale |= (uint32_t)1 << i;
+        else if (s->has_target && !(m->gone & ((uint32_t)1 << i)))
+            out->targeting |= (uint32_t)1 << i;
     }
     uint32_t buttons = 0;
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
@@ -301,18 +366,27 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
     out->buttons = buttons;
     out->gone = m->gone;
     int hold = m->o.clutch_is_deadman ? !out->clutch : out->clutch;
-    if (m->estop || hold)
+    if (m->estop || hold) {
+        out->targeting = 0;
         return;
-    const iso_pose *g = &poses[m->active];
-    iso_pose gc = *g; /* rotations turn about the handle's centre, where it is now */
-    iso_pose_apply(g, m->centre[m->active], gc.p);
-    iso_twist *t = &out->twist[m->active];
+    }
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
-        iso_twist x;
         const iso_dev_map_src *s = &m->src[i];
         if ((m->gone & ((uint32_t)1 << i)) || s->stale)
             continue;
-        if (s->has_pose) {
+        /* a view's target names its handle; everything else drives the active one */
+        int h = s->has_target ? s->handle : m->active;
+        if (h >= m->o.n_handles) {
+            out->targeting &= ~((uint32_t)1 << i);
+            continue;
+        }
+        const iso_pose *g = &poses[h];
+        iso_pose gc = *g; /* rotations turn about the handle's centre, where it is now */
+        iso_pose_apply(g, m->centre[h], gc.p);
+        iso_twist x;
+        if (s->has_target) {
+            twist_to_target(s->v, g, gc.p, dt_s, m->max_speed[i], m->max_turn[i], &x);
+        } else if (s->has_pose) {
             twist_toward(&m->o, s->v, g, dt_s, &x);
         } else if (s->has_twist) {
             double v[3], w[3];
@@ -324,6 +398,7 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
         } else {
             iso_dev_map_axes(&m->o, s->axes, &gc, &x);
         }
+        iso_twist *t = &out->twist[h];
         for (int k = 0; k < 3; k++) {
             t->w[k] += x.w[k];
             t->v[k] += x.v[k];

@@ -45,7 +45,7 @@ static uint64_t iso_fuzz_dev_pass(int kind, const uint8_t *d, size_t n)
             abort();
         for (size_t e = 0; e < k; e++) {
             if (ev[e].source != 1 || ev[e].t_ns > t || ev[e].kind < ISO_DEV_EV_AXES ||
-                ev[e].kind > ISO_DEV_EV_BACK)
+                ev[e].kind > ISO_DEV_EV_RELEASE)
                 abort();
             const unsigned char *b = (const unsigned char *)&ev[e];
             for (size_t j = 0; j < sizeof ev[e]; j++)
