@@ -44,6 +44,8 @@ static void take_header(char *line, char *end, iso_display__request *r)
         r->key = v, r->key_len = vl;
     else if (iso_display__token_eq(line, nl, "sec-websocket-version"))
         r->version = v, r->version_len = vl;
+    else if (iso_display__token_eq(line, nl, "sec-websocket-protocol"))
+        r->protocol = v, r->protocol_len = vl;
 }
 
 int iso_display__parse_request(char *buf, iso_display__request *r)
@@ -64,8 +66,11 @@ int iso_display__parse_request(char *buf, iso_display__request *r)
     r->path = sp1 + 1;
     r->path_len = (size_t)(sp2 - sp1 - 1);
     const char *q = memchr(r->path, '?', r->path_len);
-    if (q)
+    if (q) {
+        r->query = q + 1;
+        r->query_len = r->path_len - (size_t)(q + 1 - r->path);
         r->path_len = (size_t)(q - r->path);
+    }
     for (char *line = eol + 2; *line && !(line[0] == '\r' && line[1] == '\n');) {
         char *end = strstr(line, "\r\n");
         if (!end) /* the headers must end in an empty line */
@@ -74,6 +79,22 @@ int iso_display__parse_request(char *buf, iso_display__request *r)
         line = end + 2;
     }
     return 0;
+}
+
+const char *iso_display__query_get(const char *q, size_t n, const char *key, size_t *len)
+{
+    size_t kl = strlen(key);
+    for (size_t i = 0; q && i < n;) {
+        const char *amp = memchr(q + i, '&', n - i);
+        size_t end = amp ? (size_t)(amp - q) : n;
+        if (end - i > kl && q[i + kl] == '=' && memcmp(q + i, key, kl) == 0) {
+            *len = end - i - kl - 1;
+            return q + i + kl + 1;
+        }
+        i = end + 1;
+    }
+    *len = 0;
+    return NULL;
 }
 
 int iso_display__authority_is(const char *a, size_t n, int port, int port_optional,

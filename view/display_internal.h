@@ -1,6 +1,7 @@
 /* view/display_internal.h -- private to view/: the page's text, the display's
- * state shared by its API (display.c) and its server (display_server.c),
- * and the WebSocket pieces (display_ws.c). */
+ * state shared by its API (display.c), its server (display_server.c) and
+ * the view protocol (display_viewer.c), and the WebSocket and HTTP pieces
+ * (display_ws.c, display_http.c). */
 #ifndef ISO_DISPLAY_INTERNAL_H
 #define ISO_DISPLAY_INTERNAL_H
 
@@ -16,9 +17,12 @@ extern const char iso_display__app_js[];
 
 /* ---- WebSocket (display_ws.c) --------------------------------------------- */
 
-/* Close statuses (RFC 6455 section 7.4.1) the parser returns. */
+/* Close statuses (RFC 6455 section 7.4.1). */
 #define ISO_DISPLAY_WS_NORMAL 1000
+#define ISO_DISPLAY_WS_GOING_AWAY 1001
 #define ISO_DISPLAY_WS_PROTOCOL_ERROR 1002
+#define ISO_DISPLAY_WS_NO_STATUS 1005 /* received without a status; never sent */
+#define ISO_DISPLAY_WS_BAD_DATA 1007  /* e.g. text that is not UTF-8 */
 #define ISO_DISPLAY_WS_TOO_BIG 1009
 
 /* Writes the Sec-WebSocket-Accept value for a 24-character key into out.
@@ -29,29 +33,69 @@ int iso_display__ws_accept(const char *key, size_t key_len, char out[29]);
  * its length (2, 4 or 10). */
 size_t iso_display__ws_header(unsigned char h[10], int opcode, size_t len);
 
-/* What a browser sends, parsed a byte at a time and thrown away. */
+/* Is this a close status an endpoint may send (1000-1003, 1007-1014,
+ * 3000-4999)? */
+int iso_display__ws_close_code_ok(int code);
+
+/* UTF-8 checked a byte at a time across frames: no overlong forms, no
+ * surrogates, nothing above U+10FFFF. */
+typedef struct iso_display__utf8 {
+    uint8_t need, lo, hi; /* continuation bytes still due, and the next one's range */
+} iso_display__utf8;
+/* 0 when b may come next, -1 when it may not. */
+int iso_display__utf8_step(iso_display__utf8 *u, unsigned char b);
+
+/* What a browser sends, parsed a byte at a time: frame headers judged as
+ * they complete, payloads unmasked into a bounded message buffer (data) or
+ * a control buffer, text checked as UTF-8 on the way. */
 typedef struct iso_display__ws_rx {
     unsigned char hdr[14];
     unsigned hdr_len;
-    uint64_t skip; /* payload bytes of the current frame still to discard */
-    long frames;   /* frame headers seen */
+    uint64_t left; /* payload bytes of the current frame still to come */
+    unsigned char mask[4];
+    unsigned mask_at;
+    int in_payload;  /* the header is done, the payload is being read */
+    int opcode, fin; /* of the current frame */
+    int msg_opcode;  /* 1 text or 2 binary while a message is open, else 0 */
+    size_t msg_len;  /* its bytes so far */
+    iso_display__utf8 utf8;
+    unsigned char msg[ISO_DISPLAY_MAX_CLIENT_MESSAGE];
+    unsigned char ctl[125];
+    size_t ctl_len;
+    long frames; /* frame headers seen */
 } iso_display__ws_rx;
 
-/* Feeds n bytes. Returns 0 to go on, or the status to close with:
- * ISO_DISPLAY_WS_NORMAL (the browser sent a close frame),
- * ISO_DISPLAY_WS_PROTOCOL_ERROR (unmasked frame, reserved bits, a long or
- * fragmented control frame) or ISO_DISPLAY_WS_TOO_BIG (a payload announced
- * above ISO_DISPLAY_MAX_CLIENT_FRAME). */
-int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n);
+/* What a feed stopped at. */
+enum {
+    ISO_DISPLAY_WS_MORE = 0,    /* every byte consumed, nothing complete */
+    ISO_DISPLAY_WS_MESSAGE = 1, /* a whole message: opcode, data, len */
+    ISO_DISPLAY_WS_PING = 2,    /* data, len: the payload to answer with */
+    ISO_DISPLAY_WS_PONG = 3,
+    ISO_DISPLAY_WS_CLOSE = 4, /* the peer closes: code (1005 when it gave none) */
+    ISO_DISPLAY_WS_FAIL = 5   /* a violation: code is the status to close with */
+};
+typedef struct iso_display__ws_event {
+    int opcode; /* MESSAGE: 1 text, 2 binary */
+    const unsigned char *data;
+    size_t len;
+    int code;
+} iso_display__ws_event;
+
+/* Feeds up to n bytes and stops after the first event; *used says how many
+ * were consumed. Returns ISO_DISPLAY_WS_* (MORE when all n were used and
+ * nothing completed). After CLOSE or FAIL the parser must not be fed again.
+ * An event's data points into rx and holds until the next feed. */
+int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n, size_t *used,
+                            iso_display__ws_event *ev);
 
 /* ---- HTTP (display_http.c) ------------------------------------------------ */
 
 /* The parts of a request the view reads; pointers into the caller's buffer. */
 typedef struct iso_display__request {
-    const char *method, *path; /* path without its query */
-    size_t method_len, path_len;
-    const char *host, *origin, *upgrade, *key, *version; /* NULL when absent */
-    size_t host_len, origin_len, upgrade_len, key_len, version_len;
+    const char *method, *path, *query; /* path without its query; query without '?' */
+    size_t method_len, path_len, query_len;
+    const char *host, *origin, *upgrade, *key, *version, *protocol; /* NULL when absent */
+    size_t host_len, origin_len, upgrade_len, key_len, version_len, protocol_len;
 } iso_display__request;
 
 /* Splits a request: buf is NUL-terminated and holds the request line and
@@ -67,26 +111,107 @@ int iso_display__parse_request(char *buf, iso_display__request *r);
 int iso_display__authority_is(const char *a, size_t n, int port, int port_optional,
                               const char *const *names, size_t n_names);
 
+/* The value of `key` in a query (k=v&k2=v2, no decoding: tokens are hex);
+ * NULL when absent. *len gets its length. */
+const char *iso_display__query_get(const char *q, size_t n, const char *key, size_t *len);
+
 /* Case-insensitive: [p, p+n) equals s / contains s. */
 int iso_display__token_eq(const char *p, size_t n, const char *s);
 int iso_display__contains_ci(const char *p, size_t n, const char *s);
 
-/* ---- the display's state -------------------------------------------------- */
+/* ---- connections ----------------------------------------------------------- */
 
-typedef struct iso_display__conn iso_display__conn; /* display_server.c */
+typedef struct iso_display__conn iso_display__conn;
+
+/* A kind of WebSocket connection: what it sends, what it takes. The view's
+ * own protocol (display_viewer.c) is the default; another (chosen by
+ * Sec-WebSocket-Protocol) adds a table like it and its fields to the
+ * connection. Each function runs on the server's thread. */
+typedef struct iso_display__proto {
+    const char *name; /* the Sec-WebSocket-Protocol it answers to; NULL: the default */
+    /* The upgrade was accepted (its 101 answer is queued): start the kind's
+     * state. Returns 0, or an HTTP status to answer with instead (503). */
+    int (*open)(iso_display *d, iso_display__conn *c, const iso_display__request *r);
+    /* A whole message from the browser. Returns 0, or a close status. */
+    int (*message)(iso_display *d, iso_display__conn *c, int opcode, const unsigned char *p,
+                   size_t n);
+    /* The last message is written whole: queue the next one (set_output).
+     * Returns 1 when one was queued. */
+    int (*next)(iso_display *d, iso_display__conn *c, long long now);
+    /* The connection ends, whatever the reason. */
+    void (*close)(iso_display *d, iso_display__conn *c);
+} iso_display__proto;
+
+extern const iso_display__proto iso_display__view_proto;
+
+typedef enum iso_display__conn_state {
+    C_FREE,
+    C_REQUEST,  /* reading the request line and headers */
+    C_RESPONSE, /* writing a response, then C_LINGER */
+    C_LINGER,   /* written and shut down for writing; draining until the peer closes */
+    C_SOCKET    /* a WebSocket */
+} iso_display__conn_state;
+
+typedef enum iso_display__viewer_stage { V_HANDSHAKE, V_TOPOLOGY, V_FRAMES } iso_display__stage;
+
+/* The view protocol's part of a connection. */
+typedef struct iso_display__viewer {
+    iso_display__stage stage;
+    unsigned char *frame; /* its own copy of the frame being written */
+    unsigned long frame_seq;
+    int writing_frame;
+    int may_command;      /* passed the checks, and the token when one is needed */
+    unsigned control_ver; /* the control state last sent to it */
+    unsigned note_ver;    /* the note last sent to it */
+    char why[96];         /* why its last command was refused */
+    char text[512];       /* the control message being written */
+} iso_display__viewer;
+
+struct iso_display__conn {
+    int fd;
+    iso_display__conn_state state;
+    long long since;      /* ms: accepted, or the current message queued */
+    unsigned long serial; /* order of acceptance: the oldest request yields its slot */
+    uint32_t id;          /* a WebSocket's number, as the device's envelopes name it */
+    long long deadline;   /* ms: when this connection is given up */
+    char local[64];       /* the address it arrived on, as a Host header spells it */
+
+    char req[ISO_DISPLAY_MAX_REQUEST + 1];
+    size_t req_len;
+
+    /* Output: head, then body; out_pos counts over both. */
+    char head[1024];
+    size_t head_len;
+    const unsigned char *body;
+    size_t body_len, out_pos;
+    /* A control frame to send between messages (a pong); 0 = none. */
+    unsigned char ctl_out[2 + 125];
+    size_t ctl_len;
+
+    /* WebSocket */
+    const iso_display__proto *proto;
+    iso_display__ws_rx rx;
+    iso_display__viewer v;
+};
+
+/* ---- the display's state -------------------------------------------------- */
 
 struct iso_display {
     /* Fixed at create. */
     const iso_mesh *mesh;
-    int nv, port;
+    int nv, nh, port;
     int listen_fd;
-    char host_name[64];  /* the bound address as a Host header spells it: [::1] */
-    char *three, *orbit; /* file contents; orbit may be NULL */
-    size_t three_len, orbit_len;
+    int remote;                  /* bound beyond loopback */
+    char host_name[64];          /* the bound address as a Host header spells it: [::1] */
+    char *three, *orbit, *gizmo; /* file contents; orbit and gizmo may be NULL */
+    size_t three_len, orbit_len, gizmo_len;
     char *topology; /* the JSON sent on connect */
     size_t topology_len;
     size_t frame_len;
-    int wake[2]; /* pipe: publish and destroy wake the server */
+    int wake[2];         /* pipe: publish and destroy wake the server */
+    iso_dev_source *dev; /* the view device, or NULL: read-only */
+    int n_cmd_handles;
+    char token[33]; /* "" when none is needed */
 
     /* The latest frame: publish writes it under frame_lock; the server copies
      * it out under the same lock. Nobody holds the lock for anything else. */
@@ -97,9 +222,17 @@ struct iso_display {
     atomic_int wake_pending;  /* a byte is in the pipe: publish need not write */
     atomic_int stopping;
 
+    /* The run's end (iso_display_end): note_lock guards note. */
+    pthread_mutex_t note_lock;
+    char *note;
+    atomic_uint note_ver;
+    atomic_int ended;
+
     /* Read by the status line without any lock; written by the server. */
     atomic_int viewers;
     atomic_long frames_sent;
+    atomic_uint holder;
+    atomic_uint cmd_accepted, cmd_refused, cmd_malformed, cmd_dropped, cmd_grants, cmd_stops;
 
     /* The server thread's own; no one else touches these. */
     pthread_t server;
@@ -107,10 +240,20 @@ struct iso_display {
     iso_display__conn *conns;      /* ISO_DISPLAY_MAX_CONNS */
     unsigned long counted_seq;     /* newest frame counted in frames_sent */
     unsigned long accepted;        /* connections accepted so far */
+    uint32_t next_id;              /* WebSockets numbered so far */
     long long accept_paused_until; /* ms: out of descriptors, accept later */
+    unsigned control_ver;          /* bumped when the holder or the stop changes */
+    int stop;                      /* a page's stop pressed, as the server saw it */
 };
 
-/* Opens the listening socket for opts (display_server.c). */
+long long iso_display__now_ms(void);
+
+/* Spells a socket address as a Host header would: 1.2.3.4 or [::1]; a
+ * v4-mapped IPv6 address as the IPv4 it is (display_listen.c). */
+struct sockaddr;
+void iso_display__host_spelling(const struct sockaddr *sa, char *out, size_t cap);
+
+/* Opens the listening socket for opts (display_listen.c). */
 int iso_display__listen(iso_display *d, const iso_display_opts *opts, iso_err *err);
 
 /* The server thread's body (display_server.c). */
@@ -118,5 +261,14 @@ void *iso_display__serve(void *arg);
 
 /* Frees what the server thread left (connections, the listener). */
 void iso_display__server_free(iso_display *d);
+
+/* Output of a connection (display_server.c): what to write next. */
+void iso_display__set_output(iso_display__conn *c, const void *body, size_t len);
+/* Queues a WebSocket message: header into c->head, body as given. */
+void iso_display__queue_message(iso_display__conn *c, int opcode, const void *body, size_t len);
+
+/* The view protocol's hooks for the server (display_viewer.c): the end of
+ * the run reaches each viewer; the stop state changed. */
+void iso_display__viewer_end(iso_display *d);
 
 #endif

@@ -1,5 +1,6 @@
 /* view/display_server.c -- the live view's server: one thread, one poll()
- * loop, non-blocking sockets, a fixed table of connections.
+ * loop, non-blocking sockets, a fixed table of connections, and the policy
+ * that keeps page loads going under a flood of connections (iso_display.h).
  *
  * Why not civetweb, which served this before: Debian 12's civetweb 1.15 is
  * built without IPv6, spends a worker thread per WebSocket (eight browsers
@@ -10,10 +11,10 @@
  * iso_display.h a line of this file.
  *
  * A connection is a request being read, a response being written, a
- * response written and lingering for the peer's close, or a viewer. A
- * viewer's output is at most one message: the handshake answer, then the
- * topology, then frames; when a message is done and a newer frame was
- * published, that frame is copied out and becomes the next message. */
+ * response written and lingering for the peer's close, or a WebSocket of
+ * some kind (iso_display__proto; the view's own in display_viewer.c). A
+ * WebSocket's output is at most one message at a time, with a pong slipped
+ * in between two messages; its kind says what comes next. */
 #include "display_internal.h"
 #include "iso_clock.h"
 #include "iso_fd.h"
@@ -35,174 +36,34 @@
 
 #define LINGER_MS 1000 /* how long a finished response waits for the peer's close */
 
-typedef enum conn_state {
-    C_FREE,
-    C_REQUEST,  /* reading the request line and headers */
-    C_RESPONSE, /* writing a response, then C_LINGER */
-    C_LINGER,   /* written and shut down for writing; draining until the peer closes */
-    C_VIEWER    /* a WebSocket */
-} conn_state;
-
-typedef enum viewer_stage { V_HANDSHAKE, V_TOPOLOGY, V_FRAMES } viewer_stage;
-
-struct iso_display__conn {
-    int fd;
-    conn_state state;
-    long long since;      /* ms: accepted, or the current message queued */
-    unsigned long serial; /* order of acceptance: the oldest request yields its slot */
-    long long deadline;   /* ms: when this connection is given up */
-    char local[64];       /* the address it arrived on, as a Host header spells it */
-
-    char req[ISO_DISPLAY_MAX_REQUEST + 1];
-    size_t req_len;
-
-    /* Output: head, then body; out_pos counts over both. */
-    char head[1024];
-    size_t head_len;
-    const unsigned char *body;
-    size_t body_len, out_pos;
-
-    /* Viewer only. */
-    viewer_stage stage;
-    unsigned char *frame; /* its own copy of the frame being written */
-    unsigned long frame_seq;
-    int writing_frame;
-    iso_display__ws_rx rx;
-};
-
-static long long now_ms(void)
+long long iso_display__now_ms(void)
 {
     return (long long)(iso_clock_ns() / 1000000);
 }
-
-/* ---- addresses ------------------------------------------------------------ */
-
-/* Spells a socket address as a Host header would: 1.2.3.4 or [::1]; a
- * v4-mapped IPv6 address as the IPv4 it is. */
-static void host_spelling(const struct sockaddr *sa, char *out, size_t cap)
-{
-    char a[INET6_ADDRSTRLEN] = "?";
-    if (sa->sa_family == AF_INET) {
-        inet_ntop(AF_INET, &((const struct sockaddr_in *)sa)->sin_addr, a, sizeof a);
-        snprintf(out, cap, "%s", a);
-        return;
-    }
-    const struct in6_addr *v6 = &((const struct sockaddr_in6 *)sa)->sin6_addr;
-    if (IN6_IS_ADDR_V4MAPPED(v6)) {
-        inet_ntop(AF_INET, v6->s6_addr + 12, a, sizeof a);
-        snprintf(out, cap, "%s", a);
-        return;
-    }
-    inet_ntop(AF_INET6, v6, a, sizeof a);
-    snprintf(out, cap, "[%s]", a);
-}
-
-static int is_loopback(const struct sockaddr *sa)
-{
-    if (sa->sa_family == AF_INET)
-        return (ntohl(((const struct sockaddr_in *)sa)->sin_addr.s_addr) >> 24) == 127;
-    const struct in6_addr *v6 = &((const struct sockaddr_in6 *)sa)->sin6_addr;
-    if (IN6_IS_ADDR_V4MAPPED(v6))
-        return v6->s6_addr[12] == 127;
-    return IN6_IS_ADDR_LOOPBACK(v6);
-}
-
-static void notice(const iso_display_opts *o, const char *line)
-{
-    if (o->notice)
-        o->notice(o->notice_ctx, line);
-    else
-        fprintf(stderr, "%s\n", line);
-}
-
-int iso_display__listen(iso_display *d, const iso_display_opts *o, iso_err *err)
-{
-    const char *host = o->host ? o->host : ISO_DISPLAY_DEFAULT_HOST;
-    char h[128];
-    size_t n = strlen(host);
-    if (n >= sizeof h)
-        return iso_err_set(err, ISO_EINVAL, -1, "display: host \"%.60s...\" is too long", host);
-    if (n >= 2 && host[0] == '[' && host[n - 1] == ']') { /* [::1] as in a URL */
-        memcpy(h, host + 1, n - 2);
-        h[n - 2] = 0;
-    } else {
-        memcpy(h, host, n + 1);
-    }
-    if (strcasecmp(h, "localhost") == 0)
-        snprintf(h, sizeof h, "127.0.0.1");
-    char port[16];
-    snprintf(port, sizeof port, "%d", o->port);
-    struct addrinfo hints, *ai = NULL;
-    memset(&hints, 0, sizeof hints);
-    hints.ai_socktype = SOCK_STREAM;
-    hints.ai_flags = AI_NUMERICHOST | AI_NUMERICSERV | AI_PASSIVE;
-    if (getaddrinfo(h, port, &hints, &ai) != 0 || !ai)
-        return iso_err_set(err, ISO_EINVAL, -1,
-                           "display: host \"%s\" is not a numeric IPv4 or IPv6 address or "
-                           "localhost",
-                           host);
-    char spelled[64];
-    host_spelling(ai->ai_addr, spelled, sizeof spelled);
-    int rc = ISO_OK;
-    if (!is_loopback(ai->ai_addr) && !o->allow_remote) {
-        rc = iso_err_set(err, ISO_EINVAL, -1,
-                         "display: refusing to listen on %s, which other machines can reach, "
-                         "while the view has no password; set allow_remote (scene key "
-                         "sinks.display.allow_remote: true) to do it anyway",
-                         spelled);
-        goto done;
-    }
-    int fd = socket(ai->ai_family, SOCK_STREAM, 0);
-    if (fd < 0) {
-        rc = iso_err_set(err, ISO_EIO, -1, "display: cannot open a socket for %s: %s", spelled,
-                         strerror(errno));
-        goto done;
-    }
-    int one = 1;
-    setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-    if (bind(fd, ai->ai_addr, ai->ai_addrlen) != 0 || listen(fd, 64) != 0) {
-        rc = iso_err_set(err, ISO_EIO, -1, "display: cannot serve on %s port %d: %s", spelled,
-                         o->port, strerror(errno));
-        close(fd);
-        goto done;
-    }
-    (void)iso_fd_nonblock(fd);
-    struct sockaddr_storage ss;
-    socklen_t sl = sizeof ss;
-    getsockname(fd, (struct sockaddr *)&ss, &sl);
-    d->port = ntohs(ss.ss_family == AF_INET ? ((struct sockaddr_in *)&ss)->sin_port
-                                            : ((struct sockaddr_in6 *)&ss)->sin6_port);
-    d->listen_fd = fd;
-    snprintf(d->host_name, sizeof d->host_name, "%s", spelled);
-    d->conns = calloc(ISO_DISPLAY_MAX_CONNS, sizeof *d->conns);
-    if (!d->conns) {
-        rc = iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory");
-        goto done;
-    }
-    for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++)
-        d->conns[i].fd = -1;
-    if (!is_loopback(ai->ai_addr)) {
-        char line[256];
-        snprintf(line, sizeof line,
-                 "display: warning: the live view on %s port %d can be reached from other "
-                 "machines, and anyone who reaches it sees the mesh (allow_remote is set)",
-                 spelled, d->port);
-        notice(o, line);
-    }
-done:
-    freeaddrinfo(ai);
-    return rc;
-}
+#define now_ms iso_display__now_ms
 
 /* ---- connections ---------------------------------------------------------- */
 
-static void conn_close(iso_display *d, iso_display__conn *c)
+static int pending(const iso_display__conn *c)
 {
-    if (c->state == C_VIEWER)
+    return c->out_pos < c->head_len + c->body_len;
+}
+
+/* Ends a connection. `drop`: the server gives up on the peer (a stall, a
+ * timeout, an eviction): the close is a reset, so what it had not yet sent
+ * leaves the kernel at once instead of waiting there for a peer that does
+ * not read. */
+static void conn_close(iso_display *d, iso_display__conn *c, int drop)
+{
+    if (c->state == C_SOCKET) {
+        c->proto->close(d, c);
         atomic_fetch_sub(&d->viewers, 1);
+    }
+    if (drop) {
+        struct linger lg = {1, 0};
+        setsockopt(c->fd, SOL_SOCKET, SO_LINGER, &lg, sizeof lg);
+    }
     close(c->fd);
-    free(c->frame);
-    c->frame = NULL;
     c->fd = -1;
     c->state = C_FREE;
 }
@@ -240,11 +101,19 @@ static int flush_out(iso_display__conn *c)
     return 1;
 }
 
-static void set_output(iso_display__conn *c, const void *body, size_t len)
+void iso_display__set_output(iso_display__conn *c, const void *body, size_t len)
 {
     c->body = body;
     c->body_len = len;
     c->out_pos = 0;
+}
+
+void iso_display__queue_message(iso_display__conn *c, int opcode, const void *body, size_t len)
+{
+    unsigned char h[10];
+    c->head_len = iso_display__ws_header(h, opcode, len);
+    memcpy(c->head, h, c->head_len);
+    iso_display__set_output(c, body, len);
 }
 
 /* Queues a whole response and closes after it: Connection: close keeps the
@@ -258,7 +127,7 @@ static void respond(iso_display__conn *c, int status, const char *reason, const 
                      "Connection: close\r\n%s\r\n",
                      status, reason, type, len, extra ? extra : "");
     c->head_len = n > 0 && (size_t)n < sizeof c->head ? (size_t)n : 0;
-    set_output(c, head_only ? NULL : body, head_only ? 0 : len);
+    iso_display__set_output(c, head_only ? NULL : body, head_only ? 0 : len);
     c->state = C_RESPONSE;
     c->deadline = now_ms() + ISO_DISPLAY_STALL_MS;
 }
@@ -293,42 +162,83 @@ static int origin_is_ours(const iso_display *d, const iso_display__conn *c,
            authority_is_ours(d, c, r->origin + 7, r->origin_len - 7, 0);
 }
 
-/* ---- answering ------------------------------------------------------------ */
+/* ---- WebSockets ------------------------------------------------------------ */
 
-static void start_viewer(iso_display *d, iso_display__conn *c, const iso_display__request *r)
+static int count_sockets(const iso_display *d)
+{
+    int n = 0;
+    for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++)
+        n += d->conns[i].state == C_SOCKET;
+    return n;
+}
+
+/* The kind a Sec-WebSocket-Protocol offer asks for: the first offered name
+ * that a kind answers to; the view's own when there is no offer. NULL when
+ * nothing offered is spoken here. */
+static const iso_display__proto *choose_proto(const iso_display__request *r)
+{
+    static const iso_display__proto *const kinds[] = {&iso_display__view_proto};
+    if (!r->protocol)
+        return &iso_display__view_proto;
+    for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
+        if (kinds[k]->name &&
+            iso_display__contains_ci(r->protocol, r->protocol_len, kinds[k]->name))
+            return kinds[k];
+    return NULL;
+}
+
+static void start_socket(iso_display *d, iso_display__conn *c, const iso_display__request *r,
+                         const iso_display__proto *proto)
 {
     char accept[29];
     if (iso_display__ws_accept(r->key, r->key_len, accept) != 0) {
         respond_error(c, 400, "Bad Request", NULL, "Sec-WebSocket-Key must have 24 characters", 0);
         return;
     }
-    c->frame = malloc(d->frame_len);
-    if (!c->frame) {
+    c->proto = proto;
+    c->id = ++d->next_id;
+    memset(&c->rx, 0, sizeof c->rx);
+    memset(&c->v, 0, sizeof c->v);
+    c->ctl_len = 0;
+    if (proto->open(d, c, r) != 0) {
         respond_error(c, 503, "Service Unavailable", NULL, "out of memory", 0);
         return;
     }
+    char sub[96] = "";
+    if (proto->name)
+        snprintf(sub, sizeof sub, "Sec-WebSocket-Protocol: %s\r\n", proto->name);
     int n = snprintf(c->head, sizeof c->head,
                      "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\n"
-                     "Connection: Upgrade\r\nSec-WebSocket-Accept: %s\r\n\r\n",
-                     accept);
+                     "Connection: Upgrade\r\nSec-WebSocket-Accept: %s\r\n%s\r\n",
+                     accept, sub);
     c->head_len = (size_t)n;
-    set_output(c, NULL, 0);
-    c->state = C_VIEWER;
-    c->stage = V_HANDSHAKE;
-    c->frame_seq = 0;
-    c->writing_frame = 0;
-    memset(&c->rx, 0, sizeof c->rx);
+    iso_display__set_output(c, NULL, 0);
+    c->state = C_SOCKET;
     c->since = now_ms();
     c->deadline = c->since + ISO_DISPLAY_STALL_MS;
     atomic_fetch_add(&d->viewers, 1);
 }
 
-static int count_viewers(const iso_display *d)
+static void upgrade(iso_display *d, iso_display__conn *c, const iso_display__request *r, int head)
 {
-    int n = 0;
-    for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++)
-        n += d->conns[i].state == C_VIEWER;
-    return n;
+    const iso_display__proto *proto = choose_proto(r);
+    if (!origin_is_ours(d, c, r))
+        respond_error(c, 403, "Forbidden", NULL,
+                      "the stream is only for this view's own page (foreign Origin)", head);
+    else if (head || !r->upgrade ||
+             !iso_display__contains_ci(r->upgrade, r->upgrade_len, "websocket"))
+        respond_error(c, 426, "Upgrade Required", "Upgrade: websocket\r\n", "/ws is a WebSocket",
+                      head);
+    else if (!r->version || !iso_display__token_eq(r->version, r->version_len, "13"))
+        respond_error(c, 426, "Upgrade Required", "Sec-WebSocket-Version: 13\r\n",
+                      "only WebSocket version 13 is spoken", 0);
+    else if (!proto)
+        respond_error(c, 400, "Bad Request", NULL, "no subprotocol offered is spoken here", 0);
+    else if (count_sockets(d) >= ISO_DISPLAY_MAX_VIEWERS)
+        respond_error(c, 503, "Service Unavailable", "Retry-After: 5\r\n",
+                      "the view has as many viewers as it serves", 0);
+    else
+        start_socket(d, c, r, proto);
 }
 
 static void answer(iso_display *d, iso_display__conn *c)
@@ -352,117 +262,134 @@ static void answer(iso_display *d, iso_display__conn *c)
     }
 #define PATH_IS(s) (r.path_len == sizeof(s) - 1 && memcmp(r.path, s, sizeof(s) - 1) == 0)
     static const char js[] = "application/javascript";
-    if (PATH_IS("/") || PATH_IS("/index.html")) {
+    if (PATH_IS("/") || PATH_IS("/index.html"))
         respond(c, 200, "OK", "text/html; charset=utf-8", NULL, iso_display__page_html,
                 strlen(iso_display__page_html), head);
-    } else if (PATH_IS("/app.js")) {
+    else if (PATH_IS("/app.js"))
         respond(c, 200, "OK", js, NULL, iso_display__app_js, strlen(iso_display__app_js), head);
-    } else if (PATH_IS("/three.min.js")) {
+    else if (PATH_IS("/three.min.js"))
         respond(c, 200, "OK", js, NULL, d->three, d->three_len, head);
-    } else if (PATH_IS("/OrbitControls.js") && d->orbit) {
+    else if (PATH_IS("/OrbitControls.js") && d->orbit)
         respond(c, 200, "OK", js, NULL, d->orbit, d->orbit_len, head);
-    } else if (PATH_IS("/ws")) {
-        if (!origin_is_ours(d, c, &r))
-            respond_error(c, 403, "Forbidden", NULL,
-                          "the stream is only for this view's own page (foreign Origin)", head);
-        else if (head || !r.upgrade ||
-                 !iso_display__contains_ci(r.upgrade, r.upgrade_len, "websocket"))
-            respond_error(c, 426, "Upgrade Required", "Upgrade: websocket\r\n",
-                          "/ws is a WebSocket", head);
-        else if (!r.version || !iso_display__token_eq(r.version, r.version_len, "13"))
-            respond_error(c, 426, "Upgrade Required", "Sec-WebSocket-Version: 13\r\n",
-                          "only WebSocket version 13 is spoken", 0);
-        else if (count_viewers(d) >= ISO_DISPLAY_MAX_VIEWERS)
-            respond_error(c, 503, "Service Unavailable", "Retry-After: 5\r\n",
-                          "the view has as many viewers as it serves", 0);
-        else
-            start_viewer(d, c, &r);
-    } else {
+    else if (PATH_IS("/TransformControls.js") && d->gizmo)
+        respond(c, 200, "OK", js, NULL, d->gizmo, d->gizmo_len, head);
+    else if (PATH_IS("/ws"))
+        upgrade(d, c, &r, head);
+    else
         respond_error(c, 404, "Not Found", NULL, "no such page", head);
-    }
 #undef PATH_IS
 }
 
-/* ---- the viewer's queue --------------------------------------------------- */
+/* ---- a WebSocket's output and input ---------------------------------------- */
 
-/* Starts c's next message once the last one is written: the topology after
- * the handshake, then the newest frame it has not had, if any. Returns 1
- * when a message was queued. */
-static int viewer_next(iso_display *d, iso_display__conn *c, long long now)
-{
-    unsigned char h[10];
-    if (c->writing_frame) { /* the frame before is written whole */
-        c->writing_frame = 0;
-        if (c->frame_seq > d->counted_seq) {
-            d->counted_seq = c->frame_seq;
-            atomic_fetch_add(&d->frames_sent, 1);
-        }
-    }
-    if (c->stage == V_HANDSHAKE) {
-        c->stage = V_TOPOLOGY;
-        c->head_len = iso_display__ws_header(h, 1, d->topology_len);
-        memcpy(c->head, h, c->head_len);
-        set_output(c, d->topology, d->topology_len);
-    } else {
-        c->stage = V_FRAMES;
-        if (atomic_load(&d->published) == c->frame_seq)
-            return 0;
-        pthread_mutex_lock(&d->frame_lock);
-        memcpy(c->frame, d->latest, d->frame_len);
-        c->frame_seq = d->latest_seq;
-        pthread_mutex_unlock(&d->frame_lock);
-        c->head_len = iso_display__ws_header(h, 2, d->frame_len);
-        memcpy(c->head, h, c->head_len);
-        set_output(c, c->frame, d->frame_len);
-        c->writing_frame = 1;
-    }
-    c->since = now;
-    c->deadline = now + ISO_DISPLAY_STALL_MS;
-    return 1;
-}
-
-/* Writes what c has and queues what comes next, until the socket is full
- * or nothing is left. */
-static void viewer_pump(iso_display *d, iso_display__conn *c, long long now)
+/* Writes what c has and queues what comes next (a pong first, then what
+ * its kind says), until the socket is full or nothing is left. */
+static void socket_pump(iso_display *d, iso_display__conn *c, long long now)
 {
     for (;;) {
         int st = flush_out(c);
         if (st < 0) {
-            conn_close(d, c);
+            conn_close(d, c, 1);
             return;
         }
         if (st == 0)
             return;
         c->head_len = c->body_len = c->out_pos = 0;
-        if (!viewer_next(d, c, now))
+        if (c->ctl_len) {
+            memcpy(c->head, c->ctl_out, c->ctl_len);
+            c->head_len = c->ctl_len;
+            c->ctl_len = 0;
+            iso_display__set_output(c, NULL, 0);
+        } else if (!c->proto->next(d, c, now)) {
             return;
+        }
+        c->since = now;
+        c->deadline = now + ISO_DISPLAY_STALL_MS;
     }
 }
 
-static int pending(const iso_display__conn *c)
+/* Sends a close frame with `status` if it fits between two messages, then
+ * closes; the peer's reply is not waited for (it would hold a slot). */
+static void socket_close(iso_display *d, iso_display__conn *c, int status)
 {
-    return c->out_pos < c->head_len + c->body_len;
-}
-
-/* Best effort: a close frame, if the socket takes it at once. */
-static void viewer_close(iso_display *d, iso_display__conn *c, int status)
-{
-    if (!pending(c)) { /* else a close frame would land inside a message */
+    if (!pending(c)) {
         unsigned char f[4] = {0x88, 2, (unsigned char)(status >> 8), (unsigned char)status};
         ssize_t w = send(c->fd, f, sizeof f, MSG_NOSIGNAL | MSG_DONTWAIT);
         (void)w;
+        shutdown(c->fd, SHUT_WR);
     }
-    conn_close(d, c);
+    conn_close(d, c, pending(c));
 }
 
-/* ---- reading -------------------------------------------------------------- */
+/* Feeds the browser's bytes to the parser and acts on what completes.
+ * Returns 0 when the connection goes on. */
+static int socket_input(iso_display *d, iso_display__conn *c, const unsigned char *p, size_t n)
+{
+    while (n) {
+        iso_display__ws_event ev;
+        size_t used = 0;
+        int st = iso_display__ws_rx_feed(&c->rx, p, n, &used, &ev);
+        p += used;
+        n -= used;
+        int status = 0;
+        if (st == ISO_DISPLAY_WS_MESSAGE)
+            status = c->proto->message(d, c, ev.opcode, ev.data, ev.len);
+        else if (st == ISO_DISPLAY_WS_PING) {
+            c->ctl_out[0] = 0x8a; /* a pong with the ping's payload; a newer ping replaces it */
+            c->ctl_out[1] = (unsigned char)ev.len;
+            memcpy(c->ctl_out + 2, ev.data, ev.len);
+            c->ctl_len = 2 + ev.len;
+        } else if (st == ISO_DISPLAY_WS_CLOSE)
+            status = ev.code == ISO_DISPLAY_WS_NO_STATUS ? ISO_DISPLAY_WS_NORMAL : ev.code;
+        else if (st == ISO_DISPLAY_WS_FAIL)
+            status = ev.code;
+        if (status) {
+            socket_close(d, c, status);
+            return -1;
+        }
+    }
+    if (c->ctl_len && !pending(c))
+        socket_pump(d, c, now_ms());
+    return 0;
+}
 
-static void on_request_bytes(iso_display *d, iso_display__conn *c)
+static void on_socket_bytes(iso_display *d, iso_display__conn *c)
+{
+    unsigned char buf[4096];
+    ssize_t r = recv(c->fd, buf, sizeof buf, 0);
+    if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
+        conn_close(d, c, pending(c));
+        return;
+    }
+    if (r > 0)
+        (void)socket_input(d, c, buf, (size_t)r);
+}
+
+/* ---- reading requests -------------------------------------------------------- */
+
+static void after_response(iso_display *d, iso_display__conn *c, long long now)
+{
+    int st = flush_out(c);
+    if (st < 0) {
+        conn_close(d, c, 1);
+    } else if (st > 0) {
+        /* Close our side, then wait for the peer's: closing with its bytes
+         * unread (a POST body) would reset the connection and could lose the
+         * answer before the browser reads it. */
+        shutdown(c->fd, SHUT_WR);
+        c->state = C_LINGER;
+        c->deadline = now + LINGER_MS;
+    } else if (c->out_pos) {
+        c->deadline = now + ISO_DISPLAY_STALL_MS; /* progress: the clock starts again */
+    }
+}
+
+static void on_request_bytes(iso_display *d, iso_display__conn *c, long long now)
 {
     size_t room = ISO_DISPLAY_MAX_REQUEST - c->req_len;
     ssize_t r = recv(c->fd, c->req + c->req_len, room, 0);
     if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-        conn_close(d, c);
+        conn_close(d, c, 0);
         return;
     }
     if (r < 0)
@@ -470,49 +397,36 @@ static void on_request_bytes(iso_display *d, iso_display__conn *c)
     size_t from = c->req_len > 3 ? c->req_len - 3 : 0;
     if (memchr(c->req + c->req_len, 0, (size_t)r)) { /* would cut the text short */
         respond_error(c, 400, "Bad Request", NULL, "a NUL byte in the request", 0);
+        after_response(d, c, now);
         return;
     }
     c->req_len += (size_t)r;
     c->req[c->req_len] = 0;
     char *end = strstr(c->req + from, "\r\n\r\n");
     if (!end) {
-        if (c->req_len == ISO_DISPLAY_MAX_REQUEST)
+        if (c->req_len == ISO_DISPLAY_MAX_REQUEST) {
             respond_error(c, 431, "Request Header Fields Too Large", NULL,
                           "the request line and headers exceed 8192 bytes", 0);
+            after_response(d, c, now);
+        }
         return;
     }
     /* Bytes after the headers: a body (discarded while lingering) or, from a
-     * new viewer, its first frames (fed to the parser). */
+     * new WebSocket, its first frames (fed to the parser). */
     size_t used = (size_t)(end - c->req) + 4;
     unsigned char extra[ISO_DISPLAY_MAX_REQUEST];
     size_t n_extra = c->req_len - used;
     memcpy(extra, c->req + used, n_extra);
     c->req[used] = 0;
     answer(d, c);
-    if (c->state == C_VIEWER && n_extra) {
-        int st = iso_display__ws_rx_feed(&c->rx, extra, n_extra);
-        if (st) {
-            viewer_close(d, c, st);
-            return;
-        }
-    }
-    if (c->state == C_VIEWER)
-        viewer_pump(d, c, now_ms());
-}
-
-static void on_viewer_bytes(iso_display *d, iso_display__conn *c)
-{
-    unsigned char buf[4096];
-    ssize_t r = recv(c->fd, buf, sizeof buf, 0);
-    if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
-        conn_close(d, c);
+    if (c->state == C_RESPONSE) { /* written at once: a flood must not delay it */
+        after_response(d, c, now);
         return;
     }
-    if (r < 0)
+    if (c->state == C_SOCKET && n_extra && socket_input(d, c, extra, n_extra) != 0)
         return;
-    int st = iso_display__ws_rx_feed(&c->rx, buf, (size_t)r);
-    if (st)
-        viewer_close(d, c, st);
+    if (c->state == C_SOCKET)
+        socket_pump(d, c, now);
 }
 
 static void on_linger_bytes(iso_display *d, iso_display__conn *c)
@@ -520,33 +434,59 @@ static void on_linger_bytes(iso_display *d, iso_display__conn *c)
     unsigned char buf[4096];
     ssize_t r = recv(c->fd, buf, sizeof buf, 0);
     if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR))
-        conn_close(d, c);
+        conn_close(d, c, 0);
 }
 
 /* ---- accepting ------------------------------------------------------------ */
 
-/* A free slot, or the one of the oldest unfinished request, whose sender
- * loses its place rather than keep a newcomer out. NULL when every slot is
- * a viewer or a response under way. */
+/* How readily a connection gives its slot to a newcomer: lower first, -1
+ * never. A request with no byte yet is the cheapest to lose (a browser's
+ * request is there when it is accepted); then one that lingers after its
+ * answer; then a partial request, the slow sender's. */
+static int evict_rank(const iso_display__conn *c)
+{
+    if (c->state == C_REQUEST)
+        return c->req_len == 0 ? 0 : 2;
+    return c->state == C_LINGER ? 1 : -1;
+}
+
+/* A free slot, or the one of the connection that yields first (the oldest
+ * of its rank). NULL when every slot is a WebSocket or a response. */
 static iso_display__conn *slot_for_newcomer(iso_display *d)
 {
-    iso_display__conn *oldest = NULL;
+    iso_display__conn *best = NULL;
+    int best_rank = 99;
     for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
         iso_display__conn *c = &d->conns[i];
         if (c->state == C_FREE)
             return c;
-        if ((c->state == C_REQUEST || c->state == C_LINGER) &&
-            (!oldest || c->serial < oldest->serial))
-            oldest = c;
+        int r = evict_rank(c);
+        if (r >= 0 && (r < best_rank || (r == best_rank && c->serial < best->serial))) {
+            best = c;
+            best_rank = r;
+        }
     }
-    if (oldest)
-        conn_close(d, oldest);
-    return oldest;
+    if (best)
+        conn_close(d, best, 1);
+    return best;
 }
 
-static void accept_all(iso_display *d, long long now)
+static void refuse_busy(int fd)
 {
-    for (;;) {
+    static const char busy[] = "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n"
+                               "Retry-After: 5\r\nConnection: close\r\n\r\n";
+    ssize_t w = send(fd, busy, sizeof busy - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
+    (void)w;
+    struct linger lg = {1, 0};
+    setsockopt(fd, SOL_SOCKET, SO_LINGER, &lg, sizeof lg);
+    close(fd);
+}
+
+/* Accepts up to ISO_DISPLAY_ACCEPT_BATCH connections and reads each one's
+ * request at once. */
+static void accept_some(iso_display *d, long long now)
+{
+    for (int k = 0; k < ISO_DISPLAY_ACCEPT_BATCH; k++) {
         struct sockaddr_storage ss;
         socklen_t sl = sizeof ss;
         int fd = accept(d->listen_fd, (struct sockaddr *)&ss, &sl);
@@ -560,11 +500,7 @@ static void accept_all(iso_display *d, long long now)
         (void)iso_fd_nonblock(fd);
         iso_display__conn *c = slot_for_newcomer(d);
         if (!c) {
-            static const char busy[] = "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n"
-                                       "Retry-After: 5\r\nConnection: close\r\n\r\n";
-            ssize_t w = send(fd, busy, sizeof busy - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
-            (void)w;
-            close(fd);
+            refuse_busy(fd);
             continue;
         }
         int one = 1;
@@ -577,28 +513,12 @@ static void accept_all(iso_display *d, long long now)
         c->deadline = now + ISO_DISPLAY_REQUEST_TIMEOUT_MS;
         sl = sizeof ss;
         if (getsockname(fd, (struct sockaddr *)&ss, &sl) == 0)
-            host_spelling((struct sockaddr *)&ss, c->local, sizeof c->local);
+            iso_display__host_spelling((struct sockaddr *)&ss, c->local, sizeof c->local);
+        on_request_bytes(d, c, now);
     }
 }
 
 /* ---- the loop ------------------------------------------------------------- */
-
-static void after_response(iso_display *d, iso_display__conn *c, long long now)
-{
-    int st = flush_out(c);
-    if (st < 0) {
-        conn_close(d, c);
-    } else if (st > 0) {
-        /* Close our side, then wait for the peer's: closing with its bytes
-         * unread (a POST body) would reset the connection and could lose the
-         * answer before the browser reads it. */
-        shutdown(c->fd, SHUT_WR);
-        c->state = C_LINGER;
-        c->deadline = now + LINGER_MS;
-    } else if (c->out_pos) {
-        c->deadline = now + ISO_DISPLAY_STALL_MS; /* progress: the clock starts again */
-    }
-}
 
 static void drain_wake(iso_display *d)
 {
@@ -611,26 +531,55 @@ static void drain_wake(iso_display *d)
 static void service(iso_display *d, iso_display__conn *c, short re, long long now)
 {
     if (c->state == C_REQUEST && (re & (POLLIN | POLLHUP | POLLERR)))
-        on_request_bytes(d, c);
+        on_request_bytes(d, c, now);
     else if (c->state == C_RESPONSE && (re & (POLLOUT | POLLHUP | POLLERR)))
         after_response(d, c, now);
     else if (c->state == C_LINGER && (re & (POLLIN | POLLHUP | POLLERR)))
         on_linger_bytes(d, c);
-    else if (c->state == C_VIEWER) {
+    else if (c->state == C_SOCKET) {
         if (re & (POLLIN | POLLHUP | POLLERR))
-            on_viewer_bytes(d, c);
-        if (c->state == C_VIEWER && (re & POLLOUT))
-            viewer_pump(d, c, now);
+            on_socket_bytes(d, c);
+        if (c->state == C_SOCKET && (re & POLLOUT))
+            socket_pump(d, c, now);
     }
 }
 
+/* Past its deadline: a request that never completed, a response or message
+ * that stalled, a lingering close: dropped. */
 static void expire(iso_display *d, iso_display__conn *c, long long now)
 {
     if (c->state == C_FREE || now < c->deadline)
         return;
-    if (c->state == C_VIEWER && !pending(c))
-        return; /* idle viewers wait for frames as long as they like */
-    conn_close(d, c);
+    if (c->state == C_SOCKET && !pending(c))
+        return; /* idle WebSockets wait for their next message as long as they like */
+    conn_close(d, c, 1);
+}
+
+/* One poll() set: the wake pipe, the listener, every connection. */
+static int poll_set(iso_display *d, struct pollfd *pf, int *slot_of, long long now, int *timeout)
+{
+    int n = 0;
+    *timeout = now < d->accept_paused_until ? 100 : ISO_DISPLAY_POLL_MS;
+    pf[n].fd = d->wake[0];
+    pf[n++].events = POLLIN;
+    pf[n].fd = now < d->accept_paused_until ? -1 : d->listen_fd; /* -1: poll skips it */
+    pf[n++].events = POLLIN;
+    for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
+        iso_display__conn *c = &d->conns[i];
+        if (c->state == C_FREE)
+            continue;
+        short ev = c->state == C_RESPONSE ? POLLOUT : POLLIN;
+        if (c->state == C_SOCKET && pending(c))
+            ev |= POLLOUT;
+        if (c->state != C_SOCKET || pending(c)) {
+            long long left = c->deadline - now;
+            *timeout = left < *timeout ? (left > 0 ? (int)left : 0) : *timeout;
+        }
+        slot_of[n] = i;
+        pf[n].fd = c->fd;
+        pf[n++].events = ev;
+    }
+    return n;
 }
 
 void *iso_display__serve(void *arg)
@@ -638,42 +587,27 @@ void *iso_display__serve(void *arg)
     iso_display *d = arg;
     struct pollfd pf[2 + ISO_DISPLAY_MAX_CONNS];
     int slot_of[2 + ISO_DISPLAY_MAX_CONNS];
+    int ended = 0;
     while (!atomic_load(&d->stopping)) {
-        long long now = now_ms();
-        int n = 0, timeout = now < d->accept_paused_until ? 100 : ISO_DISPLAY_POLL_MS;
-        pf[n].fd = d->wake[0];
-        pf[n++].events = POLLIN;
-        pf[n].fd = now < d->accept_paused_until ? -1 : d->listen_fd; /* -1: poll skips it */
-        pf[n++].events = POLLIN;
-        for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
-            iso_display__conn *c = &d->conns[i];
-            if (c->state == C_FREE)
-                continue;
-            short ev = c->state == C_RESPONSE ? POLLOUT : POLLIN;
-            if (c->state == C_VIEWER && pending(c))
-                ev |= POLLOUT;
-            if (c->state != C_VIEWER || pending(c)) {
-                long long left = c->deadline - now;
-                timeout = left < timeout ? (left > 0 ? (int)left : 0) : timeout;
-            }
-            slot_of[n] = i;
-            pf[n].fd = c->fd;
-            pf[n++].events = ev;
-        }
+        int timeout, n = poll_set(d, pf, slot_of, now_ms(), &timeout);
         if (poll(pf, (nfds_t)n, timeout) < 0 && errno != EINTR)
             break;
-        now = now_ms();
+        long long now = now_ms();
         if (pf[0].revents)
             drain_wake(d);
+        if (!ended && atomic_load(&d->ended)) {
+            ended = 1;
+            iso_display__viewer_end(d);
+        }
         for (int k = 2; k < n; k++) /* before accepting, which may reuse a slot and fd */
             if (pf[k].revents && d->conns[slot_of[k]].fd == pf[k].fd)
                 service(d, &d->conns[slot_of[k]], pf[k].revents, now);
         if (pf[1].revents & POLLIN)
-            accept_all(d, now);
+            accept_some(d, now);
         for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
             iso_display__conn *c = &d->conns[i];
-            if (c->state == C_VIEWER && !pending(c) && c->stage == V_FRAMES)
-                viewer_pump(d, c, now); /* a frame published since it was idle */
+            if (c->state == C_SOCKET && !pending(c))
+                socket_pump(d, c, now); /* a frame or a change since it was idle */
             expire(d, c, now);
         }
     }
@@ -685,7 +619,7 @@ void iso_display__server_free(iso_display *d)
     if (d->conns)
         for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++)
             if (d->conns[i].state != C_FREE)
-                conn_close(d, &d->conns[i]);
+                conn_close(d, &d->conns[i], 1);
     free(d->conns);
     d->conns = NULL;
     if (d->listen_fd >= 0)

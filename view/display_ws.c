@@ -1,10 +1,12 @@
-/* view/display_ws.c -- the few pieces of RFC 6455 the live view needs: the
- * handshake's accept key (SHA-1 and base64), a server frame header, and a
- * parser for what a browser sends, which only ever discards payloads.
+/* view/display_ws.c -- the pieces of RFC 6455 the live view needs: the
+ * handshake's accept key (SHA-1 and base64), a server frame header, UTF-8
+ * checking, and the parser of what a browser sends.
  *
- * The parser never buffers a payload, so a frame header announcing any
- * length costs nothing; lengths above ISO_DISPLAY_MAX_CLIENT_FRAME end the
- * connection before a byte of the payload is read. */
+ * The parser keeps at most ISO_DISPLAY_MAX_CLIENT_MESSAGE bytes of a
+ * message: a frame header announcing more than what is left of that ends
+ * the connection (1009) before a byte of its payload is read, so a header
+ * announcing any length costs nothing. Every rule of section 5 that a
+ * server must enforce on a client's frames is a return below. */
 #include "display_internal.h"
 
 #include <string.h>
@@ -118,6 +120,43 @@ size_t iso_display__ws_header(unsigned char h[10], int opcode, size_t len)
     return 10;
 }
 
+/* ---- UTF-8 ------------------------------------------------------------------ */
+
+/* The ranges of RFC 3629's table: after E0 the next byte is A0..BF (no
+ * overlong three-byte form), after ED 80..9F (no surrogates), after F0
+ * 90..BF, after F4 80..8F (nothing above U+10FFFF); C0, C1 and F5..FF never
+ * start a character. */
+int iso_display__utf8_step(iso_display__utf8 *u, unsigned char b)
+{
+    if (u->need) {
+        if (b < u->lo || b > u->hi)
+            return -1;
+        u->need--;
+        u->lo = 0x80;
+        u->hi = 0xbf;
+        return 0;
+    }
+    if (b < 0x80)
+        return 0;
+    u->lo = 0x80;
+    u->hi = 0xbf;
+    if (b >= 0xc2 && b <= 0xdf)
+        u->need = 1;
+    else if (b >= 0xe0 && b <= 0xef)
+        u->need = 2, u->lo = b == 0xe0 ? 0xa0 : 0x80, u->hi = b == 0xed ? 0x9f : 0xbf;
+    else if (b >= 0xf0 && b <= 0xf4)
+        u->need = 3, u->lo = b == 0xf0 ? 0x90 : 0x80, u->hi = b == 0xf4 ? 0x8f : 0xbf;
+    else
+        return -1;
+    return 0;
+}
+
+int iso_display__ws_close_code_ok(int code)
+{
+    return (code >= 1000 && code <= 1003) || (code >= 1007 && code <= 1014) ||
+           (code >= 3000 && code <= 4999);
+}
+
 /* ---- what the browser sends ---------------------------------------------- */
 
 /* Bytes of header a frame needs, known once its first two are in. */
@@ -127,49 +166,150 @@ static unsigned header_need(const unsigned char *h)
     return 2 + (n == 126 ? 2 : n == 127 ? 8 : 0) + ((h[1] & 0x80) ? 4 : 0);
 }
 
-/* Judges a complete header; returns 0 and sets rx->skip, or a close status. */
-static int header_done(iso_display__ws_rx *rx)
+static int fail(iso_display__ws_event *ev, int code)
 {
-    const unsigned char *h = rx->hdr;
-    unsigned n = h[1] & 0x7f;
-    uint64_t len = n;
-    if (n == 126)
-        len = (uint64_t)h[2] << 8 | h[3];
-    else if (n == 127)
-        for (int i = 0; i < 8; i++)
-            len = (i ? len << 8 : 0) | h[2 + i];
-    int opcode = h[0] & 0x0f;
-    rx->hdr_len = 0;
-    rx->frames++;
-    if ((h[0] & 0x70) || !(h[1] & 0x80)) /* reserved bits; browsers always mask */
-        return ISO_DISPLAY_WS_PROTOCOL_ERROR;
-    if (opcode >= 8 && (len > 125 || !(h[0] & 0x80))) /* control frames: short, whole */
-        return ISO_DISPLAY_WS_PROTOCOL_ERROR;
-    if (len > ISO_DISPLAY_MAX_CLIENT_FRAME)
-        return ISO_DISPLAY_WS_TOO_BIG;
-    if (opcode == 8)
-        return ISO_DISPLAY_WS_NORMAL;
-    rx->skip = len;
-    return 0;
+    ev->code = code;
+    return ISO_DISPLAY_WS_FAIL;
 }
 
-int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n)
+/* Judges a complete header; returns MORE to read its payload, or FAIL. */
+static int header_done(iso_display__ws_rx *rx, iso_display__ws_event *ev)
 {
-    while (n) {
-        if (rx->skip) {
-            size_t k = rx->skip < n ? (size_t)rx->skip : n;
-            rx->skip -= k;
-            p += k;
-            n -= k;
+    const unsigned char *h = rx->hdr;
+    unsigned n = h[1] & 0x7f, k = n == 126 ? 2 : n == 127 ? 8 : 0;
+    uint64_t len = n;
+    if (k) {
+        len = 0;
+        for (unsigned i = 0; i < k; i++)
+            len = len << 8 | h[2 + i];
+    }
+    rx->hdr_len = 0;
+    rx->frames++;
+    rx->opcode = h[0] & 0x0f;
+    rx->fin = (h[0] & 0x80) != 0;
+    if ((h[0] & 0x70) || !(h[1] & 0x80)) /* reserved bits; clients always mask */
+        return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+    if (k == 8 && (len >> 63)) /* the most significant bit must be 0 */
+        return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+    memcpy(rx->mask, h + 2 + k, 4);
+    rx->mask_at = 0;
+    rx->left = len;
+    if (rx->opcode >= 8) {
+        if (rx->opcode > 10 || len > 125 || !rx->fin) /* reserved, or long or fragmented */
+            return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+        rx->ctl_len = 0;
+    } else if (rx->opcode == 0) {
+        if (!rx->msg_opcode) /* a continuation of nothing */
+            return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+    } else if (rx->opcode <= 2) {
+        if (rx->msg_opcode) /* a new message inside a fragmented one */
+            return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+        rx->msg_opcode = rx->opcode;
+        rx->msg_len = 0;
+        memset(&rx->utf8, 0, sizeof rx->utf8);
+    } else {
+        return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR); /* 3..7 are reserved */
+    }
+    if (rx->opcode < 8 && len > ISO_DISPLAY_MAX_CLIENT_MESSAGE - rx->msg_len)
+        return fail(ev, ISO_DISPLAY_WS_TOO_BIG);
+    rx->in_payload = 1;
+    return ISO_DISPLAY_WS_MORE;
+}
+
+/* A close frame's payload: nothing, or a status an endpoint may send and a
+ * UTF-8 reason. */
+static int close_frame(const iso_display__ws_rx *rx, iso_display__ws_event *ev)
+{
+    if (rx->ctl_len == 0) {
+        ev->code = ISO_DISPLAY_WS_NO_STATUS;
+        return ISO_DISPLAY_WS_CLOSE;
+    }
+    if (rx->ctl_len == 1)
+        return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+    int code = rx->ctl[0] << 8 | rx->ctl[1];
+    if (!iso_display__ws_close_code_ok(code))
+        return fail(ev, ISO_DISPLAY_WS_PROTOCOL_ERROR);
+    iso_display__utf8 u = {0, 0, 0};
+    for (size_t i = 2; i < rx->ctl_len; i++)
+        if (iso_display__utf8_step(&u, rx->ctl[i]) != 0)
+            return fail(ev, ISO_DISPLAY_WS_BAD_DATA);
+    if (u.need)
+        return fail(ev, ISO_DISPLAY_WS_BAD_DATA);
+    ev->code = code;
+    ev->data = rx->ctl + 2;
+    ev->len = rx->ctl_len - 2;
+    return ISO_DISPLAY_WS_CLOSE;
+}
+
+/* The current frame's payload is all in: what it completes. */
+static int frame_done(iso_display__ws_rx *rx, iso_display__ws_event *ev)
+{
+    rx->in_payload = 0;
+    switch (rx->opcode) {
+    case 8: return close_frame(rx, ev);
+    case 9:
+        ev->data = rx->ctl;
+        ev->len = rx->ctl_len;
+        return ISO_DISPLAY_WS_PING;
+    case 10: return ISO_DISPLAY_WS_PONG;
+    default: break;
+    }
+    if (!rx->fin)
+        return ISO_DISPLAY_WS_MORE;
+    if (rx->msg_opcode == 1 && rx->utf8.need) /* text that ends inside a character */
+        return fail(ev, ISO_DISPLAY_WS_BAD_DATA);
+    ev->opcode = rx->msg_opcode;
+    ev->data = rx->msg;
+    ev->len = rx->msg_len;
+    rx->msg_opcode = 0;
+    return ISO_DISPLAY_WS_MESSAGE;
+}
+
+/* Unmasks up to k payload bytes into the control or the message buffer;
+ * *took says how many it used (up to the bad one, when it fails). */
+static int take_payload(iso_display__ws_rx *rx, const unsigned char *p, size_t k, size_t *took,
+                        iso_display__ws_event *ev)
+{
+    int control = rx->opcode >= 8, text = rx->msg_opcode == 1;
+    for (size_t i = 0; i < k; i++) {
+        unsigned char b = p[i] ^ rx->mask[rx->mask_at++ & 3];
+        if (control) {
+            rx->ctl[rx->ctl_len++] = b;
             continue;
         }
-        rx->hdr[rx->hdr_len++] = *p++;
-        n--;
-        if (rx->hdr_len >= 2 && rx->hdr_len == header_need(rx->hdr)) {
-            int st = header_done(rx);
-            if (st)
-                return st;
+        if (text && iso_display__utf8_step(&rx->utf8, b) != 0) {
+            *took = i + 1;
+            return fail(ev, ISO_DISPLAY_WS_BAD_DATA); /* said at the first bad byte */
         }
+        rx->msg[rx->msg_len++] = b;
     }
-    return 0;
+    *took = k;
+    return ISO_DISPLAY_WS_MORE;
+}
+
+int iso_display__ws_rx_feed(iso_display__ws_rx *rx, const unsigned char *p, size_t n, size_t *used,
+                            iso_display__ws_event *ev)
+{
+    memset(ev, 0, sizeof *ev);
+    size_t i = 0;
+    int st = ISO_DISPLAY_WS_MORE;
+    while (i < n && st == ISO_DISPLAY_WS_MORE) {
+        if (!rx->in_payload) {
+            rx->hdr[rx->hdr_len++] = p[i++];
+            if (rx->hdr_len >= 2 && rx->hdr_len == header_need(rx->hdr)) {
+                st = header_done(rx, ev);
+                if (st == ISO_DISPLAY_WS_MORE && rx->left == 0)
+                    st = frame_done(rx, ev);
+            }
+            continue;
+        }
+        size_t k = rx->left < n - i ? (size_t)rx->left : n - i, took = 0;
+        st = take_payload(rx, p + i, k, &took, ev);
+        i += took;
+        rx->left -= took;
+        if (st == ISO_DISPLAY_WS_MORE && rx->left == 0)
+            st = frame_done(rx, ev);
+    }
+    *used = i;
+    return st;
 }
