@@ -129,7 +129,8 @@ typedef enum iso_scene_dev_backend {
     ISO_SCENE_DEV_TCP,        /* address "host:port" */
     ISO_SCENE_DEV_SERIALPORT, /* path (port name), baud */
     ISO_SCENE_DEV_GPIOD,      /* chip, clutch/estop/pulse lines, active_low, debounce */
-    ISO_SCENE_DEV_REPLAY      /* path: a recording (.isorec) */
+    ISO_SCENE_DEV_REPLAY,     /* path: a recording (.isorec) */
+    ISO_SCENE_DEV_VIEW        /* the live view's page (at most one; needs sinks.display) */
 } iso_scene_dev_backend;
 
 typedef struct iso_scene_device {
@@ -141,9 +142,10 @@ typedef struct iso_scene_device {
     uint16_t vid, pid;
     iso_dev_gpio_opts gpio; /* GPIOD; gpio.chip points at `chip` */
     char chip[ISO_SCENE_NAME_MAX];
-    /* TTY, TCP, SERIALPORT, REPLAY: a twist stream's stale time in ms (key
-     * `stale_ms`): this long without a twist sample and its twist is zero
-     * (iso_dev_map_set_stale). Other kinds hold the default, unused. */
+    /* TTY, TCP, SERIALPORT, REPLAY, VIEW: a twist or target stream's stale
+     * time in ms (key `stale_ms`): this long without a sample and it stops
+     * moving its handle (iso_dev_map_set_stale). Other kinds hold the
+     * default, unused. */
     int stale_ms;
 } iso_scene_device;
 #define ISO_SCENE_STALE_MS_DEFAULT 100 /* = ISO_DEV_STALE_DEFAULT_NS */

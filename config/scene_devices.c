@@ -12,8 +12,8 @@
 #define STR(x) STR_(x)
 
 /* By iso_scene_dev_backend value, from ISO_SCENE_DEV_HIDAPI (1). */
-static const char *const backend_names[] = {"hid",        "spnav", "tty",    "tcp",
-                                            "serialport", "gpio",  "replay", NULL};
+static const char *const backend_names[] = {"hid",  "spnav",  "tty",  "tcp", "serialport",
+                                            "gpio", "replay", "view", NULL};
 
 const char *iso_scene_backend_name(int b)
 {
@@ -39,8 +39,8 @@ static const scene_key device_keys[] = {
     {"kind", SK_ENUM, FIELD(iso_scene_device, backend), SK_REQUIRED | SK_SELECTOR,
      .names = backend_names, .first = ISO_SCENE_DEV_HIDAPI, .help = "the backend that reads it"},
     {"stale_ms", SK_INT, FIELD(iso_scene_device, stale_ms),
-     IN(ISO_SCENE_STALE_MS_MIN, ISO_SCENE_STALE_MS_MAX), .with = "tty tcp serialport replay",
-     .help = "a twist stream this long without a sample stops moving its handle",
+     IN(ISO_SCENE_STALE_MS_MIN, ISO_SCENE_STALE_MS_MAX), .with = "tty tcp serialport replay view",
+     .help = "a twist or target stream this long without a sample stops moving its handle",
      .dflt = STR(ISO_SCENE_STALE_MS_DEFAULT)},
     {"path", SK_STRING, FIELD(iso_scene_device, path), .with = "hid tty", .need = "tty",
      .help = "the device node (hid: a hidraw node; tty: e.g. /dev/ttyUSB0)",
@@ -80,7 +80,7 @@ static int device_begin(scene_ctx *c, scene_map *m)
     return ISO_OK;
 }
 
-/* Only a stream of twist samples can go stale; a 3D mouse reports the
+/* Only a stream of twist or target samples can go stale; a 3D mouse reports the
  * state of its cap, and one held still may send nothing new. Said before
  * the kind's other keys are checked, since it is the likely mistake. */
 static int device_kind(scene_ctx *c, scene_map *m)
@@ -90,11 +90,11 @@ static int device_kind(scene_ctx *c, scene_map *m)
     fnode *v = iso_scene__get(m->node, "stale_ms");
     char key[ISO_SCENE_KEY_MAX], kinds[128];
     if (v && !iso_scene__in_words(k->with, m->variant))
-        return iso_scene__fail(c, v, ISO_EPARSE, iso_scene__join(key, sizeof key, m->key, k->key),
-                               "only twist streams time out (kinds %s); a %s device reports a "
-                               "state and is not timed out",
-                               iso_scene__words_list(k->with, ", ", kinds, sizeof kinds),
-                               m->variant);
+        return iso_scene__fail(
+            c, v, ISO_EPARSE, iso_scene__join(key, sizeof key, m->key, k->key),
+            "only twist and target streams time out (kinds %s); a %s device reports a "
+            "state and is not timed out",
+            iso_scene__words_list(k->with, ", ", kinds, sizeof kinds), m->variant);
     if (d->backend == ISO_SCENE_DEV_TTY || d->backend == ISO_SCENE_DEV_SERIALPORT)
         d->baud = 115200;
     if (d->backend == ISO_SCENE_DEV_GPIOD) {
@@ -107,10 +107,16 @@ static int device_kind(scene_ctx *c, scene_map *m)
 static int device_end(scene_ctx *c, scene_map *m)
 {
     const iso_scene_device *d = m->obj, *all = d - m->item; /* the list's first */
-    for (int j = 0; j < m->item; j++)
+    for (int j = 0; j < m->item; j++) {
         if (strcmp(all[j].name, d->name) == 0)
             return iso_scene__fail(c, iso_scene__get(m->node, "name"), ISO_EPARSE, m->key,
                                    "device name '%s' is used twice", d->name);
+        if (d->backend == ISO_SCENE_DEV_VIEW && all[j].backend == ISO_SCENE_DEV_VIEW)
+            return iso_scene__fail(c, iso_scene__get(m->node, "kind"), ISO_EPARSE, m->key,
+                                   "device '%s' is a second view device (one page commands one "
+                                   "device; '%s' is it)",
+                                   d->name, all[j].name);
+    }
     return ISO_OK;
 }
 

@@ -8,7 +8,9 @@
 #include <errno.h>
 #include <signal.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "iso_loop.h"
@@ -24,7 +26,7 @@ static void on_signal(int sig)
 
 typedef struct run_args {
     const char *scene, *out, *json, *png;
-    int quiet, ticks;
+    int quiet, ticks, exit_at_end;
     int abm; /* iso_abm_mode, -1: the scene's */
     iso_loop_opts lo;
 } run_args;
@@ -69,6 +71,10 @@ static const iso_cli__opt run_options[] = {
      .help = "write the summary as JSON"},
     {"quiet", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, quiet), NULL,
      .help = "no status line and no summary", .flag = 1},
+    {"exit-at-end", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, exit_at_end), NULL,
+     .help = "exit when the run ends; on a terminal the live view otherwise stays up with the "
+             "last frame until Ctrl-C",
+     .flag = 1},
     {0}};
 
 /* Returns -1 to go on, else the exit status: 0 after --help, 2 on a usage
@@ -149,6 +155,47 @@ static int write_output(int what, const char *opt, const char *path, iso_loop *l
     return 0;
 }
 
+/* The summary as text, for the page (NULL when it cannot be made). */
+static char *summary_text(const iso_loop_summary *s, const iso_scene *sc)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return NULL;
+    iso_loop_print_summary(s, sc, f);
+    if (fclose(f) != 0) {
+        free(buf);
+        return NULL;
+    }
+    return buf;
+}
+
+/* A run that ended by itself on a terminal keeps its view up: the page
+ * shows the last frame and the summary until Ctrl-C (scripts, with no
+ * terminal, or --exit-at-end, are not held). */
+static void hold_view(iso_loop *l, const iso_scene *sc, const iso_loop_summary *s,
+                      const run_args *a)
+{
+    if (a->exit_at_end || g_stop || !isatty(STDIN_FILENO) || !isatty(STDERR_FILENO))
+        return;
+    char url[512];
+    char *text = summary_text(s, sc);
+    int up = iso_loop_view_end(l, text, url, sizeof url);
+    free(text);
+    if (!up)
+        return;
+    fprintf(stderr,
+            "isoshape run: the run has ended; the live view keeps showing its last frame and "
+            "this summary at %s: press Ctrl-C to quit (--exit-at-end does not wait)\n",
+            url);
+    while (!g_stop) {
+        struct timespec ts = {0, 100 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    g_stop = 0; /* the run ended by itself: leaving the view is no interruption */
+}
+
 /* What is left to do once the loop has stopped, for whatever reason. */
 static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int status)
 {
@@ -172,6 +219,8 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     }
     if (a->json && write_output(OUT_JSON, "--stats-json", a->json, l, sc, &s))
         status = 1;
+    if (status == 0)
+        hold_view(l, sc, &s, a);
     return status;
 }
 

@@ -157,6 +157,9 @@ typedef struct iso_loop_summary {
     double handle_R[ISO_SCENE_MAX_HANDLES][9];
     int n_handles;
     long frames_sent; /* display frames written to a browser */
+    /* The page's commands, as the view's server took them (a view device) */
+    int view_device; /* 1: the scene has one and the view is up */
+    unsigned view_accepted, view_refused, view_malformed, view_dropped, view_grants, view_stops;
     long ply_frames, snapshots;
     int rt_active; /* 1: SCHED_FIFO held */
     int mem_locked;
@@ -188,6 +191,12 @@ ISO_API void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s);
 /* The current positions (3*nv) and the mesh. */
 ISO_API const double *iso_loop_positions(const iso_loop *l);
 ISO_API const iso_mesh *iso_loop_mesh(const iso_loop *l);
+
+/* The run is over: the live view, if there is one, keeps serving its last
+ * frame with `text` (the summary, or NULL) until iso_loop_destroy(), and
+ * takes no commands. Writes its URL into url (cap bytes; "" without a
+ * view). Returns 1 when there is a view, 0 when not. */
+ISO_API int iso_loop_view_end(iso_loop *l, const char *text, char *url, size_t cap);
 
 /* Writes the summary as JSON to path; ISO_EIO naming the path on failure. */
 ISO_API ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,

@@ -216,6 +216,7 @@ void iso_loop_destroy(iso_loop *l)
     iso_err_clear(&e);
     if (iso_loop_shutdown(l, &e) != ISO_OK)
         fprintf(l->log, "isoshape %s: shutdown: %s\n", l->cmd, e.msg);
+    iso_loop__sinks_free(l); /* the view before the hub: it queues on the hub's view device */
     iso_dev_usb_watch_destroy(l->watch);
     iso_dev_hub_destroy(l->hub);
     if (l->replay)

@@ -28,6 +28,7 @@ static int open_device(const iso_scene_device *d, iso_dev_source **out, iso_err 
     case ISO_SCENE_DEV_TCP: return iso_dev_tcp_open(d->address, 1000, out, err);
     case ISO_SCENE_DEV_SERIALPORT: return iso_dev_serialport_open(d->path, d->baud, out, err);
     case ISO_SCENE_DEV_GPIOD: return iso_dev_gpiod_open(&d->gpio, out, err);
+    case ISO_SCENE_DEV_VIEW: return iso_dev_view_open(d->name, out, err);
     default: return iso_err_set(err, ISO_EINVAL, -1, "device '%s': unknown kind", d->name);
     }
 }
@@ -80,6 +81,8 @@ static int open_devices(iso_loop *l, iso_err *err)
             return iso_err_set(err, rc, -1, "%s: device '%s' (%s): %s", sc->path, d->name,
                                iso_scene_backend_name(d->backend), e.msg);
         }
+        if (d->backend == ISO_SCENE_DEV_VIEW)
+            l->view_src = s; /* the hub owns it; the display queues the page's commands on it */
         if ((rc = iso_dev_hub_add(l->hub, s, reopen_device, (void *)d, err)) != ISO_OK)
             return rc;
     }
@@ -127,6 +130,16 @@ static int devices_ready(iso_loop *l, iso_err *err)
         const iso_scene_device *d = &sc->devices[l->replay ? 0 : i];
         if (d->stale_ms > 0) {
             int rc = iso_dev_map_set_stale(&l->map, (int)i, (int64_t)d->stale_ms * 1000000, err);
+            if (rc != ISO_OK)
+                return rc;
+        }
+        /* A page's targets are followed at a bounded speed, the same live and
+         * replayed (the bound comes from the mesh, not from the scene). */
+        const iso_dev_decoder *dec = iso_dev_hub_decoder(l->hub, i);
+        if (dec && dec->kind == ISO_DEV_KIND_VIEW) {
+            double speed = ISO_DEV_VIEW_MAX_DIAG_PER_S * (l->diag > 0 ? l->diag : 1);
+            int rc =
+                iso_dev_map_set_limits(&l->map, (int)i, speed, ISO_DEV_VIEW_MAX_TURN_PER_S, err);
             if (rc != ISO_OK)
                 return rc;
         }

@@ -58,7 +58,8 @@ struct iso_loop {
     iso_dev_map map;
     int dev_handle[ISO_SCENE_MAX_HANDLES]; /* map twist j drives handle dev_handle[j] */
     int n_dev;
-    iso_dev_tick last; /* the previous device tick's command */
+    iso_dev_tick last;        /* the previous device tick's command */
+    iso_dev_source *view_src; /* the scene's view device (owned by the hub), or NULL */
     int recording;
 
     /* commanded motion */
@@ -122,6 +123,8 @@ ISO_NODISCARD int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err);
 /* Stops them: the actuators to their safe state. Idempotent. */
 ISO_NODISCARD int iso_loop__sinks_close(iso_loop *l, iso_err *err);
 void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s);
+/* Destroys what sinks_close keeps (the live view, serving its last frame). */
+void iso_loop__sinks_free(iso_loop *l);
 /* The loop's progress, for the actuators' loop watchdog (lock-free; every
  * tick and every ABM step), and the devices' e-stop, passed on at once. */
 void iso_loop__sinks_alive(iso_loop *l);

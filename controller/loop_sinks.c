@@ -29,14 +29,36 @@ static void display_notice(void *ctx, const char *line)
     fprintf(l->log, "isoshape %s: live view: %s\n", l->cmd, line);
 }
 
+/* The handles a page may move: the device-driven ones, in the mapping's
+ * order (the view device's handle j is the mapping's). */
+static int view_handles(const iso_loop *l, iso_display_handle *out)
+{
+    int n = 0;
+    for (int j = 0; j < l->n_dev && n < ISO_DISPLAY_MAX_HANDLES; j++, n++) {
+        out[n].name = l->sc->handles[l->dev_handle[j]].name;
+        out[n].handle = l->dev_handle[j];
+    }
+    return n;
+}
+
 static int open_display(iso_loop *l, iso_err *err)
 {
     const iso_scene_display *d = &l->sc->display;
     int on = l->o.display < 0 ? d->enabled : l->o.display;
+    if (!on && l->view_src)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "%s: a view device takes its commands from the live view's page, and "
+                           "the view is off (%s)",
+                           l->sc->path[0] ? l->sc->path : "the scene",
+                           l->o.display == 0 ? "--no-display" : "no sinks.display in the scene");
     if (!on)
         return ISO_OK;
     iso_display_opts o;
+    iso_display_handle hs[ISO_DISPLAY_MAX_HANDLES];
     memset(&o, 0, sizeof o);
+    o.view_device = l->view_src;
+    o.handles = hs;
+    o.n_handles = l->view_src ? view_handles(l, hs) : 0;
     o.host = d->host[0] ? d->host : NULL;
     o.port = l->o.port >= 0 ? l->o.port : (d->port ? d->port : 8080);
     o.mesh = l->sc->mesh;
@@ -57,8 +79,15 @@ static int open_display(iso_loop *l, iso_err *err)
         return rc;
     const char *host = o.host ? o.host : "127.0.0.1";
     int v6 = strchr(host, ':') != NULL && host[0] != '[';
-    fprintf(l->log, "isoshape %s: live view on http://%s%s%s:%d/\n", l->cmd, v6 ? "[" : "", host,
-            v6 ? "]" : "", iso_display_port(l->sinks->display));
+    const char *tok = iso_display_token(l->sinks->display);
+    fprintf(l->log, "isoshape %s: live view on http://%s%s%s:%d/%s%s\n", l->cmd, v6 ? "[" : "",
+            host, v6 ? "]" : "", iso_display_port(l->sinks->display), tok[0] ? "?token=" : "", tok);
+    if (l->view_src)
+        fprintf(l->log,
+                "isoshape %s: the page can drive %s: take control there, then drag the gizmo "
+                "(Esc stops)%s\n",
+                l->cmd, o.n_handles == 1 ? "the handle" : "the handles",
+                tok[0] ? "; commanding needs the token in this URL, watching does not" : "");
     return ISO_OK;
 }
 
@@ -170,6 +199,33 @@ static int snapshot(iso_loop *l, long tick, iso_err *err)
     return ISO_OK;
 }
 
+/* What the page shows of the handles and of the view device's commands:
+ * each handle's pose, the last command the ticks applied (the page times
+ * its commands by it) and the state of the stream. */
+static void view_figures(const iso_loop *l, iso_display_stats *ds)
+{
+    ds->n_handles = l->nh < ISO_DISPLAY_MAX_HANDLES ? l->nh : ISO_DISPLAY_MAX_HANDLES;
+    for (int h = 0; h < ds->n_handles; h++)
+        ds->handle[h] = *iso_stepper_pose(l->st, h);
+    ds->cmd_conn = ds->cmd_seq = 0;
+    ds->cmd_page_ms = 0;
+    ds->flags = l->last.estop ? ISO_DISPLAY_FLAG_ESTOP : 0;
+    size_t n = l->hub ? iso_dev_hub_sources(l->hub) : 0;
+    for (size_t i = 0; i < n; i++) {
+        const iso_dev_decoder *dec = iso_dev_hub_decoder(l->hub, i);
+        if (dec->kind != ISO_DEV_KIND_VIEW)
+            continue;
+        uint32_t bit = (uint32_t)1 << i;
+        ds->cmd_conn = dec->view.applied_conn;
+        ds->cmd_seq = dec->view.applied_seq;
+        ds->cmd_page_ms = dec->view.applied_ms;
+        ds->flags |= (l->last.targeting & bit ? ISO_DISPLAY_FLAG_TARGETING : 0) |
+                     (l->last.stale & bit ? ISO_DISPLAY_FLAG_STALE : 0) |
+                     (dec->view.holder ? ISO_DISPLAY_FLAG_HOLDER : 0);
+        break;
+    }
+}
+
 int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
 {
     struct iso_loop_sinks *k = l->sinks;
@@ -180,6 +236,7 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
         long n = l->stats.n;
         ds.latency_ms = n > 0 ? l->stats.lat_ms[n - 1] : 0;
         ds.misses = l->stats.misses;
+        view_figures(l, &ds);
         rc = iso_display_publish(k->display, tick, l->x, &ds, err);
     }
     if (rc == ISO_OK && k->ply) {
@@ -229,13 +286,39 @@ int iso_loop__sinks_close(iso_loop *l, iso_err *err)
     int rc = close_actuators(k, err);
     if (k->act_stop[0])
         fprintf(l->log, "isoshape %s: actuators: %s\n", l->cmd, k->act_stop);
-    if (k->display)
-        k->frames_sent = iso_display_frames_sent(k->display);
-    iso_display_destroy(k->display);
+    /* The view stays up with its last frame until the loop is destroyed
+     * (iso_loop_view_end), but takes no more commands. */
+    iso_display_end(k->display, NULL);
     iso_ply_frames_destroy(k->ply);
-    k->display = NULL;
     k->ply = NULL;
     return rc;
+}
+
+void iso_loop__sinks_free(iso_loop *l)
+{
+    struct iso_loop_sinks *k = l->sinks;
+    if (!k)
+        return;
+    iso_display_destroy(k->display);
+    k->display = NULL;
+}
+
+int iso_loop_view_end(iso_loop *l, const char *text, char *url, size_t cap)
+{
+    iso_display *d = l && l->sinks ? l->sinks->display : NULL;
+    if (url && cap)
+        url[0] = 0;
+    if (!d)
+        return 0;
+    iso_display_end(d, text);
+    if (url && cap) {
+        const char *host = l->sc->display.host[0] ? l->sc->display.host : "127.0.0.1";
+        int v6 = strchr(host, ':') != NULL && host[0] != '[';
+        const char *tok = iso_display_token(d);
+        snprintf(url, cap, "http://%s%s%s:%d/%s%s", v6 ? "[" : "", host, v6 ? "]" : "",
+                 iso_display_port(d), tok[0] ? "?token=" : "", tok);
+    }
+    return 1;
 }
 
 void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
@@ -244,6 +327,17 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
     if (!k)
         return;
     s->frames_sent = k->display ? iso_display_frames_sent(k->display) : k->frames_sent;
+    if (k->display) {
+        iso_display_command_stats cs;
+        iso_display_command_stats_get(k->display, &cs);
+        s->view_accepted = cs.accepted;
+        s->view_refused = cs.refused;
+        s->view_malformed = cs.malformed;
+        s->view_dropped = cs.dropped;
+        s->view_grants = cs.grants;
+        s->view_stops = cs.stops;
+        s->view_device = l->view_src != NULL;
+    }
     s->ply_frames = k->ply_written;
     s->snapshots = k->snapshots;
     if (k->act)
@@ -268,8 +362,14 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap)
 {
     const struct iso_loop_sinks *k = l->sinks;
     buf[0] = 0;
-    if (k && k->display)
-        snprintf(buf, cap, "browsers %d", iso_display_clients(k->display));
+    if (k && k->display) {
+        uint32_t holder = iso_display_holder(k->display);
+        if (holder)
+            snprintf(buf, cap, "browsers %d (viewer %u in control)",
+                     iso_display_clients(k->display), (unsigned)holder);
+        else
+            snprintf(buf, cap, "browsers %d", iso_display_clients(k->display));
+    }
     if (k && k->act) {
         iso_act_stats st;
         iso_actuators_stats(k->act, &st);

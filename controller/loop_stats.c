@@ -176,6 +176,12 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     }
     if (sc->display.enabled || s->frames_sent)
         fprintf(f, "  display     %ld frames sent\n", s->frames_sent);
+    if (s->view_device)
+        fprintf(f,
+                "  view        %u commands taken, %u refused, %u malformed, %u dropped; control "
+                "taken %u times, %u stops\n",
+                s->view_accepted, s->view_refused, s->view_malformed, s->view_dropped,
+                s->view_grants, s->view_stops);
     if (s->ply_frames || s->snapshots)
         fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames,
                 s->snapshots);
@@ -190,9 +196,10 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
 #define DEC(f) ISO_JSON_FIELD(iso_dev_counters, f, ISO_JSON_U32)
 #define DROP(f) ISO_JSON_FIELD(iso_dev_frame_drops, f, ISO_JSON_U32)
 #define SRC(f) ISO_JSON_FIELD(iso_dev_source_stats, f, ISO_JSON_U32)
-static const iso_json_field dec_counters[] = {{DEC(reports)},     {DEC(bad_frames)},
-                                              {DEC(garbage)},     {DEC(short_reports)},
-                                              {DEC(unknown_ids)}, {DEC(bad_payloads)}};
+static const iso_json_field dec_counters[] = {
+    {DEC(reports)},     {DEC(bad_frames)},   {DEC(garbage)}, {DEC(short_reports)},
+    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(refused)}, {DEC(out_of_order)},
+    {DEC(grants)},      {DEC(releases)}};
 static const iso_json_field drop_counters[] = {
     {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},
@@ -279,6 +286,16 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_int(j, "coarse", s->coarse);
     iso_json_close(j);
     iso_json_int(j, "frames_sent", s->frames_sent);
+    if (s->view_device) { /* the page's commands, as the view's server took them */
+        iso_json_object(j, "view");
+        iso_json_int(j, "accepted", s->view_accepted);
+        iso_json_int(j, "refused", s->view_refused);
+        iso_json_int(j, "malformed", s->view_malformed);
+        iso_json_int(j, "dropped", s->view_dropped);
+        iso_json_int(j, "grants", s->view_grants);
+        iso_json_int(j, "stops", s->view_stops);
+        iso_json_close(j);
+    }
     iso_json_int(j, "ply_frames", s->ply_frames);
     iso_json_int(j, "snapshots", s->snapshots);
     iso_json_bool(j, "realtime", s->rt_active);

@@ -313,7 +313,8 @@ static void test_errors(void **state)
     expect_error(BASE "devices: [{name: m, kind: spnav, stale_ms: 100}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EPARSE, "bad.yaml:2:", "devices[0].stale_ms",
-                 "only twist streams time out (kinds tty, tcp, serialport, replay); a spnav "
+                 "only twist and target streams time out (kinds tty, tcp, serialport, replay, "
+                 "view); a spnav "
                  "device reports a state",
                  NULL);
     /* Keys that go with another form of their mapping, at the value; a
@@ -339,7 +340,7 @@ static void test_errors(void **state)
     /* A missing enum names its values. */
     expect_error(BASE "devices: [{name: m}]\n" REGIONS_NONE, ISO_EPARSE,
                  "bad.yaml:2:12:", "devices[0].kind: missing required key",
-                 "hid, spnav, tty, tcp, serialport, gpio or replay", NULL);
+                 "hid, spnav, tty, tcp, serialport, gpio, replay or view", NULL);
     /* Explicit keys, refused before libfyaml 0.7.12 sees them: it crashes
      * on "? e:<tab>-" (found by fuzz_scene). */
     expect_error("? e:\t-\n", ISO_EPARSE, "bad.yaml:1:1:", "explicit keys ('? ')", NULL);
