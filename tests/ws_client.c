@@ -96,6 +96,107 @@ static int read_n(int fd, unsigned char *p, size_t n)
     return 0;
 }
 
+void iso_test_ws_send(int fd, int fin, int opcode, const void *payload, size_t len)
+{
+    unsigned char *f = malloc(len + 14);
+    assert_non_null(f);
+    size_t n = 0;
+    f[n++] = (unsigned char)((fin ? 0x80 : 0) | opcode);
+    if (len < 126) {
+        f[n++] = (unsigned char)(0x80 | len);
+    } else if (len < 65536) {
+        f[n++] = 0x80 | 126;
+        f[n++] = (unsigned char)(len >> 8);
+        f[n++] = (unsigned char)len;
+    } else {
+        f[n++] = 0x80 | 127;
+        for (int i = 7; i >= 0; i--)
+            f[n++] = (unsigned char)((uint64_t)len >> (8 * i));
+    }
+    static const unsigned char mask[4] = {0x37, 0xfa, 0x21, 0x3d};
+    memcpy(f + n, mask, 4);
+    n += 4;
+    for (size_t i = 0; i < len; i++)
+        f[n++] = ((const unsigned char *)payload)[i] ^ mask[i & 3];
+    size_t off = 0;
+    while (off < n) {
+        ssize_t w = send(fd, f + off, n - off, MSG_NOSIGNAL);
+        if (w <= 0)
+            break; /* the server may have closed already: the test reads why */
+        off += (size_t)w;
+    }
+    free(f);
+}
+
+int iso_test_ws_recv(int fd, unsigned char **payload, size_t *len)
+{
+    unsigned char h[10];
+    *payload = NULL;
+    if (read_n(fd, h, 2) != 0)
+        return -1;
+    uint64_t n = h[1] & 0x7f;
+    size_t ext = n == 126 ? 2 : n == 127 ? 8 : 0;
+    if (ext && read_n(fd, h + 2, ext) != 0)
+        return -1;
+    if (ext) {
+        n = 0;
+        for (size_t i = 0; i < ext; i++)
+            n = n << 8 | h[2 + i];
+    }
+    if (n > (1u << 26))
+        return -1;
+    *payload = malloc((size_t)n + 1);
+    assert_non_null(*payload);
+    if (read_n(fd, *payload, (size_t)n) != 0) {
+        free(*payload);
+        *payload = NULL;
+        return -1;
+    }
+    (*payload)[n] = 0;
+    *len = (size_t)n;
+    return h[0] & 0x0f;
+}
+
+int iso_test_ws_close_status(int fd, int *pongs)
+{
+    for (;;) {
+        unsigned char *p;
+        size_t n;
+        int op = iso_test_ws_recv(fd, &p, &n);
+        if (op < 0)
+            return -1;
+        if (op == 10 && pongs)
+            (*pongs)++;
+        int st = op == 8 ? (n >= 2 ? p[0] << 8 | p[1] : 1005) : 0;
+        free(p);
+        if (op == 8)
+            return st;
+    }
+}
+
+int iso_test_ws_viewer(int port, const char *extra)
+{
+    char host[64];
+    snprintf(host, sizeof host, "127.0.0.1:%d", port);
+    int st;
+    int fd = iso_test_ws_open(AF_INET, port, host, extra ? extra : "", 0, &st);
+    if (st != 101) {
+        close(fd);
+        return -1;
+    }
+    for (int i = 0; i < 2; i++) { /* the topology, then the control state */
+        unsigned char *p;
+        size_t n;
+        if (iso_test_ws_recv(fd, &p, &n) != 1) {
+            free(p);
+            close(fd);
+            return -1;
+        }
+        free(p);
+    }
+    return fd;
+}
+
 static void *reader_main(void *arg)
 {
     iso_test_ws_reader *r = arg;

@@ -19,6 +19,20 @@ int iso_test_read_head(int fd, char *buf, size_t cap);
 int iso_test_ws_open(int family, int port, const char *host, const char *extra, int rcvbuf,
                      int *status);
 
+/* Sends one masked client frame: fin, opcode, payload (any length). */
+void iso_test_ws_send(int fd, int fin, int opcode, const void *payload, size_t len);
+/* Reads one server frame (unmasked); returns its opcode (and fin in *fin
+ * when not NULL) and a malloc'd payload, or -1 when the connection ended
+ * or timed out first. */
+int iso_test_ws_recv(int fd, unsigned char **payload, size_t *len);
+/* Reads frames until a close frame and returns its status (1005 when it
+ * has none), -1 when the connection ended without one. Pongs and other
+ * frames on the way are skipped; *pongs counts the pongs (may be NULL). */
+int iso_test_ws_close_status(int fd, int *pongs);
+/* Opens /ws and reads the topology and the first control message; returns
+ * the fd, or -1. */
+int iso_test_ws_viewer(int port, const char *extra);
+
 /* Reads frames on its own thread until the socket ends. Binary frames carry
  * the tick (a double at byte 8); a tick that does not grow sets failed. No
  * cmocka asserts run off the main thread. */

@@ -312,10 +312,17 @@ static void socket_pump(iso_display *d, iso_display__conn *c, long long now)
  * closes; the peer's reply is not waited for (it would hold a slot). */
 static void socket_close(iso_display *d, iso_display__conn *c, int status)
 {
-    if (!pending(c)) {
-        unsigned char f[4] = {0x88, 2, (unsigned char)(status >> 8), (unsigned char)status};
-        ssize_t w = send(c->fd, f, sizeof f, MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (!pending(c)) { /* a pong owed goes first */
+        unsigned char f[sizeof c->ctl_out + 4];
+        memcpy(f, c->ctl_out, c->ctl_len);
+        unsigned char *cl = f + c->ctl_len;
+        cl[0] = 0x88;
+        cl[1] = 2;
+        cl[2] = (unsigned char)(status >> 8);
+        cl[3] = (unsigned char)status;
+        ssize_t w = send(c->fd, f, c->ctl_len + 4, MSG_NOSIGNAL | MSG_DONTWAIT);
         (void)w;
+        c->ctl_len = 0;
         shutdown(c->fd, SHUT_WR);
     }
     conn_close(d, c, pending(c));
