@@ -198,6 +198,10 @@ ISO_API const iso_mesh *iso_loop_mesh(const iso_loop *l);
  * view). Returns 1 when there is a view, 0 when not. */
 ISO_API int iso_loop_view_end(iso_loop *l, const char *text, char *url, size_t cap);
 
+/* The live view's URL (with the command token when one is needed) into
+ * url; returns 1, or 0 and "" without a view. */
+ISO_API int iso_loop_view_url(const iso_loop *l, char *url, size_t cap);
+
 /* Writes the summary as JSON to path; ISO_EIO naming the path on failure. */
 ISO_API ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,
                                               const char *path, iso_err *err);

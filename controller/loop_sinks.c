@@ -77,11 +77,10 @@ static int open_display(iso_loop *l, iso_err *err)
     }
     if (rc != ISO_OK)
         return rc;
-    const char *host = o.host ? o.host : "127.0.0.1";
-    int v6 = strchr(host, ':') != NULL && host[0] != '[';
+    char url[300];
+    iso_loop_view_url(l, url, sizeof url);
     const char *tok = iso_display_token(l->sinks->display);
-    fprintf(l->log, "isoshape %s: live view on http://%s%s%s:%d/%s%s\n", l->cmd, v6 ? "[" : "",
-            host, v6 ? "]" : "", iso_display_port(l->sinks->display), tok[0] ? "?token=" : "", tok);
+    fprintf(l->log, "isoshape %s: live view on %s\n", l->cmd, url);
     if (l->view_src)
         fprintf(l->log,
                 "isoshape %s: the page can drive %s: take control there, then drag the gizmo "
@@ -303,22 +302,29 @@ void iso_loop__sinks_free(iso_loop *l)
     k->display = NULL;
 }
 
-int iso_loop_view_end(iso_loop *l, const char *text, char *url, size_t cap)
+int iso_loop_view_url(const iso_loop *l, char *url, size_t cap)
 {
     iso_display *d = l && l->sinks ? l->sinks->display : NULL;
-    if (url && cap)
+    if (cap)
         url[0] = 0;
     if (!d)
         return 0;
-    iso_display_end(d, text);
-    if (url && cap) {
-        const char *host = l->sc->display.host[0] ? l->sc->display.host : "127.0.0.1";
-        int v6 = strchr(host, ':') != NULL && host[0] != '[';
-        const char *tok = iso_display_token(d);
-        snprintf(url, cap, "http://%s%s%s:%d/%s%s", v6 ? "[" : "", host, v6 ? "]" : "",
-                 iso_display_port(d), tok[0] ? "?token=" : "", tok);
-    }
+    const char *host = l->sc->display.host[0] ? l->sc->display.host : "127.0.0.1";
+    int v6 = strchr(host, ':') != NULL && host[0] != '[';
+    const char *tok = iso_display_token(d);
+    snprintf(url, cap, "http://%s%s%s:%d/%s%s", v6 ? "[" : "", host, v6 ? "]" : "",
+             iso_display_port(d), tok[0] ? "?token=" : "", tok);
     return 1;
+}
+
+int iso_loop_view_end(iso_loop *l, const char *text, char *url, size_t cap)
+{
+    iso_display *d = l && l->sinks ? l->sinks->display : NULL;
+    if (d)
+        iso_display_end(d, text);
+    if (url && cap)
+        return iso_loop_view_url(l, url, cap);
+    return d != NULL;
 }
 
 void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)

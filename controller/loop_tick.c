@@ -4,6 +4,7 @@
 #include "loop_internal.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <sched.h>
 #include <stdlib.h>
@@ -131,8 +132,15 @@ int iso_loop__tick(iso_loop *l, int64_t now, iso_err *err)
         l->k = k1;
         l->t_now = t;
     }
-    if (l->replay)
+    /* A tick's sub-steps are counted on the periods it spans; a replayed
+     * tick spans what its TICK records span, as live, so a late live tick
+     * replays with the same sub-steps and to the same bits. */
+    int periods = covered;
+    if (l->replay) {
         covered = merged;
+        long span = l->period_ns > 0 ? lround((double)(t - t_prev) / (double)l->period_ns) : 1;
+        periods = span > covered ? (int)(span < INT_MAX ? span : INT_MAX) : covered;
+    }
     if (covered > 1) {
         l->stats.misses++;
         l->stats.skipped += covered - 1;
@@ -143,7 +151,7 @@ int iso_loop__tick(iso_loop *l, int64_t now, iso_err *err)
             return rc;
         if (restart && l->ticks > 0)
             l->restarts++;
-        rc = mesh_step(l, (double)(t - t_prev) * 1e-9, merged, covered, dev_tw, restart, &steps,
+        rc = mesh_step(l, (double)(t - t_prev) * 1e-9, merged, periods, dev_tw, restart, &steps,
                        err);
         if (rc != ISO_OK)
             return rc;

@@ -305,7 +305,7 @@ int iso_cdp_wait(iso_cdp *c, const char *cond, int timeout_ms)
         free(v);
         if (ok || now_ms() >= deadline)
             break;
-        struct timespec ts = {0, 20 * 1000 * 1000};
+        struct timespec ts = {0, 50 * 1000 * 1000};
         nanosleep(&ts, NULL);
     }
     if (!ok)
@@ -320,7 +320,7 @@ int iso_cdp_mouse(iso_cdp *c, const char *type, double x, double y, int left)
     snprintf(params, sizeof params,
              "{\"type\":\"%s\",\"x\":%.3f,\"y\":%.3f,\"button\":\"%s\",\"buttons\":%d,"
              "\"clickCount\":%d}",
-             type, x, y, left ? "left" : "none", left && strcmp(type, "mouseReleased") ? 1 : 0,
+             type, x, y, "left", left && strcmp(type, "mouseReleased") ? 1 : 0,
              strcmp(type, "mouseMoved") ? 1 : 0);
     char *r = iso_cdp_call(c, 1, "Input.dispatchMouseEvent", params, 10000);
     free(r);

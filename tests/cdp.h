@@ -43,11 +43,12 @@ char *iso_cdp_call(iso_cdp *c, int on_page, const char *method, const char *para
 /* Evaluates expr in the page; its value must be a string (use
  * JSON.stringify). Returns the string, unescaped and malloc'd, or NULL. */
 char *iso_cdp_eval(iso_cdp *c, const char *expr, int timeout_ms);
-/* Polls the JavaScript boolean expression cond every 20 ms until it holds
+/* Polls the JavaScript boolean expression cond every 50 ms until it holds
  * (returns 1) or timeout_ms passes (returns 0). */
 int iso_cdp_wait(iso_cdp *c, const char *cond, int timeout_ms);
 /* A mouse event at viewport point (x, y): type "mouseMoved", "mousePressed"
- * or "mouseReleased"; left: the left button is down (or the one pressed). */
+ * or "mouseReleased", of the left button (event.button 0, as a plain move
+ * has too); left: it is held down (buttons 1). */
 int iso_cdp_mouse(iso_cdp *c, const char *type, double x, double y, int left);
 /* A key pressed and released: key as KeyboardEvent.key ("Escape", "x"),
  * code as KeyboardEvent.code, its Windows key code. */

@@ -16,7 +16,16 @@ var FLAG_ESTOP = 1, FLAG_TARGETING = 2, FLAG_STALE = 4, FLAG_HOLDER = 8;
 var KEEPALIVE_MS = 25;
 var $ = function (id) { return document.getElementById(id); };
 var view = $('view');
-var renderer = new THREE.WebGLRenderer({antialias: true, preserveDrawingBuffer: true});
+// A software renderer (SwiftShader, llvmpipe: a machine without a GPU) draws
+// without antialiasing, which costs it several times the frame.
+function softwareGL() {
+  try {
+    var gl = document.createElement('canvas').getContext('webgl');
+    var info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+    return /swiftshader|llvmpipe|software/i.test(info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : '');
+  } catch (e) { return false; }
+}
+var renderer = new THREE.WebGLRenderer({antialias: !softwareGL()});
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 renderer.setClearColor(0x181a1f);
 view.appendChild(renderer.domElement);
@@ -150,10 +159,14 @@ function update(x) {
 }
 
 // ---- drawing: on the browser's frames, when something changed -------------
-var spin = false, rafs = 0, drawn = 0;
+var spin = false, rafs = 0, drawn = 0, latest = null;
 function tick() {
   rafs++;
   if (spin) { orbit.yaw += 0.01; if (controls && controls !== 'own') { place(); controls.update(); } else place(); }
+  // the newest frame only: frames that came faster than the page draws are
+  // skipped, so a slow page never falls behind the stream (and the server
+  // never finds it too slow to read)
+  if (latest && topo) { update(new Float32Array(latest.buf, latest.at, 3 * topo.nv)); latest = null; }
   if (dirty) { renderer.render(scene, camera); drawn++; dirty = false; }
   window.requestAnimationFrame(tick);
 }
@@ -172,7 +185,7 @@ function onFrame(buf) {
     for (var k = 0; k < 7; k++) p.push(dv.getFloat64(o + 8 * k, true));
     poses.push(p);
   }
-  update(new Float32Array(buf, HEADER + POSE * nh, 3 * nv));
+  latest = {buf: buf, at: HEADER + POSE * nh};
   frames++;
   surface.frame({poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
@@ -193,6 +206,9 @@ var surface = (function () {
   var actual = [];                      // each mesh handle's pose, [p, quaternion]
   var synced = false;                   // the target starts from the handle's pose
   var pending = [];                     // [seq, sent at] of target changes, for latency
+  var echo = [0, 0];                    // the last command the ticks applied: [conn, seq]
+  var sentSeq = 0;                      // the last target's sequence number
+  var changedSeq = 0;                   // the last target change's (a keepalive is none)
   var armUnstop = 0;
   scene.add(handleObj);
   function centre(j) { return new THREE.Vector3().fromArray(info.handles[j].centre); }
@@ -237,8 +253,8 @@ var surface = (function () {
       dv.setUint8(2, picked);
       for (var i = 0; i < 6; i++) dv.setFloat64(16 + 8 * i, p[i], true);
     }, 64);
-    if (s && changed) pending.push([s, performance.now()]);
-    lastSent = p;
+    if (s && changed) { pending.push([s, performance.now()]); changedSeq = s; }
+    if (s) { lastSent = p; sentSeq = s; }
   }
   var lastSent = null;
   function mine() { return holder === me && me !== 0; }
@@ -281,7 +297,8 @@ var surface = (function () {
     $('take').onclick = function () { send(TAKE); };
     $('release').onclick = function () { send(RELEASE); };
     $('mode').onclick = function () { setMode(mode === 'translate' ? 'rotate' : 'translate'); };
-    $('stop').onclick = function () { send(STOP); };
+    // an e-stop acts when it is pressed, not when the button is let go
+    $('stop').addEventListener('mousedown', function (e) { if (e.button === 0) send(STOP); });
     $('unstop').onclick = function () { // a deliberate second click within 3 s
       var now = performance.now();
       if (now - armUnstop < 3000) { send(UNSTOP); armUnstop = 0; $('unstop').textContent = 'Release the stop...'; }
@@ -351,11 +368,22 @@ var surface = (function () {
     show();
   }
   function frame(f) {
-    actual = f.poses; flags = f.flags;
+    actual = f.poses; flags = f.flags; echo = [f.conn, f.seq];
     if (f.conn === me && me) // each target change the tick applied: sent -> frame arrived
       while (pending.length && pending[0][0] <= f.seq) { lat.push(f.arrived - pending[0][1]); pending.shift(); }
     if (info && (!mine() || stopped || !synced)) syncTarget(); // the gizmo shows the handle
     show();
+  }
+  // How far the handle is from the target: the largest difference of the
+  // poses' positions and quaternions (the frame's pose is the loop's, in
+  // doubles), or null before there is both.
+  function gap() {
+    var a = info && synced ? actual[meshHandle(picked)] : null;
+    if (!a) return null;
+    var t = targetPose(), Q = handleObj.quaternion, sg = a[3] * Q.x + a[4] * Q.y + a[5] * Q.z + a[6] * Q.w < 0 ? -1 : 1;
+    var d = Math.max(Math.abs(a[0] - t[0]), Math.abs(a[1] - t[1]), Math.abs(a[2] - t[2]));
+    return Math.max(d, Math.abs(a[3] - sg * Q.x), Math.abs(a[4] - sg * Q.y), Math.abs(a[5] - sg * Q.z),
+      Math.abs(a[6] - sg * Q.w));
   }
   function connected(sock) { ws = sock; seq = 0; pending = []; }
   function closed() { ws = null; holder = 0; me = 0; if (keepalive) { clearInterval(keepalive); keepalive = null; } if (info) show(); }
@@ -364,7 +392,10 @@ var surface = (function () {
     state: function () {
       return {you: me, may_command: may, holder: holder, stop: stopped, ended: ended,
         picked: picked, mode: mode, synced: synced, seq: seq, flags: flags,
-        target: info && synced ? targetPose() : null, sent: lastSent,
+        target: info && synced ? targetPose() : null, sent: lastSent, sent_seq: sentSeq,
+        changed_seq: changedSeq,
+        echo: echo, actual: info ? actual[meshHandle(picked)] || null : null, gap: gap(),
+        centre: info ? info.handles[picked].centre : null, diag: topo ? topo.diag : null,
         gizmo: handleObj.position.toArray(), quat: handleObj.quaternion.toArray()};
     }};
 })();
@@ -405,6 +436,7 @@ window.isoView = {
     s.frames = frames; s.rafs = rafs; s.drawn = drawn; s.now = performance.now();
     s.latency = {n: lat.length, median: quantile(lat, 0.5), p99: quantile(lat, 0.99)};
     s.gizmo_ok = !!gizmo;
+    s.axis = gizmo ? gizmo.axis : null; s.dragging = gizmo ? !!gizmo.dragging : false;
     return s;
   },
   // The screen point of the gizmo's picker for `axis` ('X', 'Y' or 'Z') in
@@ -418,8 +450,8 @@ window.isoView = {
     // the pickers' geometry has their offsets baked in: its box's middle
     hit.geometry.computeBoundingBox();
     var mid = hit.geometry.boundingBox.getCenter(new THREE.Vector3()).applyMatrix4(hit.matrixWorld);
-    return {at: screenOf(mid),
-      centre: screenOf(surface.handleObj.getWorldPosition(new THREE.Vector3()))};
+    var c = surface.handleObj.getWorldPosition(new THREE.Vector3());
+    return {at: screenOf(mid), centre: screenOf(c), world: mid.distanceTo(c)};
   },
   screenOf: function (x, y, z) { return screenOf(new THREE.Vector3(x, y, z)); },
   spin: function (on) { spin = !!on; },

@@ -1,0 +1,551 @@
+/* tests/test_view_browser.c -- the view as a control surface in a real
+ * headless Chromium, driven through DevTools (tests/cdp.h), against the
+ * real-time loop running in this process on config/scenes/view_cactus.yaml
+ * (the benchmark's cactus when the data is there, else the built-in one;
+ * the emulated actuator MCU as the scene says):
+ *   1. the page loads, takes control (Enter), and its gizmo is dragged along
+ *      x by 60 px with the mouse; once the drag has ended and the ticks
+ *      after it have run, the handle's pose in the loop equals the pose the
+ *      page sent, within 1e-9 of the bounding-box diagonal, and moved along
+ *      x by about what 60 px are there, and along nothing else;
+ *   2. the STOP button, clicked five times (and Escape once), brings the
+ *      MCU to its safe state through the SAFE path; each release takes the
+ *      deliberate second click, after which the sink arms again;
+ *   3. the recording the run made replays (fast, no view) to the live run's
+ *      final mesh, bit for bit.
+ * Figures, printed (a shared machine: they say what it did, they are not
+ * asserted): the page's load to its first drawn frame, the input-to-publish
+ * latency of the drag's commands (the page's clock when it sent a command
+ * to the arrival of the first frame that applied it; median and p99), the
+ * click-to-safe time, and the frames per second the page draws while
+ * config/scenes/bumpplane.yaml runs.
+ * Skips, with the reason, where Chromium is not installed. */
+#include "testutil.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cdp.h"
+#include "iso_actuators.h"
+#include "iso_loop.h"
+
+#define SCENES ISO_TEST_STREAMS "/../../config/scenes/"
+
+typedef struct run {
+    iso_scene *sc;
+    iso_loop *l;
+    pthread_t th;
+    volatile sig_atomic_t stop;
+    int rc, started;
+    iso_err err;
+    FILE *log;
+} run;
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec / 1e6;
+}
+
+static void nap_ms(double ms)
+{
+    struct timespec ts = {(time_t)(ms / 1000), (long)(fmod(ms, 1000) * 1e6)};
+    nanosleep(&ts, NULL);
+}
+
+static void *run_main(void *arg)
+{
+    run *r = arg;
+    r->rc = iso_loop_run(r->l, &r->err);
+    return NULL;
+}
+
+/* The benchmark's files for a scene's `benchmark:` (the two it uses here),
+ * from the build's benchmark folder; absent, the scene's fallback shape. */
+static int bench_find(void *ctx, const char *name, char *mesh, char *sel, char *def, char *why,
+                      size_t cap)
+{
+    (void)ctx;
+    static const char *const layout[][2] = {{"cactus", "03-cactus-bend/cactus"},
+                                            {"bumpplane", "00-plane-lift/knubbel"}};
+    for (size_t i = 0; i < sizeof layout / sizeof layout[0]; i++) {
+        if (strcmp(name, layout[i][0]) != 0)
+            continue;
+        snprintf(mesh, 4096, "%s/%s.off", ISO_BENCHMARK_DIR, layout[i][1]);
+        snprintf(sel, 4096, "%s/%s.sel", ISO_BENCHMARK_DIR, layout[i][1]);
+        snprintf(def, 4096, "%s/%s.def", ISO_BENCHMARK_DIR, layout[i][1]);
+        if (access(mesh, R_OK) == 0 && access(sel, R_OK) == 0 && access(def, R_OK) == 0)
+            return 1;
+    }
+    snprintf(why, cap, "not in %s", ISO_BENCHMARK_DIR);
+    return 0;
+}
+
+static void load_scene(const char *path, iso_scene **sc)
+{
+    iso_err err;
+    iso_err_clear(&err);
+    iso_scene_opts so = {.bench_find = bench_find};
+    if (iso_scene_load_opts(path, &so, sc, &err) != ISO_OK)
+        fail_msg("%s", err.msg);
+}
+
+/* Loads a shipped scene and runs it live on a thread of its own: the view
+ * on any free port, no real-time priority (a test shares the machine);
+ * duration_s 0: until run_stop. */
+static void run_start(run *r, const char *scene, const char *record, const char *logname,
+                      double duration_s)
+{
+    memset(r, 0, sizeof *r);
+    iso_err_clear(&r->err);
+    char log[512];
+    r->log = fopen(iso_test_tmp(log, sizeof log, logname), "w");
+    assert_non_null(r->log);
+    load_scene(scene, &r->sc);
+    iso_loop_opts o;
+    iso_loop_opts_default(&o);
+    o.display = 1;
+    o.port = 0;
+    o.record = record;
+    o.stop = &r->stop;
+    o.log = r->log;
+    o.duration_s = duration_s;
+    if (iso_loop_create(r->sc, &o, &r->l, &r->err) != ISO_OK)
+        fail_msg("%s", r->err.msg);
+    assert_int_equal(pthread_create(&r->th, NULL, run_main, r), 0);
+    r->started = 1;
+}
+
+static void run_stop(run *r)
+{
+    if (!r->started)
+        return;
+    r->stop = 1;
+    pthread_join(r->th, NULL);
+    r->started = 0;
+    if (r->rc != ISO_OK)
+        fail_msg("the loop: %s", r->err.msg);
+}
+
+static void run_free(run *r)
+{
+    iso_loop_destroy(r->l);
+    iso_scene_destroy(r->sc);
+    fclose(r->log);
+}
+
+/* n numbers of the JSON array after "key":[ */
+static int json_array(const char *j, const char *key, double *out, int n)
+{
+    char k[64];
+    snprintf(k, sizeof k, "\"%s\":[", key);
+    const char *p = j ? strstr(j, k) : NULL;
+    if (!p)
+        return 0;
+    p += strlen(k);
+    for (int i = 0; i < n; i++) {
+        char *end;
+        out[i] = strtod(p, &end);
+        if (end == p)
+            return 0;
+        p = end + strspn(end, ", ");
+    }
+    return 1;
+}
+
+static char *page_state(iso_cdp *c)
+{
+    char *s = iso_cdp_eval(c, "JSON.stringify(window.isoView.state())", 10000);
+    if (!s)
+        fail_msg("page state: %s", c->why);
+    return s;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Starts Chromium; skips without it. Before the loop: a fork while the
+ * loop's factorization worker is inside a threaded BLAS call can leave
+ * that call waiting for OpenBLAS threads that its fork handler stopped. */
+static void launch(iso_cdp *c, const char *name)
+{
+    char profile[512], log[512], buf[300];
+    snprintf(buf, sizeof buf, "%s-profile", name);
+    iso_test_tmp(profile, sizeof profile, buf);
+    snprintf(buf, sizeof buf, "%s-chromium.log", name);
+    iso_test_tmp(log, sizeof log, buf);
+    int rc = iso_cdp_start(c, profile, log);
+    if (rc == 77) {
+        print_message("skipped: %s\n", c->why);
+        skip();
+    }
+    if (rc != 0)
+        fail_msg("chromium: %s", c->why);
+}
+
+/* Opens the loop's view; *load_ms: until its first frame was drawn. */
+static void open_page(iso_cdp *c, run *r, double *load_ms)
+{
+    char url[300];
+    assert_int_equal(iso_loop_view_url(r->l, url, sizeof url), 1);
+    double t0 = now_ms();
+    if (iso_cdp_open(c, url, 60000) != 0 ||
+        !iso_cdp_wait(c,
+                      "window.isoView && isoView.state().frames >= 1 && isoView.state().drawn >= 1",
+                      60000))
+        fail_msg("chromium: %s", c->why);
+    *load_ms = now_ms() - t0;
+}
+
+/* The middle of element `id` on the page. */
+static void middle_of(iso_cdp *c, const char *id, double *x, double *y)
+{
+    char expr[256];
+    snprintf(expr, sizeof expr,
+             "JSON.stringify((function(r){return {x:r.x+r.width/2,y:r.y+r.height/2}})("
+             "document.getElementById('%s').getBoundingClientRect()))",
+             id);
+    char *r = iso_cdp_eval(c, expr, 10000);
+    assert_non_null(r);
+    *x = iso_cdp_num(r, "x");
+    *y = iso_cdp_num(r, "y");
+    free(r);
+}
+
+/* Presses and releases the left button at the middle of element `id`. */
+static void click(iso_cdp *c, const char *id)
+{
+    double x, y;
+    middle_of(c, id, &x, &y);
+    assert_int_equal(iso_cdp_mouse(c, "mousePressed", x, y, 1), 0);
+    assert_int_equal(iso_cdp_mouse(c, "mouseReleased", x, y, 1), 0);
+}
+
+/* ---- 1. take control and drag ----------------------------------------------- */
+
+typedef struct drag_result {
+    double sent[6], centre[3], diag, dx_world;
+    double lat_median, lat_p99;
+    int lat_n;
+} drag_result;
+
+static void take_control_and_drag(iso_cdp *c, drag_result *out)
+{
+    if (!iso_cdp_wait(c, "isoView.state().you > 0 && isoView.state().may_command", 30000))
+        fail_msg("no control state: %s", c->why);
+    assert_int_equal(iso_cdp_key(c, "Enter", "Enter", 13, 0), 0);
+    if (!iso_cdp_wait(c,
+                      "(function(s){return s.holder === s.you && s.synced && s.gizmo_ok})"
+                      "(isoView.state())",
+                      30000))
+        fail_msg("taking control: %s", c->why);
+    char *s0 = page_state(c);
+    double before[6];
+    assert_true(json_array(s0, "target", before, 6));
+    free(s0);
+    char *pk = iso_cdp_eval(c, "JSON.stringify(isoView.pickerAt('X'))", 10000);
+    double at[2] = {0, 0}, ce[2] = {0, 0};
+    assert_true(json_array(pk, "at", at, 2) && json_array(pk, "centre", ce, 2));
+    double world = iso_cdp_num(pk, "world");
+    free(pk);
+    double ux = at[0] - ce[0], uy = at[1] - ce[1], px = hypot(ux, uy);
+    assert_true(px > 5); /* the x arrow is not seen end-on */
+    ux /= px;
+    uy /= px;
+    assert_int_equal(iso_cdp_eval(c, "String(isoView.clearLatencies())", 10000) != NULL, 1);
+    /* hover (the gizmo picks its axis), press, 40 moves of 1.5 px, release */
+    assert_int_equal(iso_cdp_mouse(c, "mouseMoved", at[0], at[1], 0), 0);
+    if (!iso_cdp_wait(c, "isoView.state().axis === 'X'", 10000)) {
+        char *st = iso_cdp_eval(c, "JSON.stringify(isoView.state())", 10000);
+        fail_msg("the gizmo's x arrow at %.1f %.1f is not under the mouse: %s", at[0], at[1], st);
+    }
+    assert_int_equal(iso_cdp_mouse(c, "mousePressed", at[0], at[1], 1), 0);
+    for (int k = 1; k <= 40; k++) {
+        assert_int_equal(
+            iso_cdp_mouse(c, "mouseMoved", at[0] + 1.5 * k * ux, at[1] + 1.5 * k * uy, 1), 0);
+        nap_ms(15);
+    }
+    assert_int_equal(iso_cdp_mouse(c, "mouseReleased", at[0] + 60 * ux, at[1] + 60 * uy, 1), 0);
+    /* the ticks after the drag: the loop's handle is where the page sent it */
+    if (!iso_cdp_wait(c,
+                      "(function(s){return s.gap !== null && s.gap < 1e-9 * s.diag && "
+                      "s.echo[0] === s.you && s.echo[1] >= s.changed_seq})(isoView.state())",
+                      30000)) {
+        char *st = iso_cdp_eval(c, "JSON.stringify(isoView.state())", 10000);
+        fail_msg("after the drag: %s; the page: %s", c->why, st ? st : "?");
+    }
+    char *s1 = page_state(c);
+    assert_true(json_array(s1, "sent", out->sent, 6));
+    assert_true(json_array(s1, "centre", out->centre, 3));
+    out->diag = iso_cdp_num(s1, "diag");
+    out->lat_n = (int)iso_cdp_num(s1, "n");
+    out->lat_median = iso_cdp_num(s1, "median");
+    out->lat_p99 = iso_cdp_num(s1, "p99");
+    free(s1);
+    out->dx_world = out->sent[0] - before[0];
+    double expect = 60.0 / px * world; /* 60 px at the arrow's scale */
+    print_message("drag: 60 px along x moved the target %.6g along x (about %.6g expected from "
+                  "the arrow's %.1f px per %.4g units), %.3g along y, %.3g along z\n",
+                  out->dx_world, expect, px, world, out->sent[1] - before[1],
+                  out->sent[2] - before[2]);
+    assert_true(out->dx_world > 0.5 * expect && out->dx_world < 2 * expect);
+    assert_true(fabs(out->sent[1] - before[1]) < 1e-12 * out->diag);
+    assert_true(fabs(out->sent[2] - before[2]) < 1e-12 * out->diag);
+    for (int k = 3; k < 6; k++)
+        assert_true(fabs(out->sent[k] - before[k]) < 1e-12); /* no turn */
+}
+
+/* ---- 2. the stop button ---------------------------------------------------------- */
+
+static int act_state(const run *r)
+{
+    return iso_actuators_state(iso_loop_actuators(r->l), NULL);
+}
+
+/* Waits up to ms for the sink to reach state; returns the time it took, -1
+ * if it did not. Polls every 0.1 ms. */
+static double wait_act(const run *r, int state, double ms)
+{
+    double t0 = now_ms();
+    while (now_ms() - t0 < ms) {
+        if (act_state(r) == state)
+            return now_ms() - t0;
+        nap_ms(0.1);
+    }
+    return -1;
+}
+
+/* Presses STOP n times (then Escape once), each time from an armed sink to
+ * its safe state, and releases it with the two clicks it takes. t_click[k]
+ * and t_safe[k] get the monotonic times (ms) of each press's dispatch and
+ * of the safe state seen; the last entry is Escape's. */
+static void stop_and_release(iso_cdp *c, run *r, int n, double *t_click, double *t_safe)
+{
+    double sx, sy;
+    middle_of(c, "stop", &sx, &sy);
+    for (int k = 0; k <= n; k++) {
+        if (wait_act(r, ISO_ACT_STATE_ARMED, 20000) < 0)
+            fail_msg("the actuators are not armed (state %d)", act_state(r));
+        t_click[k] = now_ms();
+        if (k < n) /* the button acts when pressed, as an e-stop does */
+            assert_int_equal(iso_cdp_mouse(c, "mousePressed", sx, sy, 1), 0);
+        else
+            assert_int_equal(iso_cdp_key(c, "Escape", "Escape", 27, 0), 0);
+        if (wait_act(r, ISO_ACT_STATE_SAFE, 5000) < 0)
+            fail_msg("no safe state after the stop (state %d)", act_state(r));
+        t_safe[k] = now_ms();
+        if (k < n)
+            assert_int_equal(iso_cdp_mouse(c, "mouseReleased", sx, sy, 1), 0);
+        if (!iso_cdp_wait(c, "isoView.state().stop", 10000))
+            fail_msg("the page does not show the stop: %s", c->why);
+        /* one click on the release is not enough ... */
+        click(c, "unstop");
+        nap_ms(300);
+        assert_int_equal(act_state(r), ISO_ACT_STATE_SAFE);
+        /* ... the second is */
+        click(c, "unstop");
+        if (!iso_cdp_wait(c, "!isoView.state().stop", 10000))
+            fail_msg("the stop was not released: %s", c->why);
+    }
+    if (wait_act(r, ISO_ACT_STATE_ARMED, 20000) < 0)
+        fail_msg("the actuators did not arm again after the release");
+}
+
+/* The times (ms, monotonic) the STOP messages reached the view's server:
+ * the recording's records of them. Returns how many (at most cap). */
+static int stop_arrivals(const char *rec, double *t, int cap)
+{
+    iso_dev_rec_reader rd;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_dev_rec_reader_load(&rd, rec, &err) != ISO_OK)
+        fail_msg("%s", err.msg);
+    int n = 0;
+    iso_dev_chunk ch;
+    while (iso_dev_rec_next(&rd, &ch, NULL) == 1)
+        if (ch.type == ISO_DEV_CHUNK_DATA && ch.len > ISO_DEV_VIEW_ENVELOPE + 1 &&
+            ch.data[0] == ISO_DEV_VIEW_MSG &&
+            ch.data[ISO_DEV_VIEW_ENVELOPE + 1] == ISO_DEV_VIEW_STOP && n < cap)
+            t[n++] = (double)ch.t_ns / 1e6;
+    iso_dev_rec_reader_deinit(&rd);
+    return n;
+}
+
+/* ---- the test -------------------------------------------------------------------- */
+
+static void drag_stop_and_replay_the_cactus(void **state)
+{
+    (void)state;
+    char rec[512];
+    iso_test_tmp(rec, sizeof rec, "view_browser.isorec");
+    unlink(rec);
+    iso_cdp c;
+    launch(&c, "view-browser");
+    run r;
+    run_start(&r, SCENES "view_cactus.yaml", rec, "view_browser.log", 0);
+    double load_ms;
+    open_page(&c, &r, &load_ms);
+    drag_result d;
+    take_control_and_drag(&c, &d);
+    enum { STOPS = 5 };
+    double t_click[STOPS + 1], t_safe[STOPS + 1];
+    int acts = iso_loop_actuators(r.l) != NULL;
+    if (acts)
+        stop_and_release(&c, &r, STOPS, t_click, t_safe);
+    else
+        print_message("(the scene has no actuators: no click-to-safe figure)\n");
+    /* the page sends its target again after the release: the same pose */
+    char *s2 = page_state(&c);
+    double sent[6];
+    assert_true(json_array(s2, "sent", sent, 6));
+    free(s2);
+    iso_cdp_stop(&c);
+    run_stop(&r);
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_loop_shutdown(r.l, &err), ISO_OK);
+    iso_loop_summary s;
+    iso_loop_get_summary(r.l, &s);
+    char json[512];
+    iso_test_tmp(json, sizeof json, "view_browser.json");
+    assert_int_equal(iso_loop_write_json(&s, r.sc, json, &err), ISO_OK);
+
+    /* 1. the handle's final pose is the page's */
+    iso_twist rv = {{sent[3], sent[4], sent[5]}, {0, 0, 0}};
+    iso_pose T;
+    iso_twist_exp(&rv, 1.0, &T);
+    memcpy(T.p, sent, sizeof T.p);
+    double want[3], gap = 0, rgap = 0;
+    iso_pose_apply(&T, d.centre, want);
+    for (int i = 0; i < 3; i++)
+        gap = fmax(gap, fabs(s.handle_p[0][i] - want[i]));
+    for (int i = 0; i < 9; i++)
+        rgap = fmax(rgap, fabs(s.handle_R[0][i] - T.R[i]));
+    print_message("final handle centre %.9g %.9g %.9g, %.3g from the page's pose (%.3g of the "
+                  "diagonal); rotation %.3g from it\n",
+                  s.handle_p[0][0], s.handle_p[0][1], s.handle_p[0][2], gap, gap / d.diag, rgap);
+    assert_true(gap <= 1e-9 * d.diag);
+    assert_true(rgap <= 1e-9);
+    assert_true(s.view_device && s.view_grants == 1 && s.view_stops == (acts ? STOPS + 1 : 0));
+    assert_true(s.device[0].dec.grants == 1 && s.device[0].dec.reports > 40);
+
+    /* the figures */
+    print_message("figures (a shared machine; load: see uptime):\n");
+    print_message("  the page loaded and drew its first frame %.0f ms after it was opened\n",
+                  load_ms);
+    print_message("  input to publish, %d commands of the drag: median %.1f ms, p99 %.1f ms "
+                  "(two ticks at %g Hz: %.1f ms)\n",
+                  d.lat_n, d.lat_median, d.lat_p99, r.sc->tick_hz, 2000.0 / r.sc->tick_hz);
+    if (acts) {
+        double arrived[STOPS + 1], click_safe[STOPS], arrive_safe[STOPS + 1];
+        int na = stop_arrivals(rec, arrived, STOPS + 1);
+        assert_int_equal(na, STOPS + 1);
+        for (int k = 0; k <= STOPS; k++) {
+            arrive_safe[k] = t_safe[k] - arrived[k];
+            if (k < STOPS)
+                click_safe[k] = t_safe[k] - t_click[k];
+        }
+        double key = t_safe[STOPS] - t_click[STOPS];
+        qsort(click_safe, STOPS, sizeof click_safe[0], cmp_double);
+        qsort(arrive_safe, STOPS + 1, sizeof arrive_safe[0], cmp_double);
+        print_message("  STOP pressed in the page to the MCU's safe state, %d presses: median %.1f "
+                      "ms, max %.1f ms (Escape: %.1f ms); from the STOP's arrival at the view's "
+                      "server: median %.1f ms, max %.1f ms (the target: 20 ms)\n",
+                      STOPS, click_safe[STOPS / 2], click_safe[STOPS - 1], key,
+                      arrive_safe[(STOPS + 1) / 2], arrive_safe[STOPS]);
+    }
+    print_message("  the run: %ld ticks, tick median %.2f ms, p99 %.2f ms\n", s.ticks,
+                  s.tick_median, s.tick_p99);
+    assert_true(d.lat_n >= 10);
+    double *live = malloc(3 * sizeof(double) * (size_t)iso_mesh_vertex_count(iso_loop_mesh(r.l)));
+    assert_non_null(live);
+    size_t bytes = 3 * sizeof(double) * (size_t)iso_mesh_vertex_count(iso_loop_mesh(r.l));
+    memcpy(live, iso_loop_positions(r.l), bytes);
+    uint64_t live_sum = s.checksum;
+    long live_ticks = s.ticks;
+    run_free(&r);
+
+    /* 3. the recording replays to the same mesh, bit for bit */
+    iso_scene *sc;
+    load_scene(SCENES "view_cactus.yaml", &sc);
+    sc->devices[0].backend = ISO_SCENE_DEV_REPLAY;
+    snprintf(sc->devices[0].path, sizeof sc->devices[0].path, "%s", rec);
+    sc->display.enabled = 0;
+    sc->actuators.enabled = 0;
+    iso_loop_opts o;
+    iso_loop_opts_default(&o);
+    o.fast = 1;
+    o.display = 0;
+    FILE *quiet = fopen("/dev/null", "w");
+    o.log = quiet;
+    iso_loop *l;
+    if (iso_loop_create(sc, &o, &l, &err) != ISO_OK || iso_loop_run(l, &err) != ISO_OK)
+        fail_msg("replay: %s", err.msg);
+    iso_loop_summary s2r;
+    iso_loop_get_summary(l, &s2r);
+    int same = memcmp(live, iso_loop_positions(l), bytes) == 0;
+    print_message("replay of %s: %ld ticks (live %ld), checksum %016llx (live %016llx): %s\n", rec,
+                  s2r.ticks, live_ticks, (unsigned long long)s2r.checksum,
+                  (unsigned long long)live_sum, same ? "the same bits" : "DIFFERENT");
+    assert_true(same);
+    assert_int_equal(s2r.ticks, live_ticks);
+    iso_loop_destroy(l);
+    iso_scene_destroy(sc);
+    fclose(quiet);
+    free(live);
+}
+
+/* ---- the page's frame rate with the largest shipped scene ------------------------- */
+
+static void the_page_keeps_drawing_the_bumpplane(void **state)
+{
+    (void)state;
+    iso_cdp c;
+    launch(&c, "view-bumpplane");
+    run r;
+    run_start(&r, SCENES "bumpplane.yaml", NULL, "view_bumpplane.log", 120);
+    double load_ms;
+    open_page(&c, &r, &load_ms);
+    free(iso_cdp_eval(&c, "String(isoView.spin(true))", 10000));
+    nap_ms(1000);
+    char *a = page_state(&c);
+    nap_ms(5000);
+    char *b = page_state(&c);
+    double dt = (iso_cdp_num(b, "now") - iso_cdp_num(a, "now")) / 1e3;
+    double drawn = (iso_cdp_num(b, "drawn") - iso_cdp_num(a, "drawn")) / dt;
+    double rafs = (iso_cdp_num(b, "rafs") - iso_cdp_num(a, "rafs")) / dt;
+    double frames = (iso_cdp_num(b, "frames") - iso_cdp_num(a, "frames")) / dt;
+    free(a);
+    free(b);
+    iso_cdp_stop(&c);
+    run_stop(&r);
+    iso_loop_summary s;
+    iso_loop_get_summary(r.l, &s);
+    print_message("bumpplane, %d vertices: the page drew %.1f frames/s (requestAnimationFrame ran "
+                  "%.1f/s, turning the camera each time) while the loop sent it %.2f frames/s; "
+                  "loaded in %.0f ms; the loop's tick median %.0f ms\n",
+                  iso_mesh_vertex_count(iso_loop_mesh(r.l)), drawn, rafs, frames, load_ms,
+                  s.tick_median);
+    assert_true(drawn > 0);
+    run_free(&r);
+}
+
+int main(void)
+{
+    signal(SIGPIPE, SIG_IGN);
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(drag_stop_and_replay_the_cactus),
+        cmocka_unit_test(the_page_keeps_drawing_the_bumpplane),
+    };
+    return cmocka_run_group_tests_name("view_browser", t, NULL, NULL);
+}
