@@ -38,10 +38,34 @@ static void print_event(const iso_dev_event *e)
         printf("      %s %s\n", e->line == ISO_DEV_GPIO_ESTOP ? "e-stop" : "clutch",
                e->level ? "active" : "released");
         break;
+    case ISO_DEV_EV_TARGET:
+        printf("      target handle %u p %.9g %.9g %.9g  r %.9g %.9g %.9g\n", e->line, e->v[0],
+               e->v[1], e->v[2], e->v[3], e->v[4], e->v[5]);
+        break;
+    case ISO_DEV_EV_RELEASE: printf("      control released\n"); break;
     case ISO_DEV_EV_GONE: printf("      device gone\n"); break;
     case ISO_DEV_EV_BACK: printf("      device back\n"); break;
     default: break;
     }
+}
+
+/* A view's envelope, as the server wrote it: who, and what (applied or
+ * not: the decoded events below say what the loop took). */
+static void print_view_chunk(const iso_dev_chunk *c)
+{
+    static const char *const what[] = {"?", "message", "control granted", "control ended"};
+    static const char *const type[] = {"?", "TAKE", "RELEASE", "TARGET", "STOP", "UNSTOP"};
+    if (c->len < ISO_DEV_VIEW_ENVELOPE)
+        return;
+    uint32_t conn = (uint32_t)c->data[1] | (uint32_t)c->data[2] << 8 | (uint32_t)c->data[3] << 16 |
+                    (uint32_t)c->data[4] << 24;
+    printf("      view: %s, viewer %u", what[c->data[0] <= 3 ? c->data[0] : 0], (unsigned)conn);
+    iso_dev_view_msg m;
+    if (c->data[0] == ISO_DEV_VIEW_MSG &&
+        iso_dev_view_parse(c->data + ISO_DEV_VIEW_ENVELOPE, c->len - ISO_DEV_VIEW_ENVELOPE, &m,
+                           NULL, 0) == ISO_OK)
+        printf(": %s seq %u, page clock %.3f ms", type[m.type], (unsigned)m.seq, m.page_ms);
+    printf("\n");
 }
 
 typedef struct inspect_args {
@@ -114,6 +138,9 @@ static int inspect_main(int argc, char **argv)
                            c.data[k]);
         }
         printf("\n");
+        if (c.type == ISO_DEV_CHUNK_DATA && c.source < r.n_sources &&
+            r.infos[c.source].kind == ISO_DEV_KIND_VIEW)
+            print_view_chunk(&c);
         if (c.source < r.n_sources && can[c.source]) {
             size_t n = iso_dev_decode(&dec[c.source], &c, ev, ISO_DEV_EVENTS_PER_CHUNK);
             for (size_t k = 0; k < n; k++)

@@ -202,6 +202,102 @@ static void a_browser_that_stops_reading_does_not_stall_the_loop(void **state)
     free(b);
 }
 
+/* On a terminal a run that ends by itself keeps its view up with the last
+ * frame and the summary until Ctrl-C (exit 0); --exit-at-end does not wait. */
+static int run_on_a_terminal(const char *scene, const char *extra, char *tty, size_t cap,
+                             double *held_s)
+{
+    int m, sl;
+    assert_int_equal(openpty(&m, &sl, NULL, NULL, NULL), 0);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int nul = open("/dev/null", O_RDWR);
+        dup2(sl, 0); /* stdin and stderr a terminal: Ctrl-C can come */
+        dup2(nul, 1);
+        dup2(sl, 2);
+        close(m);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--port", "0", extra, (char *)NULL);
+        _exit(127);
+    }
+    close(sl);
+    run_result *r = calloc(1, sizeof *r);
+    assert_non_null(r);
+    size_t len = 0;
+    double t0 = now_s(), ended = -1;
+    int status = 0, signalled = 0;
+    while (waitpid(pid, &status, WNOHANG) == 0) {
+        drain_tty(m, r, &len);
+        const char *held = strstr(r->tty, "the run has ended; the live view keeps showing");
+        if (held && ended < 0) {
+            ended = now_s();
+            /* the page still loads, and its viewer gets the summary */
+            const char *u = strstr(held, "http://127.0.0.1:");
+            assert_non_null(u);
+            int port = atoi(u + strlen("http://127.0.0.1:"));
+            char host[64];
+            snprintf(host, sizeof host, "127.0.0.1:%d", port);
+            int st, fd = iso_test_ws_open(AF_INET, port, host, "", 0, &st);
+            assert_int_equal(st, 101);
+            int note = 0;
+            for (int i = 0; i < 8 && !note; i++) {
+                unsigned char *p;
+                size_t n;
+                if (iso_test_ws_recv(fd, &p, &n) < 0)
+                    break;
+                note = strstr((char *)p, "\"type\":\"note\"") && strstr((char *)p, "scene ");
+                free(p);
+            }
+            close(fd);
+            assert_true(note);
+        }
+        if (ended > 0 && !signalled && now_s() > ended + 1.0) {
+            kill(pid, SIGINT); /* the user's Ctrl-C */
+            signalled = 1;
+        }
+        if (now_s() > t0 + 120) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            fail_msg("the run did not end within 120 s: %s", r->tty);
+        }
+        nap_ms(10);
+    }
+    drain_tty(m, r, &len);
+    close(m);
+    snprintf(tty, cap, "%s", r->tty);
+    *held_s = ended > 0 ? now_s() - ended : 0;
+    free(r);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+static void on_a_terminal_the_view_stays_until_ctrl_c(void **state)
+{
+    (void)state;
+    char scene[4096];
+    iso_test_tmp(scene, sizeof scene, "view_hold.yaml");
+    iso_test_write(scene,
+                   "name: view_hold\n"
+                   "mesh: {shape: cactus, resolution: 1}\n"
+                   "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                   "      driver: {screw: {def: builtin, duration: 0.5}}\n"
+                   "solver: {assembly: cpu, refactor: adaptive}\n"
+                   "tick_hz: 30\n"
+                   "sinks:\n  display: {host: 127.0.0.1}\n",
+                   -1);
+    static char tty[16384];
+    double held;
+    int st = run_on_a_terminal(scene, "--quiet", tty, sizeof tty, &held);
+    print_message("on a terminal: held the view %.1f s after the end, until SIGINT; exit %d\n",
+                  held, st);
+    assert_int_equal(st, 0);
+    assert_true(held >= 1.0);
+    assert_non_null(strstr(tty, "press Ctrl-C to quit"));
+    st = run_on_a_terminal(scene, "--exit-at-end", tty, sizeof tty, &held);
+    assert_int_equal(st, 0);
+    assert_true(held == 0); /* never said it was holding */
+    assert_null(strstr(tty, "keeps showing"));
+}
+
 int main(void)
 {
     g_bin = getenv("ISOSHAPE_BIN");
@@ -212,6 +308,7 @@ int main(void)
     signal(SIGPIPE, SIG_IGN);
     const struct CMUnitTest t[] = {
         cmocka_unit_test(a_browser_that_stops_reading_does_not_stall_the_loop),
+        cmocka_unit_test(on_a_terminal_the_view_stays_until_ctrl_c),
     };
     return cmocka_run_group_tests(t, NULL, NULL);
 }
