@@ -188,9 +188,9 @@ static void one_viewer_controls_at_a_time(void **state)
     /* B is refused, told why, and nothing reaches the device */
     static const double pose[6] = {0.5, 0, 0, 0, 0, 0.1};
     command(b, ISO_DEV_VIEW_TAKE, 1, 0, NULL);
-    command(b, ISO_DEV_VIEW_TARGET, 2, 0, pose);
     text_with(b, "control", "is in control", cb, sizeof cb);
     print_message("refused: %s\n", cb);
+    command(b, ISO_DEV_VIEW_TARGET, 2, 0, pose); /* one at a time: each reason is said */
     text_with(b, "control", "take control first", cb, sizeof cb);
     assert_true(nothing_queued(&r));
     /* A's target goes through; one for a handle it may not move does not */
@@ -272,7 +272,9 @@ static void malformed_commands_never_reach_the_device(void **state)
     n = iso_dev_view_encode(&m, b, sizeof b);
     iso_test_ws_send(a, 1, 2, b, (size_t)n);                /* not finite */
     iso_test_ws_send(a, 1, 1, "{\"type\":\"TARGET\"}", 17); /* text carries no command */
-    text_with(a, "control", "bytes", c, sizeof c);          /* the length, said */
+    /* the page is told why (the newest reason: refusals that come together
+     * are said once) */
+    text_with(a, "control", "target rotation x is inf", c, sizeof c);
     print_message("malformed: %s\n", c);
     assert_true(nothing_queued(&r));
     iso_display_command_stats cs;

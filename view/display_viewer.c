@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 
 /* Compares the whole token whatever differs first: no timing tells how
  * much of a guess was right. */
@@ -36,6 +37,12 @@ static int viewer_open(iso_display *d, iso_display__conn *c, const iso_display__
     v->frame = malloc(d->frame_len);
     if (!v->frame)
         return 503;
+    /* The kernel keeps at most about two frames for a viewer (it doubles
+     * this): a browser that stops reading costs that much, not the
+     * megabytes autotuning would give it before the stall drops it. */
+    size_t sb = 2 * d->frame_len > 65536 ? 2 * d->frame_len : 65536;
+    int sbi = sb < (size_t)(1 << 30) ? (int)sb : 1 << 30;
+    setsockopt(c->fd, SOL_SOCKET, SO_SNDBUF, &sbi, sizeof sbi);
     v->stage = V_HANDSHAKE;
     v->may_command = d->dev && token_ok(d, r);
     v->control_ver = d->control_ver - 1; /* its first control message is due */

@@ -39,6 +39,8 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
         inside(buf, n, r.upgrade, r.upgrade_len);
         inside(buf, n, r.key, r.key_len);
         inside(buf, n, r.version, r.version_len);
+        inside(buf, n, r.query, r.query_len);
+        inside(buf, n, r.protocol, r.protocol_len);
         if (!r.method || r.method_len == 0 || !r.path)
             abort();
         const char *names[] = {"localhost", "127.0.0.1", "[::1]", NULL};
@@ -51,6 +53,10 @@ int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
         char accept[29];
         if (r.key)
             (void)iso_display__ws_accept(r.key, r.key_len, accept);
+        size_t tl = 0;
+        const char *tok = iso_display__query_get(r.query, r.query_len, "token", &tl);
+        if (tok)
+            inside(buf, n, tok, tl);
     }
     free(buf);
     return 0;
