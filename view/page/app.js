@@ -340,9 +340,11 @@ var surface = (function () {
     handleObj.updateMatrixWorld(); sendTarget(true); dirty = true;
   }
   function key(e) {
-    if (!info || e.target.tagName === 'SELECT' || e.target.tagName === 'INPUT') return;
+    if (!info) return;
     var k = e.key, lower = k.length === 1 ? k.toLowerCase() : k, sign = e.shiftKey ? -1 : 1;
-    if (k === 'Escape') { send(STOP); e.preventDefault(); return; }
+    if (k === 'Escape') { send(STOP); e.preventDefault(); return; } // wherever the focus is
+    if (e.target.tagName === 'SELECT' || e.target.tagName === 'INPUT') return;
+    if (e.ctrlKey || e.metaKey || e.altKey) return; // the browser's own shortcuts
     if (k === 'Enter') send(TAKE);
     else if (lower === 'q') send(RELEASE);
     else if (lower === 'g') setMode('translate');
