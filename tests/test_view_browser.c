@@ -280,7 +280,7 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
     if (!iso_cdp_wait(c,
                       "(function(s){return s.gap !== null && s.gap < 1e-9 * s.diag && "
                       "s.echo[0] === s.you && s.echo[1] >= s.changed_seq})(isoView.state())",
-                      30000)) {
+                      60000)) {
         char *st = iso_cdp_eval(c, "JSON.stringify(isoView.state())", 10000);
         fail_msg("after the drag: %s; the page: %s", c->why, st ? st : "?");
     }
@@ -387,6 +387,16 @@ static int stop_arrivals(const char *rec, double *t, int cap)
 static void drag_stop_and_replay_the_cactus(void **state)
 {
     (void)state;
+#ifdef __SANITIZE_ADDRESS__
+    /* Under ASan a cactus tick takes longer than the period, so the live
+     * run falls behind and its late ticks take sub-steps for the motion,
+     * each an evaluation: the session would take minutes, not prove more.
+     * The view's server and device code run under ASan in test_view_server,
+     * test_view_control and test_dev_view. */
+    print_message("skipped: under ASan the loop does not keep the cactus in real time, which a "
+                  "browser session needs (the optimised build runs this)\n");
+    skip();
+#endif
     char rec[512];
     iso_test_tmp(rec, sizeof rec, "view_browser.isorec");
     unlink(rec);
