@@ -435,6 +435,20 @@ static pthread_mutex_t *lock_of(const iso_actuators *a)
     return (pthread_mutex_t *)&a->lock;
 }
 
+int iso_actuators_setpoints(const iso_actuators *a, int16_t values[ISO_ACT_MAX_CHANNELS],
+                            uint32_t *tick)
+{
+    pthread_mutex_lock(lock_of(a));
+    int have = a->have_tick;
+    memcpy(values, a->values, ISO_ACT_MAX_CHANNELS * sizeof *values);
+    if (tick)
+        *tick = a->tick;
+    pthread_mutex_unlock(lock_of(a));
+    if (!have)
+        memset(values, 0, ISO_ACT_MAX_CHANNELS * sizeof *values);
+    return have;
+}
+
 void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out)
 {
     pthread_mutex_lock(lock_of(a));

@@ -309,6 +309,12 @@ ISO_API ISO_NODISCARD int iso_actuators_safe_stop(iso_actuators *a, int timeout_
 /* A snapshot of the counters. */
 ISO_API void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
 
+/* The setpoints of the last publish (by SETPOINTS index; others 0) and
+ * its tick, for a recorder of the run; any thread. Returns 1, or 0 before
+ * the first publish (values then all 0). */
+ISO_API int iso_actuators_setpoints(const iso_actuators *a, int16_t values[ISO_ACT_MAX_CHANNELS],
+                                    uint32_t *tick);
+
 /* The MCU's last HELLO answer (channel limits, rates, safe positions).
  * Returns 1 when there is one, else 0. */
 ISO_API int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);

@@ -16,6 +16,7 @@
 #include "iso_mesh.h"
 #include "iso_metrics.h"
 #include "iso_motion.h"
+#include "iso_pc2.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
 #include "iso_solver.h"
@@ -28,7 +29,7 @@
 
 typedef struct deform_args {
     iso_cli__source src;
-    const char *out;
+    const char *out, *pc2;
     int json, steps, start;
     double tol;
     iso_solver_opts so;
@@ -101,6 +102,10 @@ static const iso_cli__opt deform_options[] = {
      .set = set_restore},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, out), "OUT",
      .help = "write the deformed mesh (format from the extension)"},
+    {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, pc2), "FILE",
+     .help = "write a PC2 point cache for Blender: the rest pose, then a frame per step; the "
+             "rest mesh beside it as FILE's name with .rest.ply",
+     .nonempty = 1},
     {"reference", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.reference), "REF",
      .help = "also measure REF, another result of the same problem (with --benchmark: the "
              "Laplacian-editing result)"},
@@ -174,13 +179,19 @@ static int parse_args(int argc, char **argv, deform_args *a)
 typedef struct progress {
     int tty;
     double t0, t1;
+    iso_pc2 *pc2;    /* --pc2: a frame per step, or NULL */
+    const double *x; /* the positions at each step (iso_integrate_opts.progress) */
+    iso_err pc2_err;
+    int pc2_failed;
 } progress;
 
 /* A one-line bar, redrawn in place; only on a terminal, so logs and pipes
  * stay clean. */
 static void show_progress(void *ctx, double t, int steps, long evaluations)
 {
-    const progress *pg = ctx;
+    progress *pg = ctx;
+    if (pg->pc2 && !pg->pc2_failed && iso_pc2_write(pg->pc2, pg->x, &pg->pc2_err) != ISO_OK)
+        pg->pc2_failed = 1;
     if (!pg->tty)
         return;
     enum { WIDTH = 30 };
@@ -306,6 +317,23 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
     }
 }
 
+/* --pc2: the rest mesh beside the cache, and the rest pose as its frame 0;
+ * every accepted step adds one. */
+static int open_pc2(const deform_args *a, const iso_cli__problem *p, iso_pc2 **out, iso_err *err)
+{
+    char rest[ISO_CLI_PATH_MAX + 16];
+    int rc = iso_pc2_save_rest(p->mesh, a->pc2, rest, sizeof rest, err);
+    if (rc == ISO_OK)
+        rc = iso_pc2_create(a->pc2, iso_mesh_vertex_count(p->mesh), out, err);
+    if (rc == ISO_OK)
+        rc = iso_pc2_write(*out, iso_mesh_positions(p->mesh), err);
+    if (rc == ISO_OK && !a->json)
+        fprintf(stderr,
+                "isoshape deform: PC2 point cache into %s, a frame per step; rest mesh %s\n",
+                a->pc2, rest);
+    return rc;
+}
+
 /* Integrates p from t = 0 to 1 into x, with the progress bar on a terminal. */
 static int run(const deform_args *a, const iso_cli__problem *p, double *x, report *rep,
                iso_err *err)
@@ -315,12 +343,21 @@ static int run(const deform_args *a, const iso_cli__problem *p, double *x, repor
     io.steps = a->steps;
     io.tol = a->tol;
     io.start = a->start;
-    progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1};
+    progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1, NULL, x, {0}, 0};
     io.progress = show_progress;
     io.progress_ctx = &pg;
-    int rc = iso_cli__problem_run(p, &a->so, &io, x, &rep->run, err);
+    int rc = a->pc2 ? open_pc2(a, p, &pg.pc2, err) : ISO_OK;
+    if (rc == ISO_OK)
+        rc = iso_cli__problem_run(p, &a->so, &io, x, &rep->run, err);
     if (pg.tty)
         fputc('\n', stderr);
+    if (rc == ISO_OK && pg.pc2_failed)
+        rc = iso_err_set(err, pg.pc2_err.code, -1, "--pc2: %s", pg.pc2_err.msg);
+    if (rc == ISO_OK && pg.pc2) {
+        rc = iso_pc2_commit(pg.pc2, err);
+        pg.pc2 = NULL;
+    }
+    iso_pc2_destroy(pg.pc2);
     iso_cli__print_notice("deform", rep->run.notice);
     return rc;
 }

@@ -146,7 +146,8 @@ extern const iso_cli__opt iso_cli__dev_map_options[];
  * exit status. */
 extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__metrics_cmd,
     iso_cli__bench_cmd, iso_cli__record_cmd, iso_cli__replay_cmd, iso_cli__inspect_cmd,
-    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__version_cmd;
+    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__export_cmd,
+    iso_cli__version_cmd;
 
 /* All of them, in the order `isoshape --help` lists them; NULL-terminated
  * (cli_commands.c). */
@@ -336,5 +337,11 @@ int iso_cli__scene_bench_find(void *ctx, const char *name, char *mesh, char *sel
  * The caller adds the devices and frees it with free(). NULL when out of
  * memory. */
 struct iso_scene *iso_cli__device_scene(const char *name, double hz, const iso_dev_map_opts *mo);
+/* A scene for replaying the recording at `path` (cmd_replay.c): the mesh of
+ * src (a built-in shape, or --mesh and --sel) with one handle the replay
+ * drives through mapping mo, steps ABM steps a tick (0: 1), at the
+ * recorded loop's period; without a mesh, the device side alone. */
+int iso_cli__replay_scene(const char *path, const iso_cli__source *src, const iso_dev_map_opts *mo,
+                          int steps, struct iso_scene **out, iso_err *err);
 
 #endif

@@ -130,6 +130,15 @@ typedef struct iso_loop_opts {
      * mapping's decoded e-stop acts at each device tick as well. */
     int (*estop_probe)(void *ctx);
     void *estop_ctx;
+    /* File outputs of the command line, beside the scene's (NULL: none),
+     * written by the sinks' writer thread, never on the tick (loop_writer.c
+     * says how a disk slower than the loop is met: frames dropped and
+     * counted). pc2: a PC2 point cache of every tick (sinks/iso_pc2.h), with
+     * the rest mesh beside it as <name>.rest.ply; mcap: an MCAP file of the
+     * session's Foxglove channels (sinks/iso_foxglove.h). Both are written
+     * under a temporary name and renamed when the loop shuts down. */
+    const char *pc2;
+    const char *mcap;
 } iso_loop_opts;
 
 ISO_API void iso_loop_opts_default(iso_loop_opts *o);
@@ -158,7 +167,10 @@ typedef struct iso_loop_summary {
     int n_handles;
     long frames_sent; /* display frames written to a browser */
     long ply_frames, snapshots;
-    int rt_active; /* 1: SCHED_FIFO held */
+    long pc2_frames;     /* PC2 cache frames written (dropped ticks' repeats included) */
+    long mcap_messages;  /* MCAP messages written */
+    long frames_dropped; /* ticks the file writer could not take (the disk behind) */
+    int rt_active;       /* 1: SCHED_FIFO held */
     int mem_locked;
     char rt_note[400];   /* why not, "" when it is */
     char act_line[1700]; /* the actuator link's counters, "" without one */

@@ -49,14 +49,8 @@ static void go_realtime(iso_loop *l)
         r->rt_active = 1;
     else
         snprintf(why, sizeof why, "SCHED_FIFO: %s", strerror(errno));
-    /* the planned ticks, or 10 minutes of a live run, before the lock */
-    long plan = l->k_end < INT64_MAX ? (long)l->k_end + 1 : (long)(600 * l->sc->tick_hz);
-    iso_err quiet;
-    iso_err_clear(&quiet);
-    if (iso_loop__stats_reserve(&l->stats, plan, &quiet) != ISO_OK)
-        snprintf(why + strlen(why), sizeof why - strlen(why), "%s%.100s", why[0] ? "; " : "",
-                 quiet.msg);
-    else if (mlockall(MCL_CURRENT) == 0)
+    /* the tick statistics' room was made at create (iso_loop__stats_reserve) */
+    if (mlockall(MCL_CURRENT) == 0)
         r->mem_locked = 1;
     else
         snprintf(why + strlen(why), sizeof why - strlen(why), "%smlockall: %s", why[0] ? "; " : "",
@@ -170,9 +164,8 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         if ((rc = iso_loop__tick(l, timed ? wake : 0, err)) != ISO_OK)
             break;
         int64_t done = iso_clock_ns();
-        if ((rc = iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
-                                      (double)(done - prev_wake) * 1e-6, err)) != ISO_OK)
-            break;
+        iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
+                            (double)(done - prev_wake) * 1e-6);
         prev_wake = wake;
         double w = iso_clock_now();
         if (l->o.status_line && w - last_status > 0.25) {

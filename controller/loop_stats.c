@@ -1,6 +1,6 @@
 /* controller/loop_stats.c -- tick statistics of the real-time loop, and the
- * summary it prints and writes as JSON. Samples are kept whole rather than
- * in a histogram: quantiles are exact, and a long run costs 16 bytes a tick. */
+ * summary it prints and writes as JSON. The storage is fixed before the
+ * first tick (loop_internal.h says how): the tick allocates nothing. */
 #include "loop_internal.h"
 
 #include <math.h>
@@ -9,6 +9,11 @@
 #include <string.h>
 
 #include "iso_json.h"
+
+/* The histogram's bins: bin b holds [HIST_LO g^b, HIST_LO g^(b+1)) ms with
+ * g = 1.005; the first and last also hold what lies beyond them. */
+#define HIST_LO 1e-4
+#define HIST_GROWTH 1.005
 
 void iso_loop__stats_init(iso_loop_stats *s)
 {
@@ -22,9 +27,10 @@ void iso_loop__stats_deinit(iso_loop_stats *s)
     memset(s, 0, sizeof *s);
 }
 
-/* Grows the sample arrays to hold at least n ticks. */
-static int stats_grow(iso_loop_stats *s, long n, iso_err *err)
+int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err)
 {
+    if (n > ISO_LOOP_SAMPLES_MAX)
+        n = ISO_LOOP_SAMPLES_MAX;
     if (n <= s->cap)
         return ISO_OK;
     double *a = realloc(s->tick_ms, (size_t)n * sizeof *a);
@@ -39,32 +45,43 @@ static int stats_grow(iso_loop_stats *s, long n, iso_err *err)
     return ISO_OK;
 }
 
-int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err)
+static int hist_bin(double ms)
 {
-    return stats_grow(s, n, err);
+    if (!(ms > HIST_LO)) /* also NaN */
+        return 0;
+    double b = floor(log(ms / HIST_LO) / log(HIST_GROWTH));
+    return b >= ISO_LOOP_HIST_BINS - 1 ? ISO_LOOP_HIST_BINS - 1 : (int)b;
 }
 
-int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms, iso_err *err)
+void iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms)
 {
-    if (s->n == s->cap) {
-        int rc = stats_grow(s, s->cap ? 2 * s->cap : 4096, err);
-        if (rc != ISO_OK)
-            return rc;
+    if (s->n < s->cap) {
+        s->tick_ms[s->n] = tick_ms;
+        s->lat_ms[s->n] = lat_ms;
     }
-    s->tick_ms[s->n] = tick_ms;
-    s->lat_ms[s->n] = lat_ms;
     s->n++;
+    s->hist_tick[hist_bin(tick_ms)]++;
+    s->hist_lat[hist_bin(lat_ms)]++;
+    s->max_tick_ms = s->n == 1 || tick_ms > s->max_tick_ms ? tick_ms : s->max_tick_ms;
+    s->max_lat_ms = s->n == 1 || lat_ms > s->max_lat_ms ? lat_ms : s->max_lat_ms;
+    s->last_lat_ms = lat_ms;
     s->recent[s->head] = tick_ms;
-    s->head = (s->head + 1) % (int)(sizeof s->recent / sizeof s->recent[0]);
-    if (s->n_recent < (int)(sizeof s->recent / sizeof s->recent[0]))
+    s->head = (s->head + 1) % ISO_LOOP_RECENT;
+    if (s->n_recent < ISO_LOOP_RECENT)
         s->n_recent++;
-    return ISO_OK;
 }
 
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
+}
+
+/* nearest rank: the smallest value with at least q of the samples at or below it */
+static long rank_of(long n, double q)
+{
+    long k = (long)ceil(q * (double)n) - 1;
+    return k < 0 ? 0 : k >= n ? n - 1 : k;
 }
 
 double iso_loop__quantile(const double *v, long n, double q)
@@ -76,22 +93,72 @@ double iso_loop__quantile(const double *v, long n, double q)
         return NAN;
     memcpy(c, v, (size_t)n * sizeof *c);
     qsort(c, (size_t)n, sizeof *c, cmp_double);
-    /* nearest rank: the smallest value with at least q of the samples at or below it */
-    long k = (long)ceil(q * (double)n) - 1;
-    if (k < 0)
-        k = 0;
-    if (k >= n)
-        k = n - 1;
-    double r = c[k];
+    double r = c[rank_of(n, q)];
     free(c);
     return r;
 }
 
-void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, double *max)
+double iso_loop__stats_quantile(const iso_loop_stats *s, int lat, double q)
 {
-    *med = iso_loop__quantile(s->recent, s->n_recent, 0.5);
-    *p99 = iso_loop__quantile(s->recent, s->n_recent, 0.99);
-    *max = iso_loop__quantile(s->recent, s->n_recent, 1.0);
+    if (s->n <= 0)
+        return NAN;
+    if (q >= 1)
+        return lat ? s->max_lat_ms : s->max_tick_ms;
+    if (s->n <= s->cap)
+        return iso_loop__quantile(lat ? s->lat_ms : s->tick_ms, s->n, q);
+    const uint32_t *h = lat ? s->hist_lat : s->hist_tick;
+    long k = rank_of(s->n, q), seen = 0;
+    for (int b = 0; b < ISO_LOOP_HIST_BINS; b++) {
+        seen += h[b];
+        if (seen > k) /* the bin's geometric middle: within 0.25 % of any value in it */
+            return HIST_LO * pow(HIST_GROWTH, b + 0.5);
+    }
+    return lat ? s->max_lat_ms : s->max_tick_ms;
+}
+
+/* Heap sort in place: qsort may allocate (glibc's merge sort does for more
+ * than 1 KiB), and this runs on the tick. */
+static void sift_down(double *a, long i, long n)
+{
+    for (;;) {
+        long c = 2 * i + 1;
+        if (c >= n)
+            return;
+        if (c + 1 < n && a[c + 1] > a[c])
+            c++;
+        if (!(a[c] > a[i]))
+            return;
+        double t = a[i];
+        a[i] = a[c];
+        a[c] = t;
+        i = c;
+    }
+}
+
+static void heap_sort(double *a, long n)
+{
+    for (long i = n / 2 - 1; i >= 0; i--)
+        sift_down(a, i, n);
+    for (long e = n - 1; e > 0; e--) {
+        double t = a[0];
+        a[0] = a[e];
+        a[e] = t;
+        sift_down(a, 0, e);
+    }
+}
+
+void iso_loop__stats_recent(iso_loop_stats *s, double *med, double *p99, double *max)
+{
+    long n = s->n_recent;
+    if (n <= 0) {
+        *med = *p99 = *max = NAN;
+        return;
+    }
+    memcpy(s->scratch, s->recent, (size_t)n * sizeof *s->scratch);
+    heap_sort(s->scratch, n);
+    *med = s->scratch[rank_of(n, 0.5)];
+    *p99 = s->scratch[rank_of(n, 0.99)];
+    *max = s->scratch[n - 1];
 }
 
 /* ---- the summary ---------------------------------------------------------- */
@@ -179,6 +246,14 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     if (s->ply_frames || s->snapshots)
         fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames,
                 s->snapshots);
+    if (s->pc2_frames || s->mcap_messages)
+        fprintf(f, "  streams     %ld PC2 frames, %ld MCAP messages\n", s->pc2_frames,
+                s->mcap_messages);
+    if (s->frames_dropped)
+        fprintf(f,
+                "  dropped     %ld ticks not written to files (the disk was slower than the "
+                "loop)\n",
+                s->frames_dropped);
     if (s->act_line[0])
         print_wrapped(f, "actuators", s->act_line);
     fprintf(f, "  realtime    %s\n",
@@ -281,6 +356,9 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_int(j, "frames_sent", s->frames_sent);
     iso_json_int(j, "ply_frames", s->ply_frames);
     iso_json_int(j, "snapshots", s->snapshots);
+    iso_json_int(j, "pc2_frames", s->pc2_frames);
+    iso_json_int(j, "mcap_messages", s->mcap_messages);
+    iso_json_int(j, "frames_dropped", s->frames_dropped);
     iso_json_bool(j, "realtime", s->rt_active);
     iso_json_bool(j, "memory_locked", s->mem_locked);
     iso_json_string(j, "actuators", s->act_line);
