@@ -12,8 +12,10 @@
  * full, the tick's frame is dropped and counted (the summary says how many;
  * /loop carries the count), and the tick goes on: a dropped tick has no PLY
  * file, no MCAP messages, and repeats the previous frame in the PC2 cache,
- * so the cache's frame k stays tick k. A write that fails stops the run
- * with an error naming the file, at the next tick. */
+ * so the cache's frame k stays tick k. Without deadlines (--fast, an
+ * export) nothing is late, so the tick waits for room instead of dropping:
+ * the files are then whole and the same on every machine. A write that
+ * fails stops the run with an error naming the file, at the next tick. */
 #include "loop_internal.h"
 
 #include <errno.h>
@@ -45,7 +47,8 @@ struct iso_loop_writer {
     int nv, n_slots;
     slot *slots;
     _Atomic long head, tail; /* filled by the tick / emptied by the thread, monotonic */
-    sem_t wake;
+    sem_t wake, room;        /* a slot filled / a slot emptied */
+    int wait_for_room;       /* 1 without deadlines: the tick waits instead of dropping */
     atomic_int stop, failed;
     pthread_t th;
     int started;
@@ -139,6 +142,7 @@ static void *writer_main(void *arg)
             }
         }
         atomic_store_explicit(&w->tail, tail + 1, memory_order_release);
+        sem_post(&w->room);
     }
 }
 
@@ -256,7 +260,8 @@ int iso_loop__writer_open(iso_loop *l, iso_loop_writer **out, iso_err *err)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d frame slots", w->n_slots);
     }
     rc = open_files(l, w, err);
-    if (rc == ISO_OK && sem_init(&w->wake, 0, 0) != 0)
+    w->wait_for_room = l->o.fast;
+    if (rc == ISO_OK && (sem_init(&w->wake, 0, 0) != 0 || sem_init(&w->room, 0, 0) != 0))
         rc = iso_err_set(err, ISO_EIO, -1, "file writer: sem_init: %s", strerror(errno));
     if (rc == ISO_OK && pthread_create(&w->th, NULL, writer_main, w) != 0)
         rc = iso_err_set(err, ISO_EIO, -1, "file writer: cannot start its thread");
@@ -278,6 +283,7 @@ int iso_loop__writer_close(iso_loop_writer *w, int commit, iso_loop_summary *cou
         sem_post(&w->wake);
         pthread_join(w->th, NULL);
         sem_destroy(&w->wake);
+        sem_destroy(&w->room);
         w->started = 0;
     }
     int rc = ISO_OK;
@@ -337,6 +343,10 @@ iso_fox_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want)
         return NULL;
     long head = atomic_load_explicit(&w->head, memory_order_relaxed);
     long tail = atomic_load_explicit(&w->tail, memory_order_acquire);
+    while (w->wait_for_room && head - tail >= w->n_slots && !atomic_load(&w->failed)) {
+        sem_wait(&w->room); /* EINTR or a stale post: look again */
+        tail = atomic_load_explicit(&w->tail, memory_order_acquire);
+    }
     if (head - tail >= w->n_slots) {
         w->dropped++;
         return NULL;

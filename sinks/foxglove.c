@@ -68,41 +68,42 @@ static const char tick_schema[] =
     "\"tick_ms\":{\"type\":\"number\"},\"latency_ms\":{\"type\":\"number\"},"
     "\"misses\":{\"type\":\"integer\"},\"frames_dropped\":{\"type\":\"integer\"}}}";
 
-static const char
-    device_schema[] =
-        "{\"title\":\"isoshape.DeviceSample\",\"description\":\"A "
-        "device's decoded state and "
-        "counters\",\"type\":\"object\",\"properties\":{"
-        "\"timestamp\":" TIME_SCHEMA ",\"kind\":{\"type\":\"string\"},\"present\":{\"type\":"
-        "\"boolean\"},"
-        "\"stale\":{\"type\":\"boolean\"},\"axes\":" ARRAY_OF(
-            "{\"type"
-            "\":"
-            "\"intege"
-            "r\"}") ",\"buttons\":{\"type\":\"integer\"},\"pose\":" ARRAY_OF("{\"type\":"
-                                                                             "\"number\"}") ",\"twi"
-                                                                                            "st\""
-                                                                                            ":" ARRAY_OF("{\"type\":"
-                                                                                                         "\"number\""
-                                                                                                         "}") ",\"co"
-                                                                                                              "unter"
-                                                                                                              "s\":{"
-                                                                                                              "\"typ"
-                                                                                                              "e\":"
-                                                                                                              "\"obj"
-                                                                                                              "ect\""
-                                                                                                              ",\"ad"
-                                                                                                              "ditio"
-                                                                                                              "nalPr"
-                                                                                                              "opert"
-                                                                                                              "ies\""
-                                                                                                              ":{"
-                                                                                                              "\"typ"
-                                                                                                              "e\":"
-                                                                                                              "\"int"
-                                                                                                              "eger"
-                                                                                                              "\"}}}"
-                                                                                                              "}";
+static const char device_schema[] = "{\"title\":\"isoshape.DeviceSample\",\"description\":\"A "
+                                    "device's decoded state and "
+                                    "counters\",\"type\":\"object\",\"properties\":{"
+                                    "\"timestamp\":" TIME_SCHEMA
+                                    ",\"kind\":{\"type\":\"string\"},\"present\":{\"type\":"
+                                    "\"boolean\"},"
+                                    "\"stale\":{\"type\":\"boolean\"},\"axes\":" ARRAY_OF(
+                                        "{\"type"
+                                        "\":"
+                                        "\"intege"
+                                        "r\"}") ",\"buttons\":{\"type\":\"integer\"},"
+                                                "\"pose\":" ARRAY_OF("{\"type\":"
+                                                                     "\"number\"}") ",\"twi"
+                                                                                    "st\""
+                                                                                    ":" ARRAY_OF(
+                                                                                        "{\"type\":"
+                                                                                        "\"number\""
+                                                                                        "}") ",\"co"
+                                                                                             "unter"
+                                                                                             "s\":{"
+                                                                                             "\"typ"
+                                                                                             "e\":"
+                                                                                             "\"obj"
+                                                                                             "ect\""
+                                                                                             ",\"ad"
+                                                                                             "ditio"
+                                                                                             "nalPr"
+                                                                                             "opert"
+                                                                                             "ies\""
+                                                                                             ":{"
+                                                                                             "\"typ"
+                                                                                             "e\":"
+                                                                                             "\"int"
+                                                                                             "eger"
+                                                                                             "\"}}}"
+                                                                                             "}";
 
 static const char act_schema[] =
     "{\"title\":\"isoshape.Actuators\",\"description\":\"Setpoints sent and the MCU's "
@@ -188,6 +189,31 @@ static void add(iso_fox_encoder *e, const char *fmt, ...)
         e->out = p;
         e->cap = cap;
     }
+}
+
+/* "a,b,c" after prefix, without printf: the indices are most of a mesh
+ * message's numbers. */
+static void add_ints(iso_fox_encoder *e, const char *prefix, int a, int b, int c)
+{
+    char tmp[48];
+    size_t n = 0;
+    int v[3] = {a, b, c};
+    for (const char *p = prefix; *p; p++)
+        tmp[n++] = *p;
+    for (int k = 0; k < 3; k++) {
+        char d[12];
+        int m = 0;
+        unsigned u = (unsigned)v[k];
+        do
+            d[m++] = (char)('0' + u % 10);
+        while ((u /= 10) != 0);
+        if (k)
+            tmp[n++] = ',';
+        while (m)
+            tmp[n++] = d[--m];
+    }
+    tmp[n] = 0;
+    add(e, "%s", tmp);
 }
 
 /* A number JSON can hold: a non-finite value is written as null. */
@@ -321,19 +347,24 @@ static void primitive(iso_fox_encoder *e, const double *x, int key, int from, in
                 continue;
             e->stamp[v] = key;
             e->remap[v] = np++;
+            const double *p = x + 3 * v;
+            if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) {
+                add(e, "%s{\"x\":%.7g,\"y\":%.7g,\"z\":%.7g}", np > 1 ? "," : "", p[0], p[1], p[2]);
+                continue;
+            }
             add(e, "%s{\"x\":", np > 1 ? "," : "");
-            add_num(e, "%.7g", x[3 * v]);
+            add_num(e, "%.7g", p[0]);
             add(e, ",\"y\":");
-            add_num(e, "%.7g", x[3 * v + 1]);
+            add_num(e, "%.7g", p[1]);
             add(e, ",\"z\":");
-            add_num(e, "%.7g", x[3 * v + 2]);
+            add_num(e, "%.7g", p[2]);
             add(e, "}");
         }
     add(e, "],\"color\":{\"r\":%.4f,\"g\":%.4f,\"b\":%.4f,\"a\":1},\"colors\":[],\"indices\":[",
         rgb[0], rgb[1], rgb[2]);
     for (int i = from; i < to; i++)
-        for (int k = 0; k < 3; k++)
-            add(e, "%s%d", i == from && k == 0 ? "" : ",", e->remap[T[3 * e->order[i] + k]]);
+        add_ints(e, i == from ? "" : ",", e->remap[T[3 * e->order[i]]],
+                 e->remap[T[3 * e->order[i] + 1]], e->remap[T[3 * e->order[i] + 2]]);
     add(e, "]}");
 }
 
