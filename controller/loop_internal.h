@@ -153,6 +153,9 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap);
  * tick hands it frames through (the file says the rules). */
 typedef struct iso_loop_writer iso_loop_writer;
 struct iso_fox_frame;
+struct iso_fox_session;
+/* The session the Foxglove channels describe (MCAP and the live view). */
+void iso_loop__fox_session(iso_loop *l, struct iso_fox_session *s);
 /* NULL in *out when the run has no file output. */
 ISO_NODISCARD int iso_loop__writer_open(iso_loop *l, iso_loop_writer **out, iso_err *err);
 /* The tick's side. The next free slot for tick `tick` (*want: what is

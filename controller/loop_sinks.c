@@ -22,6 +22,7 @@ struct iso_loop_sinks {
     char act_line[1000];     /* kept when the actuators close (the counters run ~650) */
     char act_stop[600];      /* how the safe stop went */
     iso_loop_writer *writer; /* the file outputs; NULL without */
+    iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
     iso_loop_summary files;  /* the writer's counts, kept when it closes */
     long frames_sent;        /* kept when the display closes */
 };
@@ -148,6 +149,11 @@ int iso_loop__sinks_open(iso_loop *l, iso_err *err)
     }
     if (rc == ISO_OK)
         rc = iso_loop__writer_open(l, &l->sinks->writer, err);
+    if (rc == ISO_OK && l->sinks->display) { /* Foxglove Studio may connect to the view too */
+        iso_fox_session s;
+        iso_loop__fox_session(l, &s);
+        rc = iso_display_foxglove(l->sinks->display, &s, err);
+    }
     return rc;
 }
 
@@ -221,6 +227,10 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
         ds.latency_ms = l->stats.last_lat_ms;
         ds.misses = l->stats.misses;
         rc = iso_display_publish(k->display, tick, l->x, &ds, err);
+        if (rc == ISO_OK) {
+            fill_frame(l, tick, &k->frame);
+            rc = iso_display_publish_frame(k->display, &k->frame, err);
+        }
     }
     if (rc == ISO_OK && k->act) {
         /* 1: streaming, 0: link down or handshaking (the sink recovers by itself) */
@@ -232,7 +242,12 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
         int want;
         iso_fox_frame *f = rc == ISO_OK ? iso_loop__writer_slot(k->writer, tick, &want) : NULL;
         if (f) {
-            fill_frame(l, tick, f);
+            if (k->display) { /* filled for the view above */
+                const double *slot_x = f->x;
+                *f = k->frame;
+                f->x = slot_x;
+            } else
+                fill_frame(l, tick, f);
             iso_loop__writer_push(k->writer, l->x);
         }
     }

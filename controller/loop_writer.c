@@ -160,8 +160,7 @@ static int save_rest(iso_loop *l, const char *pc2, iso_err *err)
     return rc;
 }
 
-/* The session the Foxglove channels describe. */
-static void fox_session(iso_loop *l, iso_fox_session *s)
+void iso_loop__fox_session(iso_loop *l, iso_fox_session *s)
 {
     memset(s, 0, sizeof *s);
     s->mesh = l->sc->mesh;
@@ -187,7 +186,7 @@ static void fox_session(iso_loop *l, iso_fox_session *s)
 static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
 {
     iso_fox_session s;
-    fox_session(l, &s);
+    iso_loop__fox_session(l, &s);
     int rc = iso_fox_encoder_create(&s, &w->enc, err);
     if (rc == ISO_OK)
         rc = iso_mcap_create(l->o.mcap, "", "isoshape", &w->mcap, err);

@@ -18,6 +18,7 @@
 #endif
 
 #define ORBIT_JS "/usr/share/javascript/three/examples/js/controls/OrbitControls.js"
+#define GLTF_JS "/usr/share/javascript/three/examples/js/exporters/GLTFExporter.js"
 
 /* ---- JSON helpers --------------------------------------------------------- */
 
@@ -142,6 +143,8 @@ int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err 
     }
     if (iso_file_read(ORBIT_JS, 0, &d->orbit, &d->orbit_len, NULL) < 0)
         d->orbit = NULL; /* the page has its own orbit control */
+    if (iso_file_read(GLTF_JS, 0, &d->gltf, &d->gltf_len, NULL) < 0)
+        d->gltf = NULL; /* the page's Save .glb button then says what is missing */
     if ((rc = build_topology(d, opts->regions, err)) < 0)
         goto fail;
     d->latest = calloc(1, d->frame_len);
@@ -232,8 +235,11 @@ void iso_display_destroy(iso_display *d)
         if (d->wake[i] >= 0)
             close(d->wake[i]);
     pthread_mutex_destroy(&d->frame_lock);
+    iso_display__fox_shared_free(atomic_load(&d->fox));
+    free(d->fox_frame);
     free(d->three);
     free(d->orbit);
+    free(d->gltf);
     free(d->topology);
     free(d->latest);
     free(d);

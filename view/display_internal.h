@@ -71,6 +71,25 @@ int iso_display__authority_is(const char *a, size_t n, int port, int port_option
 int iso_display__token_eq(const char *p, size_t n, const char *s);
 int iso_display__contains_ci(const char *p, size_t n, const char *s);
 
+/* ---- Foxglove's protocol (foxglove.c) -------------------------------------- */
+
+typedef struct iso_display__fox iso_display__fox;               /* one client's */
+typedef struct iso_display__fox_shared iso_display__fox_shared; /* all clients' */
+
+/* Does the request (NUL-terminated, headers included) offer Foxglove's
+ * subprotocol? */
+int iso_display__fox_offered(const char *req);
+const char *iso_display__fox_subprotocol(void);
+iso_display__fox *iso_display__fox_create(void); /* NULL: out of memory */
+void iso_display__fox_free(iso_display__fox *f);
+void iso_display__fox_shared_free(iso_display__fox_shared *s);
+/* The client's next message: 1 with *body and *len set (valid until the
+ * next call), 0 when it has nothing to send now, -1 out of memory. */
+int iso_display__fox_next(iso_display *d, iso_display__fox *f, const unsigned char **body,
+                          size_t *len);
+/* Feeds what the client sent; 0 to go on, else the status to close with. */
+int iso_display__fox_rx(iso_display *d, iso_display__fox *f, const unsigned char *p, size_t n);
+
 /* ---- the display's state -------------------------------------------------- */
 
 typedef struct iso_display__conn iso_display__conn; /* display_server.c */
@@ -80,9 +99,9 @@ struct iso_display {
     const iso_mesh *mesh;
     int nv, port;
     int listen_fd;
-    char host_name[64];  /* the bound address as a Host header spells it: [::1] */
-    char *three, *orbit; /* file contents; orbit may be NULL */
-    size_t three_len, orbit_len;
+    char host_name[64];         /* the bound address as a Host header spells it: [::1] */
+    char *three, *orbit, *gltf; /* file contents; orbit and gltf may be NULL */
+    size_t three_len, orbit_len, gltf_len;
     char *topology; /* the JSON sent on connect */
     size_t topology_len;
     size_t frame_len;
@@ -92,9 +111,12 @@ struct iso_display {
      * it out under the same lock. Nobody holds the lock for anything else. */
     pthread_mutex_t frame_lock;
     unsigned char *latest;
-    unsigned long latest_seq; /* under frame_lock; 0 = nothing yet */
-    atomic_ulong published;   /* latest_seq, readable without the lock */
-    atomic_int wake_pending;  /* a byte is in the pipe: publish need not write */
+    unsigned long latest_seq;        /* under frame_lock; 0 = nothing yet */
+    atomic_ulong published;          /* latest_seq, readable without the lock */
+    struct iso_fox_frame *fox_frame; /* under frame_lock: the last publish_frame's copy */
+    unsigned long fox_frame_seq;
+    _Atomic(iso_display__fox_shared *) fox; /* set once by iso_display_foxglove */
+    atomic_int wake_pending;                /* a byte is in the pipe: publish need not write */
     atomic_int stopping;
 
     /* Read by the status line without any lock; written by the server. */

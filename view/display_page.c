@@ -7,7 +7,12 @@
  * rest pose) on the same blue-yellow-red scale as iso_snapshot_png(), tinted
  * where it touches a fixed (grey) or handle (magenta) vertex; fixed and
  * handle vertices are also drawn as points. After each frame the body's
- * data-frames and data-tick attributes say how far it got (tests read them). */
+ * data-frames and data-tick attributes say how far it got (tests read them).
+ * The "Save .glb" button writes the mesh as shown (positions and the flat
+ * strain colours as vertex colours) with three.js's GLTFExporter from
+ * libjs-three's examples; the page's address with ?glb=1 saves once after
+ * the first frame and sets data-glb to the file's size (for a headless
+ * browser, which has no button to press). */
 #include "display_internal.h"
 
 /* The page is one literal each, longer than the 4095 characters C11 promises
@@ -35,10 +40,12 @@ const char iso_display__page_html[] =
     "edge-length change<div id=\"bar\"></div>"
     "<div id=\"barlab\"><span>0%</span><span>5%</span><span id=\"full\">10%+</span></div>\n"
     "<span class=\"sw\" style=\"background:#8a8f9a\"></span>fixed"
-    "<span class=\"sw\" style=\"background:#e640e6\"></span>handle\n"
+    "<span class=\"sw\" style=\"background:#e640e6\"></span>handle<br>\n"
+    "<button id=\"glb\" title=\"the mesh as shown, as a binary glTF file\">Save .glb</button>\n"
     "</div>\n"
     "<script src=\"/three.min.js\"></script>\n"
     "<script src=\"/OrbitControls.js\" onerror=\"void 0\"></script>\n"
+    "<script src=\"/GLTFExporter.js\" onerror=\"void 0\"></script>\n"
     "<script src=\"/app.js\"></script>\n"
     "</body></html>\n";
 
@@ -197,7 +204,22 @@ const char iso_display__app_js[] =
     "' ms';\n"
     "  document.body.setAttribute('data-frames', String(frames));\n"
     "  document.body.setAttribute('data-tick', String(tick));\n"
+    "  lastTick = tick;\n"
+    "  if (frames === 1 && /[?&]glb=1/.test(location.search)) saveGlb();\n"
     "}\n"
+    "var lastTick = 0;\n"
+    "function saveGlb() {\n"
+    "  if (!THREE.GLTFExporter || !geom) { $('glb').textContent = 'no GLTFExporter "
+    "(libjs-three)'; return; }\n"
+    "  new THREE.GLTFExporter().parse(geom.userData.obj, function (glb) {\n"
+    "    document.body.setAttribute('data-glb', String(glb.byteLength));\n"
+    "    var a = document.createElement('a');\n"
+    "    a.href = URL.createObjectURL(new Blob([glb], {type: 'model/gltf-binary'}));\n"
+    "    a.download = 'isoshape_tick_' + lastTick + '.glb';\n"
+    "    document.body.appendChild(a); a.click(); document.body.removeChild(a);\n"
+    "  }, {binary: true});\n"
+    "}\n"
+    "$('glb').onclick = saveGlb;\n"
     "function connect() {\n"
     "  var ws = new WebSocket((location.protocol === 'https:' ? 'wss://' : 'ws://') + "
     "location.host + '/ws');\n"

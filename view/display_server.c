@@ -68,6 +68,7 @@ struct iso_display__conn {
     unsigned long frame_seq;
     int writing_frame;
     iso_display__ws_rx rx;
+    iso_display__fox *fox; /* a Foxglove client (foxglove.c), or NULL: the page */
 };
 
 static long long now_ms(void)
@@ -203,6 +204,8 @@ static void conn_close(iso_display *d, iso_display__conn *c)
     close(c->fd);
     free(c->frame);
     c->frame = NULL;
+    iso_display__fox_free(c->fox);
+    c->fox = NULL;
     c->fd = -1;
     c->state = C_FREE;
 }
@@ -289,6 +292,10 @@ static int origin_is_ours(const iso_display *d, const iso_display__conn *c,
 {
     if (!r->origin) /* not a web page: browsers send Origin on every upgrade */
         return 1;
+    static const char studio[] = "https://app.foxglove.dev"; /* Foxglove's web app */
+    if (iso_display__fox_offered(c->req) && r->origin_len == sizeof studio - 1 &&
+        strncasecmp(r->origin, studio, sizeof studio - 1) == 0)
+        return 1;
     return r->origin_len > 7 && strncasecmp(r->origin, "http://", 7) == 0 &&
            authority_is_ours(d, c, r->origin + 7, r->origin_len - 7, 0);
 }
@@ -307,10 +314,16 @@ static void start_viewer(iso_display *d, iso_display__conn *c, const iso_display
         respond_error(c, 503, "Service Unavailable", NULL, "out of memory", 0);
         return;
     }
+    int fox = iso_display__fox_offered(c->req) && atomic_load(&d->fox);
+    if (fox && !(c->fox = iso_display__fox_create())) {
+        respond_error(c, 503, "Service Unavailable", NULL, "out of memory", 0);
+        return;
+    }
     int n = snprintf(c->head, sizeof c->head,
                      "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\n"
-                     "Connection: Upgrade\r\nSec-WebSocket-Accept: %s\r\n\r\n",
-                     accept);
+                     "Connection: Upgrade\r\nSec-WebSocket-Accept: %s\r\n%s%s%s\r\n",
+                     accept, fox ? "Sec-WebSocket-Protocol: " : "",
+                     fox ? iso_display__fox_subprotocol() : "", fox ? "\r\n" : "");
     c->head_len = (size_t)n;
     set_output(c, NULL, 0);
     c->state = C_VIEWER;
@@ -361,6 +374,8 @@ static void answer(iso_display *d, iso_display__conn *c)
         respond(c, 200, "OK", js, NULL, d->three, d->three_len, head);
     } else if (PATH_IS("/OrbitControls.js") && d->orbit) {
         respond(c, 200, "OK", js, NULL, d->orbit, d->orbit_len, head);
+    } else if (PATH_IS("/GLTFExporter.js") && d->gltf) {
+        respond(c, 200, "OK", js, NULL, d->gltf, d->gltf_len, head);
     } else if (PATH_IS("/ws")) {
         if (!origin_is_ours(d, c, &r))
             respond_error(c, 403, "Forbidden", NULL,
@@ -398,7 +413,14 @@ static int viewer_next(iso_display *d, iso_display__conn *c, long long now)
             atomic_fetch_add(&d->frames_sent, 1);
         }
     }
-    if (c->stage == V_HANDSHAKE) {
+    if (c->fox) { /* Foxglove's messages instead of the page's */
+        const unsigned char *body;
+        size_t len;
+        if (iso_display__fox_next(d, c->fox, &body, &len) <= 0)
+            return 0;
+        c->stage = V_FRAMES;
+        set_output(c, body, len);
+    } else if (c->stage == V_HANDSHAKE) {
         c->stage = V_TOPOLOGY;
         c->head_len = iso_display__ws_header(h, 1, d->topology_len);
         memcpy(c->head, h, c->head_len);
@@ -510,9 +532,12 @@ static void on_viewer_bytes(iso_display *d, iso_display__conn *c)
     }
     if (r < 0)
         return;
-    int st = iso_display__ws_rx_feed(&c->rx, buf, (size_t)r);
+    int st = c->fox ? iso_display__fox_rx(d, c->fox, buf, (size_t)r)
+                    : iso_display__ws_rx_feed(&c->rx, buf, (size_t)r);
     if (st)
         viewer_close(d, c, st);
+    else if (c->fox && c->state == C_VIEWER && !pending(c))
+        viewer_pump(d, c, now_ms()); /* a subscription: the newest tick at once */
 }
 
 static void on_linger_bytes(iso_display *d, iso_display__conn *c)

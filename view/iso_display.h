@@ -44,6 +44,7 @@
  *   /three.min.js     read at create time from Debian's libjs-three
  *   /OrbitControls.js from libjs-three's examples when installed (the page
  *                     falls back to its own small orbit control otherwise)
+ *   /GLTFExporter.js  from libjs-three's examples: the page's "Save .glb"
  *   /ws               the WebSocket
  *
  * Wire format on /ws (server to browser; the browser sends nothing):
@@ -139,6 +140,28 @@ ISO_API long iso_display_frames_sent(const iso_display *d);
  * ISO_EINVAL for NULL d or x; non-finite positions are sent as they are. */
 ISO_API int iso_display_publish(iso_display *d, long tick, const double *x,
                                 const iso_display_stats *stats, iso_err *err);
+
+/* Foxglove, live. After this call the view's server also speaks Foxglove's
+ * WebSocket protocol on /ws to a client that offers the subprotocol
+ * "foxglove.websocket.v1" (Foxglove Studio's "Open connection"): it
+ * advertises the session's channels, the same as an MCAP export's
+ * (sinks/iso_foxglove.h), and streams the ticks iso_display_publish_frame
+ * hands it, under the page's rules: latest wins, nothing waits for a
+ * client, a client whose batch is unwritten ISO_DISPLAY_STALL_MS is
+ * disconnected, and it counts among ISO_DISPLAY_MAX_VIEWERS. Its Origin,
+ * when it sends one, must be the page's own or Foxglove's web app
+ * (https://app.foxglove.dev). session->mesh must be the display's mesh.
+ * Call it once, before the first publish. ISO_EINVAL, ISO_ENOMEM. */
+struct iso_fox_session;
+struct iso_fox_frame;
+ISO_API ISO_NODISCARD int iso_display_foxglove(iso_display *d,
+                                               const struct iso_fox_session *session, iso_err *err);
+
+/* Hands the display the rest of a tick's channels (poses, devices, the
+ * loop, actuators; f->x is ignored: the positions are those of the
+ * iso_display_publish just before). A copy under the frame lock, no
+ * allocation, no I/O. ISO_EINVAL for NULL arguments. */
+ISO_API int iso_display_publish_frame(iso_display *d, const struct iso_fox_frame *f, iso_err *err);
 
 /* Stops the server thread, closes every connection and frees everything.
  * Never waits on a browser: returns within one pass of the server's loop
