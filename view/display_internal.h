@@ -71,7 +71,29 @@ int iso_display__authority_is(const char *a, size_t n, int port, int port_option
 int iso_display__token_eq(const char *p, size_t n, const char *s);
 int iso_display__contains_ci(const char *p, size_t n, const char *s);
 
-/* ---- Foxglove's protocol (foxglove.c) -------------------------------------- */
+/* ---- Foxglove's protocol (foxglove.c, foxglove_rx.c) ----------------------- */
+
+/* What a Foxglove client sends, parsed into a fixed buffer, and the
+ * subscriptions it asked for. */
+#define ISO_DISPLAY_FOX_MAX_CHANNELS 64
+typedef struct iso_display__fox_rx {
+    long sub[ISO_DISPLAY_FOX_MAX_CHANNELS]; /* subscription id per channel, -1: none */
+    unsigned char hdr[14];
+    unsigned hdr_len;
+    int in_payload;
+    uint64_t need, got;
+    int opcode;
+    unsigned char mask[4];
+    unsigned char msg[ISO_DISPLAY_MAX_CLIENT_FRAME + 1];
+    long messages; /* text messages taken */
+} iso_display__fox_rx;
+
+void iso_display__fox_rx_init(iso_display__fox_rx *rx);
+/* Feeds n bytes from a client of a session with n_channels channels.
+ * Returns 0 to go on, or the status to close with (as
+ * iso_display__ws_rx_feed). Subscribes and unsubscribes as told. */
+int iso_display__fox_rx_feed(iso_display__fox_rx *rx, int n_channels, const unsigned char *p,
+                             size_t n);
 
 typedef struct iso_display__fox iso_display__fox;               /* one client's */
 typedef struct iso_display__fox_shared iso_display__fox_shared; /* all clients' */
@@ -88,7 +110,7 @@ void iso_display__fox_shared_free(iso_display__fox_shared *s);
 int iso_display__fox_next(iso_display *d, iso_display__fox *f, const unsigned char **body,
                           size_t *len);
 /* Feeds what the client sent; 0 to go on, else the status to close with. */
-int iso_display__fox_rx(iso_display *d, iso_display__fox *f, const unsigned char *p, size_t n);
+int iso_display__fox_read(iso_display *d, iso_display__fox *f, const unsigned char *p, size_t n);
 
 /* ---- the display's state -------------------------------------------------- */
 

@@ -512,7 +512,8 @@ static void on_request_bytes(iso_display *d, iso_display__conn *c)
     c->req[used] = 0;
     answer(d, c);
     if (c->state == C_VIEWER && n_extra) {
-        int st = iso_display__ws_rx_feed(&c->rx, extra, n_extra);
+        int st = c->fox ? iso_display__fox_read(d, c->fox, extra, n_extra)
+                        : iso_display__ws_rx_feed(&c->rx, extra, n_extra);
         if (st) {
             viewer_close(d, c, st);
             return;
@@ -532,7 +533,7 @@ static void on_viewer_bytes(iso_display *d, iso_display__conn *c)
     }
     if (r < 0)
         return;
-    int st = c->fox ? iso_display__fox_rx(d, c->fox, buf, (size_t)r)
+    int st = c->fox ? iso_display__fox_read(d, c->fox, buf, (size_t)r)
                     : iso_display__ws_rx_feed(&c->rx, buf, (size_t)r);
     if (st)
         viewer_close(d, c, st);

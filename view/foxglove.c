@@ -18,7 +18,6 @@
  * clients (a cache by tick), never on the loop's. */
 #include "display_internal.h"
 
-#include <ctype.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -101,18 +100,14 @@ struct iso_display__fox_shared {
 
 /* ---- one client -------------------------------------------------------------- */
 
+_Static_assert(ISO_FOX_MAX_CHANNELS <= ISO_DISPLAY_FOX_MAX_CHANNELS,
+               "every channel can be subscribed");
+
 struct iso_display__fox {
-    long sub[ISO_FOX_MAX_CHANNELS]; /* subscription id per channel, -1: none */
+    iso_display__fox_rx rx; /* what the client says, and its subscriptions */
     int hello_queued;
     unsigned long seq_sent;
     obuf out; /* the batch being written */
-    /* what the client sends, a frame at a time */
-    unsigned char hdr[14];
-    unsigned hdr_len;
-    uint64_t need, got;
-    int opcode;
-    unsigned char mask[4];
-    unsigned char msg[ISO_DISPLAY_MAX_CLIENT_FRAME + 1];
 };
 
 int iso_display__fox_offered(const char *req)
@@ -226,8 +221,8 @@ int iso_display_publish_frame(iso_display *d, const iso_fox_frame *f, iso_err *e
 iso_display__fox *iso_display__fox_create(void)
 {
     iso_display__fox *f = calloc(1, sizeof *f);
-    for (int c = 0; f && c < ISO_FOX_MAX_CHANNELS; c++)
-        f->sub[c] = -1;
+    if (f)
+        iso_display__fox_rx_init(&f->rx);
     return f;
 }
 
@@ -280,16 +275,16 @@ int iso_display__fox_next(iso_display *d, iso_display__fox *f, const unsigned ch
     }
     int any = 0;
     for (int c = 0; c < s->n_ch; c++)
-        any |= f->sub[c] >= 0;
+        any |= f->rx.sub[c] >= 0;
     if (!any || !refresh_cache(d, s) || s->cached_seq == f->seq_sent)
         return 0;
     for (int c = 0; c < s->n_ch; c++) {
-        if (f->sub[c] < 0)
+        if (f->rx.sub[c] < 0)
             continue;
         unsigned char m[13];
         m[0] = 0x01;
         for (int i = 0; i < 4; i++)
-            m[1 + i] = (unsigned char)((uint32_t)f->sub[c] >> (8 * i));
+            m[1 + i] = (unsigned char)((uint32_t)f->rx.sub[c] >> (8 * i));
         for (int i = 0; i < 8; i++)
             m[5 + i] = (unsigned char)(s->cached_t >> (8 * i));
         put_ws_header(&f->out, 2, sizeof m + s->payload[c].n);
@@ -304,106 +299,8 @@ int iso_display__fox_next(iso_display *d, iso_display__fox *f, const unsigned ch
     return 1;
 }
 
-/* ---- what the client says ---------------------------------------------------- */
-
-/* The integer after `key` (a quoted name and a colon) in [p, e), or -1. */
-static long int_after(const char *p, const char *e, const char *key)
-{
-    size_t k = strlen(key);
-    for (; p + k < e; p++)
-        if (memcmp(p, key, k) == 0) {
-            p += k;
-            while (p < e && (isspace((unsigned char)*p) || *p == ':'))
-                p++;
-            if (p < e && isdigit((unsigned char)*p))
-                return strtol(p, NULL, 10);
-            return -1;
-        }
-    return -1;
-}
-
-static void on_message(iso_display *d, iso_display__fox *f, char *m, size_t n)
+int iso_display__fox_read(iso_display *d, iso_display__fox *f, const unsigned char *p, size_t n)
 {
     iso_display__fox_shared *s = atomic_load(&d->fox);
-    m[n] = 0;
-    char *e = m + n;
-    if (strstr(m, "\"unsubscribe\"")) {
-        char *a = strstr(m, "\"subscriptionIds\"");
-        for (char *p = a ? strchr(a, '[') : NULL; p && p < e && *p != ']'; p++) {
-            if (!isdigit((unsigned char)*p))
-                continue;
-            long id = strtol(p, &p, 10);
-            for (int c = 0; c < s->n_ch; c++)
-                if (f->sub[c] == id)
-                    f->sub[c] = -1;
-            p--;
-        }
-    } else if (strstr(m, "\"subscribe\"")) {
-        char *a = strstr(m, "\"subscriptions\"");
-        for (char *o = a ? strchr(a, '{') : NULL; o; o = strchr(o + 1, '{')) {
-            char *close = strchr(o, '}');
-            if (!close)
-                break;
-            long id = int_after(o, close, "\"id\"");
-            long ch = int_after(o, close, "\"channelId\"");
-            if (id >= 0 && id <= 0xffffffffL && ch >= 0 && ch < s->n_ch)
-                f->sub[ch] = id;
-            o = close;
-        }
-    }
-    /* other ops (advertise of client channels, parameters...) are not served */
-}
-
-/* The frame header's length once its first two bytes are in. */
-static unsigned header_len(const unsigned char *h)
-{
-    unsigned n = 2 + ((h[1] & 0x7f) == 126 ? 2 : (h[1] & 0x7f) == 127 ? 8 : 0);
-    return n + ((h[1] & 0x80) ? 4 : 0);
-}
-
-int iso_display__fox_rx(iso_display *d, iso_display__fox *f, const unsigned char *p, size_t n)
-{
-    while (n > 0) {
-        if (f->hdr_len < 2 || f->hdr_len < header_len(f->hdr)) {
-            f->hdr[f->hdr_len++] = *p++;
-            n--;
-            if (f->hdr_len < 2 || f->hdr_len < header_len(f->hdr))
-                continue;
-            const unsigned char *h = f->hdr;
-            if (!(h[1] & 0x80) || (h[0] & 0x70))
-                return ISO_DISPLAY_WS_PROTOCOL_ERROR; /* unmasked, or reserved bits */
-            uint64_t len = h[1] & 0x7f;
-            unsigned at = 2;
-            if (len == 126) {
-                len = (uint64_t)h[2] << 8 | h[3];
-                at = 4;
-            } else if (len == 127) {
-                len = 0;
-                for (int i = 0; i < 8; i++)
-                    len = len << 8 | h[2 + i];
-                at = 10;
-            }
-            if (len > ISO_DISPLAY_MAX_CLIENT_FRAME)
-                return ISO_DISPLAY_WS_TOO_BIG;
-            memcpy(f->mask, h + at, 4);
-            f->opcode = h[0] & 0x0f;
-            if (f->opcode == 8)
-                return ISO_DISPLAY_WS_NORMAL;
-            if (!(h[0] & 0x80) || f->opcode == 0)
-                return ISO_DISPLAY_WS_PROTOCOL_ERROR; /* fragments are not taken */
-            f->need = len;
-            f->got = 0;
-        }
-        size_t take = f->need - f->got < n ? (size_t)(f->need - f->got) : n;
-        for (size_t i = 0; i < take; i++, f->got++)
-            f->msg[f->got] = p[i] ^ f->mask[f->got % 4];
-        p += take;
-        n -= take;
-        if (f->got == f->need) {
-            if (f->opcode == 1)
-                on_message(d, f, (char *)f->msg, (size_t)f->need);
-            f->hdr_len = 0;
-        }
-    }
-    return 0;
+    return iso_display__fox_rx_feed(&f->rx, s->n_ch, p, n);
 }
