@@ -68,42 +68,41 @@ static const char tick_schema[] =
     "\"tick_ms\":{\"type\":\"number\"},\"latency_ms\":{\"type\":\"number\"},"
     "\"misses\":{\"type\":\"integer\"},\"frames_dropped\":{\"type\":\"integer\"}}}";
 
-static const char device_schema[] = "{\"title\":\"isoshape.DeviceSample\",\"description\":\"A "
-                                    "device's decoded state and "
-                                    "counters\",\"type\":\"object\",\"properties\":{"
-                                    "\"timestamp\":" TIME_SCHEMA
-                                    ",\"kind\":{\"type\":\"string\"},\"present\":{\"type\":"
-                                    "\"boolean\"},"
-                                    "\"stale\":{\"type\":\"boolean\"},\"axes\":" ARRAY_OF(
-                                        "{\"type"
-                                        "\":"
-                                        "\"intege"
-                                        "r\"}") ",\"buttons\":{\"type\":\"integer\"},"
-                                                "\"pose\":" ARRAY_OF("{\"type\":"
-                                                                     "\"number\"}") ",\"twi"
-                                                                                    "st\""
-                                                                                    ":" ARRAY_OF(
-                                                                                        "{\"type\":"
-                                                                                        "\"number\""
-                                                                                        "}") ",\"co"
-                                                                                             "unter"
-                                                                                             "s\":{"
-                                                                                             "\"typ"
-                                                                                             "e\":"
-                                                                                             "\"obj"
-                                                                                             "ect\""
-                                                                                             ",\"ad"
-                                                                                             "ditio"
-                                                                                             "nalPr"
-                                                                                             "opert"
-                                                                                             "ies\""
-                                                                                             ":{"
-                                                                                             "\"typ"
-                                                                                             "e\":"
-                                                                                             "\"int"
-                                                                                             "eger"
-                                                                                             "\"}}}"
-                                                                                             "}";
+static const char device_schema[] =
+    "{\"title\":\"isoshape.DeviceSample\",\"description\":\"A "
+    "device's decoded state and "
+    "counters\",\"type\":\"object\",\"properties\":{"
+    "\"timestamp\":" TIME_SCHEMA ",\"kind\":{\"type\":\"string\"},\"present\":{\"type\":"
+    "\"boolean\"},"
+    "\"stale\":{\"type\":\"boolean\"},\"axes\":" ARRAY_OF(
+        "{\"type"
+        "\":"
+        "\"intege"
+        "r\"}") ",\"buttons\":{\"type\":\"integer\"},"
+                "\"pose\":" ARRAY_OF("{\"type\":"
+                                     "\"number\"}") ",\"twi"
+                                                    "st\""
+                                                    ":" ARRAY_OF("{\"type\":"
+                                                                 "\"number\""
+                                                                 "}") ",\"co"
+                                                                      "unter"
+                                                                      "s\":{"
+                                                                      "\"typ"
+                                                                      "e\":"
+                                                                      "\"obj"
+                                                                      "ect\""
+                                                                      ",\"ad"
+                                                                      "ditio"
+                                                                      "nalPr"
+                                                                      "opert"
+                                                                      "ies\""
+                                                                      ":{"
+                                                                      "\"typ"
+                                                                      "e\":"
+                                                                      "\"int"
+                                                                      "eger"
+                                                                      "\"}}}"
+                                                                      "}";
 
 static const char act_schema[] =
     "{\"title\":\"isoshape.Actuators\",\"description\":\"Setpoints sent and the MCU's "
@@ -249,6 +248,10 @@ int iso_fox_encoder_create(const iso_fox_session *s, iso_fox_encoder **out, iso_
     if (!e)
         return iso_err_set(err, ISO_ENOMEM, -1, "Foxglove channels: out of memory");
     e->s = *s;
+    for (int h = 0; h < ISO_FOX_MAX_HANDLES; h++) /* names go into JSON strings unescaped */
+        for (char *c = e->s.handle_name[h]; *c; c++)
+            if (*c == '"' || *c == '\\' || (unsigned char)*c < 0x20)
+                *c = '_';
     e->nv = iso_mesh_vertex_count(s->mesh);
     e->nt = iso_mesh_triangle_count(s->mesh);
     size_t nt = (size_t)e->nt, nv = (size_t)e->nv;
