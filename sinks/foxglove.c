@@ -392,53 +392,19 @@ static void encode_mesh(iso_fox_encoder *e, const iso_fox_frame *f)
     add(e, "],\"texts\":[],\"models\":[]}]}");
 }
 
-void iso_fox_quaternion(const double R[9], double q[4])
-{
-    /* the largest of the four candidates' squares keeps the division safe */
-    double tr = R[0] + R[4] + R[8];
-    if (tr > 0) {
-        double s = 2 * sqrt(1 + tr);
-        q[3] = s / 4;
-        q[0] = (R[7] - R[5]) / s;
-        q[1] = (R[2] - R[6]) / s;
-        q[2] = (R[3] - R[1]) / s;
-    } else if (R[0] > R[4] && R[0] > R[8]) {
-        double s = 2 * sqrt(1 + R[0] - R[4] - R[8]);
-        q[3] = (R[7] - R[5]) / s;
-        q[0] = s / 4;
-        q[1] = (R[1] + R[3]) / s;
-        q[2] = (R[2] + R[6]) / s;
-    } else if (R[4] > R[8]) {
-        double s = 2 * sqrt(1 + R[4] - R[0] - R[8]);
-        q[3] = (R[2] - R[6]) / s;
-        q[0] = (R[1] + R[3]) / s;
-        q[1] = s / 4;
-        q[2] = (R[5] + R[7]) / s;
-    } else {
-        double s = 2 * sqrt(1 + R[8] - R[0] - R[4]);
-        q[3] = (R[3] - R[1]) / s;
-        q[0] = (R[2] + R[6]) / s;
-        q[1] = (R[5] + R[7]) / s;
-        q[2] = s / 4;
-    }
-    if (q[3] < 0)
-        for (int i = 0; i < 4; i++)
-            q[i] = -q[i];
-}
-
 static void encode_transform(iso_fox_encoder *e, const iso_fox_frame *f, int h, int achieved)
 {
     const iso_pose *P = achieved ? &f->achieved[h] : &f->commanded[h];
-    double c[3], q[4];
+    double c[3], q[4]; /* q: w, x, y, z */
     iso_pose_apply(P, e->s.handle_centre[h], c);
-    iso_fox_quaternion(P->R, q);
+    iso_rotation_quaternion(P->R, q);
     add(e, "{");
     add_time(e, "timestamp", f->t_ns);
     add(e, ",\"parent_frame_id\":\"world\",\"child_frame_id\":\"%s/%s\",", e->s.handle_name[h],
         achieved ? "achieved" : "commanded");
     add(e, "\"translation\":{\"x\":%.17g,\"y\":%.17g,\"z\":%.17g},", c[0], c[1], c[2]);
-    add(e, "\"rotation\":{\"x\":%.17g,\"y\":%.17g,\"z\":%.17g,\"w\":%.17g}}", q[0], q[1], q[2],
-        q[3]);
+    add(e, "\"rotation\":{\"x\":%.17g,\"y\":%.17g,\"z\":%.17g,\"w\":%.17g}}", q[1], q[2], q[3],
+        q[0]);
 }
 
 static void encode_loop(iso_fox_encoder *e, const iso_fox_frame *f)

@@ -133,7 +133,4 @@ ISO_API ISO_NODISCARD int iso_fox_encode(iso_fox_encoder *e, const iso_fox_chann
                                          iso_err *err);
 ISO_API void iso_fox_encoder_destroy(iso_fox_encoder *e); /* NULL is a no-op */
 
-/* The quaternion (x, y, z, w) of a row-major rotation matrix, w >= 0. */
-ISO_API void iso_fox_quaternion(const double R[9], double q[4]);
-
 #endif
