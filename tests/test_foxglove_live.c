@@ -31,7 +31,7 @@
 static const char scene_text[] = "name: fox\n"
                                  "mesh: {shape: cactus}\n"
                                  "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
-                                 "      driver: {screw: {def: builtin, duration: 30}}\n"
+                                 "      driver: {screw: {def: builtin, duration: 120}}\n"
                                  "solver: {assembly: cpu, refactor: adaptive, worker_lag: 4}\n"
                                  "integrator: {abm: pec}\n"
                                  "tick_hz: 60\n"

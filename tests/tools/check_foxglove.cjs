@@ -21,7 +21,7 @@ function fail(msg) {
 function ok(msg) {
   console.log("ok   " + msg);
 }
-setTimeout(() => fail("timed out"), 45000);
+setTimeout(() => fail("timed out"), 110000);
 
 function connect() {
   const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
@@ -99,7 +99,7 @@ function serverEnd() {
 
 let waiting = false;
 function check() {
-  if (waiting || ticksAfterStall < 60 || meshes < 10) return;
+  if (waiting || ticksAfterStall < 20 || meshes < 10) return;
   waiting = true;
   ok(`reader: ${ticks.length} ticks, ${meshes} meshes of ${nt} triangles; ${ticksAfterStall} ticks since the other client stopped reading`);
   for (let i = 1; i < ticks.length; i++) if (ticks[i] <= ticks[i - 1]) fail("ticks out of order");
@@ -116,6 +116,6 @@ function check() {
       ok(`the client that stopped reading was disconnected ${((Date.now() - stalledAt) / 1000).toFixed(1)} s after it stopped, and the reader was not held up`);
       process.exit(0);
     }
-    if (Date.now() - t0 > 20000) fail("the client that stopped reading is still connected after 20 s");
+    if (Date.now() - t0 > 40000) fail("the client that stopped reading is still connected after 40 s");
   }, 100);
 }
