@@ -159,6 +159,8 @@ struct iso_fox_encoder {
     unsigned char *tint;      /* per triangle: 0 none, 1 fixed, 2 handle */
     int *key, *order, *count; /* colour key per triangle; triangles by key; keys' counts */
     int *remap, *stamp;       /* per vertex: its index in the current primitive */
+    int decimals;             /* a point coordinate's decimals: 1e-7 of the mesh's size */
+    double scale;             /* 10^decimals */
 };
 
 enum { N_KEYS = 3 * ISO_FOX_STRAIN_LEVELS };
@@ -190,6 +192,63 @@ static void add(iso_fox_encoder *e, const char *fmt, ...)
     }
 }
 
+static void add_num(iso_fox_encoder *e, const char *fmt, double v);
+
+/* n bytes as they are. */
+static void add_raw(iso_fox_encoder *e, const char *p, size_t n)
+{
+    if (e->oom)
+        return;
+    if (e->n + n + 1 > e->cap) {
+        size_t cap = e->cap * 2 + n + 1;
+        char *q = realloc(e->out, cap);
+        if (!q) {
+            e->oom = 1;
+            return;
+        }
+        e->out = q;
+        e->cap = cap;
+    }
+    memcpy(e->out + e->n, p, n);
+    e->n += n;
+    e->out[e->n] = 0;
+}
+
+/* v with e->decimals decimals, trailing zeros dropped, without printf: a
+ * mesh message is mostly coordinates, and printf's %g costs ten times this
+ * (the MCAP writer must keep up with the loop on the cores the solver
+ * leaves). Beyond 15 digits, or not finite, printf says it (or null). */
+static void add_coord(iso_fox_encoder *e, double v)
+{
+    double r = nearbyint(v * e->scale);
+    if (!(fabs(r) < 1e15)) {
+        add_num(e, "%.7g", v);
+        return;
+    }
+    char d[24], out[32];
+    long long u = (long long)(r < 0 ? -r : r);
+    int m = 0;
+    do
+        d[m++] = (char)('0' + u % 10);
+    while ((u /= 10) != 0);
+    while (m <= e->decimals)
+        d[m++] = '0'; /* at least one digit before the point */
+    int lo = 0;       /* trailing zeros of the fraction are dropped */
+    while (lo < e->decimals && d[lo] == '0')
+        lo++;
+    size_t n = 0;
+    if (r < 0)
+        out[n++] = '-';
+    for (int i = m - 1; i >= e->decimals; i--)
+        out[n++] = d[i];
+    if (lo < e->decimals) {
+        out[n++] = '.';
+        for (int i = e->decimals - 1; i >= lo; i--)
+            out[n++] = d[i];
+    }
+    add_raw(e, out, n);
+}
+
 /* "a,b,c" after prefix, without printf: the indices are most of a mesh
  * message's numbers. */
 static void add_ints(iso_fox_encoder *e, const char *prefix, int a, int b, int c)
@@ -211,8 +270,7 @@ static void add_ints(iso_fox_encoder *e, const char *prefix, int a, int b, int c
         while (m)
             tmp[n++] = d[--m];
     }
-    tmp[n] = 0;
-    add(e, "%s", tmp);
+    add_raw(e, tmp, n);
 }
 
 /* A number JSON can hold: a non-finite value is written as null. */
@@ -284,6 +342,12 @@ int iso_fox_encoder_create(const iso_fox_session *s, iso_fox_encoder **out, iso_
     }
     for (size_t v = 0; v < nv; v++)
         e->stamp[v] = -1;
+    /* coordinates to 1e-7 of the mesh's size: far below what a view shows
+     * (float32 holds 6e-8), and the same digits on every machine */
+    double diag = iso_mesh_bbox_diagonal(s->mesh);
+    int dec = diag > 0 ? 7 - (int)ceil(log10(diag)) : 7;
+    e->decimals = dec < 0 ? 0 : dec > 12 ? 12 : dec;
+    e->scale = pow(10.0, e->decimals);
     *out = e;
     return ISO_OK;
 }
@@ -351,17 +415,13 @@ static void primitive(iso_fox_encoder *e, const double *x, int key, int from, in
             e->stamp[v] = key;
             e->remap[v] = np++;
             const double *p = x + 3 * v;
-            if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) {
-                add(e, "%s{\"x\":%.7g,\"y\":%.7g,\"z\":%.7g}", np > 1 ? "," : "", p[0], p[1], p[2]);
-                continue;
-            }
-            add(e, "%s{\"x\":", np > 1 ? "," : "");
-            add_num(e, "%.7g", p[0]);
-            add(e, ",\"y\":");
-            add_num(e, "%.7g", p[1]);
-            add(e, ",\"z\":");
-            add_num(e, "%.7g", p[2]);
-            add(e, "}");
+            add_raw(e, np > 1 ? ",{\"x\":" : "{\"x\":", np > 1 ? 6 : 5);
+            add_coord(e, p[0]);
+            add_raw(e, ",\"y\":", 5);
+            add_coord(e, p[1]);
+            add_raw(e, ",\"z\":", 5);
+            add_coord(e, p[2]);
+            add_raw(e, "}", 1);
         }
     add(e, "],\"color\":{\"r\":%.4f,\"g\":%.4f,\"b\":%.4f,\"a\":1},\"colors\":[],\"indices\":[",
         rgb[0], rgb[1], rgb[2]);

@@ -35,8 +35,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "iso_foxglove.h"
 #include "iso_loop.h"
 #include "iso_mesh.h"
+#include "iso_shapes.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define UNDER_ASAN 1
@@ -412,6 +414,73 @@ static void deform_writes_a_frame_per_step(void **state)
     free(f.xyz);
 }
 
+/* The mesh message's points are the positions to 1e-7 of the mesh's size
+ * (the encoder writes them without printf), and its triangles are all
+ * there. */
+static void mesh_message_holds_the_positions(void **state)
+{
+    (void)state;
+    iso_shape sh;
+    iso_err e;
+    assert_int_equal(iso_shape_init(&sh, "cactus", 1, &e), ISO_OK);
+    iso_mesh *m = NULL;
+    assert_int_equal(iso_mesh_create(sh.nv, sh.x, sh.nt, sh.tri, "cactus", &m, &e), ISO_OK);
+    double *x = malloc((size_t)sh.nv * 3 * sizeof *x);
+    assert_non_null(x);
+    for (int i = 0; i < 3 * sh.nv; i++) /* signs, small and large magnitudes */
+        x[i] = sh.x[i] * (i % 7 == 0 ? -1e-3 : i % 5 == 0 ? 123.456 : 1.0) - 0.25;
+    iso_fox_session s;
+    memset(&s, 0, sizeof s);
+    s.mesh = m;
+    iso_fox_channel ch[ISO_FOX_MAX_CHANNELS];
+    assert_true(iso_fox_channels(&s, ch, ISO_FOX_MAX_CHANNELS) >= 1);
+    assert_string_equal(ch[0].topic, "/mesh");
+    iso_fox_encoder *enc = NULL;
+    assert_int_equal(iso_fox_encoder_create(&s, &enc, &e), ISO_OK);
+    iso_fox_frame f;
+    memset(&f, 0, sizeof f);
+    f.x = x;
+    const char *data;
+    size_t len;
+    assert_int_equal(iso_fox_encode(enc, &ch[0], &f, &data, &len, &e), ISO_OK);
+    double tol = 1e-7 * iso_mesh_bbox_diagonal(m);
+    long points = 0, indices = 0;
+    for (const char *p = data; (p = strstr(p, "\"points\":[")) != NULL;) {
+        for (p += 10; strncmp(p, "{\"x\":", 5) == 0; points++) {
+            double q[3];
+            char *end;
+            q[0] = strtod(p + 5, &end);
+            assert_true(strncmp(end, ",\"y\":", 5) == 0);
+            q[1] = strtod(end + 5, &end);
+            assert_true(strncmp(end, ",\"z\":", 5) == 0);
+            q[2] = strtod(end + 5, &end);
+            int found = 0;
+            for (int v = 0; v < sh.nv && !found; v++)
+                found = fabs(q[0] - x[3 * v]) <= tol && fabs(q[1] - x[3 * v + 1]) <= tol &&
+                        fabs(q[2] - x[3 * v + 2]) <= tol;
+            if (!found)
+                fail_msg("point %.17g %.17g %.17g is no vertex's position to %g", q[0], q[1], q[2],
+                         tol);
+            p = end + 1 + (end[1] == ','); /* past "}" and "," */
+        }
+    }
+    for (const char *p = data; (p = strstr(p, "\"indices\":[")) != NULL;) {
+        p += 11;
+        while (*p && *p != ']') {
+            strtol(p, (char **)&p, 10);
+            indices++;
+            if (*p == ',')
+                p++;
+        }
+    }
+    assert_true(points >= sh.nv);
+    assert_int_equal(indices, 3L * sh.nt);
+    iso_fox_encoder_destroy(enc);
+    iso_mesh_destroy(m);
+    free(x);
+    iso_shape_deinit(&sh);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
@@ -419,6 +488,7 @@ int main(void)
         cmocka_unit_test(pc2_matches_the_ply_frames),
         cmocka_unit_test(killed_run_leaves_a_good_cache),
         cmocka_unit_test(deform_writes_a_frame_per_step),
+        cmocka_unit_test(mesh_message_holds_the_positions),
     };
     return cmocka_run_group_tests_name("sink_files", t, NULL, NULL);
 }
