@@ -158,16 +158,15 @@ static void report(const replay_args *a, iso_loop *l, const iso_scene *sc, const
                k, P->p[0], P->p[1], P->p[2], P->R[0], P->R[1], P->R[2], P->R[3], P->R[4], P->R[5],
                P->R[6], P->R[7], P->R[8]);
     }
-    if (r && r->torn)
-        fprintf(stderr, "isoshape replay: %s: %s\n", a->path, r->note);
     const iso_dev_hub *h = iso_loop_hub(l);
     for (size_t k = 0; h && k < iso_dev_hub_sources(h); k++) {
         const iso_dev_counters *n = &iso_dev_hub_decoder(h, k)->n;
         if (n->short_reports || n->unknown_ids || n->bad_frames || n->garbage)
             fprintf(stderr,
                     "isoshape replay: source %zu: skipped %u short reports, %u unknown IDs, %u "
-                    "bad frames, %u garbage bytes\n",
-                    k, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage);
+                    "bad frames, %u garbage bytes (%u resyncs, %u bytes not recorded)\n",
+                    k, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage, n->resyncs,
+                    n->unrecorded);
     }
     if (sc->mesh)
         printf("scene %s: %d vertices, %d steps, vertices checksum %016" PRIx64 "\n", label,

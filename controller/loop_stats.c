@@ -236,10 +236,13 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
         const iso_dev_source_stats *d = &s->device[i];
         fprintf(f,
                 "  device %d    %s\n"
-                "              %u events, %u bad frames, %u garbage bytes, gone %u, back %u, "
-                "stale %u\n",
-                i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->gone,
-                d->back, d->stale);
+                "              %u events, %u bad frames, %u garbage bytes, %u resyncs, gone %u, "
+                "back %u, stale %u\n",
+                i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->dec.resyncs,
+                d->gone, d->back, d->stale);
+        if (d->dec.unrecorded)
+            fprintf(f, "              %u noise bytes left out of the recording (its cap)\n",
+                    d->dec.unrecorded);
     }
     if (sc->display.enabled || s->frames_sent)
         fprintf(f, "  display     %ld frames sent\n", s->frames_sent);
@@ -265,9 +268,9 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
 #define DEC(f) ISO_JSON_FIELD(iso_dev_counters, f, ISO_JSON_U32)
 #define DROP(f) ISO_JSON_FIELD(iso_dev_frame_drops, f, ISO_JSON_U32)
 #define SRC(f) ISO_JSON_FIELD(iso_dev_source_stats, f, ISO_JSON_U32)
-static const iso_json_field dec_counters[] = {{DEC(reports)},     {DEC(bad_frames)},
-                                              {DEC(garbage)},     {DEC(short_reports)},
-                                              {DEC(unknown_ids)}, {DEC(bad_payloads)}};
+static const iso_json_field dec_counters[] = {
+    {DEC(reports)},     {DEC(bad_frames)},   {DEC(garbage)}, {DEC(short_reports)},
+    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(resyncs)}, {DEC(unrecorded)}};
 static const iso_json_field drop_counters[] = {
     {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},

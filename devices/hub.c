@@ -7,13 +7,26 @@
  * that drains it, so a replay drains the same chunks into the same ticks. */
 #include "iso_dev.h"
 
+#include <inttypes.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "internal.h"
+
 #define HUB_EVENTS 2048u
+
+/* The noise cap's state for one source while recording: the second of
+ * stream time it counts, the noise bytes recorded in it, and the chunks
+ * left out since the last record of the source (RECORDING.md). */
+typedef struct hub_cap {
+    int64_t window;
+    uint32_t used;
+    uint32_t skip_bytes, skip_chunks; /* 0 chunks: none pending */
+    iso_dev_decoder first;            /* the decoder before the first one left out */
+} hub_cap;
 
 typedef struct hub_src {
     iso_dev_source *s; /* NULL while gone */
@@ -28,6 +41,8 @@ typedef struct hub_src {
     int64_t quiet_from;            /* stream time of the last twist before it went stale */
     uint32_t events, gone, back, stale_count;
     uint8_t estop_line; /* the source has an e-stop input (estop_level answers) */
+    uint8_t noise_told; /* the noise message went out for the present stretch */
+    hub_cap cap;
 } hub_src;
 
 struct iso_dev_hub {
@@ -42,7 +57,8 @@ struct iso_dev_hub {
     iso_dev_rec_writer rec;
     int64_t last_tick;
     int ticked;
-    long tick_records; /* replay: TICK records drained so far */
+    long tick_records;      /* replay: TICK records drained so far */
+    iso_dev_decoder before; /* take(): a decoder before its chunk, for the noise cap */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
     /* Guards src[].s and n against iso_dev_hub_estop_probe on another
@@ -256,6 +272,39 @@ int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err)
     free(infos);
     if (rc == ISO_OK)
         h->recording = 1;
+    for (size_t i = 0; i < h->n; i++)
+        memset(&h->src[i].cap, 0, sizeof h->src[i].cap);
+    return rc;
+}
+
+/* The chunks of source i left out since its last record, as one SKIP
+ * record; `after` is its decoder after the last of them. The record bears
+ * the last one's time, which a replay's decoder takes as the latest noise,
+ * so that the noise message comes in the same tick. */
+static int flush_skip(iso_dev_hub *h, size_t i, const iso_dev_decoder *after, iso_err *err)
+{
+    hub_cap *k = &h->src[i].cap;
+    if (!k->skip_chunks || !h->recording)
+        return ISO_OK;
+    iso_dev_chunk c;
+    memset(&c, 0, sizeof c);
+    c.t_ns = after->noise_last;
+    c.source = (uint8_t)i;
+    c.type = ISO_DEV_CHUNK_SKIP;
+    int len = iso_dev__skip_encode(after, &k->first, k->skip_bytes, k->skip_chunks, c.data,
+                                   sizeof c.data);
+    k->skip_bytes = k->skip_chunks = 0;
+    if (len < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: a SKIP record does not fit", h->rec.path);
+    c.len = (uint16_t)len;
+    return iso_dev_rec_write(&h->rec, &c, err);
+}
+
+static int flush_skips(iso_dev_hub *h, iso_err *err)
+{
+    int rc = ISO_OK;
+    for (size_t i = 0; i < h->n && rc == ISO_OK; i++)
+        rc = flush_skip(h, i, &h->src[i].dec, err);
     return rc;
 }
 
@@ -263,11 +312,39 @@ int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
 {
     if (!h->recording)
         return ISO_OK;
+    int rc = flush_skips(h, err);
     h->recording = 0;
-    return iso_dev_rec_writer_close(&h->rec, err);
+    int rc2 = iso_dev_rec_writer_close(&h->rec, rc == ISO_OK ? err : NULL);
+    return rc != ISO_OK ? rc : rc2;
 }
 
-/* Records and decodes one chunk into the hub's event buffer. */
+/* Whether chunk c, just decoded by x->dec (h->before before it), is left
+ * out of the recording: noise beyond the cap of its second. */
+static int leave_out(iso_dev_hub *h, hub_src *x, const iso_dev_chunk *c, size_t events)
+{
+    if (c->type != ISO_DEV_CHUNK_DATA || !iso_dev__noise_chunk(&h->before, &x->dec, events))
+        return 0;
+    hub_cap *k = &x->cap;
+    int64_t window = c->t_ns / 1000000000LL;
+    if (window != k->window) {
+        k->window = window;
+        k->used = 0;
+    }
+    if (k->used + c->len <= ISO_DEV_REC_NOISE_CAP) {
+        k->used += c->len;
+        return 0;
+    }
+    if (!k->skip_chunks)
+        k->first = h->before;
+    k->skip_chunks++;
+    k->skip_bytes += c->len;
+    x->dec.n.unrecorded += c->len; /* what a replay's decoder counts from the SKIP */
+    return 1;
+}
+
+/* Decodes one chunk into the hub's event buffer, and records it: a chunk
+ * the noise cap leaves out waits in a SKIP, written before the source's
+ * next record or the tick's TICK record. */
 static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
 {
     if (c->type == ISO_DEV_CHUNK_TICK) {
@@ -276,11 +353,6 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
     }
     if (c->source >= h->n)
         return ISO_OK;
-    if (h->recording) {
-        int rc = iso_dev_rec_write(&h->rec, c, err);
-        if (rc != ISO_OK)
-            return rc;
-    }
     hub_src *x = &h->src[c->source];
     if (c->type == ISO_DEV_CHUNK_GONE) {
         x->gone++;
@@ -289,10 +361,15 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
         x->back++;
         x->present = 1;
     }
+    if (h->recording)
+        h->before = x->dec;
     size_t k = iso_dev_decode(&x->dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
     x->events += (uint32_t)k;
     h->nev += k;
-    return ISO_OK;
+    if (!h->recording || leave_out(h, x, c, k))
+        return ISO_OK;
+    int rc = flush_skip(h, c->source, &h->before, err);
+    return rc == ISO_OK ? iso_dev_rec_write(&h->rec, c, err) : rc;
 }
 
 static int mark(iso_dev_hub *h, size_t i, int type, int64_t t, iso_err *err)
@@ -329,7 +406,7 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         if (rc != ISO_OK)
             return rc;
     }
-    while (room(h)) {
+    for (size_t taken = 0; room(h) && taken < ISO_DEV_DRAIN_MAX;) {
         iso_dev_chunk c;
         iso_err e;
         iso_err_clear(&e);
@@ -347,6 +424,7 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         c.type = ISO_DEV_CHUNK_DATA;
         if (c.t_ns > now)
             c.t_ns = now;
+        taken += c.len;
         int rc = take(h, &c, err);
         if (rc != ISO_OK)
             return rc;
@@ -426,12 +504,62 @@ static void watch_stale(iso_dev_hub *h, const iso_dev_map *m, const iso_dev_tick
     }
 }
 
+/* What a source's bad input tells its user, by kind. */
+static void noise_hint(const hub_src *x, char *buf, size_t cap)
+{
+    const iso_dev_info *f = &x->info;
+    const iso_dev_counters *n = &x->dec.n;
+    switch (f->kind) {
+    case ISO_DEV_KIND_SERIAL:
+        snprintf(buf, cap,
+                 "%u garbage bytes, %u bad frames: check the baud rate (this end reads %u %u%c%u; "
+                 "both ends must agree) and that this is the device that sends the handle stream",
+                 n->garbage, n->bad_frames, f->baud, f->data_bits ? f->data_bits : 8,
+                 f->parity ? f->parity : 'N', f->stop_bits ? f->stop_bits : 1);
+        break;
+    case ISO_DEV_KIND_HID:
+        snprintf(buf, cap,
+                 "%u reports of unknown IDs, %u too short: is this a 3D mouse (3Dconnexion)?",
+                 n->unknown_ids, n->short_reports);
+        break;
+    default:
+        snprintf(buf, cap, "%u garbage bytes, %u unknown: is this the right device?", n->garbage,
+                 n->unknown_ids);
+    }
+}
+
+/* One message when a source has delivered only bad input for
+ * ISO_DEV_NOISE_NOTICE_NS of stream time, one when good input comes back.
+ * Stream time: a replay says both in the same ticks. */
+static void watch_noise(iso_dev_hub *h)
+{
+    for (size_t i = 0; i < h->n; i++) {
+        hub_src *x = &h->src[i];
+        const iso_dev_decoder *d = &x->dec;
+        const char *kind = iso_dev_kind_name(x->info.kind);
+        if (!x->noise_told && d->noise_since != INT64_MIN &&
+            d->noise_last - d->noise_since >= ISO_DEV_NOISE_NOTICE_NS) {
+            char hint[300];
+            noise_hint(x, hint, sizeof hint);
+            x->noise_told = 1;
+            say(h, "%s %s: %.1f s of input and not one valid %s (%s)", kind, x->info.name,
+                (double)(d->noise_last - d->noise_since) * 1e-9,
+                x->info.kind == ISO_DEV_KIND_SERIAL ? "frame" : "report", hint);
+        } else if (x->noise_told && d->noise_since == INT64_MIN) {
+            x->noise_told = 0;
+            say(h, "%s %s: valid input again (%u garbage bytes so far, %u resyncs)", kind,
+                x->info.name, d->n.garbage, d->n.resyncs);
+        }
+    }
+}
+
 int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
                      const iso_pose *poses, iso_dev_tick *out, iso_err *err)
 {
     int rc = drain_all(h, now_ns, err);
     iso_dev_map_tick(m, h->ev, h->nev, now_ns, dt_s, poses, out);
     watch_stale(h, m, out);
+    watch_noise(h);
     h->nev = 0;
     h->last_tick = now_ns;
     h->ticked = 1;
@@ -447,6 +575,8 @@ int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s
                 say(h, "%s: trigger pulse: %s", s->info.name, e.msg);
         }
     }
+    if (h->recording && (rc = flush_skips(h, err)) != ISO_OK)
+        return rc;
     if (h->recording)
         return iso_dev_rec_tick(&h->rec, now_ns, err);
     return ISO_OK;

@@ -28,6 +28,23 @@ static inline void iso_dev__serial_info(iso_dev_info *info, uint32_t baud)
     info->stop_bits = 1;
 }
 
+/* decode.c: the noise cap's side of the decoders (RECORDING.md, "The noise
+ * cap"). 1 when a data chunk that gave `events` events, decoded by a
+ * decoder that was `before` and is now `after`, is one a recording may
+ * leave out: no event and no good report or frame, so that nothing but the
+ * counts and the serial parser's unfinished frame changed (a SKIP carries
+ * both). The start of a good frame cut across two reads is such a chunk:
+ * left out only beyond the cap, and then exactly. */
+int iso_dev__noise_chunk(const iso_dev_decoder *before, const iso_dev_decoder *after,
+                         size_t events);
+/* A SKIP record's payload for chunks left out: `first` is the decoder
+ * before the first of them, `after` after the last. Returns its length, or
+ * ISO_EINVAL when cap is too small (ISO_DEV_CHUNK_MAX always suffices). */
+int iso_dev__skip_encode(const iso_dev_decoder *after, const iso_dev_decoder *first, uint32_t bytes,
+                         uint32_t chunks, uint8_t *dst, size_t cap);
+/* Applies a SKIP record's payload (t: its time) to the decoder. */
+void iso_dev__skip_apply(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len);
+
 /* Each appends at most cap entries and returns how many. */
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap);

@@ -44,7 +44,15 @@ typedef enum iso_dev_chunk_type {
     ISO_DEV_CHUNK_DATA = 1, /* bytes from the device */
     ISO_DEV_CHUNK_GONE = 2, /* the device went away (unplugged, read error) */
     ISO_DEV_CHUNK_BACK = 3, /* the device was opened again */
-    ISO_DEV_CHUNK_TICK = 4  /* a tick boundary of the loop that recorded (no source) */
+    ISO_DEV_CHUNK_TICK = 4, /* a tick boundary of the loop that recorded (no source) */
+    /* Format 2 (RECORDING.md). END: the writer closed the recording; the
+     * reader consumes it and never hands it out. SKIP: noise the raw-byte
+     * cap left out of the recording (ISO_DEV_REC_NOISE_CAP): its payload
+     * is what the source's decoder counted and where its frame parser
+     * stood after it, so that a replay decodes what follows exactly as
+     * the live run did. */
+    ISO_DEV_CHUNK_END = 5,
+    ISO_DEV_CHUNK_SKIP = 6
 } iso_dev_chunk_type;
 
 typedef struct iso_dev_chunk {
@@ -243,11 +251,38 @@ typedef struct iso_dev_counters {
     uint32_t short_reports; /* HID: too short for their ID; spnav: truncated */
     uint32_t unknown_ids;   /* HID report IDs or spnav types we do not know */
     uint32_t bad_frames;    /* serial: COBS, CRC, length, version, sequence drops */
-    uint32_t garbage;       /* bytes skipped outside any frame or pair */
-    uint32_t bounces;       /* GPIO edges the debounce did not take at once */
-    uint32_t bad_payloads;  /* serial: HANDLE_SAMPLE frames whose payload does not unpack
-                               (counted in bad_frames too) */
+    /* Bytes that belong to no valid frame or pair: serial bytes outside
+     * every accepted frame (its 0x00 delimiters aside), unknown spnav
+     * bytes, a GPIO chunk's odd byte; and events beyond the caller's room
+     * (a HID report's only garbage: its bad reports are counted above). */
+    uint32_t garbage;
+    uint32_t bounces;      /* GPIO edges the debounce did not take at once */
+    uint32_t bad_payloads; /* serial: HANDLE_SAMPLE frames whose payload does not unpack
+                              (counted in bad_frames too) */
+    /* Times the decoder found its reports or frames again after bad
+     * input: each stretch of garbage, bad frames or unknown reports that
+     * a good one ended counts once. */
+    uint32_t resyncs;
+    uint32_t unrecorded; /* raw bytes the recording left out (ISO_DEV_REC_NOISE_CAP) */
 } iso_dev_counters;
+
+/* Noise. A device that delivers only bad input (bytes that are no frame,
+ * reports of unknown IDs) for ISO_DEV_NOISE_NOTICE_NS of stream time gets
+ * one message from the hub, with a hint (a serial line: its baud rate, and
+ * whether this is the right device), and one more when good input comes
+ * back. Stream time: a replay says it in the same tick. */
+#define ISO_DEV_NOISE_NOTICE_NS 2000000000LL
+/* A tick drains at most this many bytes from one source; the rest waits in
+ * the kernel for the next tick. It bounds what a flood costs a tick (16 MB
+ * of random bytes on a pty took the p99 tick from 4 to 31 ms), far above
+ * any handle stream (a 115200-baud line brings 192 bytes in a 60 Hz tick;
+ * a 3D mouse, ~1 kB/s). */
+#define ISO_DEV_DRAIN_MAX 16384u
+/* A recording keeps at most this many bytes per second of stream time of a
+ * source's chunks that decode to nothing; beyond it they become SKIP
+ * records (RECORDING.md, "The noise cap"). A 115200-baud line's whole
+ * stream (11.5 kB/s) fits under it. */
+#define ISO_DEV_REC_NOISE_CAP 16384u
 
 /* Serial: the frames the firmware bridge's parser dropped, by reason
  * (firmware-bridge/PROTOCOL.md, "Receiver"), kept across reconnects. */
@@ -270,6 +305,10 @@ typedef struct iso_dev_decoder {
     int64_t debounce_ns;
     iso_dev_gpio_line gpio[ISO_DEV_GPIO_ROLES];
     _Alignas(8) unsigned char fb[512]; /* the firmware bridge's iso_fb_parser */
+    uint32_t fb_pending; /* serial: bytes since the last frame boundary (garbage if no frame) */
+    /* Stream times of the first and the latest bad input since the last
+     * good report or frame; INT64_MIN while there is none. */
+    int64_t noise_since, noise_last;
 } iso_dev_decoder;
 
 /* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown
@@ -279,7 +318,9 @@ ISO_API ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev
 /* Decodes one chunk into at most cap events appended at ev. Returns the
  * number written. Bad bytes are counted and skipped, never fatal. Events
  * beyond cap are dropped and counted as garbage (size ev for a chunk:
- * ISO_DEV_EVENTS_PER_CHUNK is always enough). */
+ * ISO_DEV_EVENTS_PER_CHUNK is always enough). A SKIP chunk (a recording's
+ * noise left out) adds its counts and leaves the serial parser where the
+ * live run's stood after it; it gives no event. */
 #define ISO_DEV_EVENTS_PER_CHUNK 130u
 ISO_API size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev,
                               size_t cap);
@@ -431,7 +472,9 @@ ISO_API void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n,
 /* Recordings (devices/RECORDING.md)                                       */
 /* ====================================================================== */
 
-#define ISO_DEV_REC_VERSION 1u
+/* Written: 2 (an END record closes every whole recording; SKIP records).
+ * Read: 1 and 2. */
+#define ISO_DEV_REC_VERSION 2u
 
 typedef struct iso_dev_rec_writer {
     void *f; /* FILE * */
@@ -468,6 +511,8 @@ typedef struct iso_dev_rec_reader {
     int torn;            /* 1: the recording ends inside a record */
     long end_at;         /* byte offset just past the last complete record */
     char note[320];      /* the last damage or the tear, as a sentence */
+    long header_len;     /* where the records start */
+    int ended;           /* 1: its END record was read (format 2) */
 } iso_dev_rec_reader;
 
 /* Parses the header of a recording in memory (not copied: data must
@@ -477,9 +522,30 @@ ISO_API ISO_NODISCARD int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const u
 ISO_API ISO_NODISCARD int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path,
                                                   iso_err *err);
 /* Next complete record: returns 1 and fills *c, or 0 at the end (r->torn
- * and r->note then say where it stopped). Damaged records are counted,
- * described in r->note and skipped; *damaged_now tells the caller (may be NULL). */
+ * and r->note then say where it stopped; r->ended after an END record).
+ * Damaged records are counted, described in r->note and skipped;
+ * *damaged_now tells the caller (may be NULL). */
 ISO_API int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now);
+
+/* Whether the recording was cut off, and the one sentence that says so.
+ * Every command that reads a recording (run, replay, inspect, export)
+ * prints this sentence, from this function, when it opens the file: a
+ * replay that ends at its last TICK record never reads the torn end, so
+ * r->torn alone would leave the cut unsaid. Scans the records from the
+ * header to the end without moving the reader (r may be mid-replay).
+ * A recording is cut off when it ends inside a record, or when it ends
+ * without the END record its writer adds on closing (format 2; a writer
+ * killed, a disk full, a file cut at a record boundary). Damaged records
+ * inside are not a cut (iso_dev_rec_next says where each one is). Returns 1
+ * and fills msg (cap bytes, NUL-terminated) with a sentence naming the byte
+ * where the file ends, where the complete part ends and how much of it
+ * there is, e.g. "the recording is cut off at byte 376, inside a record
+ * that starts at byte 371: what came before is used (12 records, 5 ticks,
+ * up to byte 371)"; *at (may be NULL) gets the byte offset where the
+ * complete part ends. Returns 0, msg "" and *at the file's length when it
+ * ends whole. A format-1 recording has no END record: only a cut inside
+ * a record shows there. */
+ISO_API int iso_dev_rec_reader_cut(const iso_dev_rec_reader *r, char *msg, size_t cap, long *at);
 ISO_API void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r);
 
 /* The replay backend: a multiplexed source over a reader (which it does not
