@@ -2,6 +2,7 @@
  * iso_link: the real firmware ELF in qemu-system-arm, or the same protocol
  * logic (iso_fb_mcu.c) in a thread. See iso_actuators.h. */
 #define _GNU_SOURCE /* openpty, prctl */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -64,6 +65,9 @@ typedef struct emu_link {
     atomic_int killed;      /* SIGKILL drill: the thread ends and closes the master */
     atomic_int paused;      /* SIGSTOP drill */
     atomic_uint tx_dropped; /* bytes the host did not take in time */
+    atomic_int priority;    /* SCHED_FIFO asked for (iso_act__emu_priority); 0: none */
+    atomic_int prio_done;   /* native: the priority its thread applied last, and how: */
+    atomic_int prio_errno;  /* 0, or pthread_setschedparam's error */
     iso_fb_mcu mcu;         /* touched only by the thread once it runs */
     int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
@@ -211,6 +215,9 @@ static emu_link *emu_new(int mode)
     e->base.ops = &emu_ops;
     e->mode = mode;
     atomic_init(&e->qemu, -1);
+    atomic_init(&e->priority, 0);
+    atomic_init(&e->prio_done, -1);
+    atomic_init(&e->prio_errno, 0);
     e->sock = e->lfd = e->master = e->slave_keep = -1;
     snprintf(e->what, sizeof e->what, "emulated MCU (%s)",
              mode == ISO_ACT_EMU_QEMU ? "QEMU" : "native");
@@ -257,21 +264,34 @@ static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
  * would. Real-time priority, where the process may take it, keeps the
  * emulated clock honest; without it the emulation still works, with the
  * occasional watchdog FAULT under load that the host recovers from. */
-static void try_realtime(void)
+static int try_realtime(int priority)
 {
     struct sched_param sp;
     memset(&sp, 0, sizeof sp);
-    sp.sched_priority = sched_get_priority_min(SCHED_FIFO);
-    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    sp.sched_priority = priority > 0 ? priority : sched_get_priority_min(SCHED_FIFO);
+    return pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
+/* The thread applies the priority asked for itself (iso_act__emu_priority
+ * never touches another thread's handle, which a restart replaces). */
+static void follow_priority(emu_link *e)
+{
+    int want = atomic_load(&e->priority);
+    if (want == atomic_load(&e->prio_done))
+        return;
+    atomic_store(&e->prio_errno, try_realtime(want));
+    atomic_store(&e->prio_done, want);
 }
 
 static void *mcu_thread(void *arg)
 {
     emu_link *e = arg;
-    try_realtime();
+    atomic_store(&e->prio_done, -1);
+    follow_priority(e);
     uint32_t last = mcu_ms(e);
     uint8_t buf[256];
     while (!atomic_load(&e->stop) && !atomic_load(&e->killed)) {
+        follow_priority(e);
         if (atomic_load(&e->paused)) { /* a stopped process: no clock, no I/O */
             iso_clock_sleep_until(iso_clock_ns() + 1000000);
             continue;
@@ -459,11 +479,16 @@ static int qemu_launch(emu_link *e, iso_err *err)
                           "user,restrict=on", "-display", "none",       "-monitor",    "none",
                           "-serial",          serial,     "-kernel",    (char *)elf,   NULL};
     pid_t parent = getpid();
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = atomic_load(&e->priority);
     pid_t pid = fork();
     if (pid == 0) {
         prctl(PR_SET_PDEATHSIG, SIGKILL); /* never outlive us, even on a crash */
         if (getppid() != parent)
             _exit(127);
+        if (sp.sched_priority > 0) /* every thread QEMU starts inherits it */
+            (void)sched_setscheduler(0, SCHED_FIFO, &sp);
         int devnull = open("/dev/null", O_RDWR);
         if (devnull >= 0) {
             dup2(devnull, 0);
@@ -593,6 +618,54 @@ int iso_act__emu_signal(iso_link *l, int sig, iso_err *err)
     return iso_err_set(err, ISO_EINVAL, -1,
                        "%s: signal %d is not emulated (SIGKILL, SIGSTOP, SIGCONT are)", e->what,
                        sig);
+}
+
+/* Every thread of process pid under the policy: QEMU's vCPU and I/O
+ * threads both stand between the host and the firmware. */
+static int set_process_sched(int pid, int priority, const char *what, iso_err *err)
+{
+    char dir[64];
+    snprintf(dir, sizeof dir, "/proc/%d/task", pid);
+    DIR *d = opendir(dir);
+    if (!d)
+        return iso_err_set(err, ISO_EIO, -1, "%s: %s: %s", what, dir, strerror(errno));
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = priority;
+    int rc = ISO_OK;
+    for (struct dirent *t; (t = readdir(d)) != NULL;) {
+        int tid = atoi(t->d_name);
+        if (tid > 0 && sched_setscheduler(tid, priority ? SCHED_FIFO : SCHED_OTHER, &sp) != 0 &&
+            errno != ESRCH && rc == ISO_OK)
+            rc = iso_err_set(err, ISO_EIO, -1, "%s: thread %d at SCHED_FIFO %d: %s", what, tid,
+                             priority, strerror(errno));
+    }
+    closedir(d);
+    return rc;
+}
+
+int iso_act__emu_priority(iso_link *l, int priority, iso_err *err)
+{
+    if (!iso_act__emu_is(l))
+        return iso_err_set(err, ISO_EINVAL, -1, "emulated MCU: the link is not an emulation");
+    emu_link *e = (emu_link *)l;
+    atomic_store(&e->priority, priority);
+    if (e->mode == ISO_ACT_EMU_QEMU) {
+        int pid = atomic_load(&e->qemu);
+        return pid > 0 ? set_process_sched(pid, priority, e->what, err) : ISO_OK;
+    }
+    /* the native thread takes it within its 1 ms loop; a killed one, at
+     * its restart */
+    for (int i = 0; i < 100 && atomic_load(&e->prio_done) != priority; i++) {
+        if (atomic_load(&e->killed))
+            return ISO_OK;
+        iso_clock_sleep_until(iso_clock_ns() + 1000000);
+    }
+    int rc = atomic_load(&e->prio_done) == priority ? atomic_load(&e->prio_errno) : ETIMEDOUT;
+    if (rc != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: its thread at SCHED_FIFO %d: %s", e->what,
+                           priority, strerror(rc));
+    return ISO_OK;
 }
 
 /* ------------------------------------------------------------------------ */

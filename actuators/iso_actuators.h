@@ -61,10 +61,21 @@
  *  - the link is up (see "Loss" below).
  * The loop watchdog's bound and the e-stop probe are iso_act_safety_opts
  * (iso_actuators_create_v2).
- * Re-arming: when a loop stall or an e-stop ends, setpoints resume with the
- * first publish() that follows its end, never with values from before it:
- * the sink sends HELLO (the MCU arms holding where it stands, after a brake
- * its safe positions; PROTOCOL.md step 2) and then streams that tick.
+ * A stalled process: the sender also watches its own clock. When two of its
+ * 2 ms looks lie further apart than the loop bound (loop_timeout_ms; 250 ms
+ * without a loop watchdog), the whole process did not run (SIGSTOP, a
+ * suspended machine, a starved thread): the MCU's own watchdog braked it
+ * meanwhile, and the loop's progress report may look fresh before the
+ * sender looks. That counts as a loop stall (loop_stalls), is said, sends
+ * SAFE, and holds until a tick computed after the gap.
+ * Re-arming: when a hold ends (e-stop released, loop stall over, gap),
+ * setpoints resume with a tick that began after its end, never with values
+ * from before it. The sink sees publishes, not tick starts; publishes come
+ * from one thread, each tick after the last publish, so it takes the second
+ * publish() after the end (the first may be the tick that was in progress
+ * when the hold began): the sink sends HELLO (the MCU arms holding where it
+ * stands, after a brake its safe positions; PROTOCOL.md step 2) and then
+ * streams that tick.
  *
  * Loss. A transport error, or no valid frame for link_timeout_ms, is a lost
  * link: one notice at once, then the sink reopens the link every 50 ms (an
@@ -190,7 +201,7 @@ enum {
     ISO_ACT_HOLD_ESTOP = 1u, /* e-stop pressed (call or probe) */
     ISO_ACT_HOLD_LOOP = 2u,  /* the loop watchdog tripped */
     ISO_ACT_HOLD_STOP = 4u,  /* iso_actuators_safe_stop() */
-    ISO_ACT_HOLD_TICK = 8u   /* a stall or e-stop ended: waiting for the next publish to re-arm */
+    ISO_ACT_HOLD_TICK = 8u   /* a hold ended: waiting for a tick begun after it to re-arm */
 };
 
 /* ---- counters ------------------------------------------------------------ */
@@ -348,6 +359,21 @@ ISO_API int iso_actuators_state(const iso_actuators *a, unsigned *holds);
  * "lost", "reconnecting", "off". Never NULL. */
 ISO_API const char *iso_actuators_link_state(const iso_actuators *a);
 
+/* Real-time priorities for the sink's own threads, for a real-time loop
+ * (controller/iso_loop.h states the rule): priority > 0 puts the sender
+ * thread under SCHED_FIFO at `priority` (give it one above the loop's: it
+ * is the loop's watchdog, and must run when the loop's tick does not) and
+ * an emulated MCU at priority + 1 (the native MCU thread, or every thread
+ * of QEMU, and a restarted or relaunched one: the hardware it stands for
+ * has a CPU of its own). 0 puts them back as they were: the sender under
+ * SCHED_OTHER, QEMU too, the native MCU thread at the lowest SCHED_FIFO
+ * priority it asks for by itself. Only the
+ * sink's threads and its QEMU change; the lock the loop's publish shares
+ * with the sender inherits priority whatever is set here. ISO_EINVAL for
+ * a priority outside 0..max-1, ISO_EIO naming what was not permitted
+ * (CAP_SYS_NICE, rtprio). Any thread. */
+ISO_API ISO_NODISCARD int iso_actuators_set_priority(iso_actuators *a, int priority, iso_err *err);
+
 /* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
  * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
  * ends the MCU thread and closes its end of the pty (as a dying process
@@ -379,8 +405,9 @@ ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * restarts it: QEMU is relaunched without blocking (each reopen checks
  * whether the new one has connected its UART; 5 s to do so), the native
  * MCU thread is restarted on a fresh pty. info may be NULL. The native
- * MCU thread asks for SCHED_FIFO (lowest priority) and goes on without it
- * where that is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
+ * MCU thread asks for SCHED_FIFO (lowest priority, or the one
+ * iso_actuators_set_priority gives it) and goes on without it where that
+ * is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
  * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */
 ISO_API ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
                                            iso_err *err);

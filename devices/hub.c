@@ -98,7 +98,13 @@ int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub *
     (*out)->notify = notify;
     (*out)->notify_ctx = notify_ctx;
     (*out)->retry_ns = 500000000;
-    pthread_mutex_init(&(*out)->line_mu, NULL);
+    /* the loop's tick and the actuators' sender both take it: whoever holds
+     * it runs at the other's priority until it lets go */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&(*out)->line_mu, &ma);
+    pthread_mutexattr_destroy(&ma);
     return ISO_OK;
 }
 

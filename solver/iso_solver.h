@@ -154,8 +154,8 @@ typedef struct iso_solver_opts {
      * late). Which factor serves which evaluation depends on evaluation
      * counts only, so results are bit-identical from run to run whatever
      * the timing. The worker takes one core while it factors; it runs
-     * under the default scheduling policy and with all signals blocked
-     * (solver/worker.c says why). Give the BLAS one thread
+     * under the default scheduling policy (iso_solver_set_worker_priority
+     * changes it) and with all signals blocked (solver/worker.c says why). Give the BLAS one thread
      * (ISO_SOLVER_BLAS_SIZED, or OPENBLAS_NUM_THREADS=1): a threaded BLAS
      * spreads the worker's factorization over the evaluating thread's
      * core too (the cactus's median tick went from 16 to 28 ms). */
@@ -212,6 +212,17 @@ ISO_API ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, 
  * instead of a factorization (cactus: ~25 ms, a 60 Hz period's 1.5). Counts
  * as a factorization in the stats. Failures as iso_solver_field's. */
 ISO_API ISO_NODISCARD int iso_solver_factor_at(iso_solver *s, const double *x, iso_err *err);
+
+/* The factorization worker's scheduling (worker_lag > 0; without a worker
+ * a no-op): priority > 0 puts its thread under SCHED_FIFO at that
+ * priority, 0 back under SCHED_OTHER. For a real-time loop, whose tick
+ * waits for the worker at each hand-over: below the tick's priority and
+ * above everything else, no busy process can hold the tick up through it
+ * (controller/iso_loop.h). Only the worker's own thread changes; a
+ * threaded BLAS's pool would be on the hand-over path too, which is one
+ * more reason to give the BLAS one thread (worker_lag above). ISO_EIO
+ * with the reason when it is not permitted (CAP_SYS_NICE, rtprio). */
+ISO_API ISO_NODISCARD int iso_solver_set_worker_priority(iso_solver *s, int priority, iso_err *err);
 
 /* Progress inside a field evaluation, for a watchdog that must tell a slow
  * evaluation from a stuck one (the actuators' loop watchdog, issue #14).

@@ -127,7 +127,13 @@ int iso_display_create(const iso_display_opts *opts, iso_display **out, iso_err 
     d->nv = nv;
     d->listen_fd = d->wake[0] = d->wake[1] = -1;
     d->frame_len = ISO_DISPLAY_FRAME_HEADER + (size_t)12 * (size_t)nv;
-    pthread_mutex_init(&d->frame_lock, NULL);
+    /* The loop's tick takes it to publish: a server thread holding it runs
+     * at the tick's priority until it lets go (no priority inversion). */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&d->frame_lock, &ma);
+    pthread_mutexattr_destroy(&ma);
     atomic_init(&d->published, 0);
     atomic_init(&d->wake_pending, 0);
     atomic_init(&d->stopping, 0);
