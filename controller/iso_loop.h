@@ -60,6 +60,12 @@
  *     does not; its work is a few microseconds every 2 ms;
  *   - an emulated MCU (its native thread, or every thread of QEMU) above
  *     that (+2): the hardware it stands for has a CPU of its own.
+ * The tick reads no tty itself: a read that finds the line empty waits for
+ * the kernel's buffer work, at normal priority (a flooded pty took the p99
+ * tick from 4 to 31-44 ms that way). The device hub's byte streams are
+ * read by a thread of the hub's (iso_dev_hub_set_priority) into lock-free
+ * rings that the tick only empties; it runs at -2, below the worker, for
+ * fresh input under load, though the tick never waits for it.
  * The locks the tick shares with threads it does not raise (the live
  * view's frame, the device hub's e-stop lines) inherit priority, so a
  * holder runs at the tick's priority until it lets go. Nothing else is on

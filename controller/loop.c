@@ -203,6 +203,7 @@ int iso_loop_shutdown(iso_loop *l, iso_err *err)
          * at the last TICK record, computes exactly the ticks this run did. */
         iso_dev_event ev[64];
         size_t n = 0;
+        (void)iso_dev_hub_sync(l->hub, 200); /* the byte streams' reader caught up */
         int r1 = iso_dev_hub_drain(l->hub, iso_clock_ns(), ev, 64, &n, err);
         if (rc == ISO_OK)
             rc = r1;

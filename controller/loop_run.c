@@ -34,14 +34,18 @@ static void sleep_until(const iso_loop *l, int64_t t)
 
 /* The threads the tick waits for, at their places around the tick's
  * priority (iso_loop.h states the rule): the factorization worker just
- * below it, the actuators' sender (the tick's watchdog) above it and an
- * emulated MCU above that. Says what was not permitted into why. */
+ * below it, the devices' byte-stream reader below that, the actuators'
+ * sender (the tick's watchdog) above it and an emulated MCU above that.
+ * Says what was not permitted into why. */
 static void threads_realtime(iso_loop *l, char *why, size_t cap)
 {
     iso_err e;
     iso_err_clear(&e);
     if (l->solver &&
         iso_solver_set_worker_priority(l->solver, ISO_LOOP_RT_PRIORITY - 1, &e) != ISO_OK)
+        snprintf(why + strlen(why), cap - strlen(why), "%s%.150s", why[0] ? "; " : "", e.msg);
+    iso_err_clear(&e);
+    if (l->hub && iso_dev_hub_set_priority(l->hub, ISO_LOOP_RT_PRIORITY - 2, &e) != ISO_OK)
         snprintf(why + strlen(why), cap - strlen(why), "%s%.150s", why[0] ? "; " : "", e.msg);
     iso_err_clear(&e);
     struct iso_actuators *a = iso_loop_actuators(l);
@@ -210,6 +214,9 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         iso_err e;
         iso_err_clear(&e);
         if (l->solver && iso_solver_set_worker_priority(l->solver, 0, &e) != ISO_OK)
+            fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
+        iso_err_clear(&e);
+        if (l->hub && iso_dev_hub_set_priority(l->hub, 0, &e) != ISO_OK)
             fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
     }
     return rc;

@@ -42,6 +42,7 @@ typedef struct hub_src {
     uint32_t events, gone, back, stale_count;
     uint8_t estop_line; /* the source has an e-stop input (estop_level answers) */
     uint8_t noise_told; /* the noise message went out for the present stretch */
+    uint8_t threaded;   /* its reads are the reader thread's (hub_reader.c) */
     hub_cap cap;
 } hub_src;
 
@@ -57,8 +58,9 @@ struct iso_dev_hub {
     iso_dev_rec_writer rec;
     int64_t last_tick;
     int ticked;
-    long tick_records;      /* replay: TICK records drained so far */
-    iso_dev_decoder before; /* take(): a decoder before its chunk, for the noise cap */
+    long tick_records;       /* replay: TICK records drained so far */
+    iso_dev_decoder before;  /* take(): a decoder before its chunk, for the noise cap */
+    iso_dev__reader *reader; /* reads the byte streams (hub_reader.c); NULL until one */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
     /* Guards src[].s and n against iso_dev_hub_estop_probe on another
@@ -112,6 +114,7 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
 {
     if (!h)
         return;
+    iso_dev__reader_destroy(h->reader); /* first: it may be reading a source */
     for (size_t i = 0; i < h->n; i++)
         iso_dev_source_close(swap_source(h, i, NULL));
     iso_dev_source_close(h->mux);
@@ -119,6 +122,35 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
         say(h, "recording %s: could not be closed cleanly", h->rec.path);
     pthread_mutex_destroy(&h->line_mu);
     free(h);
+}
+
+/* A byte stream with a descriptor goes to the reader thread (started with
+ * the first); other sources (HID reports, spacenavd events, GPIO edges,
+ * fakes) are read by the tick itself, which no kernel work delays. */
+static int hand_over(iso_dev_hub *h, size_t i, iso_err *err)
+{
+    hub_src *x = &h->src[i];
+    x->threaded = 0;
+    if (x->info.kind != ISO_DEV_KIND_SERIAL || iso_dev_source_fd(x->s) < 0)
+        return ISO_OK;
+    int rc = h->reader ? ISO_OK : iso_dev__reader_create(&h->reader, err);
+    if (rc == ISO_OK)
+        rc = iso_dev__reader_attach(h->reader, i, x->s, err);
+    x->threaded = rc == ISO_OK;
+    return rc;
+}
+
+int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms)
+{
+    return !h || !h->reader || iso_dev__reader_sync(h->reader, timeout_ms);
+}
+
+int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err)
+{
+    if (!h || priority < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "device hub: priority %d: expected 0 or more",
+                           priority);
+    return h->reader ? iso_dev__reader_priority(h->reader, priority, err) : ISO_OK;
 }
 
 int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen, void *reopen_ctx,
@@ -168,7 +200,7 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
     x->s = s;
     h->n++;
     pthread_mutex_unlock(&h->line_mu);
-    return ISO_OK;
+    return hand_over(h, h->n - 1, err);
 }
 
 int iso_dev_hub_estop_probe(void *hub)
@@ -409,6 +441,8 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         memcpy(x->detail, x->s->detail, sizeof x->detail);
         say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
         int rc = mark(h, i, ISO_DEV_CHUNK_BACK, now, err);
+        if (rc == ISO_OK)
+            rc = hand_over(h, i, err);
         if (rc != ISO_OK)
             return rc;
     }
@@ -416,12 +450,18 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         iso_dev_chunk c;
         iso_err e;
         iso_err_clear(&e);
-        int got = iso_dev_source_read(x->s, now, &c, &e);
+        int got = x->threaded ? iso_dev__reader_pop(h->reader, i, &c)
+                              : iso_dev_source_read(x->s, now, &c, &e);
         if (got == 0)
             return ISO_OK;
+        if (got > 0 && c.type == ISO_DEV_CHUNK_GONE) { /* the reader's read failed */
+            iso_err_set(&e, ISO_EIO, -1, "%.*s", (int)c.len, (const char *)c.data);
+            got = ISO_EIO;
+        }
         if (got < 0) {
             say(h, "%s %s went away (%s): its handles hold still until it is back",
                 iso_dev_kind_name(x->info.kind), x->info.name, e.msg);
+            x->threaded = 0;
             iso_dev_source_close(swap_source(h, i, NULL));
             x->next_try = now + h->retry_ns;
             return mark(h, i, ISO_DEV_CHUNK_GONE, now, err);

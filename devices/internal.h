@@ -45,6 +45,25 @@ int iso_dev__skip_encode(const iso_dev_decoder *after, const iso_dev_decoder *fi
 /* Applies a SKIP record's payload (t: its time) to the decoder. */
 void iso_dev__skip_apply(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len);
 
+/* hub_reader.c: the thread that reads the hub's byte streams, so that the
+ * tick never waits in the kernel's tty layer (the file says why). */
+typedef struct iso_dev__reader iso_dev__reader;
+ISO_NODISCARD int iso_dev__reader_create(iso_dev__reader **out, iso_err *err);
+void iso_dev__reader_destroy(iso_dev__reader *rd); /* stops and joins it; NULL is a no-op */
+/* From now on the thread alone reads s, as source i, into i's ring; the
+ * caller takes s back when it pops the GONE chunk that ends it. */
+ISO_NODISCARD int iso_dev__reader_attach(iso_dev__reader *rd, size_t i, iso_dev_source *s,
+                                         iso_err *err);
+/* The next chunk read from source i: 1 and *c (DATA, or GONE with the
+ * error's text as its bytes, after which s is the caller's), 0 when there
+ * is none now. Lock-free; one caller thread. */
+int iso_dev__reader_pop(iso_dev__reader *rd, size_t i, iso_dev_chunk *c);
+/* Waits up to timeout_ms for the thread to find its sources with nothing
+ * more to read (or its rings full); 1 when it did, 0 on the timeout. */
+int iso_dev__reader_sync(iso_dev__reader *rd, int timeout_ms);
+/* The thread's SCHED_FIFO priority (0: SCHED_OTHER), applied by itself. */
+ISO_NODISCARD int iso_dev__reader_priority(iso_dev__reader *rd, int priority, iso_err *err);
+
 /* Each appends at most cap entries and returns how many. */
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap);

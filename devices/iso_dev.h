@@ -583,6 +583,20 @@ ISO_API void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is
 ISO_API ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s,
                                           iso_dev_reopen_fn reopen, void *reopen_ctx, iso_err *err);
 ISO_API size_t iso_dev_hub_sources(const iso_dev_hub *h);
+/* Byte streams (serial sources with a descriptor: a tty, a TCP bridge,
+ * libserialport) are read on a thread of the hub's own, into one lock-free
+ * ring per source, so that drain and tick never wait in the kernel (a tty
+ * read that finds nothing waits for the kernel's buffer work, which any
+ * busy process can hold up). Other sources are read by drain itself. This
+ * sets that thread's SCHED_FIFO priority (0: SCHED_OTHER), for a real-time
+ * loop that wants its input fresh under load; no-op without a byte stream.
+ * ISO_EIO with the reason when not permitted. */
+ISO_API ISO_NODISCARD int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err);
+/* Waits up to timeout_ms until that thread has read what its byte streams
+ * had sent by now, so that a drain after it misses nothing (a recording's
+ * last drain, a test). Returns 1 when it has, 0 on the timeout. Never in a
+ * tick: it waits. */
+ISO_API int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms);
 /* The e-stop inputs (sources whose estop_level answers, e.g. a GPIO e-stop
  * line), read now: 1 when any is pressed, or is gone or unreadable (an
  * e-stop circuit that cannot be read is not trusted), else 0. Safe to call
