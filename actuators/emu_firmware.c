@@ -1,7 +1,7 @@
 /* actuators/emu_firmware.c -- an actuator MCU without hardware, behind an
  * iso_link: the real firmware ELF in qemu-system-arm, or the same protocol
  * logic (iso_fb_mcu.c) in a thread. See iso_actuators.h. */
-#define _GNU_SOURCE /* openpty, prctl */
+#define _GNU_SOURCE /* prctl */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -10,7 +10,6 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <pthread.h>
-#include <pty.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdatomic.h>
@@ -21,7 +20,6 @@
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
-#include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -56,9 +54,9 @@ typedef struct emu_link {
     int lfd;       /* listening for a relaunched QEMU's UART, else -1 */
     uint64_t launched_us;
     char qemu_path[PATH_MAX], elf[PATH_MAX];
-    /* native: the MCU logic on the pty master, the host on a tty link */
-    iso_link *tty;
-    int master, slave_keep;
+    /* native: the MCU logic on one end of a socket pair (`master`), the host
+     * on the other (`sock`, as QEMU's UART is) */
+    int master;
     pthread_t thread;
     int thread_started;
     atomic_int stop;
@@ -105,7 +103,8 @@ static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_
     if (n < 0 && (errno == EAGAIN || errno == EINTR))
         return 0;
     e->sock_dead = 1;
-    return iso_err_set(err, ISO_EIO, -1, "%s: QEMU closed its UART (%s)", e->what,
+    return iso_err_set(err, ISO_EIO, -1, "%s: %s closed its UART (%s)", e->what,
+                       e->mode == ISO_ACT_EMU_QEMU ? "QEMU" : "the MCU thread",
                        n == 0 ? "end of stream" : strerror(errno));
 }
 
@@ -138,26 +137,24 @@ static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms,
 /* The link                                                                   */
 /* ------------------------------------------------------------------------ */
 
+/* Both emulations are a stream socket to the host: QEMU's UART on loopback
+ * TCP, the native MCU on a socket pair. Never a tty: a tty read that finds
+ * the line empty waits for the kernel's buffer work, at normal priority,
+ * which any busy process can hold up (measured: 100-160 ms, and the MCU's
+ * watchdog braked it while the sender waited in a read). */
 static int emu_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
-    emu_link *e = (emu_link *)l;
-    if (e->mode == ISO_ACT_EMU_NATIVE)
-        return iso_link_read(e->tty, buf, cap, timeout_ms, err);
-    return sock_read(e, buf, cap, timeout_ms, err);
+    return sock_read((emu_link *)l, buf, cap, timeout_ms, err);
 }
 
 static int emu_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
-    emu_link *e = (emu_link *)l;
-    if (e->mode == ISO_ACT_EMU_NATIVE)
-        return iso_link_write(e->tty, buf, n, timeout_ms, err);
-    return sock_write(e, buf, n, timeout_ms, err);
+    return sock_write((emu_link *)l, buf, n, timeout_ms, err);
 }
 
 static int emu_poll_fd(iso_link *l)
 {
-    emu_link *e = (emu_link *)l;
-    return e->mode == ISO_ACT_EMU_NATIVE ? iso_link_poll_fd(e->tty) : e->sock;
+    return ((emu_link *)l)->sock;
 }
 
 static int qemu_reopen(emu_link *e, iso_err *err);
@@ -218,7 +215,7 @@ static emu_link *emu_new(int mode)
     atomic_init(&e->priority, 0);
     atomic_init(&e->prio_done, -1);
     atomic_init(&e->prio_errno, 0);
-    e->sock = e->lfd = e->master = e->slave_keep = -1;
+    e->sock = e->lfd = e->master = -1;
     snprintf(e->what, sizeof e->what, "emulated MCU (%s)",
              mode == ISO_ACT_EMU_QEMU ? "QEMU" : "native");
     return e;
@@ -234,16 +231,16 @@ static uint32_t mcu_ms(const emu_link *e)
 }
 
 /* The firmware queues replies in its UART ring and waits for room; here the
- * pty buffer is the ring. A host that stops reading for 10 ms loses bytes
- * (counted), as it would on a UART; the thread itself never stalls for
- * long, so the watchdog keeps its 1 ms resolution. */
+ * socket's buffer is the ring. A host that stops reading until it is full
+ * loses bytes after 10 ms (counted), as it would on a UART; the thread
+ * itself never stalls for long, so the watchdog keeps its 1 ms resolution. */
 static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
 {
     emu_link *e = ctx;
     size_t done = 0;
     int waits = 0;
     while (done < n) {
-        ssize_t w = write(e->master, bytes + done, n - done);
+        ssize_t w = send(e->master, bytes + done, n - done, MSG_NOSIGNAL);
         if (w > 0) {
             done += (size_t)w;
             continue;
@@ -319,7 +316,7 @@ static void *mcu_thread(void *arg)
     return NULL;
 }
 
-/* Joins the MCU thread and closes the pty and the host's tty link. */
+/* Joins the MCU thread and closes both ends of its socket pair. */
 static void native_end(emu_link *e)
 {
     if (e->thread_started) {
@@ -327,29 +324,22 @@ static void native_end(emu_link *e)
         pthread_join(e->thread, NULL);
         e->thread_started = 0;
     }
-    iso_link_close(e->tty);
-    e->tty = NULL;
+    if (e->sock >= 0)
+        close(e->sock);
     if (e->master >= 0)
         close(e->master);
-    if (e->slave_keep >= 0)
-        close(e->slave_keep);
-    e->master = e->slave_keep = -1;
+    e->sock = e->master = -1;
+    e->sock_dead = 0;
 }
 
 static int native_open(emu_link *e, iso_err *err)
 {
-    struct termios raw;
-    memset(&raw, 0, sizeof raw);
-    cfmakeraw(&raw);
-    char slave[128];
-    if (openpty(&e->master, &e->slave_keep, slave, &raw, NULL) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: openpty: %s", e->what, strerror(errno));
-    /* The kept slave fd stops the master reading EIO between host reopens. */
-    if (iso_fd_nonblock(e->master) != 0 || fcntl(e->slave_keep, F_SETFD, FD_CLOEXEC) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: fcntl: %s", e->what, strerror(errno));
-    int rc = iso_link_tty_open(slave, 115200, &e->tty, err);
-    if (rc != ISO_OK)
-        return rc;
+    int sv[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0, sv) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: socketpair: %s", e->what, strerror(errno));
+    e->master = sv[0];
+    e->sock = sv[1];
+    e->sock_dead = 0;
     iso_fb_mcu_config cfg;
     iso_act_emu_firmware_config(&cfg);
     e->t0_ns = iso_clock_ns();
@@ -364,7 +354,7 @@ static int native_open(emu_link *e, iso_err *err)
     return ISO_OK;
 }
 
-/* A killed MCU thread is restarted as a rebooted MCU: fresh pty, fresh
+/* A killed MCU thread is restarted as a rebooted MCU: fresh socket pair, fresh
  * state (IDLE at the safe positions, HELLO(BOOT)). */
 static int native_reopen(emu_link *e, iso_err *err)
 {
@@ -732,11 +722,11 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
         return rc;
     }
     info->used = ISO_ACT_EMU_NATIVE;
-    snprintf(
-        info->line, sizeof info->line,
-        "actuators: emulated MCU: native (iso_fb_mcu.c in a thread behind a pty, the firmware's "
-        "4-channel configuration) because %.500s",
-        mode == ISO_ACT_EMU_NATIVE ? "native was asked for" : why);
+    snprintf(info->line, sizeof info->line,
+             "actuators: emulated MCU: native (iso_fb_mcu.c in a thread on a socket pair, the "
+             "firmware's "
+             "4-channel configuration) because %.500s",
+             mode == ISO_ACT_EMU_NATIVE ? "native was asked for" : why);
     *out = &e->base;
     return ISO_OK;
 }

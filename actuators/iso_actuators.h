@@ -26,7 +26,7 @@
  * Emulated firmware (emu_firmware.c): the real firmware ELF in
  * `qemu-system-arm -M mps2-an385` with its UART0 on a loopback TCP
  * connection, or, where QEMU or the ELF is absent, the same iso_fb_mcu.c
- * logic in a thread of this process behind a pty pair, clocked from
+ * logic in a thread of this process on a socket pair, clocked from
  * CLOCK_MONOTONIC, with the firmware's channel configuration. Either way the
  * result is an iso_link whose close also ends the emulation (kills and reaps
  * QEMU, or joins the thread).
@@ -136,7 +136,7 @@ typedef enum iso_act_link_kind {
 typedef enum iso_act_emu_mode {
     ISO_ACT_EMU_AUTO = 0,  /* QEMU when qemu-system-arm and the ELF are found, else native */
     ISO_ACT_EMU_QEMU = 1,  /* QEMU or an error saying what is missing */
-    ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread behind a pty pair */
+    ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread on a socket pair */
 } iso_act_emu_mode;
 /* "auto", "qemu", "native", indexed by iso_act_emu_mode (iso_names.h) */
 ISO_API extern const char *const iso_act_emu_names[];
@@ -294,8 +294,8 @@ ISO_API ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *
  * replaces them); never waits for the link. Once iso_actuators_alive() was
  * called, a publish also counts as the loop's progress. Returns 1 if the
  * link is streaming, 0 if not (the link is down, the handshake is pending,
- * or a hold stands: e-stop, loop stall, or a stall just ended, which this
- * publish may clear; the sender recovers by itself), or a negative code:
+ * or a hold stands: e-stop, loop stall, or a hold just ended, which the
+ * second publish after its end clears; the sender recovers by itself), or a negative code:
  * ISO_ENUMERIC for non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
  * lacks a channel the spec drives or after safe_stop. With
  * ISO_ACT_LINK_NONE it only computes (returns 0). */
@@ -376,7 +376,7 @@ ISO_API ISO_NODISCARD int iso_actuators_set_priority(iso_actuators *a, int prior
 
 /* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
  * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
- * ends the MCU thread and closes its end of the pty (as a dying process
+ * ends the MCU thread and closes its end of the socket pair (as a dying process
  * closes its UART), SIGSTOP pauses its clock and I/O, SIGCONT resumes.
  * ISO_EINVAL without an emulated link or for another signal (native). */
 ISO_API ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
@@ -404,11 +404,15 @@ ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * then shakes hands again on the same stream); when the emulation died it
  * restarts it: QEMU is relaunched without blocking (each reopen checks
  * whether the new one has connected its UART; 5 s to do so), the native
- * MCU thread is restarted on a fresh pty. info may be NULL. The native
+ * MCU thread is restarted on a fresh socket pair. info may be NULL. The native
  * MCU thread asks for SCHED_FIFO (lowest priority, or the one
  * iso_actuators_set_priority gives it) and goes on without it where that
  * is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
- * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */
+ * and it or the ELF is missing, ISO_EIO when QEMU or the socket pair fails.
+ * Both emulations reach the host over a stream socket, never a tty: a tty
+ * read that finds the line empty waits for the kernel's buffer work at
+ * normal priority, which busy processes hold up (a real MCU on a UART or
+ * a USB serial adapter has that wait; see controller/iso_loop.h). */
 ISO_API ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
                                            iso_err *err);
 

@@ -65,7 +65,12 @@
  * tick from 4 to 31-44 ms that way). The device hub's byte streams are
  * read by a thread of the hub's (iso_dev_hub_set_priority) into lock-free
  * rings that the tick only empties; it runs at -2, below the worker, for
- * fresh input under load, though the tick never waits for it.
+ * fresh input under load, though the tick never waits for it. The same
+ * kernel step sits in the actuators' sender's reads on a tty link (a real
+ * MCU on a UART or USB serial adapter): under heavy load the sender can
+ * wait there past the MCU's 100 ms watchdog, which then brakes the MCU
+ * (safe, but a stop). The emulated MCUs use stream sockets, not a tty;
+ * a loaded machine with real hardware wants a TCP or USB bulk link.
  * The locks the tick shares with threads it does not raise (the live
  * view's frame, the device hub's e-stop lines) inherit priority, so a
  * holder runs at the tick's priority until it lets go. Nothing else is on
