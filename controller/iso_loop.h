@@ -89,9 +89,10 @@
  * would lose it. The waits stay bounded by the worker's own factorization
  * (cactus ~25 ms on a core of its own), which is compute, not inversion.
  * The library changes no thread but its own (the calling thread for the
- * run, its worker, its sender, its emulation), and only when o->rt asks;
- * the calling thread and the worker go back to SCHED_OTHER when the run
- * ends, the sender stays up for the safe stop and ends with the loop.
+ * run, its worker, the hub's reader, its sender, its emulation and QEMU
+ * child), and only when o->rt asks; the calling thread, the worker and the
+ * reader go back to SCHED_OTHER when the run ends, the sender stays up for
+ * the safe stop and ends with the loop.
  *
  * Safety (issue #14). The loop reports progress to the actuators' loop
  * watchdog at every tick, every ABM step, and inside every field

@@ -10,10 +10,12 @@
  * printed side by side: slowest and p99 tick, deadline misses, the
  * worker's waits, loop stalls, and the SCHED_FIFO priorities the run's
  * threads had (read from /proc while it ran). Under load: no loop stall,
- * and at most 2 % of the ticks missed beyond the unloaded run's misses
- * (the unloaded run on a shared or sanitized build misses some by
- * compute alone). The priorities must be the rule's: tick 20, worker 19,
- * sender 21, emulated MCU 22.
+ * and at most 5 % of the run's 300 deadlines lost (covered by a late tick
+ * beyond its own) beyond what the unloaded run lost: a shared machine, or
+ * a sanitized build, loses some by compute alone, in both runs. Before
+ * the rule the loaded runs lost most of them (25-62 ticks computed of
+ * 300, 21-23 watchdog trips; tests/tools/load_figures.sh). The priorities
+ * must be the rule's: tick 20, worker 19, sender 21, emulated MCU 22.
  *
  * Skips (77) without the binary, or where SCHED_FIFO is not permitted
  * (the run says so: grant CAP_SYS_NICE, or run as root). */
@@ -37,7 +39,7 @@ static struct {
 
 typedef struct figures {
     double tick_max, tick_p99, tick_median, wait_ms;
-    long ticks, misses;
+    long ticks, misses, skipped;
     unsigned stalls;
     int rt;       /* the run held SCHED_FIFO */
     int prio[64]; /* SCHED_FIFO priorities seen among its threads (and QEMU's) */
@@ -167,6 +169,7 @@ static void run_demo(int busy, figures *f, const char *label)
     slurp(json, j, sizeof j);
     f->ticks = (long)iso_test_json_num(j, "ticks");
     f->misses = (long)iso_test_json_num(j, "misses");
+    f->skipped = (long)iso_test_json_num(j, "skipped");
     f->tick_median = iso_test_json_num(j, "median");
     f->tick_p99 = iso_test_json_num(j, "p99");
     f->tick_max = iso_test_json_num(j, "max");
@@ -217,18 +220,19 @@ static void demo_scene_holds_under_load(void **state)
                   "  tick p99 ms      %8.1f     %8.1f\n"
                   "  tick max ms      %8.1f     %8.1f\n"
                   "  misses           %5ld/%ld   %5ld/%ld\n"
+                  "  deadlines lost   %8ld     %8ld  (covered by late ticks)\n"
                   "  worker wait      %8.2f     %8.2f  ms per evaluation\n"
                   "  loop stalls      %8u     %8u\n"
                   "  SCHED_FIFO       %s   %s\n",
                   cores, load0[0], busy, a.tick_median, b.tick_median, a.tick_p99, b.tick_p99,
-                  a.tick_max, b.tick_max, a.misses, a.ticks, b.misses, b.ticks, a.wait_ms,
-                  b.wait_ms, a.stalls, b.stalls, pa, pb);
+                  a.tick_max, b.tick_max, a.misses, a.ticks, b.misses, b.ticks, a.skipped,
+                  b.skipped, a.wait_ms, b.wait_ms, a.stalls, b.stalls, pa, pb);
     /* the rule: tick 20, worker 19, sender 21, the emulated MCU 22 */
     for (int p = 19; p <= 22; p++)
         if (!has_prio(&b, p))
             fail_msg("no thread of the run at SCHED_FIFO %d (seen: %s)", p, pb);
     assert_int_equal(b.stalls, 0);
-    assert_true(b.misses <= a.misses + b.ticks / 50);
+    assert_true(b.skipped <= a.skipped + 15); /* 5 % of 300 deadlines */
 }
 
 int main(void)

@@ -26,8 +26,8 @@ trap cleanup EXIT
 
 num() { grep -o "\"$2\": [-0-9.e+]*" "$1" | head -n 1 | awk '{print $2}'; }
 
-printf '%-34s %-6s %5s | %8s %8s %8s | %9s | %8s | %s\n' binary load rep "max ms" "p99 ms" \
-    "median" misses "wait ms" "loop stalls"
+printf '%-34s %-6s %5s | %8s %8s %8s | %9s %5s | %8s | %s\n' binary load rep "max ms" \
+    "p99 ms" "median" misses lost "wait ms" "loop stalls"
 for r in $(seq 1 "$reps"); do
     for b in "${bins[@]}"; do
         for n in 0 "$busy"; do
@@ -53,14 +53,16 @@ for r in $(seq 1 "$reps"); do
             awk -v b="$b" -v n="$label" -v r="$r" -v la="$la" -v mx="$(num "$tmp/s.json" max)" \
                 -v p99="$(num "$tmp/s.json" p99)" -v med="$(num "$tmp/s.json" median)" \
                 -v mi="$(num "$tmp/s.json" misses)" -v t="$(num "$tmp/s.json" ticks)" \
+                -v sk="$(num "$tmp/s.json" skipped)" \
                 -v w="$(num "$tmp/s.json" worker_wait_s)" -v e="$(num "$tmp/s.json" evaluations)" \
                 -v st="$stalls" 'BEGIN {
-                printf "%-34s %-6s %5d | %8.1f %8.1f %8.1f | %4d/%-4d | %8.2f | %s\n",
-                       b, n, r, mx, p99, med, mi, t,
+                printf "%-34s %-6s %5d | %8.1f %8.1f %8.1f | %4d/%-4d %5d | %8.2f | %s\n",
+                       b, n, r, mx, p99, med, mi, t, sk,
                        (e > 0 ? 1e3 * w / e : 0), st }'
             echo "  (load average before: $la)"
         done
     done
 done
 echo "max / p99 / median: tick compute time (wake to published); misses: ticks that started after"
-echo "a later deadline had passed; wait: the tick's wait for the factorization worker per evaluation."
+echo "a later deadline had passed; lost: deadlines late ticks covered beyond their own (of 300);"
+echo "wait: the tick's wait for the factorization worker per evaluation."
