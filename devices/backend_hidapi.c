@@ -137,14 +137,28 @@ int iso_dev_hid_open_id(const char *path, uint16_t want_vid, uint16_t want_pid,
     return ISO_OK;
 }
 
+/* 1 if one of the first n entries already lists path. */
+static int listed(const iso_dev_found *out, size_t n, const char *path)
+{
+    for (size_t i = 0; i < n; i++)
+        if (strcmp(out[i].path, path) == 0)
+            return 1;
+    return 0;
+}
+
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
 {
     size_t n = 0;
     if (hid_init() != 0)
         return 0;
+    /* hidapi's hidraw backend (0.13) lists a device once per collection
+     * its report descriptor gives a usage, nested ones included: a
+     * SpaceNavigator comes three times (multi-axis controller, its vendor
+     * collection and the feature collection inside it) with one path. It
+     * is one device and one hidraw node to open. */
     struct hid_device_info *all = hid_enumerate(0, 0);
     for (struct hid_device_info *d = all; d && n < cap; d = d->next) {
-        if (!iso_dev_is_3dmouse(d->vendor_id, d->product_id))
+        if (!iso_dev_is_3dmouse(d->vendor_id, d->product_id) || listed(out, n, d->path))
             continue;
         iso_dev_found *f = &out[n++];
         memset(f, 0, sizeof *f);

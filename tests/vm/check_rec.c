@@ -1,0 +1,272 @@
+/* tests/vm/check_rec.c -- the host's check of a recording made in the VM
+ * against the sequence the scripted SpaceMouse played (a .seq file of data/):
+ *
+ *   check_rec SEQ REC TICKS [LIN ROT]
+ *
+ * REC is the recording, TICKS what `isoshape replay REC --fast
+ * --print-ticks --sensitivity LIN,ROT` printed for it (one line a tick,
+ * twists in %a); LIN and ROT are that sensitivity (default 0.1, 0.5).
+ *
+ *  1. Decoded through this library's decoders, the recording's axes and
+ *     button states must pass through every state the sequence holds, in
+ *     its order, and end at its last. Between them only the states a
+ *     report at a time makes (a new translation beside the old rotation)
+ *     may appear. This holds for hidraw (the raw reports) and, after the
+ *     backend's documented mapping back to the device's axes and counts,
+ *     for spacenavd.
+ *  2. Every tick's twist is the closed form of a decoded state under the
+ *     default mapping (350 counts full scale, 5 % dead zone, linear, LIN m/s
+ *     and ROT rad/s at full scale, world frame), computed here without the
+ *     library (twist_is says how a rotation about the handle enters); zero
+ *     while the clutch (button 0) is held, whatever the axes say. Every
+ *     state the sequence holds without the clutch is seen as a twist in
+ *     some tick. The last tick is at rest.
+ * Prints what it compared; exits 0 when all holds. */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_dev.h"
+
+#define MAX_STATES 20000
+
+typedef struct state {
+    int16_t a[6];
+    uint32_t b;
+} state;
+
+static state seq[256], dec[MAX_STATES];
+static int n_seq, n_dec;
+static int failures;
+static double sens_lin = 0.1, sens_rot = 0.5;
+
+static int same(const state *x, const state *y)
+{
+    return memcmp(x->a, y->a, sizeof x->a) == 0 && x->b == y->b;
+}
+
+static void fail(const char *what)
+{
+    printf("FAIL: %s\n", what);
+    failures++;
+}
+
+static void print_state(const char *label, const state *s)
+{
+    printf("%s axes %d %d %d  %d %d %d  buttons %x\n", label, s->a[0], s->a[1], s->a[2], s->a[3],
+           s->a[4], s->a[5], s->b);
+}
+
+static int load_seq(const char *path)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    state cur = {{0}, 0};
+    char line[256];
+    while (fgets(line, sizeof line, f) && n_seq < 256) {
+        int v[7];
+        unsigned m;
+        if (sscanf(line, "axes %d %d %d %d %d %d %d", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
+                   &v[6]) == 7) {
+            for (int i = 0; i < 6; i++)
+                cur.a[i] = (int16_t)v[i];
+        } else if (sscanf(line, "buttons %x %d", &m, &v[0]) == 2) {
+            cur.b = m;
+        } else {
+            continue;
+        }
+        if (n_seq == 0 || !same(&seq[n_seq - 1], &cur))
+            seq[n_seq++] = cur;
+    }
+    fclose(f);
+    return 0;
+}
+
+static int load_rec(const char *path)
+{
+    iso_dev_rec_reader r;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_dev_rec_reader_load(&r, path, &err) != ISO_OK) {
+        printf("FAIL: %s\n", err.msg);
+        return -1;
+    }
+    static iso_dev_decoder d[ISO_DEV_MAX_SOURCES];
+    for (size_t i = 0; i < r.n_sources; i++)
+        if (iso_dev_decoder_init(&d[i], &r.infos[i], (uint8_t)i, &err) != ISO_OK)
+            return -1;
+    iso_dev_chunk c;
+    static iso_dev_event ev[ISO_DEV_EVENTS_PER_CHUNK];
+    state cur = {{0}, 0};
+    long gone = 0, back = 0;
+    dec[n_dec++] = cur; /* decoders start at rest, as the device does */
+    while (iso_dev_rec_next(&r, &c, NULL)) {
+        if (c.type == ISO_DEV_CHUNK_GONE)
+            gone++;
+        if (c.type == ISO_DEV_CHUNK_BACK)
+            back++;
+        if (c.type != ISO_DEV_CHUNK_DATA || c.source >= r.n_sources)
+            continue;
+        size_t n = iso_dev_decode(&d[c.source], &c, ev, ISO_DEV_EVENTS_PER_CHUNK);
+        for (size_t k = 0; k < n; k++) {
+            if (ev[k].kind == ISO_DEV_EV_AXES)
+                memcpy(cur.a, ev[k].axes, sizeof cur.a);
+            else if (ev[k].kind == ISO_DEV_EV_BUTTONS)
+                cur.b = ev[k].buttons;
+            else
+                continue;
+            if (n_dec < MAX_STATES && (n_dec == 0 || !same(&dec[n_dec - 1], &cur)))
+                dec[n_dec++] = cur;
+        }
+    }
+    printf("recording %s: %zu source(s), %ld records, %d distinct decoded states, %ld gone, %ld "
+           "back%s\n",
+           path, r.n_sources, r.records, n_dec, gone, back, r.torn ? ", torn" : "");
+    iso_dev_rec_reader_deinit(&r);
+    return 0;
+}
+
+/* Part 1: the sequence's states, in order, within the decoded ones. */
+static void check_states(void)
+{
+    int j = 0;
+    for (int i = 0; i < n_dec && j < n_seq; i++)
+        if (same(&dec[i], &seq[j]))
+            j++;
+    /* The recording starts at rest: the first step is often not a report. */
+    if (j < n_seq) {
+        print_state("  missing:", &seq[j]);
+        for (int i = 0; i < n_dec && i < 60; i++)
+            print_state("  decoded:", &dec[i]);
+        fail("the decoded states do not pass through every state of the sequence");
+    } else {
+        printf("decoded states pass through all %d states of the sequence in order\n", n_seq);
+    }
+    if (n_dec == 0 || !same(&dec[n_dec - 1], &seq[n_seq - 1]))
+        fail("the last decoded state is not the sequence's last");
+}
+
+/* The default mapping in closed form: output i from axis i. */
+static void closed_form(const state *s, double w[3], double v[3])
+{
+    for (int i = 0; i < 6; i++) {
+        double x = s->a[i] / 350.0, a = fabs(x) > 1 ? 1 : fabs(x);
+        double u = a <= 0.05 ? 0 : (a - 0.05) / (1 - 0.05);
+        u = (x < 0 ? -u : u) * (i < 3 ? sens_lin : sens_rot);
+        if (i < 3)
+            v[i] = u;
+        else
+            w[i - 3] = u;
+    }
+}
+
+/* Whether a tick's twist is the mapping of state s. The rotation must be
+ * the closed form's exactly; so must the velocity when there is no
+ * rotation. With one, the handle turns about where it is (p), so the
+ * velocity is the closed form's minus w x p, which this cannot know: the
+ * difference must be perpendicular to w. */
+static int twist_is(const double w[3], const double v[3], const state *s)
+{
+    double cw[3], cv[3], d[3];
+    closed_form(s, cw, cv);
+    for (int i = 0; i < 3; i++)
+        if (cw[i] != w[i])
+            return 0;
+    for (int i = 0; i < 3; i++)
+        d[i] = v[i] - cv[i];
+    if (!cw[0] && !cw[1] && !cw[2])
+        return !d[0] && !d[1] && !d[2];
+    double dot = d[0] * w[0] + d[1] * w[1] + d[2] * w[2];
+    double nd = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    double nw = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    return fabs(dot) <= 1e-12 * nd * nw;
+}
+
+/* Part 2: each tick's twist. */
+static int check_ticks(const char *path)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    static char seen[256];
+    char line[512];
+    long ticks = 0, moving = 0, clutched = 0, odd = 0;
+    double w[3] = {0}, v[3] = {0};
+    while (fgets(line, sizeof line, f)) {
+        double t;
+        int h;
+        if (sscanf(line, "%lf h%d", &t, &h) != 2)
+            continue;
+        const char *b = strstr(line, " b");
+        const char *pw = strstr(line, " w "), *pv = strstr(line, " v ");
+        if (!b || !pw || !pv)
+            continue;
+        unsigned buttons = (unsigned)strtoul(b + 2, NULL, 16);
+        char *e = (char *)pw + 3;
+        for (int i = 0; i < 3; i++)
+            w[i] = strtod(e, &e);
+        e = (char *)pv + 3;
+        for (int i = 0; i < 3; i++)
+            v[i] = strtod(e, &e);
+        ticks++;
+        int zero = !w[0] && !w[1] && !w[2] && !v[0] && !v[1] && !v[2];
+        moving += !zero;
+        if (buttons & 1) {
+            clutched++;
+            if (!zero && odd++ < 5)
+                printf("  tick at %.6f s: clutch held but twist non-zero\n", t);
+            continue;
+        }
+        int explained = zero;
+        for (int i = 0; i < n_dec && !explained; i++)
+            explained = twist_is(w, v, &dec[i]);
+        if (!explained && odd++ < 5)
+            printf("  tick at %.6f s matches no decoded state: %s", t, line);
+        for (int j = 0; j < n_seq; j++)
+            if (!(seq[j].b & 1) && twist_is(w, v, &seq[j]))
+                seen[j] = 1;
+    }
+    fclose(f);
+    printf("ticks: %ld, %ld moving, %ld with the clutch held\n", ticks, moving, clutched);
+    if (ticks == 0)
+        fail("no ticks");
+    if (odd)
+        fail("ticks whose twist is not the mapping of a decoded state (or moves under the clutch)");
+    for (int j = 0; j < n_seq; j++) {
+        if (!(seq[j].b & 1) && !seen[j]) {
+            print_state("  never commanded:", &seq[j]);
+            fail("a state of the sequence never became a tick's twist");
+        }
+    }
+    if (w[0] || w[1] || w[2] || v[0] || v[1] || v[2])
+        fail("the last tick still moves");
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc != 4 && argc != 6) {
+        fprintf(stderr, "usage: check_rec SEQ REC TICKS [LIN ROT]\n");
+        return 2;
+    }
+    if (argc == 6) {
+        sens_lin = strtod(argv[4], NULL);
+        sens_rot = strtod(argv[5], NULL);
+    }
+    if (load_seq(argv[1]) != 0 || n_seq == 0) {
+        printf("FAIL: cannot read the sequence %s\n", argv[1]);
+        return 1;
+    }
+    if (load_rec(argv[2]) != 0)
+        return 1;
+    check_states();
+    if (check_ticks(argv[3]) != 0) {
+        printf("FAIL: cannot read %s\n", argv[3]);
+        return 1;
+    }
+    printf("%s\n", failures ? "check_rec: FAILED" : "check_rec: the recording is the sequence");
+    return failures ? 1 : 0;
+}
