@@ -17,31 +17,36 @@ hfail() {
     exit 1
 }
 
-# The scene with its live device replaced by the recording the VM made.
+# replay_scene NAME SCENE: the scene with its live device replaced by the
+# recording the VM made (out/NAME.isorec), as NAME.yaml.
 replay_scene() {
-    awk -v rec="$PWD/out/run.isorec" '
+    awk -v rec="$PWD/out/$1.isorec" '
         /^devices:/ { print; print "  - {name: mouse, kind: replay, file: " rec "}"; skip = 1; next }
         skip && /^  - / { next }
-        { skip = 0; print }' "$SCEN/scene.yaml" >replay.yaml
+        { skip = 0; print }' "$2" >"$1.yaml"
 }
 
-# The VM's live run and the host's replay of its recording move the mesh to
-# the same bits (the vertices' checksum).
+# replay_same_bits NAME [SCENE]: the VM's live run NAME and the host's
+# replay of its recording move the mesh to the same bits (the vertices'
+# checksum). SCENE: the scenario's scene.yaml unless given.
 replay_same_bits() {
-    replay_scene
-    "$ISO_BIN" run replay.yaml --fast --no-display >replay.log 2>&1 || { cat replay.log; hfail "the replay failed"; }
-    live=$(sed -n 's/.*vertices checksum \([0-9a-f]*\).*/\1/p' out/run.log | tail -1)
-    here=$(sed -n 's/.*vertices checksum \([0-9a-f]*\).*/\1/p' replay.log | tail -1)
-    sub=$(sed -n 's/.*"substeps": *\([0-9]*\).*/\1/p' out/stats.json)
-    echo "vertices checksum: VM live run $live, host replay $here (live sub-steps: ${sub:-?})"
-    [ -n "$live" ] && [ "$live" = "$here" ] || { cat replay.log; hfail "the host's replay does not give the VM run's vertices"; }
+    replay_scene "$1" "${2:-$SCEN/scene.yaml}"
+    "$ISO_BIN" run "$1.yaml" --fast --no-display >"$1.replay.log" 2>&1 ||
+        { cat "$1.replay.log"; hfail "the replay of $1 failed"; }
+    live=$(sed -n 's/.*vertices checksum \([0-9a-f]*\).*/\1/p' "out/$1.log" | tail -1)
+    here=$(sed -n 's/.*vertices checksum \([0-9a-f]*\).*/\1/p' "$1.replay.log" | tail -1)
+    sub=$(sed -n 's/.*"substeps": *\([0-9]*\).*/\1/p' "out/$1.json")
+    echo "$1: vertices checksum: VM live run $live, host replay $here (live sub-steps: ${sub:-?})"
+    [ -n "$live" ] && [ "$live" = "$here" ] ||
+        { cat "$1.replay.log"; hfail "$1: the host's replay does not give the VM run's vertices"; }
 }
 
-# The recording holds the sequence the guest played (check_rec.c), mapped
-# with the scenes' sensitivity (data/mapping.yaml's).
+# check_sequence NAME SEQ: the recording out/NAME.isorec holds the
+# sequence the guest played (check_rec.c), mapped with the scenes'
+# sensitivity.
 check_sequence() {
-    "$ISO_BIN" replay out/run.isorec --fast --print-ticks --sensitivity "$VM_LIN,$VM_ROT" \
-        >ticks.txt 2>replay_ticks.err || { cat replay_ticks.err; hfail "isoshape replay --print-ticks failed"; }
-    "$CHECK_REC" "$VM_DATA/$1" out/run.isorec ticks.txt "$VM_LIN" "$VM_ROT" ||
-        hfail "the recording is not the sequence played"
+    "$ISO_BIN" replay "out/$1.isorec" --fast --print-ticks --sensitivity "$VM_LIN,$VM_ROT" \
+        >"$1.ticks" 2>"$1.ticks.err" || { cat "$1.ticks.err"; hfail "isoshape replay --print-ticks failed"; }
+    "$CHECK_REC" "$VM_DATA/$2" "out/$1.isorec" "$1.ticks" "$VM_LIN" "$VM_ROT" ||
+        hfail "$1: the recording is not the sequence played"
 }

@@ -146,18 +146,20 @@ wait_cmd() {
 }
 
 # ---- the project's own command ------------------------------------------------
-# scene_start SCENE [OPTIONS...]: `isoshape run` in the background, live,
-# recording to /out/run.isorec; returns once it has opened its devices.
-# No real-time scheduling: on the one emulated CPU a SCHED_FIFO loop that
-# falls behind would starve the device it reads.
+# scene_start NAME SCENE [OPTIONS...]: `isoshape run` in the background,
+# live, recording to /out/NAME.isorec (log NAME.log, summary NAME.json);
+# returns once it has opened its devices. No real-time scheduling: on the
+# one emulated CPU a SCHED_FIFO loop that falls behind would starve the
+# device it reads.
 scene_start() {
-    s=$1
-    shift
-    "$ISO" run "$s" --no-display --no-rt --duration 3600 --record "$OUT/run.isorec" \
-        --stats-json "$OUT/stats.json" "$@" >"$OUT/run.log" 2>&1 &
+    RUN=$1
+    s=$2
+    shift 2
+    "$ISO" run "$s" --no-display --no-rt --duration 3600 --record "$OUT/$RUN.isorec" \
+        --stats-json "$OUT/$RUN.json" "$@" >"$OUT/$RUN.log" 2>&1 &
     ISO_PID=$!
-    wait_line "$OUT/run.log" "device 0:" || fail "isoshape run did not open its devices: $(cat "$OUT/run.log")"
-    note "isoshape run is up: $(grep 'device 0:' "$OUT/run.log")"
+    wait_line "$OUT/$RUN.log" "device 0:" || fail "isoshape run did not open its devices: $(cat "$OUT/$RUN.log")"
+    note "isoshape run is up: $(grep 'device 0:' "$OUT/$RUN.log")"
 }
 # scene_stop: SIGTERM, as a user's Ctrl-C or a service manager would: the
 # run ends after its tick, closes the recording whole, prints its summary
@@ -166,7 +168,21 @@ scene_stop() {
     kill -TERM "$ISO_PID"
     wait "$ISO_PID"
     st=$?
-    cat "$OUT/run.log"
+    cat "$OUT/$RUN.log"
     [ "$st" = 143 ] || fail "isoshape run exited $st after SIGTERM, not 143"
-    grep -q "vertices checksum" "$OUT/run.log" || fail "isoshape run printed no summary"
+    grep -q "vertices checksum" "$OUT/$RUN.log" || fail "isoshape run printed no summary"
 }
+
+# gadget_remove NAME: unplugged already; takes its configfs tree down.
+gadget_remove() {
+    g=$G/$1
+    for f in "$g"/configs/c.1/*.usb0; do
+        [ -e "$f" ] && rm "$f"
+    done
+    rmdir "$g/configs/c.1/strings/0x409" "$g/configs/c.1"
+    for f in "$g"/functions/*; do
+        [ -e "$f" ] && rmdir "$f"
+    done
+    rmdir "$g/strings/0x409" "$g"
+}
+no_hidraw() { ! hidraw_of "$@"; }

@@ -11,7 +11,7 @@ note "hidraw: $(hidraw_of 256F C635)"
 "$ISO" devices >"$OUT/devices.txt" 2>&1
 cat "$OUT/devices.txt"
 [ "$(grep -c "$(hidraw_of 256F C635)" "$OUT/devices.txt")" = 1 ] || fail "isoshape devices lists the hidraw node more than once"
-scene_start /test/scene.yaml
+scene_start uhid /test/scene.yaml
 hid "play /test/spacemouse.seq"
 scene_stop
 hid_stop

@@ -1,5 +1,5 @@
 # The host's half: the recording replays here to the VM run's bits, and it
 # holds the sequence the guest played.
 . "$VM_HOST_LIB"
-replay_same_bits
-check_sequence spacemouse.seq
+replay_same_bits uhid
+check_sequence uhid spacemouse.seq
