@@ -8,7 +8,12 @@
  * of 0 bytes at EOF looks like "no event", and spnav_fd() stays valid. So
  * this backend watches the socket itself (a peek for EOF before each event)
  * and reports the source gone; the hub then retries as for an unplugged
- * HID device. */
+ * HID device.
+ *
+ * The axes it records are the device's own, as hidraw has them: spacenavd's
+ * swap and rescale are undone, and a relative device's rest, which
+ * spacenavd never hears, is inferred from silence (iso_dev.h, "a 3D
+ * mouse's axes"). */
 #include "internal.h"
 
 #include <ctype.h>
@@ -20,6 +25,43 @@
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
+
+/* ---- spacenavd's axes back to the device's (always built) --------------- */
+
+int iso_dev_spnav_swaps_yz(uint16_t vid, uint16_t pid)
+{
+    /* spacenavd 1.1's device table: every 3Dconnexion (256f) device, and
+     * these under Logitech's id; the rest of 046d keeps its axes. */
+    static const uint16_t logi[] = {0xc623, 0xc625, 0xc626, 0xc627, 0xc628, 0xc629, 0xc62b};
+    if (vid == 0 || vid == 0x256f)
+        return 1;
+    if (vid == 0x046d)
+        for (size_t i = 0; i < sizeof logi / sizeof logi[0]; i++)
+            if (pid == logi[i])
+                return 1;
+    return 0;
+}
+
+static long long ceil_div(long long num, long long den)
+{
+    return num >= 0 ? (num + den - 1) / den : -(-num / den);
+}
+
+void iso_dev_spnav_to_device(const iso_dev_spnav_layout *l, const int v[6], int16_t out[6])
+{
+    /* spacenavd: rescale (absolute), then swap and negate Y/Z, then its
+     * dead zone. Undone in the other order; the rescale was
+     * r' = floor((r - lo) * 1000 / range) - 500, whose inverse on integers
+     * is r = lo + ceil((r' + 500) * range / 1000) (exact while range <= 1000,
+     * else the least r of those that map to r'). */
+    static const int from[6] = {0, 2, 1, 3, 5, 4};
+    for (int i = 0; i < 6; i++) {
+        long long r = l->swap_yz ? (i == 0 || i == 3 ? v[i] : -(long long)v[from[i]]) : v[i];
+        if (l->absolute && l->hi > l->lo)
+            r = l->lo + ceil_div((r + 500) * ((long long)l->hi - l->lo), 1000);
+        out[i] = (int16_t)(r > 32767 ? 32767 : r < -32768 ? -32768 : r);
+    }
+}
 
 #ifdef ISO_DEV_WITH_SPNAV
 #include <spnav.h>
@@ -144,9 +186,52 @@ static int socket_state(int fd, const char **why)
     return -1;
 }
 
+/* The connection's state: how spacenavd sees the device, and what it
+ * last said (for the rest a relative device never reports). */
+typedef struct spn {
+    iso_dev_spnav_layout layout;
+    int relative;    /* rest is inferred from silence */
+    int raw[6];      /* spacenavd's last motion, as it sent it */
+    int kept[6];     /* what it kept at the last inferred rest */
+    unsigned masked; /* bit per axis still showing its kept value */
+    int moving;      /* the last motion recorded was not rest */
+    int64_t t_motion;
+    char socket[ISO_DEV_NAME_MAX];
+} spn;
+
+static uint8_t *put_motion(uint8_t *p, const int16_t d[6], unsigned period)
+{
+    p[0] = 'M';
+    for (int i = 0; i < 6; i++)
+        put16(p + 1 + 2 * i, d[i]);
+    put16(p + 13, (int)(period & 0x7fff));
+    return p + 15;
+}
+
+/* One motion event: the device's axes. Relative: an axis that still shows
+ * the value spacenavd kept at the last rest counts as 0 until it changes. */
+static void motion(spn *c, const spnav_event *ev, int16_t d[6])
+{
+    const int v[6] = {ev->motion.x,  ev->motion.y,  ev->motion.z,
+                      ev->motion.rx, ev->motion.ry, ev->motion.rz};
+    int u[6];
+    for (int i = 0; i < 6; i++) {
+        c->raw[i] = v[i];
+        if ((c->masked & (1u << i)) && v[i] != c->kept[i])
+            c->masked &= ~(1u << i);
+        u[i] = (c->masked & (1u << i)) ? 0 : v[i];
+    }
+    iso_dev_spnav_to_device(&c->layout, u, d);
+    c->moving = 0;
+    for (int i = 0; i < 6; i++)
+        c->moving |= d[i] != 0;
+    c->t_motion = iso_clock_ns();
+}
+
 static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
 {
     (void)until;
+    spn *c = s->impl;
     out->len = 0;
     const char *why = NULL;
     spnav_event ev;
@@ -159,12 +244,9 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
             break;
         uint8_t *p = out->data + out->len;
         if (type == SPNAV_EVENT_MOTION) {
-            p[0] = 'M';
-            const int v[6] = {ev.motion.x,  ev.motion.y,  ev.motion.z,
-                              ev.motion.rx, ev.motion.ry, ev.motion.rz};
-            for (int i = 0; i < 6; i++)
-                put16(p + 1 + 2 * i, v[i]);
-            put16(p + 13, (int)(ev.motion.period & 0x7fff));
+            int16_t d[6];
+            motion(c, &ev, d);
+            put_motion(p, d, ev.motion.period);
             out->len += 15;
         } else if (type == SPNAV_EVENT_BUTTON) {
             p[0] = 'B';
@@ -173,25 +255,102 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
             out->len += 3;
         }
     }
+    int64_t now = iso_clock_ns();
+    if (!out->len && c->relative && c->moving && now - c->t_motion >= ISO_DEV_SPNAV_REST_NS) {
+        /* A relative device gone quiet is at rest: said once, recorded. */
+        static const int16_t zero[6] = {0};
+        put_motion(out->data, zero, (unsigned)((now - c->t_motion) / 1000000));
+        out->len = 15;
+        memcpy(c->kept, c->raw, sizeof c->kept);
+        c->masked = 0;
+        for (int i = 0; i < 6; i++)
+            c->masked |= c->raw[i] ? 1u << i : 0;
+        c->moving = 0;
+    }
     /* Events that came before the end are handed out first; the end is
      * still there at the next read. */
     if (out->len) {
-        out->t_ns = iso_clock_ns();
+        out->t_ns = now;
         return 1;
     }
     if (why)
-        return iso_err_set(err, ISO_EIO, -1, "spacenavd at %s: %s", s->detail, why);
+        return iso_err_set(err, ISO_EIO, -1, "spacenavd at %s: %s", c->socket, why);
     return 0;
 }
 
 static void spnav_close_source(iso_dev_source *s)
 {
     spnav_close();
+    free(s->impl);
     free(s);
 }
 
 static const iso_dev_source_ops spnav_ops = {"spnav", spnav_fd_of,        spnav_read_chunk,
                                              NULL,    spnav_close_source, NULL};
+
+/* The first line of a sysfs file, or "" (cap > 0). */
+static void sysfs_line(const char *path, char *buf, size_t cap)
+{
+    buf[0] = '\0';
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return;
+    if (!fgets(buf, (int)cap, f))
+        buf[0] = '\0';
+    fclose(f);
+}
+
+/* The six axes' bits (0..5) of a capabilities file: hex words, the lowest
+ * bits last. */
+static int axis_bits(const char *dir, const char *kind)
+{
+    char path[320], line[512];
+    snprintf(path, sizeof path, "%s/capabilities/%s", dir, kind);
+    sysfs_line(path, line, sizeof line);
+    const char *last = strrchr(line, ' ');
+    return (int)(strtoul(last ? last + 1 : line, NULL, 16) & 0x3f);
+}
+
+/* What spacenavd serves us (protocol 1): its USB id and evdev node, then
+ * from sysfs the node's axis kind and the HID descriptor's range. Anything
+ * it cannot learn stays at the safe assumption: swapped, relative. */
+static void learn_layout(iso_dev_source *s, spn *c)
+{
+    unsigned vid = 0, pid = 0;
+    char node[ISO_DEV_NAME_MAX] = "";
+    if (spnav_protocol() >= 1) {
+        if (spnav_dev_usbid(&vid, &pid) == -1)
+            vid = pid = 0;
+        if (spnav_dev_path(node, sizeof node) == -1)
+            node[0] = '\0';
+    }
+    s->info.vid = (uint16_t)vid;
+    s->info.pid = (uint16_t)pid;
+    c->layout.swap_yz = iso_dev_spnav_swaps_yz(s->info.vid, s->info.pid);
+    c->relative = 1;
+    const char *ev = strrchr(node, '/');
+    if (!ev || strncmp(ev + 1, "event", 5) != 0)
+        return;
+    char dir[256], path[320];
+    snprintf(dir, sizeof dir, "/sys/class/input/%s/device", ev + 1);
+    snprintf(path, sizeof path, "%s/device/report_descriptor", dir);
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        s->info.desc_len = (uint16_t)fread(s->info.desc, 1, ISO_DEV_DESC_MAX, f);
+        fclose(f);
+    }
+    if (axis_bits(dir, "abs") != 0x3f)
+        return; /* relative axes, or none the daemon could use */
+    iso_dev_hid_axes_info ax;
+    c->layout.absolute = 1;
+    c->layout.lo = -350; /* the family's range when the descriptor says none */
+    c->layout.hi = 350;
+    if (iso_dev_hid_axes(s->info.desc, s->info.desc_len, &ax) == ISO_OK && ax.hi > ax.lo) {
+        c->layout.lo = ax.lo;
+        c->layout.hi = ax.hi;
+    }
+    c->relative = 0;
+}
 
 int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
 {
@@ -207,13 +366,19 @@ int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
                            path);
     }
     iso_dev_source *s = calloc(1, sizeof *s);
-    if (!s) {
+    spn *c = calloc(1, sizeof *c);
+    if (!s || !c) {
+        free(s);
+        free(c);
         spnav_close();
         return iso_err_set(err, ISO_ENOMEM, -1, "spacenavd: out of memory");
     }
     s->ops = &spnav_ops;
+    s->impl = c;
     s->info.kind = ISO_DEV_KIND_SPNAV;
     snprintf(s->info.name, sizeof s->info.name, "spacenavd");
+    snprintf(c->socket, sizeof c->socket, "%s", path);
+    learn_layout(s, c);
     snprintf(s->detail, sizeof s->detail, "%s", path);
     *out = s;
     return ISO_OK;
