@@ -104,10 +104,20 @@ static int load_rec(const char *path)
     long gone = 0, back = 0;
     dec[n_dec++] = cur; /* decoders start at rest, as the device does */
     while (iso_dev_rec_next(&r, &c, NULL)) {
-        if (c.type == ISO_DEV_CHUNK_GONE)
-            gone++;
-        if (c.type == ISO_DEV_CHUNK_BACK)
-            back++;
+        if (c.type == ISO_DEV_CHUNK_GONE || c.type == ISO_DEV_CHUNK_BACK) {
+            int is_gone = c.type == ISO_DEV_CHUNK_GONE;
+            gone += is_gone;
+            back += !is_gone;
+            printf("%s src %u at %lld ns\n", is_gone ? "GONE" : "BACK", c.source,
+                   (long long)c.t_ns);
+            /* the mapping holds a gone source's handles still: its axes
+             * count as rest until it reports again */
+            if (is_gone) {
+                memset(&cur, 0, sizeof cur);
+                if (n_dec < MAX_STATES && !same(&dec[n_dec - 1], &cur))
+                    dec[n_dec++] = cur;
+            }
+        }
         if (c.type != ISO_DEV_CHUNK_DATA || c.source >= r.n_sources)
             continue;
         size_t n = iso_dev_decode(&d[c.source], &c, ev, ISO_DEV_EVENTS_PER_CHUNK);

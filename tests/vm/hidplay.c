@@ -22,6 +22,7 @@
  *   play FILE      the steps of FILE (sequence format below)
  *   axes TX TY TZ RX RY RZ MS / buttons MASK MS    one step
  *   destroy / create                               uhid: unplug, plug in
+ *   mark TEXT      logs TEXT with the time (for bounds measured on the host)
  *   quit
  * A sequence file has one step a line: `axes tx ty tz rx ry rz hold_ms` or
  * `buttons mask hold_ms`; # starts a comment. A step with a deflection is
@@ -307,6 +308,10 @@ static int command(char *line)
         return play(line + 5);
     if (strncmp(line, "axes ", 5) == 0 || strncmp(line, "buttons ", 8) == 0)
         return step(line);
+    if (strncmp(line, "mark ", 5) == 0) {
+        fprintf(g.log, "%lld mark %s\n", (long long)now_ns(), line + 5);
+        return 0;
+    }
     if (strcmp(line, "destroy") == 0)
         return g.uhid ? uhid_destroy() : -1;
     if (strcmp(line, "create") == 0)

@@ -47,6 +47,23 @@ replay_same_bits() {
 check_sequence() {
     "$ISO_BIN" replay "out/$1.isorec" --fast --print-ticks --sensitivity "$VM_LIN,$VM_ROT" \
         >"$1.ticks" 2>"$1.ticks.err" || { cat "$1.ticks.err"; hfail "isoshape replay --print-ticks failed"; }
-    "$CHECK_REC" "$VM_DATA/$2" "out/$1.isorec" "$1.ticks" "$VM_LIN" "$VM_ROT" ||
+    "$CHECK_REC" "$VM_DATA/$2" "out/$1.isorec" "$1.ticks" "$VM_LIN" "$VM_ROT" | tee "$1.check"
+    grep -q "^check_rec: the recording is the sequence" "$1.check" ||
         hfail "$1: the recording is not the sequence played"
+}
+
+# gone_within NAME: the recording out/NAME.isorec marks its source GONE
+# within one tick of the moment hidplay logged "mark kill" (the daemon's
+# kill): the tick period plus the longest tick of that run (its summary),
+# the stated bound; prints the measured time.
+gone_within() {
+    kill_ns=$(sed -n 's/^\([0-9]*\) mark kill$/\1/p' "out/hidplay.$1.log")
+    gone_ns=$(sed -n 's/^GONE src 0 at \([0-9]*\) ns$/\1/p' "$1.check" | head -1)
+    [ -n "$kill_ns" ] && [ -n "$gone_ns" ] || hfail "$1: no kill mark or no GONE record"
+    awk -v k="$kill_ns" -v g="$gone_ns" -v j="$(cat "out/$1.json")" 'BEGIN {
+        match(j, /"period_ms": *[0-9.]+/); p = substr(j, RSTART, RLENGTH); sub(/.*: */, "", p)
+        match(j, /"tick_ms": *\{[^}]*"max": *[0-9.]+/); m = substr(j, RSTART, RLENGTH); sub(/.*"max": */, "", m)
+        d = (g - k) / 1e6; b = p + m
+        printf "%s: spacenavd killed; the run marked it gone %.1f ms later (bound: one tick, %.1f ms period + %.1f ms longest tick = %.1f ms)\n", ARGV[1], d, p, m, b
+        exit !(d >= 0 && d <= b) }' "$1" || hfail "$1: the source went GONE later than one tick after the kill"
 }

@@ -206,14 +206,16 @@ if [ ! -f "$kdir/ready" ]; then
 fi
 
 # ---- 3. the base initramfs --------------------------------------------------
-# Cached by kernel and by the libraries the binaries need.
+# Cached by kernel and by the libraries the binaries need: the system's only
+# (the project's own, libisoshape, change with every build and go into each
+# test's archive).
 spnavd=$(command -v spacenavd || true)
 [ -n "$spnavd" ] || skip "spacenavd is not installed (apt-get install spacenavd)"
 libs=$(for b in "$@" "$spnavd" "$kdir/udev/lib/systemd/systemd-udevd" \
     /usr/bin/gpioinfo /usr/bin/gpioget; do
     [ -e "$b" ] || continue
     ldd "$b" 2>/dev/null | awk '/=> \// { print $3 } /^[ \t]*\/[^ ]*ld-linux/ { print $1 }'
-done | sort -u)
+done | grep -E '^/(usr/)?lib(64)?/' | sort -u)
 missing=$(for b in "$@" "$spnavd" "$kdir/udev/lib/systemd/systemd-udevd"; do
     [ -e "$b" ] && ldd "$b" 2>/dev/null | awk '/not found/ { print $1 }'
 done | sort -u | tr '\n' ' ')

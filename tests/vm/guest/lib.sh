@@ -53,11 +53,19 @@ hid_start() {
     HID_PID=$!
     exec 7>/tmp/hid.in 8</tmp/hid.out
 }
-# hid CMD: one command, waits for its answer.
-hid() {
+# hid CMD: one command, waits for its answer; hid_send and hid_wait split
+# the two, to act while a step plays.
+hid_send() {
+    HID_CMD=$*
     echo "$*" >&7
-    read -r reply <&8 || fail "hidplay died during '$*' ($(cat "$OUT/hidplay.err"))"
-    [ "$reply" = ok ] || fail "hidplay: '$*': $reply"
+}
+hid_wait() {
+    read -r reply <&8 || fail "hidplay died during '$HID_CMD' ($(cat "$OUT/hidplay.err"))"
+    [ "$reply" = ok ] || fail "hidplay: '$HID_CMD': $reply"
+}
+hid() {
+    hid_send "$@"
+    hid_wait
 }
 hid_stop() {
     echo quit >&7
@@ -114,11 +122,17 @@ udevd_start() {
 }
 
 # spacenavd in the foreground mode, from / (it binds run/spnav.sock
-# relative to its working folder), with the socket where libspnav looks.
+# relative to its working folder), with the socket where libspnav looks;
+# returns once it serves a device. Its log (it truncates its own) is
+# /out/spacenavd.N.log for the N-th start.
+SPNAV_N=0
 spacenavd_start() {
-    (cd / && exec /usr/sbin/spacenavd -d -v >>"$OUT/spacenavd.log" 2>&1) &
+    SPNAV_N=$((SPNAV_N + 1))
+    SPNAV_LOG=$OUT/spacenavd.$SPNAV_N.log
+    (cd / && exec /usr/sbin/spacenavd -d -v -l "$SPNAV_LOG" >/dev/null 2>&1) &
     SPNAV_PID=$!
-    wait_for -S /var/run/spnav.sock || fail "spacenavd made no socket ($(tail -3 "$OUT/spacenavd.log"))"
+    wait_for -S /var/run/spnav.sock || fail "spacenavd made no socket ($(tail -3 "$SPNAV_LOG"))"
+    wait_line "$SPNAV_LOG" "using device" || fail "spacenavd did not take the device ($(tail -5 "$SPNAV_LOG"))"
 }
 spacenavd_kill() {
     kill -9 "$SPNAV_PID"
