@@ -5,6 +5,7 @@
  * hardware).
  *
  *   hidplay desc rel|fixup|abs           the report descriptor, to stdout
+ *   hidplay now                          CLOCK_MONOTONIC in ns, to stdout
  *   hidplay uhid VID PID rel|fixup|abs LOG
  *   hidplay hidg /dev/hidgN LOG
  *
@@ -355,6 +356,7 @@ static int next_line(char *line, size_t cap)
 static int usage(void)
 {
     fprintf(stderr, "usage: hidplay desc rel|fixup|abs\n"
+                    "       hidplay now\n"
                     "       hidplay uhid VID PID rel|fixup|abs LOG\n"
                     "       hidplay hidg /dev/hidgN LOG\n");
     return 2;
@@ -362,6 +364,10 @@ static int usage(void)
 
 int main(int argc, char **argv)
 {
+    if (argc == 2 && strcmp(argv[1], "now") == 0) {
+        printf("%lld\n", (long long)now_ns());
+        return 0;
+    }
     if (argc == 3 && strcmp(argv[1], "desc") == 0) {
         if (build_desc(argv[2]) != 0)
             return usage();

@@ -67,3 +67,19 @@ gone_within() {
         printf "%s: spacenavd killed; the run marked it gone %.1f ms later (bound: one tick, %.1f ms period + %.1f ms longest tick = %.1f ms)\n", ARGV[1], d, p, m, b
         exit !(d >= 0 && d <= b) }' "$1" || hfail "$1: the source went GONE later than one tick after the kill"
 }
+
+# marks_vs_records NAME: the guest's marks (out/marks: CLOCK_MONOTONIC ns
+# and a word) beside the recording's GONE and BACK records (the check's
+# output, NAME.check): each printed relative to the first mark. GONE must
+# follow the unplug, BACK the plug.
+marks_vs_records() {
+    { cat out/marks; sed -n 's/^\(GONE\|BACK\) src 0 at \([0-9]*\) ns$/\2 \1-recorded/p' "$1.check"; } |
+        sort -n | awk '
+        NR == 1 { t0 = $1 }
+        { printf "  %8.1f ms  %s\n", ($1 - t0) / 1e6, $2; at[$2] = $1 }
+        END {
+            if (!("GONE-recorded" in at) || !("BACK-recorded" in at)) { print "no GONE or BACK record"; exit 1 }
+            if (at["GONE-recorded"] < at["unplug"] || at["BACK-recorded"] < at["plug"]) { print "out of order"; exit 1 }
+            printf "unplug to GONE %.1f ms; replug to BACK %.1f ms (enumeration, binding, then the hub: libusb hotplug or its 500 ms retry)\n",
+                (at["GONE-recorded"] - at["unplug"]) / 1e6, (at["BACK-recorded"] - at["plug"]) / 1e6 }' || hfail "$1: GONE and BACK do not follow the unplug and the plug"
+}

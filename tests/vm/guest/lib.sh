@@ -200,3 +200,7 @@ gadget_remove() {
     rmdir "$g/strings/0x409" "$g"
 }
 no_hidraw() { ! hidraw_of "$@"; }
+
+# mark TEXT: TEXT with CLOCK_MONOTONIC (the clock of every recorded chunk)
+# into /out/marks, for bounds the host measures.
+mark() { echo "$("$HIDPLAY" now) $*" >>"$OUT/marks"; }
