@@ -415,7 +415,11 @@ typedef struct iso_dev_tick {
     iso_twist twist[ISO_DEV_MAX_HANDLES]; /* world twists, rotation about the handle */
     int active;                           /* the handle the devices drive */
     uint8_t clutch;                       /* 1: clutch held */
-    uint8_t estop;                        /* 1: emergency stop: every twist is zero */
+    uint8_t estop;                        /* 1: emergency stop: every twist is zero. Any
+                                           * e-stop line pressed, or gone with its
+                                           * source: an e-stop that cannot be read is
+                                           * not trusted, until its source is back
+                                           * and reports the line released */
     uint32_t buttons;                     /* OR of every source's buttons */
     uint32_t actions;                     /* bit ISO_DEV_ACT_*: pressed during this tick */
     uint32_t gone;                        /* bit per source that is unplugged */
@@ -429,6 +433,8 @@ typedef struct iso_dev_map_src { /* what one source last said */
     uint8_t stale;   /* 1: its twist is older than the stale time and counts as zero */
     int64_t t_twist; /* stream time of its last twist sample */
     double v[6];
+    uint8_t estop_line; /* 1: it has reported an e-stop line (kept while gone) */
+    uint8_t estop;      /* its e-stop: the line's last level; 1 while the source is gone */
 } iso_dev_map_src;
 
 /* Twist streams (ISO_DEV_EV_TWIST: the serial/TCP bridge's HANDLE_SAMPLE
