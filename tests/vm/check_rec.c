@@ -21,7 +21,12 @@
  *     while the clutch (button 0) is held, whatever the axes say. Every
  *     state the sequence holds without the clutch is seen as a twist in
  *     some tick. The last tick is at rest.
- * Prints what it compared; exits 0 when all holds. */
+ * Prints what it compared; exits 0 when all holds.
+ *
+ *   check_rec --events REC
+ *
+ * prints the recording's GPIO levels, GONE and BACK records with their
+ * CLOCK_MONOTONIC times (the kernel's edge times for GPIO), one a line. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -256,8 +261,35 @@ static int check_ticks(const char *path)
     return 0;
 }
 
+static int print_events(const char *path)
+{
+    iso_dev_rec_reader r;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_dev_rec_reader_load(&r, path, &err) != ISO_OK) {
+        printf("FAIL: %s\n", err.msg);
+        return 1;
+    }
+    iso_dev_chunk c;
+    while (iso_dev_rec_next(&r, &c, NULL)) {
+        if (c.type == ISO_DEV_CHUNK_GONE || c.type == ISO_DEV_CHUNK_BACK)
+            printf("%lld %s src %u\n", (long long)c.t_ns,
+                   c.type == ISO_DEV_CHUNK_GONE ? "GONE" : "BACK", c.source);
+        if (c.type != ISO_DEV_CHUNK_DATA || c.source >= r.n_sources ||
+            r.infos[c.source].kind != ISO_DEV_KIND_GPIO)
+            continue;
+        for (unsigned i = 0; i + 1 < c.len; i += 2)
+            printf("%lld %s %u src %u\n", (long long)c.t_ns,
+                   c.data[i] == ISO_DEV_GPIO_ESTOP ? "estop" : "clutch", c.data[i + 1], c.source);
+    }
+    iso_dev_rec_reader_deinit(&r);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
+    if (argc == 3 && strcmp(argv[1], "--events") == 0)
+        return print_events(argv[2]);
     if (argc != 4 && argc != 6) {
         fprintf(stderr, "usage: check_rec SEQ REC TICKS [LIN ROT]\n");
         return 2;

@@ -6,6 +6,9 @@
  *
  *   hidplay desc rel|fixup|abs           the report descriptor, to stdout
  *   hidplay now                          CLOCK_MONOTONIC in ns, to stdout
+ *   hidplay stamp LOG STAMPED            stdin to LOG, and to STAMPED each
+ *                                        line behind the time it arrived
+ *                                        (CLOCK_MONOTONIC ns)
  *   hidplay uhid VID PID rel|fixup|abs LOG
  *   hidplay hidg /dev/hidgN LOG
  *
@@ -357,6 +360,7 @@ static int usage(void)
 {
     fprintf(stderr, "usage: hidplay desc rel|fixup|abs\n"
                     "       hidplay now\n"
+                    "       hidplay stamp LOG STAMPED\n"
                     "       hidplay uhid VID PID rel|fixup|abs LOG\n"
                     "       hidplay hidg /dev/hidgN LOG\n");
     return 2;
@@ -367,6 +371,19 @@ int main(int argc, char **argv)
     if (argc == 2 && strcmp(argv[1], "now") == 0) {
         printf("%lld\n", (long long)now_ns());
         return 0;
+    }
+    if (argc == 4 && strcmp(argv[1], "stamp") == 0) {
+        FILE *f = fopen(argv[2], "w"), *t = fopen(argv[3], "w");
+        if (!f || !t)
+            return 1;
+        setvbuf(f, NULL, _IOLBF, 0);
+        setvbuf(t, NULL, _IOLBF, 0);
+        char line[1024];
+        while (fgets(line, sizeof line, stdin)) {
+            fprintf(t, "%lld %s", (long long)now_ns(), line);
+            fputs(line, f);
+        }
+        return fclose(f) == 0 && fclose(t) == 0 ? 0 : 1;
     }
     if (argc == 3 && strcmp(argv[1], "desc") == 0) {
         if (build_desc(argv[2]) != 0)

@@ -83,3 +83,39 @@ marks_vs_records() {
             printf "unplug to GONE %.1f ms; replug to BACK %.1f ms (enumeration, binding, then the hub: libusb hotplug or its 500 ms retry)\n",
                 (at["GONE-recorded"] - at["unplug"]) / 1e6, (at["BACK-recorded"] - at["plug"]) / 1e6 }' || hfail "$1: GONE and BACK do not follow the unplug and the plug"
 }
+
+# estop_report NAME: the e-stop's course in run NAME. From the recording
+# (the kernel's edge times), the guest's marks and the run's stamped
+# output, all CLOCK_MONOTONIC in the guest: how long from the line's edge
+# to the run's E-STOP notice and to the MCU's report of its safe state (an
+# upper bound: it includes printing and the pipe), for the press and for
+# the line that went away. The replayed commands must hold the e-stop from
+# the press to the release and from the chip's going to the end.
+estop_report() {
+    "$CHECK_REC" --events "out/$1.isorec" >"$1.events"
+    "$ISO_BIN" replay "out/$1.isorec" --fast --print-ticks >"$1.ticks" 2>"$1.ticks.err" ||
+        { cat "$1.ticks.err"; hfail "isoshape replay --print-ticks failed"; }
+    # e-stop flag per tick: 0 ... 1 ... 0 ... 1 to the end
+    awk '!/^[0-9.]+ h[0-9]/ { next } { e = / ESTOP/ ? 1 : 0; if (seq == "" || e != last) { seq = seq e; last = e } }
+         END { print "e-stop in the replayed commands, tick by tick, as runs: " seq; exit seq != "0101" }' "$1.ticks" ||
+        hfail "$1: the commands do not hold the e-stop exactly from the press to the release and from the vanished line on"
+    { sed 's/^/M /' out/marks; sed 's/^/R /' "$1.events"; sed 's/^/S /' "out/$1.stamped"; } | awk '
+        $1 == "M" { m[$3] = $2 }
+        $1 == "R" && $3 == "estop" && $4 == 1 && !press { press = $2 }
+        $1 == "R" && $3 == "GONE" && !gone { gone = $2 }
+        $1 == "S" && /E-STOP/ { if (!stop1) stop1 = $2; else if (!stop2) stop2 = $2 }
+        $1 == "S" && /reports its safe state/ {
+            if (!safe1) { safe1 = $2; own1 = $0 } else if (!safe2) { safe2 = $2; own2 = $0 } }
+        END {
+            if (!press || !safe1 || !gone || !safe2) { print "missing: press " press " safe " safe1 " gone " gone " safe " safe2; exit 1 }
+            sub(/.*safe state/, "safe state", own1); sub(/.*safe state/, "safe state", own2)
+            printf "e-stop pressed: the line edge %.1f ms after the guest wrote the pull; E-STOP notice %.1f ms and the MCU safe (reported) %.1f ms after the edge; the sink: %s\n",
+                (press - m["press"]) / 1e6, (stop1 - press) / 1e6, (safe1 - press) / 1e6, own1
+            printf "e-stop line gone: GONE %.1f ms after the chip was removed; E-STOP notice %.1f ms and the MCU safe (reported) %.1f ms after it; the sink: %s\n",
+                (gone - m["vanish"]) / 1e6, (stop2 - m["vanish"]) / 1e6, (safe2 - m["vanish"]) / 1e6, own2
+            # The bound held here: the loop watchdog's default, the slowest
+            # way to safety the sink promises. Natively it takes a few ms
+            # (tests/test_actuators.c); TCG runs 10 to 50 times slower.
+            if ((safe1 - press) / 1e6 > 250) { print "the MCU was safe later than 250 ms after the edge"; exit 1 }
+        }' || hfail "$1: the press or the vanished line did not bring the MCU to its safe state"
+}

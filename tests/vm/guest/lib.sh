@@ -169,10 +169,16 @@ scene_start() {
     RUN=$1
     s=$2
     shift 2
-    "$ISO" run "$s" --no-display --no-rt --duration 3600 --record "$OUT/$RUN.isorec" \
-        --stats-json "$OUT/$RUN.json" "$@" >"$OUT/$RUN.log" 2>&1 &
-    ISO_PID=$!
+    # Its output goes to NAME.log, and to NAME.stamped each line behind the
+    # time it arrived, for bounds measured against the recording's clock.
+    (
+        "$ISO" run "$s" --no-display --no-rt --duration 3600 --record "$OUT/$RUN.isorec" \
+            --stats-json "$OUT/$RUN.json" "$@"
+        echo $? >/tmp/run.rc
+    ) 2>&1 | "$HIDPLAY" stamp "$OUT/$RUN.log" "$OUT/$RUN.stamped" &
+    RUN_JOB=$!
     wait_line "$OUT/$RUN.log" "device 0:" || fail "isoshape run did not open its devices: $(cat "$OUT/$RUN.log")"
+    ISO_PID=$(pidof isoshape)
     note "isoshape run is up: $(grep 'device 0:' "$OUT/$RUN.log")"
 }
 # scene_stop: SIGTERM, as a user's Ctrl-C or a service manager would: the
@@ -180,8 +186,8 @@ scene_start() {
 # and exits 143.
 scene_stop() {
     kill -TERM "$ISO_PID"
-    wait "$ISO_PID"
-    st=$?
+    wait "$RUN_JOB"
+    st=$(cat /tmp/run.rc)
     cat "$OUT/$RUN.log"
     [ "$st" = 143 ] || fail "isoshape run exited $st after SIGTERM, not 143"
     grep -q "vertices checksum" "$OUT/$RUN.log" || fail "isoshape run printed no summary"
