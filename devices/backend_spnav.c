@@ -228,6 +228,24 @@ static void motion(spn *c, const spnav_event *ev, int16_t d[6])
     c->t_motion = iso_clock_ns();
 }
 
+/* A relative device quiet for ISO_DEV_SPNAV_REST_NS since the last read
+ * that brought motion is at rest: appends that, once (the silence is at
+ * least now - t_motion, as the read drains every event it can). */
+static void rest_if_due(spn *c, iso_dev_chunk *out, int64_t now)
+{
+    if (!c->relative || !c->moving || now - c->t_motion < ISO_DEV_SPNAV_REST_NS ||
+        (unsigned)out->len + 15u > ISO_DEV_CHUNK_MAX)
+        return;
+    static const int16_t zero[6] = {0};
+    put_motion(out->data + out->len, zero, (unsigned)((now - c->t_motion) / 1000000));
+    out->len += 15;
+    memcpy(c->kept, c->raw, sizeof c->kept);
+    c->masked = 0;
+    for (int i = 0; i < 6; i++)
+        c->masked |= c->raw[i] ? 1u << i : 0;
+    c->moving = 0;
+}
+
 static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
 {
     (void)until;
@@ -235,7 +253,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
     out->len = 0;
     const char *why = NULL;
     spnav_event ev;
-    while ((unsigned)out->len + 15u <= ISO_DEV_CHUNK_MAX) {
+    while ((unsigned)out->len + 18u <= ISO_DEV_CHUNK_MAX) {
         int st = socket_state(spnav_fd(), &why);
         if (st <= 0)
             break;
@@ -249,6 +267,9 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
             put_motion(p, d, ev.motion.period);
             out->len += 15;
         } else if (type == SPNAV_EVENT_BUTTON) {
+            /* a button after the silence: the rest came first */
+            rest_if_due(c, out, iso_clock_ns());
+            p = out->data + out->len;
             p[0] = 'B';
             p[1] = (uint8_t)ev.button.bnum;
             p[2] = ev.button.press ? 1 : 0;
@@ -256,17 +277,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
         }
     }
     int64_t now = iso_clock_ns();
-    if (!out->len && c->relative && c->moving && now - c->t_motion >= ISO_DEV_SPNAV_REST_NS) {
-        /* A relative device gone quiet is at rest: said once, recorded. */
-        static const int16_t zero[6] = {0};
-        put_motion(out->data, zero, (unsigned)((now - c->t_motion) / 1000000));
-        out->len = 15;
-        memcpy(c->kept, c->raw, sizeof c->kept);
-        c->masked = 0;
-        for (int i = 0; i < 6; i++)
-            c->masked |= c->raw[i] ? 1u << i : 0;
-        c->moving = 0;
-    }
+    rest_if_due(c, out, now);
     /* Events that came before the end are handed out first; the end is
      * still there at the next read. */
     if (out->len) {

@@ -89,7 +89,10 @@ marks_vs_records() {
 # output, all CLOCK_MONOTONIC in the guest: how long from the line's edge
 # to the run's E-STOP notice and to the MCU's report of its safe state (an
 # upper bound: it includes printing and the pipe), for the press and for
-# the line that went away. The replayed commands must hold the e-stop from
+# the line that went away. The press must bring the MCU to its safe state
+# within 250 ms of the edge: the loop watchdog's default bound, the
+# slowest way to safety the sink promises (natively it takes a few ms,
+# tests/test_actuators.c; TCG runs 10 to 50 times slower). The replayed commands must hold the e-stop from
 # the press to the release and from the chip's going to the end.
 estop_report() {
     "$CHECK_REC" --events "out/$1.isorec" >"$1.events"
@@ -113,9 +116,21 @@ estop_report() {
                 (press - m["press"]) / 1e6, (stop1 - press) / 1e6, (safe1 - press) / 1e6, own1
             printf "e-stop line gone: GONE %.1f ms after the chip was removed; E-STOP notice %.1f ms and the MCU safe (reported) %.1f ms after it; the sink: %s\n",
                 (gone - m["vanish"]) / 1e6, (stop2 - m["vanish"]) / 1e6, (safe2 - m["vanish"]) / 1e6, own2
-            # The bound held here: the loop watchdog's default, the slowest
-            # way to safety the sink promises. Natively it takes a few ms
-            # (tests/test_actuators.c); TCG runs 10 to 50 times slower.
             if ((safe1 - press) / 1e6 > 250) { print "the MCU was safe later than 250 ms after the edge"; exit 1 }
         }' || hfail "$1: the press or the vanished line did not bring the MCU to its safe state"
+}
+
+# fb_report NAME: the firmware bridge's course: setpoints the MCU applied,
+# its state changes relative to the cable's unplug and replug (marks), and
+# the run's counts.
+fb_report() {
+    { sed 's/^/M /' out/marks; awk 'NF == 3 && $2 == "state" { printf "S %.0f %s\n", $1 * 1e6, $3 }' out/mcu.log; } |
+        sort -k2 -n | awk '
+        NR == 1 { t0 = $2 }
+        $1 == "M" { printf "  %8.1f ms  cable %s\n", ($2 - t0) / 1e6, $3 }
+        $1 == "S" { printf "  %8.1f ms  MCU %s\n", ($2 - t0) / 1e6, $3 }'
+    grep '^end:' out/mcu.log
+    sed -n 's/.*"actuators": "\([^"]*\)".*/\1/p' "out/$1.json"
+    applied=$(sed -n 's/^end: \([0-9]*\) setpoints applied.*/\1/p' out/mcu.log)
+    [ "${applied:-0}" -gt 0 ] || hfail "$1: the MCU applied no setpoints"
 }

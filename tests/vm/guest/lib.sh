@@ -177,9 +177,9 @@ scene_start() {
         echo $? >/tmp/run.rc
     ) 2>&1 | "$HIDPLAY" stamp "$OUT/$RUN.log" "$OUT/$RUN.stamped" &
     RUN_JOB=$!
-    wait_line "$OUT/$RUN.log" "device 0:" || fail "isoshape run did not open its devices: $(cat "$OUT/$RUN.log")"
+    wait_line "$OUT/$RUN.log" "${SCENE_UP:-device 0:}" || fail "isoshape run did not start: $(cat "$OUT/$RUN.log")"
     ISO_PID=$(pidof isoshape)
-    note "isoshape run is up: $(grep 'device 0:' "$OUT/$RUN.log")"
+    note "isoshape run is up: $(grep "${SCENE_UP:-device 0:}" "$OUT/$RUN.log" | head -1)"
 }
 # scene_stop: SIGTERM, as a user's Ctrl-C or a service manager would: the
 # run ends after its tick, closes the recording whole, prints its summary
