@@ -99,24 +99,16 @@ rm -f "$meta_err"
 [ -n "$kver" ] && [ -n "$ver" ] || skip "linux-image-amd64 depends on '$dep', not on a versioned image"
 upstream=$(echo "$ver" | sed 's/^\([0-9]*\.[0-9]*\).*/\1/') # 6.1
 kdir="$vm/kernel/$kver"
-if [ ! -f "$kdir/ready" ]; then
-    rm -rf "$kdir"
-    mkdir -p "$kdir"
-    flavour=${kver##*-}          # amd64
-    common=${kver%-"$flavour"}   # 6.1.0-NN
-    need="$pkg=$ver linux-headers-$kver=$ver linux-headers-$common-common=$ver linux-kbuild-$upstream=$ver linux-source-$upstream=$ver udev"
-    # shellcheck disable=SC2086
-    fetch $need || skip "cannot download $need from the Debian archive"
-    say "downloaded $pkg $ver and its build packages in $(elapsed "$t") s"
-    t=$(date +%s.%N)
-
+# The image's half: vmlinux, and the modules the tests load with their
+# dependencies (runs beside build_gpio_sim: each is mostly xz).
+prepare_image() {
     img=$(ls "$debs/${pkg}_${ver}"_*.deb 2>/dev/null | head -1)
     [ -n "$img" ] || img=$(ls "$debs/$pkg"_*.deb | head -1)
     x="$kdir/x"
     mkdir -p "$x"
     # Only the bzImage and the module folders the tests use are written.
     dpkg-deb --fsys-tarfile "$img" |
-        tar -x -C "$x" --wildcards './boot/vmlinuz-*' './boot/config-*' \
+        tar -x -C "$x" --wildcards './boot/vmlinuz-*' \
             "./lib/modules/$kver/kernel/drivers/hid/*" "./lib/modules/$kver/kernel/drivers/usb/*" \
             "./lib/modules/$kver/kernel/drivers/input/*" "./lib/modules/$kver/kernel/fs/configfs/*" \
             "./lib/modules/$kver/modules.builtin" "./lib/modules/$kver/modules.order"
@@ -127,10 +119,42 @@ if [ ! -f "$kdir/ready" ]; then
     [ -n "$off" ] || skip "no xz stream in $bz (was the kernel built with another compressor?)"
     tail -c +$((off + 1)) "$bz" | xz -dc --single-stream >"$kdir/vmlinux" 2>/dev/null || true
     head -c 4 "$kdir/vmlinux" | grep -q 'ELF' || skip "could not extract vmlinux from $bz"
-    say "kernel $kver: vmlinux extracted in $(elapsed "$t") s"
-    t=$(date +%s.%N)
+    m="$kdir/modules/lib/modules/$kver"
+    mkdir -p "$m/extra"
+    want="uhid hid-generic hid-logitech usbhid evdev configfs dummy_hcd libcomposite usb_f_hid usb_f_acm cdc-acm"
+    done_list=" "
+    while [ -n "$want" ]; do
+        next=""
+        for name in $want; do
+            case "$done_list" in *" $name "*) continue ;; esac
+            done_list="$done_list$name "
+            # module names treat - and _ alike; files use either
+            pat=$(echo "$name" | sed 's/[-_]/[-_]/g')
+            f=$(find "$x/lib/modules/$kver/kernel" -name "$pat.ko" | head -1)
+            [ -n "$f" ] || skip "module $name is not in $pkg"
+            rel=${f#"$x/lib/modules/$kver/"}
+            mkdir -p "$m/$(dirname "$rel")"
+            strip --strip-debug -o "$m/$rel" "$f"
+            # the .modinfo section's depends= string (busybox modinfo
+            # would look for the running kernel's modules.dep)
+            deps=$(tr '\0' '\n' <"$f" | sed -n 's/^depends=//p' | head -1 | tr ',' ' ')
+            next="$next $deps"
+        done
+        want=$next
+    done
+    cp "$x/lib/modules/$kver/modules.builtin" "$x/lib/modules/$kver/modules.order" "$m/"
+    # udev's daemon: the package's systemd-udevd is a link to udevadm, which
+    # acts as the daemon when called by that name.
+    mkdir -p "$kdir/udev"
+    dpkg-deb -x "$(ls "$debs"/udev_*.deb | tail -1)" "$kdir/udev"
+    [ -x "$kdir/udev/bin/udevadm" ] || skip "the udev package has no bin/udevadm"
+    rm -f "$kdir/udev/lib/systemd/systemd-udevd"
+    cp "$kdir/udev/bin/udevadm" "$kdir/udev/lib/systemd/systemd-udevd"
+    rm -rf "$x"
+}
 
-    # ---- 2. gpio-sim, out of tree --------------------------------------------
+# ---- 2. gpio-sim, out of tree ----------------------------------------------------
+build_gpio_sim() {
     h="$kdir/headers"
     mkdir -p "$h"
     for d in "$debs/linux-headers-${kver}_${ver}"_*.deb "$debs/linux-headers-${common}-common_${ver}"_*.deb \
@@ -163,46 +187,29 @@ if [ ! -f "$kdir/ready" ]; then
     printf 'obj-m := gpio-sim.o\ngpio-sim-y := gpio-sim-main.o irq_sim.o\n' >"$gs/Kbuild"
     make -s -C "$hk" M="$gs" modules >"$gs/build.log" 2>&1 ||
         { tail -20 "$gs/build.log"; skip "gpio-sim did not build against linux-headers-$kver (log: $gs/build.log)"; }
-    say "gpio-sim built out of tree in $(elapsed "$t") s"
-    t=$(date +%s.%N)
+    rm -rf "$h"
+}
 
-    # ---- the module closure -----------------------------------------------
+if [ ! -f "$kdir/ready" ]; then
+    rm -rf "$kdir"
+    mkdir -p "$kdir"
+    flavour=${kver##*-}          # amd64
+    common=${kver%-"$flavour"}   # 6.1.0-NN
+    need="$pkg=$ver linux-headers-$kver=$ver linux-headers-$common-common=$ver linux-kbuild-$upstream=$ver linux-source-$upstream=$ver udev"
+    # shellcheck disable=SC2086
+    fetch $need || skip "cannot download $need from the Debian archive"
+    say "downloaded $pkg $ver and its build packages in $(elapsed "$t") s"
+    t=$(date +%s.%N)
+    # Both halves at once (each exits 77 through skip, leaving the reason).
+    (prepare_image) &
+    image_job=$!
+    (build_gpio_sim) || { wait "$image_job"; exit 77; }
+    wait "$image_job" || exit 77
+    say "kernel $kver: vmlinux, modules and gpio-sim (built out of tree) ready in $(elapsed "$t") s"
     m="$kdir/modules/lib/modules/$kver"
-    mkdir -p "$m/extra"
-    strip --strip-debug -o "$m/extra/gpio-sim.ko" "$gs/gpio-sim.ko"
-    want="uhid hid-generic hid-logitech usbhid evdev configfs dummy_hcd libcomposite usb_f_hid usb_f_acm cdc-acm"
-    done_list=" "
-    while [ -n "$want" ]; do
-        next=""
-        for name in $want; do
-            case "$done_list" in *" $name "*) continue ;; esac
-            done_list="$done_list$name "
-            # module names treat - and _ alike; files use either
-            pat=$(echo "$name" | sed 's/[-_]/[-_]/g')
-            f=$(find "$x/lib/modules/$kver/kernel" -name "$pat.ko" | head -1)
-            [ -n "$f" ] || skip "module $name is not in $pkg"
-            rel=${f#"$x/lib/modules/$kver/"}
-            mkdir -p "$m/$(dirname "$rel")"
-            strip --strip-debug -o "$m/$rel" "$f"
-            # the .modinfo section's depends= string (busybox modinfo
-            # would look for the running kernel's modules.dep)
-            deps=$(tr '\0' '\n' <"$f" | sed -n 's/^depends=//p' | head -1 | tr ',' ' ')
-            next="$next $deps"
-        done
-        want=$next
-    done
-    cp "$x/lib/modules/$kver/modules.builtin" "$x/lib/modules/$kver/modules.order" "$m/"
+    strip --strip-debug -o "$m/extra/gpio-sim.ko" "$kdir/gpio-sim/gpio-sim.ko"
     "$bb" depmod -b "$kdir/modules" "$kver"
-    # udev's daemon: the package's systemd-udevd is a link to udevadm, which
-    # acts as the daemon when called by that name.
-    mkdir -p "$kdir/udev"
-    dpkg-deb -x "$(ls "$debs"/udev_*.deb | tail -1)" "$kdir/udev"
-    [ -x "$kdir/udev/bin/udevadm" ] || skip "the udev package has no bin/udevadm"
-    rm -f "$kdir/udev/lib/systemd/systemd-udevd"
-    cp "$kdir/udev/bin/udevadm" "$kdir/udev/lib/systemd/systemd-udevd"
-    rm -rf "$x" "$h"
     echo "$pkg $ver" >"$kdir/ready"
-    say "modules and udevd ready in $(elapsed "$t") s"
 fi
 
 # ---- 3. the base initramfs --------------------------------------------------
