@@ -228,22 +228,30 @@ static void motion(spn *c, const spnav_event *ev, int16_t d[6])
     c->t_motion = iso_clock_ns();
 }
 
-/* A relative device quiet for ISO_DEV_SPNAV_REST_NS since the last read
- * that brought motion is at rest: appends that, once (the silence is at
- * least now - t_motion, as the read drains every event it can). */
-static void rest_if_due(spn *c, iso_dev_chunk *out, int64_t now)
+/* Records the rest of a relative device that went quiet, once: a motion
+ * record of zeros, quiet_ms in its period field; the values spacenavd
+ * keeps from now on count as 0 until they change. */
+static void rest(spn *c, iso_dev_chunk *out, unsigned quiet_ms)
 {
-    if (!c->relative || !c->moving || now - c->t_motion < ISO_DEV_SPNAV_REST_NS ||
-        (unsigned)out->len + 15u > ISO_DEV_CHUNK_MAX)
+    if ((unsigned)out->len + 15u > ISO_DEV_CHUNK_MAX)
         return;
     static const int16_t zero[6] = {0};
-    put_motion(out->data + out->len, zero, (unsigned)((now - c->t_motion) / 1000000));
+    put_motion(out->data + out->len, zero, quiet_ms);
     out->len += 15;
     memcpy(c->kept, c->raw, sizeof c->kept);
     c->masked = 0;
     for (int i = 0; i < 6; i++)
         c->masked |= c->raw[i] ? 1u << i : 0;
     c->moving = 0;
+}
+
+/* Quiet for ISO_DEV_SPNAV_REST_NS since the last read that brought motion
+ * (each read drains every event it can, so the device was silent at
+ * least that long): at rest. */
+static void rest_if_due(spn *c, iso_dev_chunk *out, int64_t now)
+{
+    if (c->relative && c->moving && now - c->t_motion >= ISO_DEV_SPNAV_REST_NS)
+        rest(c, out, (unsigned)((now - c->t_motion) / 1000000));
 }
 
 static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
@@ -253,7 +261,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
     out->len = 0;
     const char *why = NULL;
     spnav_event ev;
-    while ((unsigned)out->len + 18u <= ISO_DEV_CHUNK_MAX) {
+    while ((unsigned)out->len + 30u <= ISO_DEV_CHUNK_MAX) { /* a rest and a motion */
         int st = socket_state(spnav_fd(), &why);
         if (st <= 0)
             break;
@@ -262,9 +270,14 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
             break;
         uint8_t *p = out->data + out->len;
         if (type == SPNAV_EVENT_MOTION) {
+            /* spacenavd's period is the time since its previous motion
+             * event: a silence this long came before this one, however
+             * late this read (a slow tick) sees it. */
+            if (c->relative && c->moving && ev.motion.period >= ISO_DEV_SPNAV_REST_NS / 1000000)
+                rest(c, out, ev.motion.period);
             int16_t d[6];
             motion(c, &ev, d);
-            put_motion(p, d, ev.motion.period);
+            put_motion(out->data + out->len, d, ev.motion.period);
             out->len += 15;
         } else if (type == SPNAV_EVENT_BUTTON) {
             /* a button after the silence: the rest came first */

@@ -320,8 +320,10 @@ ISO_API size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t
  *    value, so spacenavd keeps each axis's last non-zero one and sends it
  *    again with the next event of any axis. A deflected device reports
  *    every poll, so silence means the cap is at rest: after
- *    ISO_DEV_SPNAV_REST_NS without motion the backend reports rest itself
- *    (a recorded 'M' record of zeros), and from then on takes an axis
+ *    ISO_DEV_SPNAV_REST_NS without motion (reads that find none for that
+ *    long, or spacenavd's period on the next motion, whichever tells
+ *    first) the backend reports rest itself (a recorded 'M' record of
+ *    zeros, before that next motion), and from then on takes an axis
  *    that still shows the value spacenavd kept as 0, until it changes.
  *    Values spacenavd kept from before the connection cannot be told.
  *    spacenavd's dead zone (|v| < 2 is 0), its sensitivity and any

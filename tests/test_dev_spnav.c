@@ -318,7 +318,9 @@ static int next_motion(iso_dev_source *s, int16_t ax[6], int64_t *t, double limi
  * negates); its evdev node is not known, so the axes count as relative.
  * The motion comes back in the device's frame; when it stops, rest is
  * reported once, 200 ms on; the values spacenavd keeps from before count
- * as 0 in its next event, and only the axis that changed moves. */
+ * as 0 in its next event, and only the axis that changed moves. Both ways
+ * of seeing the silence: reads that find nothing for 200 ms, and the
+ * period of the motion after it. */
 static void device_frame_and_inferred_rest(void **state)
 {
     (void)state;
@@ -356,6 +358,32 @@ static void device_frame_and_inferred_rest(void **state)
     printf("spnav: rest reported %.0f ms after the first motion (inferred after %.0f ms of "
            "silence)\n",
            quiet_ms, ISO_DEV_SPNAV_REST_NS / 1e6);
+    iso_dev_source_close(s);
+    standin_kill(pid);
+
+    /* Again, reading nothing through the silence (a tick that takes
+     * longer than it): spacenavd's period on the next motion says there
+     * was one, and rest comes before that motion in the same read. */
+    pid = standin_start(path, -1);
+    assert_int_equal(iso_dev_spnav_open(&s, &err), ISO_OK);
+    assert_int_equal(next_motion(s, ax, &t_move, 2000), 0);
+    usleep(800000);
+    iso_dev_chunk c;
+    assert_int_equal(iso_dev_source_read(s, iso_clock_ns(), &c, &err), 1);
+    int16_t seen[8][6];
+    int n = 0;
+    for (unsigned i = 0; i + 15 <= c.len && n < 8; i += 15) {
+        assert_int_equal(c.data[i], 'M');
+        for (int k = 0; k < 6; k++)
+            seen[n][k] = (int16_t)(uint16_t)(c.data[i + 1 + 2 * k] | c.data[i + 2 + 2 * k] << 8);
+        n++;
+    }
+    /* the motion's repeats the first read left, then rest, then x alone */
+    assert_true(n >= 2 && n <= 4);
+    for (int k = 0; k < n - 2; k++)
+        assert_memory_equal(seen[k], device, sizeof device);
+    assert_memory_equal(seen[n - 2], rest, sizeof rest);
+    assert_memory_equal(seen[n - 1], x_only, sizeof x_only);
     iso_dev_source_close(s);
     standin_kill(pid);
     unlink(path);
