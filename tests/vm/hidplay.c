@@ -219,10 +219,12 @@ static void send_report(const uint8_t *r, size_t n)
         memcpy(ev.u.input2.data, r, n);
         ok = g.created && uhid_write(&ev) == 0;
     } else {
-        /* The host takes a report when it polls; an unplugged or unread
-         * gadget does not, and the report is dropped, as a device's would. */
+        /* The host takes a report when it polls (a device's queue waits
+         * for it, however slow the host: TCG can take tenths of a second);
+         * an unplugged gadget does not, and the report is dropped, as a
+         * device's would be. */
         struct pollfd p = {g.fd, POLLOUT, 0};
-        ok = poll(&p, 1, 50) == 1 && write(g.fd, r, n) == (ssize_t)n;
+        ok = poll(&p, 1, 1000) == 1 && write(g.fd, r, n) == (ssize_t)n;
     }
     if (ok)
         g.sent++;

@@ -57,7 +57,7 @@ check_sequence() {
 # kill): the tick period plus the longest tick of that run (its summary),
 # the stated bound; prints the measured time.
 gone_within() {
-    kill_ns=$(sed -n 's/^\([0-9]*\) mark kill$/\1/p' "out/hidplay.$1.log")
+    kill_ns=$(sed -n 's/^\([0-9]*\) kill$/\1/p' out/marks)
     gone_ns=$(sed -n 's/^GONE src 0 at \([0-9]*\) ns$/\1/p' "$1.check" | head -1)
     [ -n "$kill_ns" ] && [ -n "$gone_ns" ] || hfail "$1: no kill mark or no GONE record"
     awk -v k="$kill_ns" -v g="$gone_ns" -v j="$(cat "out/$1.json")" 'BEGIN {

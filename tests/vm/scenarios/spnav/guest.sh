@@ -19,15 +19,16 @@ for layout in abs rel; do
         # The cap held over to one side; the daemon killed under it.
         hid_send "axes 0 0 0 0 0 200 3000"
         usleep 800000
-        hid "mark kill"
+        mark kill
         spacenavd_kill
         note "spacenavd killed"
         hid_wait
         wait_line "$OUT/$layout.log" "went away" || fail "the run did not notice spacenavd was gone"
         hid "axes 0 0 0 0 0 0 200"
         spacenavd_start
-        wait_line "$OUT/$layout.log" "is back" || fail "the run did not pick spacenavd up again"
-        hid "mark back"
+        # (not "is back" alone: the went-away line says "until it is back")
+        wait_line "$OUT/$layout.log" "spacenavd is back" || fail "the run did not pick spacenavd up again"
+        mark back
         hid "play /test/after.seq"
     fi
     scene_stop

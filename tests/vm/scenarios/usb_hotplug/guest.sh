@@ -28,7 +28,8 @@ mark plug
 gadget_plug sn
 wait_cmd hidraw_of 046D C626 || fail "no hidraw node after the replug"
 mark hidraw-back
-wait_line "$OUT/usb.log" "is back" || fail "the run did not pick the device up again"
+# (not "is back" alone: the went-away line says "until it is back")
+wait_line "$OUT/usb.log" "hidraw[0-9]* is back" || fail "the run did not pick the device up again"
 mark run-back
 hid_wait
 hid "axes 250 0 0 0 0 0 400"
