@@ -28,7 +28,8 @@ replay_scene() {
 
 # replay_same_bits NAME [SCENE]: the VM's live run NAME and the host's
 # replay of its recording move the mesh to the same bits (the vertices'
-# checksum). SCENE: the scenario's scene.yaml unless given.
+# checksum), and `isoshape replay` gives the same commands checksum here as
+# in the VM. SCENE: the scenario's scene.yaml unless given.
 replay_same_bits() {
     replay_scene "$1" "${2:-$SCEN/scene.yaml}"
     "$ISO_BIN" run "$1.yaml" --fast --no-display >"$1.replay.log" 2>&1 ||
@@ -39,6 +40,11 @@ replay_same_bits() {
     echo "$1: vertices checksum: VM live run $live, host replay $here (live sub-steps: ${sub:-?})"
     [ -n "$live" ] && [ "$live" = "$here" ] ||
         { cat "$1.replay.log"; hfail "$1: the host's replay does not give the VM run's vertices"; }
+    "$ISO_BIN" replay "out/$1.isorec" --fast >"$1.cmds" 2>&1 || { cat "$1.cmds"; hfail "isoshape replay $1 failed"; }
+    vm_cmds=$(sed -n 's/.*commands checksum \([0-9a-f]*\).*/\1/p' "out/$1.replay")
+    host_cmds=$(sed -n 's/.*commands checksum \([0-9a-f]*\).*/\1/p' "$1.cmds")
+    echo "$1: isoshape replay's commands checksum: in the VM $vm_cmds, on the host $host_cmds"
+    [ -n "$vm_cmds" ] && [ "$vm_cmds" = "$host_cmds" ] || hfail "$1: isoshape replay gives other commands here than in the VM"
 }
 
 # check_sequence NAME SEQ: the recording out/NAME.isorec holds the

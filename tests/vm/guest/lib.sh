@@ -191,6 +191,11 @@ scene_stop() {
     cat "$OUT/$RUN.log"
     [ "$st" = 143 ] || fail "isoshape run exited $st after SIGTERM, not 143"
     grep -q "vertices checksum" "$OUT/$RUN.log" || fail "isoshape run printed no summary"
+    # the recording's commands here, to be compared with the host's (a
+    # scene without devices records nothing)
+    if [ -f "$OUT/$RUN.isorec" ]; then
+        "$ISO" replay "$OUT/$RUN.isorec" --fast >"$OUT/$RUN.replay" 2>&1 || fail "isoshape replay failed here"
+    fi
 }
 
 # gadget_remove NAME: unplugged already; takes its configfs tree down.
