@@ -302,7 +302,13 @@ ISO_API size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t
  * are the device's own: its HID report's X Y Z Rx Ry Rz, in its counts
  * (about ±350 on the 3Dconnexion family), from either backend:
  *  - hidraw (hidapi) gives the report's bytes, whatever the kernel makes
- *    of the device for evdev (the same bytes in every layout below);
+ *    of the device for evdev (the same bytes in every layout below). It
+ *    keeps 63 reports per reader and drops the newest when full: a tick
+ *    slower than that lasts (about 0.25 s at a mouse's 125 reports a
+ *    second) can lose the cap's return to rest. A deflected device keeps
+ *    reporting, a released one falls silent: so a drain that found the
+ *    buffer full, followed by one that finds nothing, ends with a report of
+ *    rest (13 bytes, ID 1, zeros);
  *  - spacenavd reads evdev and changes the axes; the spnav backend undoes
  *    it (iso_dev_spnav_to_device), so a scene maps a device the same
  *    through either. What spacenavd (1.1) does, and what the kernel

@@ -248,6 +248,12 @@ static int check_ticks(const char *path)
         fail("ticks whose twist is not the mapping of the state the recording holds at them");
     if (w[0] || w[1] || w[2] || v[0] || v[1] || v[2])
         fail("the last tick still moves");
+    int deflected = 0;
+    for (int j = 0; j < n_seq; j++)
+        for (int i = 0; i < 6; i++)
+            deflected |= seq[j].a[i] != 0 && !(seq[j].b & 1);
+    if (deflected && !moving)
+        fail("the sequence deflects the cap but no tick moved the handle");
     return 0;
 }
 

@@ -27,10 +27,13 @@
  *   axes TX TY TZ RX RY RZ MS / buttons MASK MS    one step
  *   destroy / create                               uhid: unplug, plug in
  *   mark TEXT      logs TEXT with the time (for bounds measured on the host)
+ *   repeat MS      a deflection is sent again every MS ms (40 unless set)
  *   quit
  * A sequence file has one step a line: `axes tx ty tz rx ry rz hold_ms` or
  * `buttons mask hold_ms`; # starts a comment. A step with a deflection is
- * sent again every 16 ms while it is held, as a device does; a rest or a
+ * sent again every 40 ms (`repeat`) while it is held, as a device does (a
+ * real one every 8 ms or so; slower here, so that hidraw's 63 reports
+ * outlast an emulated tick); a rest or a
  * button change once. Every report sent is logged to LOG with its
  * CLOCK_MONOTONIC time. */
 #define _GNU_SOURCE
@@ -44,8 +47,6 @@
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
-
-#define REPEAT_MS 16
 
 /* Logical [-350, 350], physical [-1400, 1400], then the unit items
  * (exponent -4, centimetres) that only some devices have. */
@@ -64,6 +65,7 @@ static struct {
     long sent, dropped;
     int16_t axes[6];
     uint16_t buttons;
+    int repeat_ms; /* a deflection is sent again this often (40) */
 } g;
 
 static int64_t now_ns(void)
@@ -275,7 +277,7 @@ static int step(const char *line)
         int64_t end = now_ns() + (int64_t)ms * 1000000;
         do {
             send_state(1, 0);
-            int64_t next = now_ns() + REPEAT_MS * 1000000LL;
+            int64_t next = now_ns() + g.repeat_ms * 1000000LL;
             wait_until(deflected && next < end ? next : end);
         } while (deflected && now_ns() < end);
         return 0;
@@ -314,6 +316,10 @@ static int command(char *line)
         return play(line + 5);
     if (strncmp(line, "axes ", 5) == 0 || strncmp(line, "buttons ", 8) == 0)
         return step(line);
+    if (strncmp(line, "repeat ", 7) == 0) {
+        g.repeat_ms = atoi(line + 7);
+        return g.repeat_ms > 0 ? 0 : -1;
+    }
     if (strncmp(line, "mark ", 5) == 0) {
         fprintf(g.log, "%lld mark %s\n", (long long)now_ns(), line + 5);
         return 0;
@@ -393,6 +399,7 @@ int main(int argc, char **argv)
         return fwrite(g.desc, 1, g.desc_len, stdout) == g.desc_len ? 0 : 1;
     }
     const char *log;
+    g.repeat_ms = 40;
     if (argc == 6 && strcmp(argv[1], "uhid") == 0) {
         g.uhid = 1;
         g.vid = (uint16_t)strtoul(argv[2], NULL, 16);

@@ -47,13 +47,15 @@ replay_same_bits() {
     [ -n "$vm_cmds" ] && [ "$vm_cmds" = "$host_cmds" ] || hfail "$1: isoshape replay gives other commands here than in the VM"
 }
 
-# check_sequence NAME SEQ: the recording out/NAME.isorec holds the
-# sequence the guest played (check_rec.c), mapped with the scenes'
-# sensitivity.
+# check_sequence NAME SEQ [LIN ROT]: the recording out/NAME.isorec holds
+# the sequence the guest played (check_rec.c), mapped with the scenes'
+# sensitivity (or LIN and ROT).
 check_sequence() {
-    "$ISO_BIN" replay "out/$1.isorec" --fast --print-ticks --sensitivity "$VM_LIN,$VM_ROT" \
+    lin=${3:-$VM_LIN}
+    rot=${4:-$VM_ROT}
+    "$ISO_BIN" replay "out/$1.isorec" --fast --print-ticks --sensitivity "$lin,$rot" \
         >"$1.ticks" 2>"$1.ticks.err" || { cat "$1.ticks.err"; hfail "isoshape replay --print-ticks failed"; }
-    "$CHECK_REC" "$VM_DATA/$2" "out/$1.isorec" "$1.ticks" "$VM_LIN" "$VM_ROT" | tee "$1.check"
+    "$CHECK_REC" "$VM_DATA/$2" "out/$1.isorec" "$1.ticks" "$lin" "$rot" | tee "$1.check"
     grep -q "^check_rec: the recording is the sequence" "$1.check" ||
         hfail "$1: the recording is not the sequence played"
 }
