@@ -18,6 +18,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <glob.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -335,28 +336,73 @@ static int axis_bits(const char *dir, const char *kind)
     return (int)(strtoul(last ? last + 1 : line, NULL, 16) & 0x3f);
 }
 
-/* What spacenavd serves us (protocol 1): its USB id and evdev node, then
- * from sysfs the node's axis kind and the HID descriptor's range. Anything
- * it cannot learn stays at the safe assumption: swapped, relative. */
+/* A hex id from sysfs (id/vendor, id/product), or -1. */
+static long sysfs_hex(const char *dir, const char *name)
+{
+    char path[320], line[32];
+    snprintf(path, sizeof path, "%s/id/%s", dir, name);
+    sysfs_line(path, line, sizeof line);
+    return line[0] ? strtol(line, NULL, 16) : -1;
+}
+
+/* The evdev node's input device folder in sysfs for the 3D mouse
+ * spacenavd serves: the node it named if it did, else the only known 3D
+ * mouse with six axes among the input devices (the one it reads), of its
+ * USB id when it gave one. 1 when found. */
+static int find_input(const char *node, unsigned vid, unsigned pid, char dir[256])
+{
+    const char *ev = strrchr(node, '/');
+    if (ev && strncmp(ev + 1, "event", 5) == 0) {
+        snprintf(dir, 256, "/sys/class/input/%s/device", ev + 1);
+        return 1;
+    }
+    glob_t gl;
+    if (glob("/sys/class/input/event*", 0, NULL, &gl) != 0)
+        return 0;
+    int found = 0;
+    for (size_t i = 0; i < gl.gl_pathc && found < 2; i++) {
+        char d[256];
+        snprintf(d, sizeof d, "%s/device", gl.gl_pathv[i]);
+        long v = sysfs_hex(d, "vendor"), p = sysfs_hex(d, "product");
+        if (v < 0 || p < 0 || !iso_dev_is_3dmouse((uint16_t)v, (uint16_t)p) ||
+            (vid && (v != (long)vid || p != (long)pid)) ||
+            (axis_bits(d, "abs") != 0x3f && axis_bits(d, "rel") != 0x3f))
+            continue;
+        if (found++ == 0)
+            memcpy(dir, d, sizeof d);
+    }
+    globfree(&gl);
+    return found == 1;
+}
+
+/* What spacenavd serves us: its USB id and evdev node (protocol 1), else
+ * the one 3D mouse the input devices hold; from sysfs the node's axis kind
+ * and the HID descriptor's range. The daemon's answers are not needed (an
+ * old daemon, or one too busy to answer within libspnav's 400 ms after a
+ * restart, gives none). Anything not learnt stays at the safe assumption:
+ * swapped, relative. */
 static void learn_layout(iso_dev_source *s, spn *c)
 {
     unsigned vid = 0, pid = 0;
-    char node[ISO_DEV_NAME_MAX] = "";
+    char node[ISO_DEV_NAME_MAX] = "", dir[256];
     if (spnav_protocol() >= 1) {
         if (spnav_dev_usbid(&vid, &pid) == -1)
             vid = pid = 0;
         if (spnav_dev_path(node, sizeof node) == -1)
             node[0] = '\0';
     }
+    c->relative = 1;
+    int known = find_input(node, vid, pid, dir);
+    if (known && !vid) {
+        vid = (unsigned)sysfs_hex(dir, "vendor");
+        pid = (unsigned)sysfs_hex(dir, "product");
+    }
     s->info.vid = (uint16_t)vid;
     s->info.pid = (uint16_t)pid;
     c->layout.swap_yz = iso_dev_spnav_swaps_yz(s->info.vid, s->info.pid);
-    c->relative = 1;
-    const char *ev = strrchr(node, '/');
-    if (!ev || strncmp(ev + 1, "event", 5) != 0)
+    if (!known)
         return;
-    char dir[256], path[320];
-    snprintf(dir, sizeof dir, "/sys/class/input/%s/device", ev + 1);
+    char path[320];
     snprintf(path, sizeof path, "%s/device/report_descriptor", dir);
     FILE *f = fopen(path, "rb");
     if (f) {

@@ -335,10 +335,11 @@ ISO_API size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t
  *    spacenavd's dead zone (|v| < 2 is 0), its sensitivity and any
  *    remapping in /etc/spnavrc stay in effect.
  * Which device and layout spacenavd serves comes from the daemon
- * (protocol 1: its USB id and evdev node) and sysfs (the node's axis
- * capabilities, the HID descriptor's range); without them the backend
- * assumes a swapping device with relative axes, which fails safe (a rest
- * inferred too early stops motion; one never inferred would not).
+ * (protocol 1: its USB id and evdev node) or, when it does not say, from
+ * the one 3D mouse among the input devices, and from sysfs (the node's
+ * axis capabilities, the HID descriptor's range); without them the
+ * backend assumes a swapping device with relative axes, which fails safe
+ * (a rest inferred too early stops motion; one never inferred would not).
  * hidapi (0.13) lists a device once per collection that has a usage: a
  * SpaceNavigator's hidraw node three times. It is one device: isoshape
  * devices lists it once. */
