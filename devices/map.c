@@ -268,18 +268,23 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             break;
         case ISO_DEV_EV_GPIO:
             if (e->line == ISO_DEV_GPIO_ESTOP) {
-                m->estop = e->level;
+                s->estop_line = 1;
+                s->estop = e->level;
             } else if (e->line == ISO_DEV_GPIO_CLUTCH) {
                 gpio_clutch = e->level ? 2 : 0;
                 if (e->level)
                     out->actions |= (uint32_t)1 << ISO_DEV_ACT_CLUTCH;
             }
             break;
-        case ISO_DEV_EV_GONE:
-            /* Its handles hold still until it is back. */
+        case ISO_DEV_EV_GONE: {
+            /* Its handles hold still until it is back; its e-stop line,
+             * if it had one, counts as pressed until it reads released. */
+            uint8_t line = s->estop_line;
             memset(s, 0, sizeof *s);
+            s->estop_line = s->estop = line;
             m->gone |= bit;
             break;
+        }
         case ISO_DEV_EV_BACK: m->gone &= ~bit; break;
         default: break;
         }
@@ -292,8 +297,11 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             out->stale |= (uint32_t)1 << i;
     }
     uint32_t buttons = 0;
-    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
+    m->estop = 0;
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         buttons |= m->src[i].buttons;
+        m->estop |= m->src[i].estop;
+    }
     m->clutch = (uint8_t)(gpio_clutch | clutch_from_buttons(m, buttons));
     out->active = m->active;
     out->clutch = m->clutch != 0;
