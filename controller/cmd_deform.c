@@ -39,30 +39,41 @@ typedef struct deform_args {
 /* Options                                                                    */
 /* ------------------------------------------------------------------------ */
 
+/* One part of --restore MU,TAU, held to the solver's range for `setting`
+ * (the one a scene's solver.restore is held to). */
+static int restore_part(const char *name, const char *setting, const char *text, double *out,
+                        char *why, size_t cap)
+{
+    static const iso_range any = {0}; /* TAU when MU is 0: a number, unused */
+    char said[160];
+    if (iso_range_parse(setting ? iso_solver_range(setting) : &any, text, out, said, sizeof said) ==
+        0)
+        return 0;
+    snprintf(why, cap, "%s %s", name, said);
+    return -1;
+}
+
 /* --restore MU,TAU (MU >= 0, TAU > 0 when MU > 0) or off (MU = 0: the
  * paper's method exactly), into the solver options at dst. */
 static int set_restore(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
 {
     iso_solver_opts *so = dst;
+    char mu[64];
     (void)o;
     if (strcmp(val, "off") == 0) {
         so->restore_mu = so->restore_tau = 0.0;
         return 0;
     }
-    double m, t;
-    char tail;
-    if (sscanf(val, "%lf,%lf%c", &m, &t, &tail) != 2 || !isfinite(m) || !isfinite(t)) {
+    const char *comma = strchr(val, ',');
+    if (!comma || (size_t)(comma - val) >= sizeof mu || strchr(comma + 1, ',')) {
         snprintf(why, cap, "expected MU,TAU (e.g. " RESTORE_DEFAULT_TEXT ") or off");
         return -1;
     }
-    if (!(m >= 0.0)) {
-        snprintf(why, cap, "the weight MU must be >= 0 (0 = off)");
+    snprintf(mu, sizeof mu, "%.*s", (int)(comma - val), val);
+    double m, t = 0.0;
+    if (restore_part("MU", "restore_mu", mu, &m, why, cap) != 0 ||
+        restore_part("TAU", m > 0.0 ? "restore_tau" : NULL, comma + 1, &t, why, cap) != 0)
         return -1;
-    }
-    if (m > 0.0 && !(t > 0.0)) {
-        snprintf(why, cap, "the time constant TAU must be > 0");
-        return -1;
-    }
     so->restore_mu = m;
     so->restore_tau = m > 0.0 ? t : 0.0;
     return 0;

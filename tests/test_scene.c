@@ -82,8 +82,8 @@ static void expect_error(const char *text, int code, ...)
 static void test_examples_load(void **state)
 {
     (void)state;
-    static const char *const names[] = {"cactus",    "bar",          "cylinder",
-                                        "bumpplane", "mouse_cactus", "replay_cactus"};
+    static const char *const names[] = {"cactus",       "bar",           "cylinder",   "bumpplane",
+                                        "mouse_cactus", "replay_cactus", "soak_cactus"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         char path[1100];
         snprintf(path, sizeof path, "%s/%s.yaml", SCENES, names[i]);
@@ -248,8 +248,9 @@ static void test_errors(void **state)
                       "      driver: {screw: {duration: &d 1}}\n",
                  ISO_EPARSE, "regions.handles[0].driver.screw.duration: anchors ('&d')", NULL);
     /* Types. */
-    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: fast\n", ISO_EPARSE,
-                 "bad.yaml:7:10:", "tick_hz", "expected a finite number", NULL);
+    expect_error(
+        BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: fast\n", ISO_EPARSE,
+        "bad.yaml:7:10:", "tick_hz: 'fast' is not a number: expected a value in (0, 100000]", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n  handles: {a: 1}\n", ISO_EPARSE,
                  "regions.handles", "expected a non-empty list", NULL);
     /* Ranges. */
@@ -292,8 +293,9 @@ static void test_errors(void **state)
     /* An enum value with a suggestion; a key of another device kind. */
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "solver: {weighting: aera}\n",
                  ISO_EPARSE, "solver.weighting", "did you mean 'area'", NULL);
-    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n",
-                 ISO_EINVAL, "bad.yaml:", "integrator.cg_share", "[0, 1]", "found 2", NULL);
+    expect_error(
+        BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n", ISO_EINVAL,
+        "bad.yaml:", "integrator.cg_share: '2' is out of range: expected a value in [0, 1]", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {abm: pex}\n", ISO_EPARSE,
                  "integrator.abm", "did you mean 'pec'", NULL);
     expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n"
@@ -303,13 +305,15 @@ static void test_errors(void **state)
     expect_error(BASE "devices: [{name: b, kind: tcp, address: 'h:1', stale_ms: 0}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EINVAL, "bad.yaml:2:", "devices[0].stale_ms",
-                 "expected an integer in [1, 10000], found 0", NULL);
+                 "'0' is out of range: expected an integer in [1, 10000]", NULL);
     expect_error(BASE "devices:\n  - {name: b, kind: serialport, port: /dev/ttyS0,\n"
                       "     stale_ms: 20000}\nregions:\n  sel: builtin\n" HANDLES,
-                 ISO_EINVAL, "bad.yaml:4:16:", "devices[0].stale_ms", "found 20000", NULL);
+                 ISO_EINVAL, "bad.yaml:4:16:", "devices[0].stale_ms: '20000' is out of range",
+                 NULL);
     expect_error(BASE "devices: [{name: b, kind: tty, path: /dev/x, stale_ms: soon}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
-                 ISO_EPARSE, "devices[0].stale_ms", "expected an integer, found 'soon'", NULL);
+                 ISO_EPARSE, "devices[0].stale_ms",
+                 "'soon' is not an integer: expected an integer in [1, 10000]", NULL);
     expect_error(BASE "devices: [{name: m, kind: spnav, stale_ms: 100}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EPARSE, "bad.yaml:2:", "devices[0].stale_ms",
@@ -347,6 +351,119 @@ static void test_errors(void **state)
                  "bad.yaml:4:7:", "explicit keys ('? ') are not supported", NULL);
     /* An empty file. */
     expect_error("", ISO_EPARSE, "bad.yaml:1:1:", "empty", NULL);
+}
+
+/* Regions a bar's scene builds: the shape's own fixed and handle. */
+#define RGN "regions: {sel: builtin, handles: [{driver: none}]}\n"
+
+/* Loads `text` as a scene (files checked); ISO_OK or fails with the message. */
+static void expect_ok(const char *text)
+{
+    iso_scene *s = NULL;
+    iso_err err;
+    if (load_text("ok.yaml", text, &s, &err) != ISO_OK)
+        fail_msg("refused: %s\n%s", err.msg, text);
+    iso_scene_destroy(s);
+}
+
+/* YAML's null is no value: an empty value, ~ or null is refused where a
+ * key is written, at the key's own line and column (an empty value has no
+ * token of its own), with what the key takes; a quoted "~" is text. */
+static void test_null_is_no_value(void **state)
+{
+    (void)state;
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz:\n", ISO_EPARSE,
+                 "bad.yaml:7:1: tick_hz: expected a value in (0, 100000], found an empty value; "
+                 "leave the key out for its default (60)",
+                 NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "recording: ~\n", ISO_EPARSE,
+                 "bad.yaml:7:12: recording: expected a file or folder name, found null ('~')",
+                 NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "name: null\n", ISO_EPARSE,
+                 "bad.yaml:7:7: name: expected a non-empty text, found null;", NULL);
+    expect_error(BASE RGN "sinks:\n  ply:\n    dir:\n    every: 2\n", ISO_EPARSE,
+                 "bad.yaml:5:5: sinks.ply.dir: expected a file or folder name, found an empty "
+                 "value (the key is required)",
+                 NULL);
+    expect_error(BASE RGN "sinks: {display: {snapshot_dir: Null}}\n", ISO_EPARSE,
+                 "bad.yaml:3:33: sinks.display.snapshot_dir:", "found null", NULL);
+    expect_error(BASE RGN "sinks:\n  actuators:\n    link: {tty: ~}\n"
+                          "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 ISO_EPARSE, "bad.yaml:5:17: sinks.actuators.link.tty:", "found null ('~')", NULL);
+    expect_error(BASE RGN "devices:\n  -\n", ISO_EPARSE,
+                 "bad.yaml:3:1: devices[0]: expected a device {name, kind, ...}, found an empty "
+                 "value",
+                 NULL);
+    expect_error(BASE RGN "solver: {restore: ~}\n", ISO_EPARSE,
+                 "bad.yaml:3:19: solver.restore: expected off or {mu, tau}, found null ('~')",
+                 NULL);
+    expect_error("mesh:\n" RGN, ISO_EPARSE, "bad.yaml:1:1: mesh:", "found an empty value",
+                 "(the key is required)", NULL);
+    /* quoted, it is a name like any other */
+    expect_ok(BASE "regions:\n  sel: builtin\n" HANDLES "name: '~'\nrecording: 'null'\n");
+}
+
+/* What `run` would refuse when it opens its sinks and devices, the loader
+ * refuses first, so that `check` says it too, at the key. */
+static void test_run_refusals_are_the_loaders(void **state)
+{
+    (void)state;
+    static const char *const remote[] = {"0.0.0.0", "'::'", "192.168.1.20", NULL};
+    static const char *const bad[] = {"example.com", "'true'", "987654.5", "'1.2.3.4.5'", NULL};
+    static const char *const good[] = {"127.0.0.1", "127.1.2.3", "localhost",
+                                       "'::1'",     "'[::1]'",   NULL};
+    char text[512];
+    for (int i = 0; remote[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s}}\n", remote[i]);
+        expect_error(text, ISO_EINVAL, "bad.yaml:3:2",
+                     "sinks.display.host:", "can be reached from other machines",
+                     "allow_remote: true", NULL);
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s, allow_remote: true}}\n",
+                 remote[i]);
+        expect_ok(text);
+    }
+    for (int i = 0; bad[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s, allow_remote: true}}\n",
+                 bad[i]);
+        expect_error(text, ISO_EINVAL, "bad.yaml:3:2",
+                     "sinks.display.host:", "is not a numeric IPv4 or IPv6 address or localhost",
+                     NULL);
+    }
+    for (int i = 0; good[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s}}\n", good[i]);
+        expect_ok(text);
+    }
+    /* a SETPOINTS frame carries 8 channels; a scale of 0 makes every
+     * position one setpoint; a fixed region that is empty */
+    expect_error(BASE RGN "sinks:\n  actuators:\n    link: emulated\n"
+                          "    channels: [{channel: 8, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 ISO_EINVAL,
+                 "bad.yaml:6:26: sinks.actuators.channels[0].channel: '8' is out of "
+                 "range: expected an integer in [0, 7]",
+                 NULL);
+    expect_error(
+        BASE RGN "sinks:\n  actuators:\n    link: emulated\n"
+                 "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1, scale: 0}]\n",
+        ISO_EINVAL, "bad.yaml:6:72: sinks.actuators.channels[0].scale: '0' is out of range", NULL);
+    expect_error(BASE "regions: {handles: [{select: {vertices: [0]}, driver: none}]}\n"
+                      "sinks:\n  actuators:\n    link: emulated\n"
+                      "    channels: [{channel: 0, region: fixed, axis: x, min: 0, max: 1}]\n",
+                 ISO_ECONSTRAINT,
+                 "bad.yaml:6:17: sinks.actuators.channels[0].region:", "'fixed' has no vertices",
+                 NULL);
+    /* a replay stands for the devices it recorded */
+    snprintf(text, sizeof text,
+             BASE "devices:\n  - {name: r, kind: replay, file: %s/sm_twist.isorec}\n"
+                  "  - {name: m, kind: spnav}\n" RGN,
+             ISO_TEST_STREAMS);
+    expect_error(text, ISO_EINVAL,
+                 "bad.yaml:3:21: devices[0].kind: 'replay' stands for every device", NULL);
+    /* outputs go in folders that exist, checked before the run */
+    expect_error(BASE RGN "sinks: {ply: {dir: no/such/frames}}\n", ISO_EIO,
+                 "bad.yaml:3:20: sinks.ply.dir: cannot write", "folder", "does not exist", NULL);
+    expect_error(BASE RGN "recording: nowhere/r.isorec\n", ISO_EIO,
+                 "bad.yaml:3:12: recording: cannot write", NULL);
+    expect_ok(BASE RGN "sinks: {ply: {dir: frames/}}\nrecording: r.isorec\n");
 }
 
 static void test_distance(void **state)
@@ -446,6 +563,7 @@ static const struct {
     {"solver.restore", "off"},
     {"solver.restore.mu", "0"},
     {"devices[].address", "'h:1'"},
+    {"sinks.display.host", "127.0.0.2"},
     {"sinks.display", "{port: 8081}"},
     {"sinks.display.snapshot_ticks", "[1]"},
     {"sinks.ply", "{dir: out}"},
@@ -499,9 +617,12 @@ static double number_in_range(const scene_key *k)
                 return tries[i];
         fail_msg("%s: no value in the devices layer's range", k->key);
     }
-    if (!k->ranged)
+    iso_range r;
+    if (!iso_scene__range(k, &r))
         return 1;
-    return isinf(k->hi) ? k->lo + 1 : (k->lo + k->hi) / 2;
+    if (!r.hi_end)
+        return r.lo + 1;
+    return r.lo_end ? (r.lo + r.hi) / 2 : r.hi - 1;
 }
 
 /* A value for row k of sec, as YAML, into buf. */
@@ -515,7 +636,12 @@ static const char *sample(const scene_section *sec, const scene_key *k, const ch
             return examples[i].value;
     switch (k->kind) {
     case SK_NUMBER: snprintf(buf, cap, "%.17g", number_in_range(k)); return buf;
-    case SK_INT: snprintf(buf, cap, "%ld", (long)k->lo); return buf;
+    case SK_INT: {
+        iso_range r;
+        iso_scene__range(k, &r);
+        snprintf(buf, cap, "%ld", (long)r.lo + (r.lo_end == ISO_RANGE_OPEN));
+        return buf;
+    }
     case SK_BOOL: return "true";
     case SK_STRING: return "x";
     case SK_FILE: return "f.txt";
@@ -730,19 +856,21 @@ static void out_of_range_values(const scene_key *k, char lo[64], char hi[64])
 {
     static const double tries[] = {-1, 0, 0.995, 11, 2e6};
     char why[128];
+    iso_range r;
     lo[0] = hi[0] = '\0';
     if (k->dev) {
         for (size_t i = 0; i < sizeof tries / sizeof tries[0] && !lo[0]; i++)
             if (iso_dev_map_check(k->dev, tries[i], why, sizeof why) != 0)
                 snprintf(lo, 64, "%g", tries[i]);
-    } else if (k->kind == SK_NUMBER) {
-        snprintf(lo, 64, "%.17g", k->lo_open ? k->lo : k->lo - 1);
-        if (!isinf(k->hi))
-            snprintf(hi, 64, "%.17g", k->hi_open ? k->hi : k->hi + 1);
-    } else {
-        snprintf(lo, 64, k->kind == SK_LIST ? "[%ld]" : "%ld", (long)k->lo - 1);
-        snprintf(hi, 64, k->kind == SK_LIST ? "[%ld]" : "%ld", (long)k->hi + 1);
+        return;
     }
+    iso_scene__range(k, &r);
+    const char *form = k->kind == SK_LIST ? "[%.17g]" : "%.17g";
+    /* an open end is itself out, a closed one 1 past it */
+    if (r.lo_end)
+        snprintf(lo, 64, form, r.lo_end == ISO_RANGE_OPEN ? r.lo : r.lo - 1);
+    if (r.hi_end)
+        snprintf(hi, 64, form, r.hi_end == ISO_RANGE_OPEN ? r.hi : r.hi + 1);
 }
 
 /* Every ranged key refuses a value beyond each end, and every list with a
@@ -755,9 +883,11 @@ static void test_schema_ranges(void **state)
     for (int i = 0; i < n; i++)
         for (const scene_key *k = all[i]->keys; k->key; k++) {
             char lo[64], hi[64], many[512] = "[";
-            if (k->ranged || k->dev) {
+            iso_range r;
+            if (iso_scene__range(k, &r) || k->dev) {
                 out_of_range_values(k, lo, hi);
-                expect_out_of_range(all[i], k, lo);
+                if (lo[0])
+                    expect_out_of_range(all[i], k, lo);
                 if (hi[0])
                     expect_out_of_range(all[i], k, hi);
                 ranged++;
@@ -955,11 +1085,18 @@ static void test_schema_scenes_md(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_examples_load),    cmocka_unit_test(test_check_benchmark),
-        cmocka_unit_test(test_round_trip),       cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_distance),         cmocka_unit_test(test_schema_shape),
-        cmocka_unit_test(test_schema_every_key), cmocka_unit_test(test_schema_unknown_key),
-        cmocka_unit_test(test_schema_ranges),    cmocka_unit_test(test_schema_defaults),
+        cmocka_unit_test(test_examples_load),
+        cmocka_unit_test(test_check_benchmark),
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_distance),
+        cmocka_unit_test(test_schema_shape),
+        cmocka_unit_test(test_null_is_no_value),
+        cmocka_unit_test(test_run_refusals_are_the_loaders),
+        cmocka_unit_test(test_schema_every_key),
+        cmocka_unit_test(test_schema_unknown_key),
+        cmocka_unit_test(test_schema_ranges),
+        cmocka_unit_test(test_schema_defaults),
         cmocka_unit_test(test_schema_scenes_md),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
