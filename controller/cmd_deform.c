@@ -29,7 +29,7 @@
 
 typedef struct deform_args {
     iso_cli__source src;
-    const char *out, *pc2;
+    const char *out, *pc2, *write_problem;
     int json, steps, start;
     double tol;
     iso_solver_opts so;
@@ -117,6 +117,11 @@ static const iso_cli__opt deform_options[] = {
      .help = "write a PC2 point cache for Blender: the rest pose, then a frame per step; the "
              "rest mesh beside it as FILE's name with .rest.ply",
      .nonempty = 1},
+    {"write-problem", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, write_problem), "DIR",
+     .help = "with --shape: write the problem as files into DIR (made if absent), NAME.off (the "
+             "rest mesh), NAME.sel and NAME.def, which --mesh, --sel and --def read back to the "
+             "same bits; then exit without integrating",
+     .nonempty = 1},
     {"reference", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.reference), "REF",
      .help = "also measure REF, another result of the same problem (with --benchmark: the "
              "Laplacian-editing result)"},
@@ -151,6 +156,11 @@ static int check_args(const char *cmd, deform_args *a)
     if (s->benchmark && !iso_cli__bench_known(s->benchmark)) {
         iso_cli__fail(cmd, "--benchmark '%s' is unknown: use cactus, bar, cylinder or bumpplane.",
                       s->benchmark);
+        return 2;
+    }
+    if (a->write_problem && !s->shape) {
+        iso_cli__fail(cmd, "--write-problem writes a built-in shape's problem: give --shape NAME "
+                           "(bar, cylinder, bumpplane or cactus).");
         return 2;
     }
     if (s->bench_dir && !s->benchmark) {
@@ -373,6 +383,24 @@ static int run(const deform_args *a, const iso_cli__problem *p, double *x, repor
     return rc;
 }
 
+/* --write-problem: the built-in shape's files, and one line saying what
+ * they hold. */
+static int write_problem(const deform_args *a, const iso_cli__problem *p, iso_err *err)
+{
+    static char paths[3][ISO_CLI_PATH_MAX];
+    int rc = iso_cli__problem_write(p, a->write_problem, p->shape.name, paths, err);
+    if (rc != ISO_OK)
+        return rc;
+    int nv = iso_mesh_vertex_count(p->mesh), count[3] = {0, 0, 0};
+    for (int v = 0; v < nv; v++)
+        count[p->reg.kind[v] <= ISO_HANDLE ? p->reg.kind[v] : ISO_FREE]++;
+    printf("%s: %d vertices, %d triangles\n", paths[0], nv, iso_mesh_triangle_count(p->mesh));
+    printf("%s: %d fixed, %d free, %d handle\n", paths[1], count[ISO_FIXED], count[ISO_FREE],
+           count[ISO_HANDLE]);
+    printf("%s: the handle's final pose\n", paths[2]);
+    return ISO_OK;
+}
+
 static int deform_main(int argc, char **argv)
 {
     deform_args a;
@@ -389,6 +417,12 @@ static int deform_main(int argc, char **argv)
     double *x = NULL;
     if (iso_cli__problem_load("deform", &a.src, &p, &err) != ISO_OK)
         goto fail;
+    if (a.write_problem) {
+        if (write_problem(&a, &p, &err) != ISO_OK)
+            goto fail;
+        status = 0;
+        goto out;
+    }
     int nv = iso_mesh_vertex_count(p.mesh);
     x = malloc((size_t)nv * 3 * sizeof *x);
     if (!x) {
@@ -424,6 +458,7 @@ const iso_cli__cmd iso_cli__deform_cmd = {
     .summary = "integrate the deformation of a mesh as its handle moves to its final pose",
     .usage = "usage: isoshape deform --mesh M --sel S --def D [options]\n"
              "       isoshape deform --shape NAME [--resolution N] [options]\n"
+             "       isoshape deform --shape NAME [--resolution N] --write-problem DIR\n"
              "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
              "\n"
              "Moves the handle from its rest pose to the pose D along a screw motion and\n"

@@ -275,6 +275,15 @@ int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__
                           iso_err *err);
 void iso_cli__problem_deinit(iso_cli__problem *p);
 
+/* Writes p as the files `deform --mesh --sel --def` reads, into folder dir
+ * (made when absent, one level): NAME.off (the rest mesh, 17 significant
+ * digits, so it reads back to the same bits), NAME.sel (0 fixed, 1 free, 2
+ * handle, one per vertex) and NAME.def (the handle's final pose). Each file
+ * is written whole or not at all (a temporary name, then a rename). Their
+ * paths go into paths[3] (ISO_CLI_PATH_MAX each). */
+int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const char *name,
+                           char paths[3][ISO_CLI_PATH_MAX], iso_err *err);
+
 /* The figures of one run. */
 typedef struct iso_cli__run {
     iso_integrate_stats ist;
