@@ -458,6 +458,11 @@ static void test_run_refusals_are_the_loaders(void **state)
              ISO_TEST_STREAMS);
     expect_error(text, ISO_EINVAL,
                  "bad.yaml:3:21: devices[0].kind: 'replay' stands for every device", NULL);
+    /* a recording run could not read is refused at its key */
+    char junk[512];
+    iso_test_write(iso_test_tmp(junk, sizeof junk, "junk.isorec"), "not a recording at all", -1);
+    expect_error(BASE "devices: [{name: r, kind: replay, file: junk.isorec}]\n" RGN, ISO_EPARSE,
+                 "bad.yaml:2:41: devices[0].file: ", "not an isoshape recording", NULL);
     /* outputs go in folders that exist, checked before the run */
     expect_error(BASE RGN "sinks: {ply: {dir: no/such/frames}}\n", ISO_EIO,
                  "bad.yaml:3:20: sinks.ply.dir: cannot write", "folder", "does not exist", NULL);
