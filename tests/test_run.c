@@ -763,6 +763,9 @@ static void exits_and_files(void **state)
     assert_non_null(
         strstr(g_err, "--out /nonexistent/dir/x.off: cannot write in /nonexistent/dir"));
     assert_null(strstr(g_err, "tick")); /* refused before the run, not after it */
+    assert_int_equal(iso("run '%s' --fast --quiet --record /nonexistent/dir/r.isorec", scene), 1);
+    assert_non_null(
+        strstr(g_err, "--record /nonexistent/dir/r.isorec: cannot write in /nonexistent/dir"));
     /* stdout closed early: the summary's write fails once, status 1 */
     iso_test_tmp(st, sizeof st, "exits.status");
     snprintf(cmd, sizeof cmd, "{ ( '%s' run '%s' --fast --no-display; echo $? > '%s' ) | true; }",
