@@ -198,7 +198,7 @@ static const iso_cli__opt replay_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
      .table = iso_cli__mesh_options},
     {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(replay_args, steps), "N",
-     .help = "ABM steps per tick, %R (default 1)", ISO_CLI_GE(1)},
+     .help = "ABM steps per tick, %R (default 1)", .solver = "steps_per_tick"},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, out), "FILE",
      .help = "save the deformed mesh"},
     {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, pc2), "FILE",

@@ -193,7 +193,8 @@ static int run_main(int argc, char **argv)
     if ((a.out && check_output("--out", a.out)) || (a.png && check_output("--png", a.png)) ||
         (a.json && check_output("--stats-json", a.json)) ||
         (a.lo.pc2 && check_output("--pc2", a.lo.pc2)) ||
-        (a.lo.mcap && check_output("--mcap", a.lo.mcap)))
+        (a.lo.mcap && check_output("--mcap", a.lo.mcap)) ||
+        (a.lo.record && a.lo.record[0] && check_output("--record", a.lo.record)))
         return 1;
     iso_scene *sc = NULL;
     if (iso_cli__scene_load("run", a.scene, &sc) != 0)

@@ -80,18 +80,20 @@ typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const c
                                 size_t why_cap);
 
 typedef struct iso_cli__opt {
-    const char *name;                 /* without "--"; NULL when the option has a short name only */
-    iso_cli__opt_kind kind;           /* what it takes and how it is stored */
-    size_t at;                        /* where the value goes (ISO_CLI_*_AT) */
-    const char *metavar;              /* "N", "FILE"; NULL for flags and enums (their names show) */
-    const char *help;                 /* one line, wrapped by the printer; "%R" prints the range */
-    char short_name;                  /* 'o' for -o, or 0 */
-    double lo, hi;                    /* INT and DOUBLE: the range, whose ends... */
-    iso_cli__end lo_end, hi_end;      /* ...are none, open or closed */
-    int flag;                         /* FLAG: the value stored (1, or 0 for --no-x) */
-    int nonempty;                     /* STRING: 1 refuses an empty value */
-    const char *const *names;         /* ENUM: the enum's name table (common/iso_names.h) */
-    iso_cli__opt_set set;             /* CALL; others: stores instead of .at's bytes */
+    const char *name;            /* without "--"; NULL when the option has a short name only */
+    iso_cli__opt_kind kind;      /* what it takes and how it is stored */
+    size_t at;                   /* where the value goes (ISO_CLI_*_AT) */
+    const char *metavar;         /* "N", "FILE"; NULL for flags and enums (their names show) */
+    const char *help;            /* one line, wrapped by the printer; "%R" prints the range */
+    char short_name;             /* 'o' for -o, or 0 */
+    double lo, hi;               /* INT and DOUBLE: the range, whose ends... */
+    iso_cli__end lo_end, hi_end; /* ...are none, open or closed */
+    const char *solver;       /* INT and DOUBLE: the range is instead the solver's for this setting
+                                 (iso_solver_range), the one scene files are held to */
+    int flag;                 /* FLAG: the value stored (1, or 0 for --no-x) */
+    int nonempty;             /* STRING: 1 refuses an empty value */
+    const char *const *names; /* ENUM: the enum's name table (common/iso_names.h) */
+    iso_cli__opt_set set;     /* CALL; others: stores instead of .at's bytes */
     const struct iso_cli__opt *table; /* TABLE: the included rows */
 } iso_cli__opt;
 
@@ -114,6 +116,9 @@ void iso_cli__opts_print(const iso_cli__opt *opts, FILE *f);
 
 /* A row's range as a phrase: "in (0, 1]", "> 0", ">= 1"; "" without one. */
 const char *iso_cli__opt_range(const iso_cli__opt *o, char *buf, size_t cap);
+/* A row's range (its own, or the solver's for o->solver); whole numbers
+ * for an INT row. */
+void iso_cli__opt_range_of(const iso_cli__opt *o, iso_range *r);
 
 /* The option as it is spelled on the command line: "--omega", or "-o". */
 const char *iso_cli__opt_spelling(const iso_cli__opt *o, char *buf, size_t cap);
@@ -269,6 +274,15 @@ typedef struct iso_cli__problem {
 int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__problem *p,
                           iso_err *err);
 void iso_cli__problem_deinit(iso_cli__problem *p);
+
+/* Writes p as the files `deform --mesh --sel --def` reads, into folder dir
+ * (made when absent, one level): NAME.off (the rest mesh, 17 significant
+ * digits, so it reads back to the same bits), NAME.sel (0 fixed, 1 free, 2
+ * handle, one per vertex) and NAME.def (the handle's final pose). Each file
+ * is written whole or not at all (a temporary name, then a rename). Their
+ * paths go into paths[3] (ISO_CLI_PATH_MAX each). */
+int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const char *name,
+                           char paths[3][ISO_CLI_PATH_MAX], iso_err *err);
 
 /* The figures of one run. */
 typedef struct iso_cli__run {

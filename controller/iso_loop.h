@@ -116,6 +116,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "iso_actuators.h"
 #include "iso_dev.h"
 #include "iso_err.h"
 #include "iso_metrics.h"
@@ -221,6 +222,8 @@ typedef struct iso_loop_summary {
     int mem_locked;
     char rt_note[400];   /* why not, "" when it is */
     char act_line[1700]; /* the actuator link's counters, "" without one */
+    int has_act;         /* 1: the scene has actuators, whose counters are in act */
+    iso_act_stats act;   /* (iso_actuators_stats; kept when they close) */
     int n_devices;       /* the hub's sources (a replay: its recorded ones) */
     char device_desc[ISO_DEV_MAX_SOURCES][192];       /* iso_dev_hub_describe */
     iso_dev_source_stats device[ISO_DEV_MAX_SOURCES]; /* events, bad frames by reason, gone,

@@ -21,6 +21,8 @@ struct iso_loop_sinks {
     iso_actuators *act;
     char act_line[1000];     /* kept when the actuators close (the counters run ~650) */
     char act_stop[600];      /* how the safe stop went */
+    iso_act_stats act_stats; /* the counters, kept when the actuators close */
+    int had_act;
     iso_loop_writer *writer; /* the file outputs; NULL without */
     iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
     iso_loop_summary files;  /* the writer's counts, kept when it closes */
@@ -271,6 +273,8 @@ static int close_actuators(struct iso_loop_sinks *k, iso_err *err)
     else
         snprintf(k->act_stop, sizeof k->act_stop, "safe state NOT confirmed: %s", err->msg);
     iso_actuators_format_stats(k->act, k->act_line, sizeof k->act_line);
+    iso_actuators_stats(k->act, &k->act_stats);
+    k->had_act = 1;
     iso_actuators_destroy(k->act);
     k->act = NULL;
     return rc;
@@ -312,6 +316,11 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
         iso_actuators_format_stats(k->act, s->act_line, sizeof s->act_line);
     else if (k->act_line[0])
         snprintf(s->act_line, sizeof s->act_line, "%s; %s", k->act_line, k->act_stop);
+    s->has_act = k->act || k->had_act;
+    if (k->act)
+        iso_actuators_stats(k->act, &s->act);
+    else if (k->had_act)
+        s->act = k->act_stats;
 }
 
 void iso_loop__sinks_alive(iso_loop *l)

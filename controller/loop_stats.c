@@ -276,7 +276,66 @@ static const iso_json_field drop_counters[] = {
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},
     {DROP(out_of_order)}, {DROP(seq_gaps)}};
 static const iso_json_field src_counters[] = {{SRC(gone)}, {SRC(back)}, {SRC(stale)}};
+
+/* The actuator sink's counters (iso_act_stats), one number each, under
+ * their field's names: the summary line says the same for people. */
+#define ACT(f, t) ISO_JSON_FIELD(iso_act_stats, f, ISO_JSON_##t)
+static const iso_json_field act_counters[] = {{ACT(ticks, U64)},
+                                              {ACT(setpoints_sent, U64)},
+                                              {ACT(acks, U64)},
+                                              {ACT(echo_mismatches, U64)},
+                                              {ACT(echo_unknown, U64)},
+                                              {ACT(clamps, U64)},
+                                              {ACT(link_losses, U32)},
+                                              {ACT(reopens, U32)},
+                                              {ACT(emu_restarts, U32)},
+                                              {ACT(faults, U32)},
+                                              {ACT(last_fault_reason, U32)},
+                                              {ACT(last_fault_detail_ms, U32)},
+                                              {ACT(naks, U32)},
+                                              {ACT(handshakes, U32)},
+                                              {ACT(heartbeats, U32)},
+                                              {ACT(loop_stalls, U32)},
+                                              {ACT(estops, U32)},
+                                              {ACT(silences, U32)},
+                                              {ACT(safe_requests, U32)},
+                                              {ACT(safe_confirms, U32)},
+                                              {ACT(last_safe_ms, DOUBLE)},
+                                              {ACT(last_safe_cause, INT)},
+                                              {ACT(rtt_count, U32)},
+                                              {ACT(rtt_avg_ms, DOUBLE)},
+                                              {ACT(rtt_min_ms, DOUBLE)},
+                                              {ACT(rtt_max_ms, DOUBLE)},
+                                              {ACT(rtt_last_ms, DOUBLE)},
+                                              {ACT(publish_max_ms, DOUBLE)},
+                                              {ACT(publish_over_1ms, U64)},
+                                              {ACT(alive_calls, U64)},
+                                              {ACT(mcu_channels, INT)},
+                                              {ACT(mcu_state, INT)},
+                                              {ACT(mcu_uptime_ms, U32)}};
 #define N_OF(a) (sizeof(a) / sizeof(a)[0])
+
+/* The actuators' counters and the line that says them, or null without
+ * actuators. */
+static void json_actuators(iso_json *j, const iso_loop_summary *s)
+{
+    if (!s->has_act) {
+        iso_json_string(j, "actuators", NULL);
+        return;
+    }
+    iso_json_object(j, "actuators");
+    iso_json_fields(j, &s->act, act_counters, N_OF(act_counters));
+    iso_json_array(j, "clamps_by_channel");
+    for (int c = 0; c < ISO_ACT_MAX_CHANNELS; c++)
+        iso_json_int(j, NULL, (long long)s->act.clamps_ch[c]);
+    iso_json_close(j);
+    iso_json_array(j, "mcu_positions");
+    for (int c = 0; c < ISO_ACT_MAX_CHANNELS; c++)
+        iso_json_int(j, NULL, s->act.mcu_pos[c]);
+    iso_json_close(j);
+    iso_json_string(j, "line", s->act_line);
+    iso_json_close(j);
+}
 
 static void json_device(iso_json *j, const char *desc, const iso_dev_source_stats *d)
 {
@@ -364,7 +423,7 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_int(j, "frames_dropped", s->frames_dropped);
     iso_json_bool(j, "realtime", s->rt_active);
     iso_json_bool(j, "memory_locked", s->mem_locked);
-    iso_json_string(j, "actuators", s->act_line);
+    json_actuators(j, s);
     char sum[17];
     snprintf(sum, sizeof sum, "%016llx", (unsigned long long)s->checksum);
     iso_json_string(j, "checksum", sum);

@@ -20,6 +20,7 @@
 #include "iso_element.h"
 #include "iso_err.h"
 #include "iso_mesh.h"
+#include "iso_range.h"
 #include "iso_regions.h"
 
 typedef struct iso_solver iso_solver; /* opaque */
@@ -179,6 +180,17 @@ typedef struct iso_solver_opts {
 #define ISO_SOLVER_WORKER_LAG_MAX 100
 
 ISO_API void iso_solver_opts_default(iso_solver_opts *o);
+
+/* The range of each numeric solver and integrator setting, in one table
+ * that scene files and the command line both check against
+ * (iso_range_parse), so that a value one refuses the other refuses too, in
+ * the same words. Named by the setting's field: "omega" (0, 1], "cg_tol"
+ * (0, 1), "cg_max_iter" [1, 100000], "worker_lag" [0,
+ * ISO_SOLVER_WORKER_LAG_MAX], "restore_mu" >= 0, "restore_tau" > 0 (of
+ * iso_solver_opts); "restore_kappa" >= 0, "cg_share" [0, 1] (of
+ * iso_integrate_opts); "steps_per_tick" [1, 1000] (ABM steps a tick of the
+ * real-time loop). NULL for a name the table lacks. */
+ISO_API const iso_range *iso_solver_range(const char *name);
 
 /* The solver keeps pointers to mesh and regions: both must outlive it. */
 ISO_API ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
