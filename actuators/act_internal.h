@@ -79,6 +79,7 @@ struct iso_actuators {
     iso_fb_host_stats host_st; /* the host's counters after the last step */
     iso_err down;              /* why the link last went down */
     uint64_t last_publish_us;  /* when the latest publish began */
+    uint64_t prev_publish_us;  /* and the one before it (the re-arm rule, safety.c) */
     iso_act_stats st;
 
     /* ---- lock-free, any thread ---- */
@@ -95,7 +96,9 @@ struct iso_actuators {
     iso_act_estop_fn estop_probe;
     void *estop_ctx;
     unsigned hold;           /* what holds holds */
-    uint64_t fresh_after_us; /* a publish from this time on re-arms after a hold */
+    uint64_t fresh_after_us; /* a tick begun after this time re-arms after a hold */
+    uint64_t awake_us;       /* the sender's last look at the holds: a gap is a stall */
+    int gap_now;             /* a gap was found in this look: send SAFE */
     int prev_host_state, ever_streamed;
     int lost; /* lost and not streaming again yet */
     uint64_t lost_us, lost_told_us;
@@ -121,6 +124,10 @@ void iso_act__begin_break(iso_actuators *a, uint64_t t0, int cause, const char *
 void iso_act__note_safe(iso_actuators *a, const char *how);
 /* The holds now; a hold that begins sends SAFE at once (sender thread). */
 unsigned iso_act__holds_now(iso_actuators *a);
+/* 1 when the sender's clock has jumped past the loop bound since its last
+ * look (the process was stopped): checked again right before a write, so
+ * that a stop between the look and the write sends nothing stale. */
+int iso_act__gap_since_look(const iso_actuators *a);
 
 /* sender.c: the thread that owns the host and the link. */
 void iso_act__host_callbacks(iso_actuators *a, iso_fb_host_callbacks *cb);
@@ -132,5 +139,9 @@ int iso_act__emu_is(const iso_link *l);
 unsigned iso_act__emu_restarts(const iso_link *l);
 /* See iso_actuators_emu_signal(); any thread. */
 int iso_act__emu_signal(iso_link *l, int sig, iso_err *err);
+/* The emulated MCU's SCHED_FIFO priority (0: back to SCHED_OTHER; native:
+ * its thread, QEMU: every thread of the process), kept for a restarted or
+ * relaunched one; any thread. */
+int iso_act__emu_priority(iso_link *l, int priority, iso_err *err);
 
 #endif

@@ -3,6 +3,7 @@
  * is sender.c, the rules that stop it safety.c. */
 #include <math.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -158,7 +159,13 @@ int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const i
     pthread_condattr_t ca;
     pthread_condattr_init(&ca);
     pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
-    pthread_mutex_init(&a->lock, NULL);
+    /* The loop's publish takes this lock: a holder below the loop's
+     * priority runs at it until it lets go (iso_actuators_set_priority). */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&a->lock, &ma);
+    pthread_mutexattr_destroy(&ma);
     pthread_cond_init(&a->cond, &ca);
     pthread_condattr_destroy(&ca);
     a->nv = nv;
@@ -245,6 +252,28 @@ void iso_actuators_destroy(iso_actuators *a)
     pthread_cond_destroy(&a->cond);
     pthread_mutex_destroy(&a->lock);
     free(a);
+}
+
+int iso_actuators_set_priority(iso_actuators *a, int priority, iso_err *err)
+{
+    if (!a || priority < 0 || priority + 1 > sched_get_priority_max(SCHED_FIFO))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "actuators: priority %d: expected 0, or 1..%d (the emulation runs one "
+                           "above)",
+                           priority, sched_get_priority_max(SCHED_FIFO) - 1);
+    if (a->sender_started) {
+        struct sched_param sp;
+        memset(&sp, 0, sizeof sp);
+        sp.sched_priority = priority;
+        int rc = pthread_setschedparam(a->sender, priority ? SCHED_FIFO : SCHED_OTHER, &sp);
+        if (rc != 0)
+            return iso_err_set(err, ISO_EIO, -1,
+                               "actuators: the sender thread at SCHED_FIFO %d: %s", priority,
+                               strerror(rc));
+    }
+    if (iso_act__emu_is(a->link))
+        return iso_act__emu_priority(a->link, priority ? priority + 1 : 0, err);
+    return ISO_OK;
 }
 
 static void to_timespec(uint64_t us, struct timespec *ts)
@@ -345,6 +374,7 @@ int iso_actuators_publish(iso_actuators *a, uint32_t tick, const double *x, iso_
         memcpy(a->values, v, sizeof v);
         a->tick = tick;
         a->have_tick = 1;
+        a->prev_publish_us = a->last_publish_us;
         a->last_publish_us = t0;
         if (atomic_load_explicit(&a->progress_us, memory_order_relaxed))
             atomic_store_explicit(&a->progress_us, t0, memory_order_relaxed);
@@ -433,6 +463,20 @@ int iso_actuators_safe_stop(iso_actuators *a, int timeout_ms, double *safe_ms, i
 static pthread_mutex_t *lock_of(const iso_actuators *a)
 {
     return (pthread_mutex_t *)&a->lock;
+}
+
+int iso_actuators_setpoints(const iso_actuators *a, int16_t values[ISO_ACT_MAX_CHANNELS],
+                            uint32_t *tick)
+{
+    pthread_mutex_lock(lock_of(a));
+    int have = a->have_tick;
+    memcpy(values, a->values, ISO_ACT_MAX_CHANNELS * sizeof *values);
+    if (tick)
+        *tick = a->tick;
+    pthread_mutex_unlock(lock_of(a));
+    if (!have)
+        memset(values, 0, ISO_ACT_MAX_CHANNELS * sizeof *values);
+    return have;
 }
 
 void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out)

@@ -1,7 +1,8 @@
 /* actuators/emu_firmware.c -- an actuator MCU without hardware, behind an
  * iso_link: the real firmware ELF in qemu-system-arm, or the same protocol
  * logic (iso_fb_mcu.c) in a thread. See iso_actuators.h. */
-#define _GNU_SOURCE /* openpty, prctl */
+#define _GNU_SOURCE /* prctl */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -9,7 +10,6 @@
 #include <netinet/tcp.h>
 #include <poll.h>
 #include <pthread.h>
-#include <pty.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdatomic.h>
@@ -20,7 +20,6 @@
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
-#include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -55,15 +54,18 @@ typedef struct emu_link {
     int lfd;       /* listening for a relaunched QEMU's UART, else -1 */
     uint64_t launched_us;
     char qemu_path[PATH_MAX], elf[PATH_MAX];
-    /* native: the MCU logic on the pty master, the host on a tty link */
-    iso_link *tty;
-    int master, slave_keep;
+    /* native: the MCU logic on one end of a socket pair (`master`), the host
+     * on the other (`sock`, as QEMU's UART is) */
+    int master;
     pthread_t thread;
     int thread_started;
     atomic_int stop;
     atomic_int killed;      /* SIGKILL drill: the thread ends and closes the master */
     atomic_int paused;      /* SIGSTOP drill */
     atomic_uint tx_dropped; /* bytes the host did not take in time */
+    atomic_int priority;    /* SCHED_FIFO asked for (iso_act__emu_priority); 0: none */
+    atomic_int prio_done;   /* native: the priority its thread applied last, and how: */
+    atomic_int prio_errno;  /* 0, or pthread_setschedparam's error */
     iso_fb_mcu mcu;         /* touched only by the thread once it runs */
     int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
@@ -101,7 +103,8 @@ static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_
     if (n < 0 && (errno == EAGAIN || errno == EINTR))
         return 0;
     e->sock_dead = 1;
-    return iso_err_set(err, ISO_EIO, -1, "%s: QEMU closed its UART (%s)", e->what,
+    return iso_err_set(err, ISO_EIO, -1, "%s: %s closed its UART (%s)", e->what,
+                       e->mode == ISO_ACT_EMU_QEMU ? "QEMU" : "the MCU thread",
                        n == 0 ? "end of stream" : strerror(errno));
 }
 
@@ -134,26 +137,24 @@ static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms,
 /* The link                                                                   */
 /* ------------------------------------------------------------------------ */
 
+/* Both emulations are a stream socket to the host: QEMU's UART on loopback
+ * TCP, the native MCU on a socket pair. Never a tty: a tty read that finds
+ * the line empty waits for the kernel's buffer work, at normal priority,
+ * which any busy process can hold up (measured: 100-160 ms, and the MCU's
+ * watchdog braked it while the sender waited in a read). */
 static int emu_read(iso_link *l, uint8_t *buf, size_t cap, int timeout_ms, iso_err *err)
 {
-    emu_link *e = (emu_link *)l;
-    if (e->mode == ISO_ACT_EMU_NATIVE)
-        return iso_link_read(e->tty, buf, cap, timeout_ms, err);
-    return sock_read(e, buf, cap, timeout_ms, err);
+    return sock_read((emu_link *)l, buf, cap, timeout_ms, err);
 }
 
 static int emu_write(iso_link *l, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
-    emu_link *e = (emu_link *)l;
-    if (e->mode == ISO_ACT_EMU_NATIVE)
-        return iso_link_write(e->tty, buf, n, timeout_ms, err);
-    return sock_write(e, buf, n, timeout_ms, err);
+    return sock_write((emu_link *)l, buf, n, timeout_ms, err);
 }
 
 static int emu_poll_fd(iso_link *l)
 {
-    emu_link *e = (emu_link *)l;
-    return e->mode == ISO_ACT_EMU_NATIVE ? iso_link_poll_fd(e->tty) : e->sock;
+    return ((emu_link *)l)->sock;
 }
 
 static int qemu_reopen(emu_link *e, iso_err *err);
@@ -211,7 +212,10 @@ static emu_link *emu_new(int mode)
     e->base.ops = &emu_ops;
     e->mode = mode;
     atomic_init(&e->qemu, -1);
-    e->sock = e->lfd = e->master = e->slave_keep = -1;
+    atomic_init(&e->priority, 0);
+    atomic_init(&e->prio_done, -1);
+    atomic_init(&e->prio_errno, 0);
+    e->sock = e->lfd = e->master = -1;
     snprintf(e->what, sizeof e->what, "emulated MCU (%s)",
              mode == ISO_ACT_EMU_QEMU ? "QEMU" : "native");
     return e;
@@ -227,16 +231,16 @@ static uint32_t mcu_ms(const emu_link *e)
 }
 
 /* The firmware queues replies in its UART ring and waits for room; here the
- * pty buffer is the ring. A host that stops reading for 10 ms loses bytes
- * (counted), as it would on a UART; the thread itself never stalls for
- * long, so the watchdog keeps its 1 ms resolution. */
+ * socket's buffer is the ring. A host that stops reading until it is full
+ * loses bytes after 10 ms (counted), as it would on a UART; the thread
+ * itself never stalls for long, so the watchdog keeps its 1 ms resolution. */
 static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
 {
     emu_link *e = ctx;
     size_t done = 0;
     int waits = 0;
     while (done < n) {
-        ssize_t w = write(e->master, bytes + done, n - done);
+        ssize_t w = send(e->master, bytes + done, n - done, MSG_NOSIGNAL);
         if (w > 0) {
             done += (size_t)w;
             continue;
@@ -257,21 +261,34 @@ static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
  * would. Real-time priority, where the process may take it, keeps the
  * emulated clock honest; without it the emulation still works, with the
  * occasional watchdog FAULT under load that the host recovers from. */
-static void try_realtime(void)
+static int try_realtime(int priority)
 {
     struct sched_param sp;
     memset(&sp, 0, sizeof sp);
-    sp.sched_priority = sched_get_priority_min(SCHED_FIFO);
-    (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+    sp.sched_priority = priority > 0 ? priority : sched_get_priority_min(SCHED_FIFO);
+    return pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
+/* The thread applies the priority asked for itself (iso_act__emu_priority
+ * never touches another thread's handle, which a restart replaces). */
+static void follow_priority(emu_link *e)
+{
+    int want = atomic_load(&e->priority);
+    if (want == atomic_load(&e->prio_done))
+        return;
+    atomic_store(&e->prio_errno, try_realtime(want));
+    atomic_store(&e->prio_done, want);
 }
 
 static void *mcu_thread(void *arg)
 {
     emu_link *e = arg;
-    try_realtime();
+    atomic_store(&e->prio_done, -1);
+    follow_priority(e);
     uint32_t last = mcu_ms(e);
     uint8_t buf[256];
     while (!atomic_load(&e->stop) && !atomic_load(&e->killed)) {
+        follow_priority(e);
         if (atomic_load(&e->paused)) { /* a stopped process: no clock, no I/O */
             iso_clock_sleep_until(iso_clock_ns() + 1000000);
             continue;
@@ -299,7 +316,7 @@ static void *mcu_thread(void *arg)
     return NULL;
 }
 
-/* Joins the MCU thread and closes the pty and the host's tty link. */
+/* Joins the MCU thread and closes both ends of its socket pair. */
 static void native_end(emu_link *e)
 {
     if (e->thread_started) {
@@ -307,29 +324,22 @@ static void native_end(emu_link *e)
         pthread_join(e->thread, NULL);
         e->thread_started = 0;
     }
-    iso_link_close(e->tty);
-    e->tty = NULL;
+    if (e->sock >= 0)
+        close(e->sock);
     if (e->master >= 0)
         close(e->master);
-    if (e->slave_keep >= 0)
-        close(e->slave_keep);
-    e->master = e->slave_keep = -1;
+    e->sock = e->master = -1;
+    e->sock_dead = 0;
 }
 
 static int native_open(emu_link *e, iso_err *err)
 {
-    struct termios raw;
-    memset(&raw, 0, sizeof raw);
-    cfmakeraw(&raw);
-    char slave[128];
-    if (openpty(&e->master, &e->slave_keep, slave, &raw, NULL) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: openpty: %s", e->what, strerror(errno));
-    /* The kept slave fd stops the master reading EIO between host reopens. */
-    if (iso_fd_nonblock(e->master) != 0 || fcntl(e->slave_keep, F_SETFD, FD_CLOEXEC) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "%s: fcntl: %s", e->what, strerror(errno));
-    int rc = iso_link_tty_open(slave, 115200, &e->tty, err);
-    if (rc != ISO_OK)
-        return rc;
+    int sv[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0, sv) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: socketpair: %s", e->what, strerror(errno));
+    e->master = sv[0];
+    e->sock = sv[1];
+    e->sock_dead = 0;
     iso_fb_mcu_config cfg;
     iso_act_emu_firmware_config(&cfg);
     e->t0_ns = iso_clock_ns();
@@ -344,7 +354,7 @@ static int native_open(emu_link *e, iso_err *err)
     return ISO_OK;
 }
 
-/* A killed MCU thread is restarted as a rebooted MCU: fresh pty, fresh
+/* A killed MCU thread is restarted as a rebooted MCU: fresh socket pair, fresh
  * state (IDLE at the safe positions, HELLO(BOOT)). */
 static int native_reopen(emu_link *e, iso_err *err)
 {
@@ -459,11 +469,16 @@ static int qemu_launch(emu_link *e, iso_err *err)
                           "user,restrict=on", "-display", "none",       "-monitor",    "none",
                           "-serial",          serial,     "-kernel",    (char *)elf,   NULL};
     pid_t parent = getpid();
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = atomic_load(&e->priority);
     pid_t pid = fork();
     if (pid == 0) {
         prctl(PR_SET_PDEATHSIG, SIGKILL); /* never outlive us, even on a crash */
         if (getppid() != parent)
             _exit(127);
+        if (sp.sched_priority > 0) /* every thread QEMU starts inherits it */
+            (void)sched_setscheduler(0, SCHED_FIFO, &sp);
         int devnull = open("/dev/null", O_RDWR);
         if (devnull >= 0) {
             dup2(devnull, 0);
@@ -595,6 +610,54 @@ int iso_act__emu_signal(iso_link *l, int sig, iso_err *err)
                        sig);
 }
 
+/* Every thread of process pid under the policy: QEMU's vCPU and I/O
+ * threads both stand between the host and the firmware. */
+static int set_process_sched(int pid, int priority, const char *what, iso_err *err)
+{
+    char dir[64];
+    snprintf(dir, sizeof dir, "/proc/%d/task", pid);
+    DIR *d = opendir(dir);
+    if (!d)
+        return iso_err_set(err, ISO_EIO, -1, "%s: %s: %s", what, dir, strerror(errno));
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = priority;
+    int rc = ISO_OK;
+    for (struct dirent *t; (t = readdir(d)) != NULL;) {
+        int tid = atoi(t->d_name);
+        if (tid > 0 && sched_setscheduler(tid, priority ? SCHED_FIFO : SCHED_OTHER, &sp) != 0 &&
+            errno != ESRCH && rc == ISO_OK)
+            rc = iso_err_set(err, ISO_EIO, -1, "%s: thread %d at SCHED_FIFO %d: %s", what, tid,
+                             priority, strerror(errno));
+    }
+    closedir(d);
+    return rc;
+}
+
+int iso_act__emu_priority(iso_link *l, int priority, iso_err *err)
+{
+    if (!iso_act__emu_is(l))
+        return iso_err_set(err, ISO_EINVAL, -1, "emulated MCU: the link is not an emulation");
+    emu_link *e = (emu_link *)l;
+    atomic_store(&e->priority, priority);
+    if (e->mode == ISO_ACT_EMU_QEMU) {
+        int pid = atomic_load(&e->qemu);
+        return pid > 0 ? set_process_sched(pid, priority, e->what, err) : ISO_OK;
+    }
+    /* the native thread takes it within its 1 ms loop; a killed one, at
+     * its restart */
+    for (int i = 0; i < 100 && atomic_load(&e->prio_done) != priority; i++) {
+        if (atomic_load(&e->killed))
+            return ISO_OK;
+        iso_clock_sleep_until(iso_clock_ns() + 1000000);
+    }
+    int rc = atomic_load(&e->prio_done) == priority ? atomic_load(&e->prio_errno) : ETIMEDOUT;
+    if (rc != 0)
+        return iso_err_set(err, ISO_EIO, -1, "%s: its thread at SCHED_FIFO %d: %s", e->what,
+                           priority, strerror(rc));
+    return ISO_OK;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Choosing                                                                   */
 /* ------------------------------------------------------------------------ */
@@ -659,11 +722,11 @@ int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *
         return rc;
     }
     info->used = ISO_ACT_EMU_NATIVE;
-    snprintf(
-        info->line, sizeof info->line,
-        "actuators: emulated MCU: native (iso_fb_mcu.c in a thread behind a pty, the firmware's "
-        "4-channel configuration) because %.500s",
-        mode == ISO_ACT_EMU_NATIVE ? "native was asked for" : why);
+    snprintf(info->line, sizeof info->line,
+             "actuators: emulated MCU: native (iso_fb_mcu.c in a thread on a socket pair, the "
+             "firmware's "
+             "4-channel configuration) because %.500s",
+             mode == ISO_ACT_EMU_NATIVE ? "native was asked for" : why);
     *out = &e->base;
     return ISO_OK;
 }

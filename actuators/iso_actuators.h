@@ -26,7 +26,7 @@
  * Emulated firmware (emu_firmware.c): the real firmware ELF in
  * `qemu-system-arm -M mps2-an385` with its UART0 on a loopback TCP
  * connection, or, where QEMU or the ELF is absent, the same iso_fb_mcu.c
- * logic in a thread of this process behind a pty pair, clocked from
+ * logic in a thread of this process on a socket pair, clocked from
  * CLOCK_MONOTONIC, with the firmware's channel configuration. Either way the
  * result is an iso_link whose close also ends the emulation (kills and reaps
  * QEMU, or joins the thread).
@@ -61,10 +61,21 @@
  *  - the link is up (see "Loss" below).
  * The loop watchdog's bound and the e-stop probe are iso_act_safety_opts
  * (iso_actuators_create_v2).
- * Re-arming: when a loop stall or an e-stop ends, setpoints resume with the
- * first publish() that follows its end, never with values from before it:
- * the sink sends HELLO (the MCU arms holding where it stands, after a brake
- * its safe positions; PROTOCOL.md step 2) and then streams that tick.
+ * A stalled process: the sender also watches its own clock. When two of its
+ * 2 ms looks lie further apart than the loop bound (loop_timeout_ms; 250 ms
+ * without a loop watchdog), the whole process did not run (SIGSTOP, a
+ * suspended machine, a starved thread): the MCU's own watchdog braked it
+ * meanwhile, and the loop's progress report may look fresh before the
+ * sender looks. That counts as a loop stall (loop_stalls), is said, sends
+ * SAFE, and holds until a tick computed after the gap.
+ * Re-arming: when a hold ends (e-stop released, loop stall over, gap),
+ * setpoints resume with a tick that began after its end, never with values
+ * from before it. The sink sees publishes, not tick starts; publishes come
+ * from one thread, each tick after the last publish, so it takes the second
+ * publish() after the end (the first may be the tick that was in progress
+ * when the hold began): the sink sends HELLO (the MCU arms holding where it
+ * stands, after a brake its safe positions; PROTOCOL.md step 2) and then
+ * streams that tick.
  *
  * Loss. A transport error, or no valid frame for link_timeout_ms, is a lost
  * link: one notice at once, then the sink reopens the link every 50 ms (an
@@ -125,7 +136,7 @@ typedef enum iso_act_link_kind {
 typedef enum iso_act_emu_mode {
     ISO_ACT_EMU_AUTO = 0,  /* QEMU when qemu-system-arm and the ELF are found, else native */
     ISO_ACT_EMU_QEMU = 1,  /* QEMU or an error saying what is missing */
-    ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread behind a pty pair */
+    ISO_ACT_EMU_NATIVE = 2 /* iso_fb_mcu.c in a thread on a socket pair */
 } iso_act_emu_mode;
 /* "auto", "qemu", "native", indexed by iso_act_emu_mode (iso_names.h) */
 ISO_API extern const char *const iso_act_emu_names[];
@@ -190,7 +201,7 @@ enum {
     ISO_ACT_HOLD_ESTOP = 1u, /* e-stop pressed (call or probe) */
     ISO_ACT_HOLD_LOOP = 2u,  /* the loop watchdog tripped */
     ISO_ACT_HOLD_STOP = 4u,  /* iso_actuators_safe_stop() */
-    ISO_ACT_HOLD_TICK = 8u   /* a stall or e-stop ended: waiting for the next publish to re-arm */
+    ISO_ACT_HOLD_TICK = 8u   /* a hold ended: waiting for a tick begun after it to re-arm */
 };
 
 /* ---- counters ------------------------------------------------------------ */
@@ -283,8 +294,8 @@ ISO_API ISO_NODISCARD int iso_actuators_compute(iso_actuators *a, const double *
  * replaces them); never waits for the link. Once iso_actuators_alive() was
  * called, a publish also counts as the loop's progress. Returns 1 if the
  * link is streaming, 0 if not (the link is down, the handshake is pending,
- * or a hold stands: e-stop, loop stall, or a stall just ended, which this
- * publish may clear; the sender recovers by itself), or a negative code:
+ * or a hold stands: e-stop, loop stall, or a hold just ended, which the
+ * second publish after its end clears; the sender recovers by itself), or a negative code:
  * ISO_ENUMERIC for non-finite positions (nothing is handed over), ISO_EINVAL when the MCU
  * lacks a channel the spec drives or after safe_stop. With
  * ISO_ACT_LINK_NONE it only computes (returns 0). */
@@ -308,6 +319,12 @@ ISO_API ISO_NODISCARD int iso_actuators_safe_stop(iso_actuators *a, int timeout_
 
 /* A snapshot of the counters. */
 ISO_API void iso_actuators_stats(const iso_actuators *a, iso_act_stats *out);
+
+/* The setpoints of the last publish (by SETPOINTS index; others 0) and
+ * its tick, for a recorder of the run; any thread. Returns 1, or 0 before
+ * the first publish (values then all 0). */
+ISO_API int iso_actuators_setpoints(const iso_actuators *a, int16_t values[ISO_ACT_MAX_CHANNELS],
+                                    uint32_t *tick);
 
 /* The MCU's last HELLO answer (channel limits, rates, safe positions).
  * Returns 1 when there is one, else 0. */
@@ -342,9 +359,24 @@ ISO_API int iso_actuators_state(const iso_actuators *a, unsigned *holds);
  * "lost", "reconnecting", "off". Never NULL. */
 ISO_API const char *iso_actuators_link_state(const iso_actuators *a);
 
+/* Real-time priorities for the sink's own threads, for a real-time loop
+ * (controller/iso_loop.h states the rule): priority > 0 puts the sender
+ * thread under SCHED_FIFO at `priority` (give it one above the loop's: it
+ * is the loop's watchdog, and must run when the loop's tick does not) and
+ * an emulated MCU at priority + 1 (the native MCU thread, or every thread
+ * of QEMU, and a restarted or relaunched one: the hardware it stands for
+ * has a CPU of its own). 0 puts them back as they were: the sender under
+ * SCHED_OTHER, QEMU too, the native MCU thread at the lowest SCHED_FIFO
+ * priority it asks for by itself. Only the
+ * sink's threads and its QEMU change; the lock the loop's publish shares
+ * with the sender inherits priority whatever is set here. ISO_EINVAL for
+ * a priority outside 0..max-1, ISO_EIO naming what was not permitted
+ * (CAP_SYS_NICE, rtprio). Any thread. */
+ISO_API ISO_NODISCARD int iso_actuators_set_priority(iso_actuators *a, int priority, iso_err *err);
+
 /* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
  * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
- * ends the MCU thread and closes its end of the pty (as a dying process
+ * ends the MCU thread and closes its end of the socket pair (as a dying process
  * closes its UART), SIGSTOP pauses its clock and I/O, SIGCONT resumes.
  * ISO_EINVAL without an emulated link or for another signal (native). */
 ISO_API ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
@@ -372,10 +404,15 @@ ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * then shakes hands again on the same stream); when the emulation died it
  * restarts it: QEMU is relaunched without blocking (each reopen checks
  * whether the new one has connected its UART; 5 s to do so), the native
- * MCU thread is restarted on a fresh pty. info may be NULL. The native
- * MCU thread asks for SCHED_FIFO (lowest priority) and goes on without it
- * where that is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
- * and it or the ELF is missing, ISO_EIO when QEMU or the pty fails. */
+ * MCU thread is restarted on a fresh socket pair. info may be NULL. The native
+ * MCU thread asks for SCHED_FIFO (lowest priority, or the one
+ * iso_actuators_set_priority gives it) and goes on without it where that
+ * is not permitted. Errors: ISO_ENOTSUP when QEMU is asked for
+ * and it or the ELF is missing, ISO_EIO when QEMU or the socket pair fails.
+ * Both emulations reach the host over a stream socket, never a tty: a tty
+ * read that finds the line empty waits for the kernel's buffer work at
+ * normal priority, which busy processes hold up (a real MCU on a UART or
+ * a USB serial adapter has that wait; see controller/iso_loop.h). */
 ISO_API ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
                                            iso_err *err);
 

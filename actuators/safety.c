@@ -12,7 +12,25 @@
  * tick hold (ISO_ACT_HOLD_TICK) stays until the loop publishes a tick that
  * began after the end: re-arming (HELLO) never sends values computed before
  * a hold. The MCU's word that it is safe (FAULT, a heartbeat that is not
- * armed, HELLO(BOOT)) confirms a hold, and the sink says how long it took. */
+ * armed, HELLO(BOOT)) confirms a hold, and the sink says how long it took.
+ *
+ * A tick that began after the end. The sink cannot see when a tick began,
+ * only when its publish came; the tick in progress when a hold began
+ * publishes after the hold ends, with values computed before it. The loop
+ * publishes from one thread, a tick after the publish before it, so the
+ * publish that follows another publish made after the end is of a tick
+ * that began after the end: the tick hold clears when the publish before
+ * the latest came after the end (the second publish after it re-arms).
+ *
+ * A gap in the sender's own clock. The sender looks every HOLD_POLL_US;
+ * when two looks lie further apart than the loop bound, this process did
+ * not run (SIGSTOP, a suspended machine, a starved thread), nor did the
+ * loop, the setpoints, or their watchdog: the MCU braked by its own
+ * watchdog meanwhile, and on waking the loop's progress report may be
+ * fresh before the sender looks (the tick thread ran first). So a gap is
+ * a loop stall: counted, said, SAFE sent, and the tick hold stands from
+ * the moment the sender woke, so that nothing computed before the gap
+ * reaches the MCU after it. */
 #include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
@@ -87,10 +105,16 @@ void iso_act__note_safe(iso_actuators *a, const char *how)
     }
     pthread_mutex_unlock(&a->lock);
     char line[256];
+    /* A report read on waking from a gap (the watchdog brake of an MCU
+     * that ran on while this process was stopped) precedes the gap's own
+     * look: it re-arms nothing, so it says nothing of re-arming. */
+    int woke = iso_act__gap_since_look(a);
     if (confirm)
         snprintf(line, sizeof line,
                  "actuators: the MCU reports its safe state (%s) %.1f ms after %s", how, ms,
                  a->break_what);
+    else if (woke)
+        return;
     else if (a->hold == 0 && !a->lost && strstr(how, "BOOT"))
         snprintf(line, sizeof line,
                  "actuators: the MCU restarted (%s): it is idle at its safe positions; re-arming",
@@ -122,13 +146,57 @@ static const char *brake_how(const iso_actuators *a)
                  "last setpoints it got";
 }
 
-/* The e-stop (the call or the probe), the loop watchdog and safe_stop, as
- * hold bits, each edge said once; returns the bits. A hold that ends leaves
- * ISO_ACT_HOLD_TICK until a publish that began after its end, which re-arms
- * with HELLO: the MCU never chases values computed before the hold. */
-static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64_t last_pub_us)
+/* The e-stop (the call or the probe), the loop watchdog, a gap in the
+ * sender's clock and safe_stop, as hold bits, each edge said once; returns
+ * the bits. A hold that ends leaves ISO_ACT_HOLD_TICK until the publish of
+ * a tick begun after its end (prev_pub_us, the publish before the latest,
+ * came after it), which re-arms with HELLO: the MCU never chases values
+ * computed before the hold. */
+/* The longest the sender's looks may lie apart: the loop bound, or the
+ * default's floor without a loop watchdog. */
+static uint64_t gap_bound_us(const iso_actuators *a)
 {
-    unsigned h = a->hold;
+    return a->loop_timeout_us ? a->loop_timeout_us : (uint64_t)LOOP_TIMEOUT_MIN_MS * 1000u;
+}
+
+int iso_act__gap_since_look(const iso_actuators *a)
+{
+    uint64_t now = iso_clock_us();
+    return a->awake_us && now > a->awake_us && now - a->awake_us > gap_bound_us(a);
+}
+
+/* A gap in the sender's own looks longer than the bound: a stall of the
+ * whole process. */
+static unsigned note_gap(iso_actuators *a, uint64_t now, unsigned h)
+{
+    uint64_t last = a->awake_us;
+    a->awake_us = now;
+    uint64_t bound = gap_bound_us(a);
+    if (!last || now <= last || now - last <= bound)
+        return h;
+    a->fresh_after_us = now;
+    a->gap_now = 1;
+    /* What the MCU said while this process slept is unknown, not silence:
+     * its silence and the link's timeout count from now. */
+    if (a->host.last_rx_us < now)
+        a->host.last_rx_us = now;
+    if (!(h & ISO_ACT_HOLD_LOOP)) {
+        count_event(a, &a->st.loop_stalls);
+        iso_act__begin_break(a, last, ISO_ACT_HOLD_LOOP, "the process stopped");
+    }
+    char line[320];
+    snprintf(line, sizeof line,
+             "actuators: STALLED: this process did not run for %.0f ms (stopped, suspended or "
+             "starved; limit %.0f ms): setpoints stopped; %s; they resume with a tick computed "
+             "after it",
+             (double)(now - last) / 1000.0, (double)bound / 1000.0, brake_how(a));
+    iso_act__say(a, line);
+    return h | ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_TICK;
+}
+
+static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64_t prev_pub_us)
+{
+    unsigned h = note_gap(a, now, a->hold);
     char line[320];
     int req = atomic_load(&a->estop_req) != 0;
     int es = req || (a->estop_probe && a->estop_probe(a->estop_ctx) != 0);
@@ -165,9 +233,11 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
             h &= ~(unsigned)ISO_ACT_HOLD_LOOP;
             if (p > a->fresh_after_us)
                 a->fresh_after_us = p;
-            iso_act__say(
-                a, "actuators: the loop progresses again: setpoints resume with its next tick");
+            iso_act__say(a, "actuators: the loop progresses again: setpoints resume with a tick "
+                            "it begins from now on");
         }
+    } else if (h & ISO_ACT_HOLD_LOOP) {
+        h &= ~(unsigned)ISO_ACT_HOLD_LOOP; /* a gap, with no loop watchdog to end it */
     }
     if (stopped && !(h & ISO_ACT_HOLD_STOP)) {
         h |= ISO_ACT_HOLD_STOP;
@@ -175,7 +245,7 @@ static unsigned update_holds(iso_actuators *a, uint64_t now, int stopped, uint64
     }
     if ((h & ISO_ACT_HOLD_TICK) &&
         !(h & (ISO_ACT_HOLD_ESTOP | ISO_ACT_HOLD_LOOP | ISO_ACT_HOLD_STOP)) &&
-        last_pub_us >= a->fresh_after_us) {
+        prev_pub_us >= a->fresh_after_us) {
         h &= ~(unsigned)ISO_ACT_HOLD_TICK;
         iso_fb_host_rehello(&a->host);
         iso_act__say(a, "actuators: re-arming the MCU (HELLO) for the loop's new tick");
@@ -192,15 +262,16 @@ unsigned iso_act__holds_now(iso_actuators *a)
 {
     pthread_mutex_lock(&a->lock);
     int stopped = a->stopped;
-    uint64_t last_pub = a->last_publish_us;
+    uint64_t prev_pub = a->prev_publish_us;
     pthread_mutex_unlock(&a->lock);
     unsigned before = a->hold;
-    unsigned h = update_holds(a, iso_clock_us(), stopped, last_pub);
+    a->gap_now = 0;
+    unsigned h = update_holds(a, iso_clock_us(), stopped, prev_pub);
     unsigned fresh = h & ~before;
-    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP)  ? ISO_FB_SAFE_ESTOP
-                    : (fresh & ISO_ACT_HOLD_LOOP) ? ISO_FB_SAFE_LOOP_STALL
-                    : (fresh & ISO_ACT_HOLD_STOP) ? ISO_FB_SAFE_STOP
-                                                  : 0;
+    uint8_t cause = (fresh & ISO_ACT_HOLD_ESTOP)                ? ISO_FB_SAFE_ESTOP
+                    : (fresh & ISO_ACT_HOLD_LOOP) || a->gap_now ? ISO_FB_SAFE_LOOP_STALL
+                    : (fresh & ISO_ACT_HOLD_STOP)               ? ISO_FB_SAFE_STOP
+                                                                : 0;
     /* refused without a word when the MCU offers no SAFE or the link is
      * down: brake_how's notice has said how the MCU gets safe then */
     if (cause && iso_fb_host_send_safe(&a->host, cause, NULL) == ISO_OK)

@@ -355,6 +355,10 @@ static void send_latest(iso_actuators *a)
      * service sends HELLO, never SETPOINTS, on the way up), and then with
      * seq = tx_seq. Remember before sending: the ACK may be read inside
      * this very step. */
+    if (iso_act__gap_since_look(a)) { /* stopped since the look: look again first */
+        share_host(a, iso_fb_host_poll(&a->host, 0));
+        return;
+    }
     if (a->host.state == ISO_FB_HOST_STREAMING)
         remember(a, a->host.tx_seq, tick, v, n);
     uint64_t t_send = iso_clock_us();

@@ -9,6 +9,7 @@
 #include <poll.h>
 #include <stdio.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -20,6 +21,42 @@ int iso_fd_nonblock(int fd)
     if (fl < 0 || fcntl(fd, F_SETFL, fl | O_NONBLOCK) != 0)
         return -1;
     return fcntl(fd, F_SETFD, FD_CLOEXEC) != 0 ? -1 : 0;
+}
+
+int iso_fd_listen_host(const char *host, char *why, size_t cap)
+{
+    char h[128];
+    size_t n = host ? strlen(host) : 0;
+    if (n == 0 || n >= sizeof h) {
+        snprintf(why, cap, "'%.60s%s' is not a numeric IPv4 or IPv6 address or localhost",
+                 host ? host : "", n > 60 ? "..." : "");
+        return -1;
+    }
+    if (n >= 2 && host[0] == '[' && host[n - 1] == ']') {
+        memcpy(h, host + 1, n - 2);
+        h[n - 2] = '\0';
+    } else {
+        memcpy(h, host, n + 1);
+    }
+    if (strcasecmp(h, "localhost") == 0)
+        return 1;
+    struct addrinfo hints, *ai = NULL;
+    memset(&hints, 0, sizeof hints);
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_NUMERICHOST | AI_PASSIVE;
+    if (getaddrinfo(h, NULL, &hints, &ai) != 0 || !ai) {
+        snprintf(why, cap, "'%s' is not a numeric IPv4 or IPv6 address or localhost", host);
+        return -1;
+    }
+    int loopback;
+    if (ai->ai_family == AF_INET) {
+        loopback = (ntohl(((const struct sockaddr_in *)ai->ai_addr)->sin_addr.s_addr) >> 24) == 127;
+    } else {
+        const struct in6_addr *v6 = &((const struct sockaddr_in6 *)ai->ai_addr)->sin6_addr;
+        loopback = IN6_IS_ADDR_V4MAPPED(v6) ? v6->s6_addr[12] == 127 : IN6_IS_ADDR_LOOPBACK(v6);
+    }
+    freeaddrinfo(ai);
+    return loopback;
 }
 
 /* Connects one address within timeout_ms; -1 with errno set on failure. */

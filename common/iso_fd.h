@@ -25,6 +25,15 @@ int iso_fd_nonblock(int fd);
 ISO_NODISCARD int iso_fd_tcp_connect(const char *host, const char *port, int timeout_ms, int *fd,
                                      iso_err *err);
 
+/* Checks `host`, an address to listen on: a numeric IPv4 or IPv6 address
+ * (IPv6 also in brackets, as in a URL: [::1]) or localhost; never a name
+ * that would need a resolver when the socket is bound. Returns 1 for a
+ * loopback address, 0 for one that other machines can reach (0.0.0.0, ::,
+ * a LAN address), or -1 with a phrase in why: "'example.com' is not a
+ * numeric IPv4 or IPv6 address or localhost". Scene files check the live
+ * view's host with it before anything runs. */
+int iso_fd_listen_host(const char *host, char *why, size_t cap);
+
 /* Waits up to timeout_ms (0: not at all) for fd to be readable, then reads
  * at most cap bytes. Returns the count, 0 when nothing came in time (or a
  * signal woke the wait), or ISO_EIO: "<what>: peer closed the link" at end

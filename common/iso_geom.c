@@ -117,9 +117,7 @@ void iso_twist_exp(const iso_twist *xi, double t, iso_pose *g)
         g->p[i] = V[3 * i] * v[0] + V[3 * i + 1] * v[1] + V[3 * i + 2] * v[2];
 }
 
-/* Unit quaternion (w, x, y, z) of a near-rotation, by Shepperd's choice of
- * the largest diagonal combination; normalising it projects to a rotation. */
-static void quat_from_matrix(const double R[9], double q[4])
+void iso_rotation_quaternion(const double R[9], double q[4])
 {
     double tr = R[0] + R[4] + R[8];
     if (tr > R[0] && tr > R[4] && tr > R[8]) {
@@ -159,7 +157,7 @@ int iso_twist_from_matrix(const double M[16], iso_twist *xi, iso_err *err)
     double R[9] = {M[0], M[1], M[2], M[4], M[5], M[6], M[8], M[9], M[10]};
     double p[3] = {M[3], M[7], M[11]};
     double q[4];
-    quat_from_matrix(R, q);
+    iso_rotation_quaternion(R, q);
     double sn = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     double theta = 2 * atan2(sn, q[0]);
     if (theta > 3.14159265358979323846 - 1e-9)

@@ -46,6 +46,10 @@ ISO_API ISO_NODISCARD int iso_twist_from_matrix(const double M[16], iso_twist *x
  * for a half-turn between them. */
 ISO_API ISO_NODISCARD int iso_twist_between(const iso_pose *a, const iso_pose *b, iso_twist *xi,
                                             iso_err *err);
+/* The unit quaternion (w, x, y, z), w >= 0, of a row-major near-rotation,
+ * by Shepperd's choice of the largest diagonal combination; normalising it
+ * projects to the nearest rotation. */
+ISO_API void iso_rotation_quaternion(const double R[9], double q[4]);
 /* g = exp(t ξ), evaluated in closed form (Rodrigues and the screw's V matrix). */
 ISO_API void iso_twist_exp(const iso_twist *xi, double t, iso_pose *g);
 

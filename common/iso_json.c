@@ -109,14 +109,17 @@ void iso_json_string(iso_json *j, const char *key, const char *s)
         fputs("null", j->f);
 }
 
-/* An integer member (int, long, uint32_t or an int read as a bool). */
+/* An integer member (int, long, uint32_t, uint64_t or an int read as a bool). */
 static long long member_int(const char *at, iso_json_type type)
 {
     int v;
     long l;
     uint32_t u;
+    uint64_t u64;
     if (type == ISO_JSON_LONG)
         return memcpy(&l, at, sizeof l), l;
+    if (type == ISO_JSON_U64)
+        return memcpy(&u64, at, sizeof u64), (long long)u64;
     if (type == ISO_JSON_U32)
         return memcpy(&u, at, sizeof u), u;
     return memcpy(&v, at, sizeof v), v;

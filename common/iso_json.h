@@ -59,7 +59,8 @@ typedef enum iso_json_type {
     ISO_JSON_LONG,   /* long */
     ISO_JSON_U32,    /* uint32_t */
     ISO_JSON_BOOL,   /* int, written true or false */
-    ISO_JSON_TEXT    /* char array, NUL-terminated */
+    ISO_JSON_TEXT,   /* char array, NUL-terminated */
+    ISO_JSON_U64     /* uint64_t (a counter: below 2^63) */
 } iso_json_type;
 typedef struct iso_json_field {
     const char *key;

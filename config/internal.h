@@ -11,7 +11,6 @@
 #ifndef ISO_SCENE_INTERNAL_H
 #define ISO_SCENE_INTERNAL_H
 
-#include <math.h> /* INFINITY, in the range macros */
 #include <stddef.h>
 #include <stdio.h>
 
@@ -84,10 +83,11 @@ typedef struct scene_key {
     scene_kind kind;
     size_t off, size; /* the value's place in the section's struct: FIELD(type, member) */
     unsigned flags;   /* SK_* */
-    /* Value range (SK_NUMBER, SK_INT, and the scalars of an SK_LIST). */
-    int ranged, lo_open, hi_open;
-    double lo, hi;   /* hi = INFINITY: no upper bound */
-    const char *dev; /* SK_NUMBER: the range is devices/' (iso_dev_map_check, this field) */
+    /* Value range (SK_NUMBER, SK_INT, and the integers of an SK_LIST);
+     * iso_scene__range() says which applies. */
+    iso_range range;
+    const char *solver; /* the range is the solver's (iso_solver_range, this field) */
+    const char *dev;    /* SK_NUMBER: the range is devices/' (iso_dev_map_check, this field) */
     int min_items, max_items;             /* SK_LIST: how many items (max_items 0: no limit) */
     const char *const *names;             /* SK_ENUM (or a list's scalars): the names, by value */
     const char *const *(*names_fn)(void); /* ... or a function that returns them */
@@ -135,12 +135,14 @@ typedef struct scene_section {
 #define KIND_AT(type, member) .stores_kind = 1, .kind_off = offsetof(type, member)
 
 #define FIELD(type, member) offsetof(type, member), sizeof(((type *)0)->member)
-/* Ranges: [a, b], (a, b], (a, b), >= a, > a. */
-#define IN(a, b) .ranged = 1, .lo = (a), .hi = (b)
-#define IN_OC(a, b) .ranged = 1, .lo_open = 1, .lo = (a), .hi = (b)
-#define IN_OO(a, b) .ranged = 1, .lo_open = 1, .hi_open = 1, .lo = (a), .hi = (b)
-#define AT_LEAST(a) .ranged = 1, .lo = (a), .hi = INFINITY
-#define ABOVE(a) .ranged = 1, .lo_open = 1, .lo = (a), .hi = INFINITY
+/* Ranges: [a, b], (a, b], >= a, > a; or the solver's for its setting
+ * `name` (iso_solver_range), so that a scene and the command line refuse
+ * the same values in the same words. */
+#define IN(a, b) .range = {ISO_RANGE_GE(a), ISO_RANGE_LE(b)}
+#define IN_OC(a, b) .range = {ISO_RANGE_GT(a), ISO_RANGE_LE(b)}
+#define AT_LEAST(a) .range = {ISO_RANGE_GE(a)}
+#define ABOVE(a) .range = {ISO_RANGE_GT(a)}
+#define SOLVER_RANGE(name) .solver = (name)
 
 /* The top level; every other section hangs from it (SK_SECTION and SK_LIST
  * rows' sub). The sections, each in its own file: */
@@ -198,8 +200,18 @@ const scene_key *iso_scene__row(const scene_section *sec, const char *name);
 
 /* The text of a scalar (NULL for collections and aliases). */
 const char *iso_scene__scalar(scene_ctx *c, fnode *n);
+/* 1 if n is YAML's null where a value belongs: no node, an empty value, or
+ * a plain (unquoted) ~, null, Null or NULL. A quoted "~" is text. */
+int iso_scene__is_null(scene_ctx *c, fnode *n);
+/* What n is, for "found ...": "a list", "a mapping", "an empty value",
+ * "null ('~')", or the scalar's text in quotes. Into buf; returns buf. */
+const char *iso_scene__found(scene_ctx *c, fnode *n, char *buf, size_t cap);
+/* Any finite number. */
 int iso_scene__to_double(scene_ctx *c, fnode *n, const char *key, double *out);
-int iso_scene__to_long(scene_ctx *c, fnode *n, const char *key, long lo, long hi, long *out);
+/* A number of row k's range (iso_scene__range), or of the devices layer's
+ * (k->dev): a value of the wrong type is ISO_EPARSE, one out of range
+ * ISO_EINVAL, both in iso_range_parse's words. */
+int iso_scene__number(scene_ctx *c, const scene_key *k, fnode *n, const char *key, double *out);
 /* One of `names` (NULL-terminated); *out is its index. */
 int iso_scene__to_enum(scene_ctx *c, fnode *n, const char *key, const char *const *names, int *out);
 /* A file to read: resolved against the scene's folder, and unless parsing
@@ -208,12 +220,17 @@ int iso_scene__to_file(scene_ctx *c, fnode *n, const char *key, char *out, size_
 /* "host:port" with a port in 1..65535. */
 int iso_scene__host_port(scene_ctx *c, fnode *n, const char *key, char *host, size_t cap,
                          int *port);
-/* A value of row k's range (SK_NUMBER with dev: iso_dev_map_check). */
-int iso_scene__in_range(scene_ctx *c, const scene_key *k, fnode *n, const char *key, double v);
 /* k's enum names. */
 const char *const *iso_scene__names(const scene_key *k);
+/* Row k's range into *r: its own, or the solver's for k->solver; whole
+ * numbers for SK_INT and for an SK_LIST's items. Returns 0 when it has
+ * none (and for k->dev, whose range the devices layer holds). */
+int iso_scene__range(const scene_key *k, iso_range *r);
 /* k's range as SCENES.md shows it ("(0, 1]", "[1, 65535]", "> 0"), "" if none. */
 const char *iso_scene__range_text(const scene_key *k, char *buf, size_t cap);
+/* What a value of row k must be, for messages: "a value in (0, 1]", "true
+ * or false", "one of a, b or c", the row's type... Into buf; returns buf. */
+const char *iso_scene__expected(const scene_key *k, char *buf, size_t cap);
 /* Whether `word` is among the space-separated words of `list`. */
 int iso_scene__in_words(const char *list, const char *word);
 /* The space-separated words as a phrase, "a, b or c" with last = " or ". */

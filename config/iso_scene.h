@@ -189,7 +189,8 @@ typedef enum iso_scene_emu_mode {
 } iso_scene_emu_mode;
 
 typedef struct iso_scene_channel {
-    int channel;     /* actuator channel, 0..ISO_SCENE_MAX_CHANNELS-1, each once */
+    int channel;     /* actuator channel, 0..ISO_ACT_MAX_CHANNELS-1 (a SETPOINTS frame's
+                        index), each once */
     int vertex;      /* a vertex, or -1 */
     int region;      /* or a region's centroid (see below) */
     int axis;        /* 0 x, 1 y, 2 z */

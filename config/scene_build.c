@@ -270,12 +270,30 @@ static int build_drivers(iso_scene *s, iso_err *err)
         if (iso_twist_from_matrix(d->M, &d->twist, &e))
             return wrap(s, err, s->sel_line, s->sel_col, key, &e);
     }
-    int nv = iso_mesh_vertex_count(s->mesh);
+    return ISO_OK;
+}
+
+/* What the actuator sink would refuse when the run opens it, said here
+ * with the channel's place in the scene. */
+static int build_channels(iso_scene *s, iso_err *err)
+{
+    int nv = iso_mesh_vertex_count(s->mesh), nfixed = 0;
+    for (int v = 0; v < nv; v++)
+        nfixed += s->regions.kind[v] == ISO_FIXED;
     for (int i = 0; i < s->actuators.n_ch; i++) {
         const iso_scene_channel *c = &s->actuators.ch[i];
-        if (c->vertex >= nv)
-            return at(s, err, ISO_EINVAL, c->line, c->col, "sinks.actuators.channels.vertex",
+        char key[96];
+        if (c->vertex >= nv) {
+            snprintf(key, sizeof key, "sinks.actuators.channels[%d].vertex", i);
+            return at(s, err, ISO_EINVAL, c->line, c->col, key,
                       "vertex %d is out of range (the mesh has %d vertices)", c->vertex, nv);
+        }
+        if (c->region == ISO_SCENE_REGION_FIXED && nfixed == 0) {
+            snprintf(key, sizeof key, "sinks.actuators.channels[%d].region", i);
+            return at(s, err, ISO_ECONSTRAINT, c->line, c->col, key,
+                      "'fixed' has no vertices in this scene, so the channel has nothing to "
+                      "follow");
+        }
     }
     return ISO_OK;
 }
@@ -289,6 +307,8 @@ int iso_scene__build(iso_scene *s, const iso_scene_opts *opts, iso_err *err)
         rc = build_regions(s, &base, err);
     if (rc == ISO_OK)
         rc = build_drivers(s, err);
+    if (rc == ISO_OK)
+        rc = build_channels(s, err);
     iso_regions_deinit(&base);
     return rc;
 }

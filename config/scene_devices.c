@@ -107,6 +107,24 @@ static int device_kind(scene_ctx *c, scene_map *m)
 static int device_end(scene_ctx *c, scene_map *m)
 {
     const iso_scene_device *d = m->obj, *all = d - m->item; /* the list's first */
+    char key[ISO_SCENE_KEY_MAX];
+    if (d->backend == ISO_SCENE_DEV_REPLAY && m->count > 1)
+        return iso_scene__fail(c, iso_scene__get(m->node, "kind"), ISO_EINVAL,
+                               iso_scene__join(key, sizeof key, m->key, "kind"),
+                               "'replay' stands for every device it recorded and cannot be "
+                               "combined with other devices (the list has %d)",
+                               m->count);
+    if (d->backend == ISO_SCENE_DEV_REPLAY && c->check_files) {
+        /* run reads the recording's header first thing: so does check */
+        iso_dev_rec_reader r;
+        iso_err e;
+        iso_err_clear(&e);
+        int rc = iso_dev_rec_reader_load(&r, d->path, &e);
+        if (rc != ISO_OK)
+            return iso_scene__fail(c, iso_scene__get(m->node, "file"), rc,
+                                   iso_scene__join(key, sizeof key, m->key, "file"), "%s", e.msg);
+        iso_dev_rec_reader_deinit(&r);
+    }
     for (int j = 0; j < m->item; j++) {
         if (strcmp(all[j].name, d->name) == 0)
             return iso_scene__fail(c, iso_scene__get(m->node, "name"), ISO_EPARSE, m->key,

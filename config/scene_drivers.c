@@ -17,8 +17,7 @@
 /* One number of a per-axis value, in the range devices/ holds k->dev to. */
 static int axis_value(scene_ctx *c, const scene_key *k, fnode *e, const char *key, double *out)
 {
-    int rc = iso_scene__to_double(c, e, key, out);
-    return rc ? rc : iso_scene__in_range(c, k, e, key, *out);
+    return iso_scene__number(c, k, e, key, out);
 }
 
 /* {tx: .., rz: ..}: some of the six, the rest as they were. */

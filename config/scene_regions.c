@@ -84,11 +84,10 @@ static int store_vertices(scene_ctx *c, const scene_key *k, fnode *v, const char
         return iso_err_set(c->err, ISO_ENOMEM, -1, "out of memory");
     void *it = NULL;
     for (int i = 0; i < cnt; i++) {
-        long l;
-        if ((rc = iso_scene__to_long(c, fy_node_sequence_iterate(v, &it), key, (long)k->lo,
-                                     (long)k->hi, &l)))
+        double d;
+        if ((rc = iso_scene__number(c, k, fy_node_sequence_iterate(v, &it), key, &d)))
             return rc;
-        sel->vertices[i] = (int)l;
+        sel->vertices[i] = (int)d;
         sel->n_vertices = i + 1;
     }
     return ISO_OK;

@@ -6,7 +6,8 @@
 #include <libfyaml.h>
 #include <string.h>
 
-#include "iso_actuators.h" /* iso_act_emu_names */
+#include "iso_actuators.h" /* iso_act_emu_names, ISO_ACT_MAX_CHANNELS */
+#include "iso_fd.h"        /* iso_fd_listen_host */
 #include "iso_names.h"
 
 /* ------------------------------------------------------------------------ */
@@ -22,10 +23,10 @@ static int store_ticks(scene_ctx *c, const scene_key *k, fnode *v, const char *k
     void *it = NULL;
     fnode *e;
     while ((e = fy_node_sequence_iterate(v, &it))) {
-        if ((rc = iso_scene__to_long(c, e, key, (long)k->lo, (long)k->hi,
-                                     &d->snapshot_ticks[d->n_snapshots])))
+        double t;
+        if ((rc = iso_scene__number(c, k, e, key, &t)))
             return rc;
-        d->n_snapshots++;
+        d->snapshot_ticks[d->n_snapshots++] = (long)t;
     }
     return ISO_OK;
 }
@@ -52,11 +53,33 @@ static int enable_display(scene_ctx *c, scene_map *m)
     return ISO_OK;
 }
 
+/* The host the live view will bind, checked by the rule the view's server
+ * binds by (a numeric address or localhost; beyond loopback only with
+ * allow_remote), so that `check` refuses what `run` would. */
+static int display_end(scene_ctx *c, scene_map *m)
+{
+    const iso_scene_display *d = m->obj;
+    char why[160], key[ISO_SCENE_KEY_MAX];
+    fnode *host = iso_scene__get(m->node, "host");
+    int loopback = iso_fd_listen_host(d->host, why, sizeof why);
+    iso_scene__join(key, sizeof key, m->key, "host");
+    if (loopback < 0)
+        return iso_scene__fail(c, host ? host : m->node, ISO_EINVAL, key,
+                               "%s (the live view binds it; a name would need a resolver)", why);
+    if (!loopback && !d->allow_remote)
+        return iso_scene__fail(c, host, ISO_EINVAL, key,
+                               "'%s' can be reached from other machines and the view has no "
+                               "password; set allow_remote: true to serve on it anyway",
+                               d->host);
+    return ISO_OK;
+}
+
 static const scene_section display = {
     .name = "sinks.display",
     .what = "a mapping (host, port, allow_remote, snapshot_ticks, snapshot_dir)",
     .keys = display_keys,
-    .begin = enable_display};
+    .begin = enable_display,
+    .end = display_end};
 
 static const scene_key ply_keys[] = {
     {"dir", SK_PATH, FIELD(iso_scene_ply, dir), SK_REQUIRED, .help = "a folder for the frames"},
@@ -160,11 +183,15 @@ static int store_region(scene_ctx *c, const scene_key *k, fnode *v, const char *
     return rc;
 }
 
+_Static_assert(ISO_ACT_MAX_CHANNELS <= ISO_SCENE_MAX_CHANNELS,
+               "a scene holds as many channels as a SETPOINTS frame carries");
+
 static const char *const axes[] = {"x", "y", "z", NULL};
 
 static const scene_key channel_keys[] = {
     {"channel", SK_INT, FIELD(iso_scene_channel, channel), SK_REQUIRED,
-     IN(0, ISO_SCENE_MAX_CHANNELS - 1), .help = "the actuator channel, each once"},
+     IN(0, ISO_ACT_MAX_CHANNELS - 1),
+     .help = "the actuator channel (a SETPOINTS frame's index), each once"},
     {"vertex", SK_INT, FIELD(iso_scene_channel, vertex), SK_ONE_OF, IN(0, 1L << 30),
      .help = "a vertex it follows"},
     {"region", SK_STRING, 0, 0, SK_ONE_OF, .store = store_region, .type = "fixed or a handle",
@@ -175,8 +202,8 @@ static const scene_key channel_keys[] = {
      .help = "the low limit (scene units)"},
     {"max", SK_NUMBER, FIELD(iso_scene_channel, max), SK_REQUIRED,
      .help = "the high limit (scene units), > min"},
-    {"scale", SK_NUMBER, FIELD(iso_scene_channel, scale), .help = "scene units to actuator counts",
-     .dflt = "1"},
+    {"scale", SK_NUMBER, FIELD(iso_scene_channel, scale),
+     .help = "scene units to actuator counts, not 0", .dflt = "1"},
     {.key = NULL},
 };
 
@@ -199,6 +226,11 @@ static int channel_end(scene_ctx *c, scene_map *m)
         return iso_scene__fail(c, iso_scene__get(m->node, "max"), ISO_EINVAL,
                                iso_scene__join(key, sizeof key, m->key, "max"),
                                "expected max > min, found min %g, max %g", ch->min, ch->max);
+    if (ch->scale == 0)
+        return iso_scene__fail(c, iso_scene__get(m->node, "scale"), ISO_EINVAL,
+                               iso_scene__join(key, sizeof key, m->key, "scale"),
+                               "'0' is out of range: expected a number other than 0 (every "
+                               "position would give the same setpoint)");
     for (int j = 0; j < m->item; j++)
         if (all[j].channel == ch->channel)
             return iso_scene__fail(c, iso_scene__get(m->node, "channel"), ISO_EPARSE, m->key,
@@ -218,7 +250,7 @@ static const scene_key actuators_keys[] = {
      .help = LINK_FORMS},
     {"channels", SK_LIST, FIELD(iso_scene_actuators, ch), SK_REQUIRED,
      .count_off = offsetof(iso_scene_actuators, n_ch), .stride = sizeof(iso_scene_channel),
-     .min_items = 1, .max_items = ISO_SCENE_MAX_CHANNELS, .sub = &channel, .noun = "channels",
+     .min_items = 1, .max_items = ISO_ACT_MAX_CHANNELS, .sub = &channel, .noun = "channels",
      .type = "list of channels", .help = "a list of channels"},
     /* the loop watchdog may be widened or narrowed, never switched off */
     {"loop_timeout_ms", SK_INT, FIELD(iso_scene_actuators, loop_timeout_ms), IN(20, 60000),

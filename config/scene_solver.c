@@ -1,6 +1,8 @@
 /* config/scene_solver.c -- the scene's `solver:` and `integrator:`
  * sections. Defaults are the library's (iso_solver_opts_default,
- * iso_integrate_opts_default) except where scene.c's new_scene says. */
+ * iso_integrate_opts_default) except where scene.c's new_scene says; the
+ * ranges are the solver's (iso_solver_range), which the command line's
+ * options read too. */
 #include "internal.h"
 
 #include <string.h>
@@ -12,9 +14,9 @@ _Static_assert(sizeof(iso_weighting) == sizeof(int) && sizeof(iso_assembly) == s
                "SK_ENUM stores an int: the solver's enums must be int-sized");
 
 static const scene_key restore_keys[] = {
-    {"mu", SK_NUMBER, FIELD(iso_solver_opts, restore_mu), SK_REQUIRED, AT_LEAST(0),
+    {"mu", SK_NUMBER, FIELD(iso_solver_opts, restore_mu), SK_REQUIRED, SOLVER_RANGE("restore_mu"),
      .help = "the restoration term's weight (0: off)"},
-    {"tau", SK_NUMBER, FIELD(iso_solver_opts, restore_tau), ABOVE(0),
+    {"tau", SK_NUMBER, FIELD(iso_solver_opts, restore_tau), SOLVER_RANGE("restore_tau"),
      .help = "its time constant in seconds of stream time", .dflt = "required when mu > 0"},
     {.key = NULL},
 };
@@ -46,7 +48,7 @@ static const scene_section restore = {.name = "solver.restore",
                                       .end = restore_end};
 
 static const scene_key solver_keys[] = {
-    {"omega", SK_NUMBER, FIELD(iso_solver_opts, omega), IN_OC(0, 1),
+    {"omega", SK_NUMBER, FIELD(iso_solver_opts, omega), SOLVER_RANGE("omega"),
      .help = "the distortion term's weight against the isometry term", .dflt = "1/3"},
     {"weighting", SK_ENUM, FIELD(iso_solver_opts, weighting), .names = iso_weighting_names,
      .help = "the element integral: over the parameter triangle or the surface", .dflt = "param"},
@@ -59,17 +61,17 @@ static const scene_key solver_keys[] = {
      .dflt = "cpu"},
     {"refactor", SK_ENUM, FIELD(iso_solver_opts, refactor), .names = iso_refactor_names,
      .help = "always factor, or reuse the factor as PCG's preconditioner", .dflt = "always"},
-    {"cg_tol", SK_NUMBER, FIELD(iso_solver_opts, cg_tol), IN_OO(0, 1),
+    {"cg_tol", SK_NUMBER, FIELD(iso_solver_opts, cg_tol), SOLVER_RANGE("cg_tol"),
      .help = "PCG's relative residual (a floor beside integrator.cg_share's target)",
      .dflt = "1e-10"},
-    {"cg_max_iter", SK_INT, FIELD(iso_solver_opts, cg_max_iter), IN(1, 100000),
+    {"cg_max_iter", SK_INT, FIELD(iso_solver_opts, cg_max_iter), SOLVER_RANGE("cg_max_iter"),
      .help = "PCG iterations a tick may spend before it refactors and solves directly",
      .dflt = "12"},
     {"preconditioner", SK_ENUM, FIELD(iso_solver_opts, preconditioner), .names = iso_precond_names,
      .help = "adaptive: PCG's preconditioner, the factor turned by each ring's rotation since "
              "its matrix (rotated) or as it is (plain)",
      .dflt = "rotated"},
-    {"worker_lag", SK_INT, FIELD(iso_solver_opts, worker_lag), IN(0, ISO_SOLVER_WORKER_LAG_MAX),
+    {"worker_lag", SK_INT, FIELD(iso_solver_opts, worker_lag), SOLVER_RANGE("worker_lag"),
      .help = "adaptive: 0 factors on the tick's thread; N factors on a worker thread, each factor "
              "used from N evaluations after its matrix's",
      .dflt = "0"},
@@ -84,14 +86,14 @@ const scene_section iso_scene__solver = {
     .name = "solver", .what = "a mapping of solver settings", .keys = solver_keys};
 
 static const scene_key integrator_keys[] = {
-    {"steps_per_tick", SK_INT, FIELD(iso_scene, steps_per_tick), IN(1, 1000),
+    {"steps_per_tick", SK_INT, FIELD(iso_scene, steps_per_tick), SOLVER_RANGE("steps_per_tick"),
      .help = "ABM steps per tick", .dflt = "1"},
-    {"restore_kappa", SK_NUMBER, FIELD(iso_scene, integrate.restore_kappa), AT_LEAST(0),
-     .help = "restoration's clamp: tau_eff = max(tau, kappa h)",
+    {"restore_kappa", SK_NUMBER, FIELD(iso_scene, integrate.restore_kappa),
+     SOLVER_RANGE("restore_kappa"), .help = "restoration's clamp: tau_eff = max(tau, kappa h)",
      .dflt = "1.0 under pece, 6.0 under pec"},
     {"abm", SK_ENUM, FIELD(iso_scene, abm_mode), .names = iso_abm_mode_names,
      .help = "the ABM3 form: two field evaluations a step (pece) or one (pec)", .dflt = "pece"},
-    {"cg_share", SK_NUMBER, FIELD(iso_scene, integrate.cg_share), IN(0, 1),
+    {"cg_share", SK_NUMBER, FIELD(iso_scene, integrate.cg_share), SOLVER_RANGE("cg_share"),
      .help = "PCG's share of a step's local error estimate (0: solver.cg_tol always)",
      .dflt = "0.1"},
     {.key = NULL},

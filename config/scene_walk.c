@@ -23,6 +23,38 @@
 /* Positions and messages                                                    */
 /* ------------------------------------------------------------------------ */
 
+/* Where scalar n's own token starts; 0 when it has none (an empty value). */
+static int token_mark(fnode *n, int *line, int *col)
+{
+    size_t len = 0;
+    struct fy_token *t = fy_node_get_scalar_token(n);
+    const struct fy_mark *m = t ? fy_token_start_mark(t) : NULL;
+    if (!m || (fy_node_get_scalar(n, &len) && len == 0 && fy_node_get_style(n) == FYNS_PLAIN))
+        return 0;
+    *line = m->line + 1;
+    *col = m->column + 1;
+    return 1;
+}
+
+/* An empty value has no token of its own (libfyaml 0.7 gives it none, or
+ * one at the document's start): it is reported at its key, or at the
+ * list it is an item of. */
+static void empty_mark(fnode *n, int *line, int *col)
+{
+    for (int depth = 0; n && depth < 64; depth++) {
+        fnode *parent = fy_node_get_parent(n);
+        void *it = NULL;
+        struct fy_node_pair *p;
+        if (parent && fy_node_is_mapping(parent))
+            while ((p = fy_node_mapping_iterate(parent, &it)) != NULL)
+                if (fy_node_pair_value(p) == n) {
+                    iso_scene__mark(fy_node_pair_key(p), line, col);
+                    return;
+                }
+        n = parent; /* an item of a list: where the list is */
+    }
+}
+
 /* Collections have no public start token in libfyaml 0.7, so they report
  * their first scalar (a mapping's first key). */
 void iso_scene__mark(fnode *n, int *line, int *col)
@@ -31,12 +63,8 @@ void iso_scene__mark(fnode *n, int *line, int *col)
     *col = 1;
     for (int depth = 0; n && depth < 64; depth++) {
         if (fy_node_is_scalar(n)) {
-            struct fy_token *t = fy_node_get_scalar_token(n);
-            const struct fy_mark *m = t ? fy_token_start_mark(t) : NULL;
-            if (m) {
-                *line = m->line + 1;
-                *col = m->column + 1;
-            }
+            if (!token_mark(n, line, col) && depth == 0)
+                empty_mark(n, line, col);
             return;
         }
         void *it = NULL;
@@ -100,10 +128,11 @@ fnode *iso_scene__get(fnode *map, const char *name)
 
 int iso_scene__want_map(scene_ctx *c, fnode *n, const char *key, const char *what)
 {
+    char found[80];
     if (n && fy_node_is_mapping(n))
         return ISO_OK;
     return iso_scene__fail(c, n, ISO_EPARSE, key, "expected %s, found %s", what,
-                           iso_scene__type_name(n));
+                           iso_scene__found(c, n, found, sizeof found));
 }
 
 /* ------------------------------------------------------------------------ */
@@ -350,16 +379,18 @@ int iso_scene__walk(scene_ctx *c, const scene_section *sec, fnode *n, const char
 int iso_scene__list_count(scene_ctx *c, const scene_key *k, fnode *v, const char *key, int *count)
 {
     int one = (k->flags & SK_ONE_OR_LIST) && v && fy_node_is_mapping(v);
+    char found[80];
     if (!one && (!v || !fy_node_is_sequence(v) ||
                  (k->min_items > 0 && fy_node_sequence_item_count(v) < 1))) {
         if (k->flags & SK_ONE_OR_LIST)
             return iso_scene__fail(c, v, ISO_EPARSE, key,
                                    "expected a mapping or a non-empty list of %s, found %s",
-                                   k->noun, iso_scene__type_name(v));
+                                   k->noun, iso_scene__found(c, v, found, sizeof found));
         return iso_scene__fail(c, v, ISO_EPARSE, key, "expected a %slist of %s, found %s",
                                k->min_items > 0 ? "non-empty " : "", k->noun,
-                               v && fy_node_is_sequence(v) ? "an empty one"
-                                                           : iso_scene__type_name(v));
+                               v && fy_node_is_sequence(v)
+                                   ? "an empty one"
+                                   : iso_scene__found(c, v, found, sizeof found));
     }
     *count = one ? 1 : fy_node_sequence_item_count(v);
     if (k->max_items > 0 && *count > k->max_items)

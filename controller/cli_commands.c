@@ -6,10 +6,19 @@
 
 #include <string.h>
 
-const iso_cli__cmd *const iso_cli__commands[] = {
-    &iso_cli__deform_cmd, &iso_cli__field_cmd,  &iso_cli__metrics_cmd, &iso_cli__bench_cmd,
-    &iso_cli__record_cmd, &iso_cli__replay_cmd, &iso_cli__inspect_cmd, &iso_cli__devices_cmd,
-    &iso_cli__check_cmd,  &iso_cli__run_cmd,    &iso_cli__version_cmd, NULL};
+const iso_cli__cmd *const iso_cli__commands[] = {&iso_cli__deform_cmd,
+                                                 &iso_cli__field_cmd,
+                                                 &iso_cli__metrics_cmd,
+                                                 &iso_cli__bench_cmd,
+                                                 &iso_cli__record_cmd,
+                                                 &iso_cli__replay_cmd,
+                                                 &iso_cli__inspect_cmd,
+                                                 &iso_cli__devices_cmd,
+                                                 &iso_cli__check_cmd,
+                                                 &iso_cli__run_cmd,
+                                                 &iso_cli__export_cmd,
+                                                 &iso_cli__version_cmd,
+                                                 NULL};
 
 const iso_cli__cmd *iso_cli__command(const char *name)
 {

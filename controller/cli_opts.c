@@ -39,40 +39,31 @@ const char *iso_cli__opt_spelling(const iso_cli__opt *o, char *buf, size_t cap)
     return buf;
 }
 
+_Static_assert((int)ISO_CLI_NONE == (int)ISO_RANGE_NONE &&
+                   (int)ISO_CLI_OPEN == (int)ISO_RANGE_OPEN &&
+                   (int)ISO_CLI_CLOSED == (int)ISO_RANGE_CLOSED,
+               "a row's ends are iso_range's");
+
+void iso_cli__opt_range_of(const iso_cli__opt *o, iso_range *r)
+{
+    const iso_range *solver = o->solver ? iso_solver_range(o->solver) : NULL;
+    if (solver) {
+        *r = *solver;
+    } else {
+        memset(r, 0, sizeof *r);
+        r->lo = o->lo;
+        r->hi = o->hi;
+        r->lo_end = (iso_range_end)o->lo_end;
+        r->hi_end = (iso_range_end)o->hi_end;
+    }
+    r->integer = o->kind == ISO_CLI_OPT_INT;
+}
+
 const char *iso_cli__opt_range(const iso_cli__opt *o, char *buf, size_t cap)
 {
-    if (o->lo_end && o->hi_end)
-        snprintf(buf, cap, "in %c%.15g, %.15g%c", o->lo_end == ISO_CLI_OPEN ? '(' : '[', o->lo,
-                 o->hi, o->hi_end == ISO_CLI_OPEN ? ')' : ']');
-    else if (o->lo_end)
-        snprintf(buf, cap, "%s %.15g", o->lo_end == ISO_CLI_OPEN ? ">" : ">=", o->lo);
-    else if (o->hi_end)
-        snprintf(buf, cap, "%s %.15g", o->hi_end == ISO_CLI_OPEN ? "<" : "<=", o->hi);
-    else if (cap)
-        buf[0] = '\0';
-    return buf;
-}
-
-/* What a number option expects: "a value in (0, 1]", "an integer >= 1". */
-static const char *expected(const iso_cli__opt *o, char *buf, size_t cap)
-{
-    char range[96];
-    int is_int = o->kind == ISO_CLI_OPT_INT;
-    if (!o->lo_end && !o->hi_end)
-        snprintf(buf, cap, "%s", is_int ? "an integer" : "a finite number");
-    else
-        snprintf(buf, cap, "%s %s", is_int ? "an integer" : "a value",
-                 iso_cli__opt_range(o, range, sizeof range));
-    return buf;
-}
-
-static int in_range(const iso_cli__opt *o, double v)
-{
-    if (o->lo_end == ISO_CLI_OPEN ? !(v > o->lo) : o->lo_end == ISO_CLI_CLOSED && !(v >= o->lo))
-        return 0;
-    if (o->hi_end == ISO_CLI_OPEN ? !(v < o->hi) : o->hi_end == ISO_CLI_CLOSED && !(v <= o->hi))
-        return 0;
-    return 1;
+    iso_range r;
+    iso_cli__opt_range_of(o, &r);
+    return iso_range_text(&r, buf, cap);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -115,29 +106,6 @@ static const iso_cli__opt *find_row(const iso_cli__opt *t, size_t base, const ch
     return NULL;
 }
 
-/* Strict numbers: the whole text, finite, in the type's own range. */
-static int parse_double(const char *val, double *out)
-{
-    char *end;
-    errno = 0;
-    double d = strtod(val, &end);
-    if (end == val || *end != '\0' || errno == ERANGE || !isfinite(d))
-        return -1;
-    *out = d;
-    return 0;
-}
-
-static int parse_int(const char *val, int *out)
-{
-    char *end;
-    errno = 0;
-    long l = strtol(val, &end, 10);
-    if (end == val || *end != '\0' || errno == ERANGE || l < INT_MIN || l > INT_MAX)
-        return -1;
-    *out = (int)l;
-    return 0;
-}
-
 /* Puts a checked value at dst: its bytes, or through the row's setter,
  * which may refuse it still (a range owned elsewhere, as the mapping's). */
 static int put(const iso_cli__opt *o, void *dst, const char *val, const void *v, size_t n,
@@ -165,25 +133,24 @@ static int store(const char *cmd, const iso_cli__opt *o, void *dst, const char *
     iso_cli__opt_spelling(o, opt, sizeof opt);
     switch (o->kind) {
     case ISO_CLI_OPT_FLAG: return put(o, dst, NULL, &o->flag, sizeof o->flag, index, err);
-    case ISO_CLI_OPT_INT: {
-        int v;
-        if (parse_int(val, &v) != 0)
-            return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is not an integer: expected %s.",
-                               opt, val, expected(o, want, sizeof want));
-        if (!in_range(o, v))
-            return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is out of range: expected %s.", opt,
-                               val, expected(o, want, sizeof want));
-        return put(o, dst, val, &v, sizeof v, index, err);
-    }
+    case ISO_CLI_OPT_INT:
     case ISO_CLI_OPT_DOUBLE: {
+        /* iso_range_parse's words, the ones scene files use: an int row
+         * also holds the value to an int's own range */
+        iso_range r;
+        char why[192];
         double v;
-        if (parse_double(val, &v) != 0)
-            return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is not a number: expected %s.", opt,
-                               val, expected(o, want, sizeof want));
-        if (!in_range(o, v))
-            return iso_err_set(err, ISO_EINVAL, index, "%s '%s' is out of range: expected %s.", opt,
-                               val, expected(o, want, sizeof want));
-        return put(o, dst, val, &v, sizeof v, index, err);
+        iso_cli__opt_range_of(o, &r);
+        if (iso_range_parse(&r, val, &v, why, sizeof why) != 0)
+            return iso_err_set(err, ISO_EINVAL, index, "%s %s.", opt, why);
+        if (o->kind == ISO_CLI_OPT_DOUBLE)
+            return put(o, dst, val, &v, sizeof v, index, err);
+        if (v < INT_MIN || v > INT_MAX)
+            return iso_err_set(err, ISO_EINVAL, index,
+                               "%s '%s' is out of range: expected %s, within [%d, %d].", opt, val,
+                               iso_range_expected(&r, want, sizeof want), INT_MIN, INT_MAX);
+        int i = (int)v;
+        return put(o, dst, val, &i, sizeof i, index, err);
     }
     case ISO_CLI_OPT_STRING:
         if (o->nonempty && !*val)

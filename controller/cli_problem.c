@@ -4,10 +4,12 @@
  * rest pose to the handle's final pose along the screw motion. */
 #include "internal.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "iso_clock.h"
@@ -133,6 +135,76 @@ int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__
     if (rc == ISO_OK)
         rc = load_reference(p, err);
     return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Writing a problem as files                                                 */
+/* ------------------------------------------------------------------------ */
+
+/* The .sel: what iso_sel_load reads, with the labels' meaning on top. */
+static void write_sel(FILE *f, const iso_cli__problem *p)
+{
+    int nv = iso_mesh_vertex_count(p->mesh);
+    fprintf(f, "# %s: one label per vertex, in vertex order: 0 fixed, 1 free, 2 handle\n",
+            p->label);
+    for (int v = 0; v < nv; v++)
+        fprintf(f, "%d\n", p->reg.kind[v]);
+}
+
+/* The .def: the handle's final pose, row-major, x' = M [x;1]. */
+static void write_def(FILE *f, const iso_cli__problem *p)
+{
+    fprintf(f, "# %s: the handle's final pose, a 4x4 row-major matrix M, x' = M [x;1]\n", p->label);
+    for (int r = 0; r < 4; r++)
+        fprintf(f, "%.17g %.17g %.17g %.17g\n", p->M[4 * r], p->M[4 * r + 1], p->M[4 * r + 2],
+                p->M[4 * r + 3]);
+}
+
+/* Writes one file through a temporary name beside it, then renames it. */
+static int write_whole(const iso_cli__problem *p, const char *path, int what, iso_err *err)
+{
+    char tmp[ISO_CLI_PATH_MAX + 32];
+    snprintf(tmp, sizeof tmp, "%s.part-%ld", path, (long)getpid());
+    int rc = ISO_OK;
+    if (what == 0) {
+        rc = iso_mesh_save(p->mesh, NULL, tmp, ISO_MESH_FMT_OFF, err);
+    } else {
+        FILE *f = fopen(tmp, "w");
+        if (!f)
+            return iso_err_set(err, ISO_EIO, -1, "%s: %s", tmp, strerror(errno));
+        if (what == 1)
+            write_sel(f, p);
+        else
+            write_def(f, p);
+        if ((ferror(f) | fclose(f)) != 0)
+            rc = iso_err_set(err, ISO_EIO, -1, "%s: write failed", tmp);
+    }
+    if (rc == ISO_OK && rename(tmp, path) != 0)
+        rc = iso_err_set(err, ISO_EIO, -1, "%s: %s", path, strerror(errno));
+    if (rc != ISO_OK)
+        unlink(tmp);
+    return rc;
+}
+
+int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const char *name,
+                           char paths[3][ISO_CLI_PATH_MAX], iso_err *err)
+{
+    static const char *const ext[] = {"off", "sel", "def"};
+    struct stat st;
+    if (stat(dir, &st) != 0 && mkdir(dir, 0777) != 0)
+        return iso_err_set(err, ISO_EIO, -1, "--write-problem %s: cannot make the folder: %s", dir,
+                           strerror(errno));
+    if (stat(dir, &st) != 0 || !S_ISDIR(st.st_mode))
+        return iso_err_set(err, ISO_EIO, -1, "--write-problem %s: not a folder", dir);
+    for (int i = 0; i < 3; i++) {
+        int n = snprintf(paths[i], ISO_CLI_PATH_MAX, "%s/%s.%s", dir, name, ext[i]);
+        if (n < 0 || n >= ISO_CLI_PATH_MAX)
+            return iso_err_set(err, ISO_EINVAL, -1, "--write-problem %s: path too long", dir);
+        int rc = write_whole(p, paths[i], i, err);
+        if (rc != ISO_OK)
+            return rc;
+    }
+    return ISO_OK;
 }
 
 /* ------------------------------------------------------------------------ */

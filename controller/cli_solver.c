@@ -60,13 +60,12 @@ static const iso_cli__opt refactor_options[] = {
      .names = iso_refactor_names},
     {0}};
 
-/* Below ~1e-16 relative the residual cannot fall further in double
- * precision, so CG would only stall and force a refactor each time; at 1
- * it is no tolerance at all. */
+/* The numbers' ranges are the solver's (iso_solver_range), which scene
+ * files are held to as well. */
 const iso_cli__opt iso_cli__pcg_options[] = {
     {"cg-tol", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, cg_tol), "T",
      .help = "adaptive: CG's relative residual, %R, default " ISO_CLI_STR(ISO_CLI_DEFAULT_CG_TOL),
-     ISO_CLI_GT(0), ISO_CLI_LT(1)},
+     .solver = "cg_tol"},
     {"preconditioner", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, preconditioner), NULL,
      .help = "adaptive: CG's preconditioner, rotated (default): the last factor turned by each "
              "vertex ring's rotation since, or plain: the factor as it is",
@@ -77,7 +76,7 @@ static const iso_cli__opt worker_options[] = {
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_solver_opts, worker_lag), "N",
      .help = "adaptive: 0 (default) factors on the evaluating thread; N %R factors on a worker "
              "thread, each factor used from N evaluations after its matrix's",
-     ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
+     .solver = "worker_lag"},
     {0}};
 
 const iso_cli__opt iso_cli__solver_options[] = {
@@ -87,11 +86,9 @@ const iso_cli__opt iso_cli__solver_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__pcg_options},
     {0}};
 
-/* At omega 0 a flat region makes the system singular, and above 1 the
- * distortion term turns negative (iso_solver.h). */
 const iso_cli__opt iso_cli__weight_options[] = {
     {"omega", ISO_CLI_OPT_DOUBLE, ISO_CLI_DOUBLE_AT(iso_solver_opts, omega), "W",
-     .help = "smoothness weight %R, default 1/3", ISO_CLI_GT(0), ISO_CLI_LE(1)},
+     .help = "smoothness weight %R, default 1/3", .solver = "omega"},
     {"weighting", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(iso_solver_opts, weighting), NULL,
      .help = "how triangles are weighted (default param)", .names = iso_weighting_names},
     {0}};

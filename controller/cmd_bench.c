@@ -156,7 +156,7 @@ static const iso_cli__opt bench_options[] = {
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
      .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
              "each shipped scene's: " ISO_CLI_STR(RT_WORKER_LAG),
-     ISO_CLI_GE(0), ISO_CLI_LE(ISO_SOLVER_WORKER_LAG_MAX)},
+     .solver = "worker_lag"},
     {0}};
 
 /* Returns -1 to go on, else the exit status (0 after --help). */

@@ -16,6 +16,7 @@
 #include "iso_mesh.h"
 #include "iso_metrics.h"
 #include "iso_motion.h"
+#include "iso_pc2.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
 #include "iso_solver.h"
@@ -28,7 +29,7 @@
 
 typedef struct deform_args {
     iso_cli__source src;
-    const char *out;
+    const char *out, *pc2, *write_problem;
     int json, steps, start;
     double tol;
     iso_solver_opts so;
@@ -38,30 +39,41 @@ typedef struct deform_args {
 /* Options                                                                    */
 /* ------------------------------------------------------------------------ */
 
+/* One part of --restore MU,TAU, held to the solver's range for `setting`
+ * (the one a scene's solver.restore is held to). */
+static int restore_part(const char *name, const char *setting, const char *text, double *out,
+                        char *why, size_t cap)
+{
+    static const iso_range any = {0}; /* TAU when MU is 0: a number, unused */
+    char said[160];
+    if (iso_range_parse(setting ? iso_solver_range(setting) : &any, text, out, said, sizeof said) ==
+        0)
+        return 0;
+    snprintf(why, cap, "%s %s", name, said);
+    return -1;
+}
+
 /* --restore MU,TAU (MU >= 0, TAU > 0 when MU > 0) or off (MU = 0: the
  * paper's method exactly), into the solver options at dst. */
 static int set_restore(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
 {
     iso_solver_opts *so = dst;
+    char mu[64];
     (void)o;
     if (strcmp(val, "off") == 0) {
         so->restore_mu = so->restore_tau = 0.0;
         return 0;
     }
-    double m, t;
-    char tail;
-    if (sscanf(val, "%lf,%lf%c", &m, &t, &tail) != 2 || !isfinite(m) || !isfinite(t)) {
+    const char *comma = strchr(val, ',');
+    if (!comma || (size_t)(comma - val) >= sizeof mu || strchr(comma + 1, ',')) {
         snprintf(why, cap, "expected MU,TAU (e.g. " RESTORE_DEFAULT_TEXT ") or off");
         return -1;
     }
-    if (!(m >= 0.0)) {
-        snprintf(why, cap, "the weight MU must be >= 0 (0 = off)");
+    snprintf(mu, sizeof mu, "%.*s", (int)(comma - val), val);
+    double m, t = 0.0;
+    if (restore_part("MU", "restore_mu", mu, &m, why, cap) != 0 ||
+        restore_part("TAU", m > 0.0 ? "restore_tau" : NULL, comma + 1, &t, why, cap) != 0)
         return -1;
-    }
-    if (m > 0.0 && !(t > 0.0)) {
-        snprintf(why, cap, "the time constant TAU must be > 0");
-        return -1;
-    }
     so->restore_mu = m;
     so->restore_tau = m > 0.0 ? t : 0.0;
     return 0;
@@ -101,6 +113,15 @@ static const iso_cli__opt deform_options[] = {
      .set = set_restore},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, out), "OUT",
      .help = "write the deformed mesh (format from the extension)"},
+    {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, pc2), "FILE",
+     .help = "write a PC2 point cache for Blender: the rest pose, then a frame per step; the "
+             "rest mesh beside it as FILE's name with .rest.ply",
+     .nonempty = 1},
+    {"write-problem", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, write_problem), "DIR",
+     .help = "with --shape: write the problem as files into DIR (made if absent), NAME.off (the "
+             "rest mesh), NAME.sel and NAME.def, which --mesh, --sel and --def read back to the "
+             "same bits; then exit without integrating",
+     .nonempty = 1},
     {"reference", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, src.reference), "REF",
      .help = "also measure REF, another result of the same problem (with --benchmark: the "
              "Laplacian-editing result)"},
@@ -135,6 +156,11 @@ static int check_args(const char *cmd, deform_args *a)
     if (s->benchmark && !iso_cli__bench_known(s->benchmark)) {
         iso_cli__fail(cmd, "--benchmark '%s' is unknown: use cactus, bar, cylinder or bumpplane.",
                       s->benchmark);
+        return 2;
+    }
+    if (a->write_problem && !s->shape) {
+        iso_cli__fail(cmd, "--write-problem writes a built-in shape's problem: give --shape NAME "
+                           "(bar, cylinder, bumpplane or cactus).");
         return 2;
     }
     if (s->bench_dir && !s->benchmark) {
@@ -174,13 +200,19 @@ static int parse_args(int argc, char **argv, deform_args *a)
 typedef struct progress {
     int tty;
     double t0, t1;
+    iso_pc2 *pc2;    /* --pc2: a frame per step, or NULL */
+    const double *x; /* the positions at each step (iso_integrate_opts.progress) */
+    iso_err pc2_err;
+    int pc2_failed;
 } progress;
 
 /* A one-line bar, redrawn in place; only on a terminal, so logs and pipes
  * stay clean. */
 static void show_progress(void *ctx, double t, int steps, long evaluations)
 {
-    const progress *pg = ctx;
+    progress *pg = ctx;
+    if (pg->pc2 && !pg->pc2_failed && iso_pc2_write(pg->pc2, pg->x, &pg->pc2_err) != ISO_OK)
+        pg->pc2_failed = 1;
     if (!pg->tty)
         return;
     enum { WIDTH = 30 };
@@ -306,6 +338,23 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
     }
 }
 
+/* --pc2: the rest mesh beside the cache, and the rest pose as its frame 0;
+ * every accepted step adds one. */
+static int open_pc2(const deform_args *a, const iso_cli__problem *p, iso_pc2 **out, iso_err *err)
+{
+    char rest[ISO_CLI_PATH_MAX + 16];
+    int rc = iso_pc2_save_rest(p->mesh, a->pc2, rest, sizeof rest, err);
+    if (rc == ISO_OK)
+        rc = iso_pc2_create(a->pc2, iso_mesh_vertex_count(p->mesh), out, err);
+    if (rc == ISO_OK)
+        rc = iso_pc2_write(*out, iso_mesh_positions(p->mesh), err);
+    if (rc == ISO_OK && !a->json)
+        fprintf(stderr,
+                "isoshape deform: PC2 point cache into %s, a frame per step; rest mesh %s\n",
+                a->pc2, rest);
+    return rc;
+}
+
 /* Integrates p from t = 0 to 1 into x, with the progress bar on a terminal. */
 static int run(const deform_args *a, const iso_cli__problem *p, double *x, report *rep,
                iso_err *err)
@@ -315,14 +364,41 @@ static int run(const deform_args *a, const iso_cli__problem *p, double *x, repor
     io.steps = a->steps;
     io.tol = a->tol;
     io.start = a->start;
-    progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1};
+    progress pg = {isatty(STDERR_FILENO) && !a->json, io.t0, io.t1, NULL, x, {0}, 0};
     io.progress = show_progress;
     io.progress_ctx = &pg;
-    int rc = iso_cli__problem_run(p, &a->so, &io, x, &rep->run, err);
+    int rc = a->pc2 ? open_pc2(a, p, &pg.pc2, err) : ISO_OK;
+    if (rc == ISO_OK)
+        rc = iso_cli__problem_run(p, &a->so, &io, x, &rep->run, err);
     if (pg.tty)
         fputc('\n', stderr);
+    if (rc == ISO_OK && pg.pc2_failed)
+        rc = iso_err_set(err, pg.pc2_err.code, -1, "--pc2: %s", pg.pc2_err.msg);
+    if (rc == ISO_OK && pg.pc2) {
+        rc = iso_pc2_commit(pg.pc2, err);
+        pg.pc2 = NULL;
+    }
+    iso_pc2_destroy(pg.pc2);
     iso_cli__print_notice("deform", rep->run.notice);
     return rc;
+}
+
+/* --write-problem: the built-in shape's files, and one line saying what
+ * they hold. */
+static int write_problem(const deform_args *a, const iso_cli__problem *p, iso_err *err)
+{
+    static char paths[3][ISO_CLI_PATH_MAX];
+    int rc = iso_cli__problem_write(p, a->write_problem, p->shape.name, paths, err);
+    if (rc != ISO_OK)
+        return rc;
+    int nv = iso_mesh_vertex_count(p->mesh), count[3] = {0, 0, 0};
+    for (int v = 0; v < nv; v++)
+        count[p->reg.kind[v] <= ISO_HANDLE ? p->reg.kind[v] : ISO_FREE]++;
+    printf("%s: %d vertices, %d triangles\n", paths[0], nv, iso_mesh_triangle_count(p->mesh));
+    printf("%s: %d fixed, %d free, %d handle\n", paths[1], count[ISO_FIXED], count[ISO_FREE],
+           count[ISO_HANDLE]);
+    printf("%s: the handle's final pose\n", paths[2]);
+    return ISO_OK;
 }
 
 static int deform_main(int argc, char **argv)
@@ -341,6 +417,12 @@ static int deform_main(int argc, char **argv)
     double *x = NULL;
     if (iso_cli__problem_load("deform", &a.src, &p, &err) != ISO_OK)
         goto fail;
+    if (a.write_problem) {
+        if (write_problem(&a, &p, &err) != ISO_OK)
+            goto fail;
+        status = 0;
+        goto out;
+    }
     int nv = iso_mesh_vertex_count(p.mesh);
     x = malloc((size_t)nv * 3 * sizeof *x);
     if (!x) {
@@ -376,6 +458,7 @@ const iso_cli__cmd iso_cli__deform_cmd = {
     .summary = "integrate the deformation of a mesh as its handle moves to its final pose",
     .usage = "usage: isoshape deform --mesh M --sel S --def D [options]\n"
              "       isoshape deform --shape NAME [--resolution N] [options]\n"
+             "       isoshape deform --shape NAME [--resolution N] --write-problem DIR\n"
              "       isoshape deform --benchmark NAME [--benchmark-dir DIR] [options]\n"
              "\n"
              "Moves the handle from its rest pose to the pose D along a screw motion and\n"

@@ -16,6 +16,7 @@ static const char *type_name(int t)
     case ISO_DEV_CHUNK_GONE: return "GONE";
     case ISO_DEV_CHUNK_BACK: return "BACK";
     case ISO_DEV_CHUNK_TICK: return "tick";
+    case ISO_DEV_CHUNK_SKIP: return "SKIP";
     default: return "?";
     }
 }
@@ -95,6 +96,10 @@ static int inspect_main(int argc, char **argv)
         iso_cli__fail("inspect", "%s", err.msg);
         return 1;
     }
+    char cut[400];
+    int is_cut = iso_dev_rec_reader_cut(&r, cut, sizeof cut, NULL);
+    if (is_cut)
+        fprintf(stderr, "isoshape inspect: %s: %s\n", path, cut);
     printf("%s: format %u, %zu source(s)\n", path, r.version, r.n_sources);
     static iso_dev_decoder dec[ISO_DEV_MAX_SOURCES];
     int can[ISO_DEV_MAX_SOURCES] = {0};
@@ -130,6 +135,12 @@ static int inspect_main(int argc, char **argv)
             continue;
         }
         printf(" src %u", c.source);
+        if (c.type == ISO_DEV_CHUNK_SKIP && c.len >= 8)
+            printf(" noise left out: %u bytes in %u chunks",
+                   (unsigned)(c.data[0] | c.data[1] << 8 | c.data[2] << 16 |
+                              (unsigned)c.data[3] << 24),
+                   (unsigned)(c.data[4] | c.data[5] << 8 | c.data[6] << 16 |
+                              (unsigned)c.data[7] << 24));
         if (c.type == ISO_DEV_CHUNK_DATA) {
             printf(" %3u bytes", c.len);
             if (a.raw)
@@ -147,16 +158,20 @@ static int inspect_main(int argc, char **argv)
                 print_event(&ev[k]);
         }
     }
+    if (r.ended)
+        printf("end of the recording (its writer closed it)\n");
     printf("%ld records, %ld ticks, %ld damaged\n", r.records, ticks, r.damaged);
-    if (r.torn)
+    if (is_cut)
+        printf("! %s\n", cut);
+    else if (r.ended && r.damaged && r.last_damage_at == r.end_at)
         printf("! %s\n", r.note);
     for (size_t i = 0; i < r.n_sources; i++)
         if (can[i]) {
             const iso_dev_counters *n = &dec[i].n;
             printf("  source %zu: %u reports, %u short, %u unknown IDs, %u bad frames, %u "
-                   "garbage, %u bounces\n",
+                   "garbage, %u bounces, %u resyncs, %u bytes not recorded\n",
                    i, n->reports, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage,
-                   n->bounces);
+                   n->bounces, n->resyncs, n->unrecorded);
         }
     iso_dev_rec_reader_deinit(&r);
     return 0;
@@ -169,6 +184,7 @@ const iso_cli__cmd iso_cli__inspect_cmd = {
              "\n"
              "Prints a recording (devices/RECORDING.md): the header's sources, then\n"
              "every record with its time, source, raw bytes and decoded events.\n"
-             "Damaged records and a torn end are reported with their byte offsets.\n",
+             "Damaged records are reported with their byte offsets, and a recording cut\n"
+             "off (it ends inside a record, or without its END record) says where.\n",
     .opts = inspect_options,
     .main = inspect_main};

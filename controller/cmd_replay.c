@@ -33,7 +33,7 @@ static void yaml_str(char *dst, size_t cap, const char *s)
 }
 
 typedef struct replay_args {
-    const char *path, *out;
+    const char *path, *out, *pc2, *mcap;
     double speed, tick_ms;
     int fast, print, steps;
     iso_cli__source src;
@@ -86,6 +86,45 @@ static int build_scene(const replay_args *a, iso_scene **out, iso_err *err)
     return ISO_OK;
 }
 
+/* The recorded loop's period, from its first two TICK records: the first
+ * tick is then as long as it was there (as in `run` of a scene at that
+ * rate). *tick_ms is left alone for recordings without TICK records. A
+ * missing or broken file is named here, before a mesh loads. */
+static int probe_period(const char *path, double *tick_ms, iso_err *err)
+{
+    iso_dev_rec_reader probe;
+    int rc = iso_dev_rec_reader_load(&probe, path, err);
+    if (rc != ISO_OK)
+        return rc;
+    iso_dev_chunk c;
+    int64_t t1 = INT64_MIN;
+    while (iso_dev_rec_next(&probe, &c, NULL) == 1) {
+        if (c.type != ISO_DEV_CHUNK_TICK)
+            continue;
+        if (t1 != INT64_MIN && c.t_ns > t1) {
+            *tick_ms = (double)(c.t_ns - t1) * 1e-6;
+            break;
+        }
+        t1 = c.t_ns;
+    }
+    iso_dev_rec_reader_deinit(&probe);
+    return ISO_OK;
+}
+
+int iso_cli__replay_scene(const char *path, const iso_cli__source *src, const iso_dev_map_opts *mo,
+                          int steps, iso_scene **out, iso_err *err)
+{
+    replay_args a;
+    memset(&a, 0, sizeof a);
+    a.path = path;
+    a.src = *src;
+    a.mo = *mo;
+    a.steps = steps;
+    a.tick_ms = 1;
+    int rc = probe_period(path, &a.tick_ms, err);
+    return rc == ISO_OK ? build_scene(&a, out, err) : rc;
+}
+
 typedef struct print_ctx {
     int64_t first;
 } print_ctx;
@@ -119,16 +158,15 @@ static void report(const replay_args *a, iso_loop *l, const iso_scene *sc, const
                k, P->p[0], P->p[1], P->p[2], P->R[0], P->R[1], P->R[2], P->R[3], P->R[4], P->R[5],
                P->R[6], P->R[7], P->R[8]);
     }
-    if (r && r->torn)
-        fprintf(stderr, "isoshape replay: %s: %s\n", a->path, r->note);
     const iso_dev_hub *h = iso_loop_hub(l);
     for (size_t k = 0; h && k < iso_dev_hub_sources(h); k++) {
         const iso_dev_counters *n = &iso_dev_hub_decoder(h, k)->n;
         if (n->short_reports || n->unknown_ids || n->bad_frames || n->garbage)
             fprintf(stderr,
                     "isoshape replay: source %zu: skipped %u short reports, %u unknown IDs, %u "
-                    "bad frames, %u garbage bytes\n",
-                    k, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage);
+                    "bad frames, %u garbage bytes (%u resyncs, %u bytes not recorded)\n",
+                    k, n->short_reports, n->unknown_ids, n->bad_frames, n->garbage, n->resyncs,
+                    n->unrecorded);
     }
     if (sc->mesh)
         printf("scene %s: %d vertices, %d steps, vertices checksum %016" PRIx64 "\n", label,
@@ -160,9 +198,15 @@ static const iso_cli__opt replay_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
      .table = iso_cli__mesh_options},
     {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(replay_args, steps), "N",
-     .help = "ABM steps per tick, %R (default 1)", ISO_CLI_GE(1)},
+     .help = "ABM steps per tick, %R (default 1)", .solver = "steps_per_tick"},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, out), "FILE",
      .help = "save the deformed mesh"},
+    {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, pc2), "FILE",
+     .help = "write every tick into a PC2 point cache, the rest mesh beside it (FILE's name "
+             "with .rest.ply)",
+     .nonempty = 1},
+    {"mcap", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, mcap), "FILE",
+     .help = "write the session into an MCAP file (see isoshape export)", .nonempty = 1},
     {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Mapping:"},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, mo, iso_dev_map_opts),
      .table = iso_cli__dev_map_options},
@@ -185,8 +229,11 @@ static int parse(int argc, char **argv, replay_args *a)
         iso_cli__fail(cmd, "a scene needs --shape NAME, or both --mesh and --sel.");
         return 2;
     }
-    if (a->out && !scene) {
-        iso_cli__fail(cmd, "--out needs a scene (--shape, or --mesh and --sel).");
+    if ((a->out || a->pc2 || a->mcap) && !scene) {
+        iso_cli__fail(cmd, "--%s needs a scene (--shape, or --mesh and --sel).",
+                      a->out   ? "out"
+                      : a->pc2 ? "pc2"
+                               : "mcap");
         return 2;
     }
     return -1;
@@ -210,26 +257,10 @@ static int replay_main(int argc, char **argv)
         iso_cli__fail(cmd, "%s", err.msg);
         return 2;
     }
-    iso_dev_rec_reader probe; /* a missing or broken file is named before a mesh loads */
-    if (iso_dev_rec_reader_load(&probe, a.path, &err) != ISO_OK) {
+    if (probe_period(a.path, &a.tick_ms, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
         return 1;
     }
-    /* The recorded loop's period, from its first two TICK records: the
-     * first tick is then as long as it was there (as in `run` of a scene at
-     * that rate). --tick-ms serves recordings without TICK records. */
-    iso_dev_chunk c;
-    int64_t t1 = INT64_MIN;
-    while (iso_dev_rec_next(&probe, &c, NULL) == 1) {
-        if (c.type != ISO_DEV_CHUNK_TICK)
-            continue;
-        if (t1 != INT64_MIN && c.t_ns > t1) {
-            a.tick_ms = (double)(c.t_ns - t1) * 1e-6;
-            break;
-        }
-        t1 = c.t_ns;
-    }
-    iso_dev_rec_reader_deinit(&probe);
     iso_scene *sc = NULL;
     if (build_scene(&a, &sc, &err) != ISO_OK) {
         iso_cli__fail(cmd, "%s", err.msg);
@@ -246,6 +277,8 @@ static int replay_main(int argc, char **argv)
     lo.speed = a.speed;
     lo.rt = 0;
     lo.display = 0;
+    lo.pc2 = a.pc2;
+    lo.mcap = a.mcap;
     print_ctx pc = {INT64_MIN};
     if (a.print) {
         lo.on_command = print_command;

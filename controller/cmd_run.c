@@ -69,6 +69,14 @@ static const iso_cli__opt run_options[] = {
      .help = "write a picture of the final mesh, coloured by distortion"},
     {"stats-json", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, json), "FILE",
      .help = "write the summary as JSON"},
+    {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, lo.pc2), "FILE",
+     .help = "write every tick into a PC2 point cache for Blender's Mesh Cache modifier, the "
+             "rest mesh beside it as FILE's name with .rest.ply",
+     .nonempty = 1},
+    {"mcap", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(run_args, lo.mcap), "FILE",
+     .help = "write the session into an MCAP file for Foxglove: the mesh, the handles' poses, "
+             "the devices, the ticks and the actuators",
+     .nonempty = 1},
     {"quiet", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, quiet), NULL,
      .help = "no status line and no summary", .flag = 1},
     {"exit-at-end", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, exit_at_end), NULL,
@@ -232,7 +240,10 @@ static int run_main(int argc, char **argv)
     if (r >= 0)
         return r;
     if ((a.out && check_output("--out", a.out)) || (a.png && check_output("--png", a.png)) ||
-        (a.json && check_output("--stats-json", a.json)))
+        (a.json && check_output("--stats-json", a.json)) ||
+        (a.lo.pc2 && check_output("--pc2", a.lo.pc2)) ||
+        (a.lo.mcap && check_output("--mcap", a.lo.mcap)) ||
+        (a.lo.record && a.lo.record[0] && check_output("--record", a.lo.record)))
         return 1;
     iso_scene *sc = NULL;
     if (iso_cli__scene_load("run", a.scene, &sc) != 0)

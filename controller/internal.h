@@ -80,18 +80,20 @@ typedef int (*iso_cli__opt_set)(const struct iso_cli__opt *o, void *dst, const c
                                 size_t why_cap);
 
 typedef struct iso_cli__opt {
-    const char *name;                 /* without "--"; NULL when the option has a short name only */
-    iso_cli__opt_kind kind;           /* what it takes and how it is stored */
-    size_t at;                        /* where the value goes (ISO_CLI_*_AT) */
-    const char *metavar;              /* "N", "FILE"; NULL for flags and enums (their names show) */
-    const char *help;                 /* one line, wrapped by the printer; "%R" prints the range */
-    char short_name;                  /* 'o' for -o, or 0 */
-    double lo, hi;                    /* INT and DOUBLE: the range, whose ends... */
-    iso_cli__end lo_end, hi_end;      /* ...are none, open or closed */
-    int flag;                         /* FLAG: the value stored (1, or 0 for --no-x) */
-    int nonempty;                     /* STRING: 1 refuses an empty value */
-    const char *const *names;         /* ENUM: the enum's name table (common/iso_names.h) */
-    iso_cli__opt_set set;             /* CALL; others: stores instead of .at's bytes */
+    const char *name;            /* without "--"; NULL when the option has a short name only */
+    iso_cli__opt_kind kind;      /* what it takes and how it is stored */
+    size_t at;                   /* where the value goes (ISO_CLI_*_AT) */
+    const char *metavar;         /* "N", "FILE"; NULL for flags and enums (their names show) */
+    const char *help;            /* one line, wrapped by the printer; "%R" prints the range */
+    char short_name;             /* 'o' for -o, or 0 */
+    double lo, hi;               /* INT and DOUBLE: the range, whose ends... */
+    iso_cli__end lo_end, hi_end; /* ...are none, open or closed */
+    const char *solver;       /* INT and DOUBLE: the range is instead the solver's for this setting
+                                 (iso_solver_range), the one scene files are held to */
+    int flag;                 /* FLAG: the value stored (1, or 0 for --no-x) */
+    int nonempty;             /* STRING: 1 refuses an empty value */
+    const char *const *names; /* ENUM: the enum's name table (common/iso_names.h) */
+    iso_cli__opt_set set;     /* CALL; others: stores instead of .at's bytes */
     const struct iso_cli__opt *table; /* TABLE: the included rows */
 } iso_cli__opt;
 
@@ -114,6 +116,9 @@ void iso_cli__opts_print(const iso_cli__opt *opts, FILE *f);
 
 /* A row's range as a phrase: "in (0, 1]", "> 0", ">= 1"; "" without one. */
 const char *iso_cli__opt_range(const iso_cli__opt *o, char *buf, size_t cap);
+/* A row's range (its own, or the solver's for o->solver); whole numbers
+ * for an INT row. */
+void iso_cli__opt_range_of(const iso_cli__opt *o, iso_range *r);
 
 /* The option as it is spelled on the command line: "--omega", or "-o". */
 const char *iso_cli__opt_spelling(const iso_cli__opt *o, char *buf, size_t cap);
@@ -146,7 +151,8 @@ extern const iso_cli__opt iso_cli__dev_map_options[];
  * exit status. */
 extern const iso_cli__cmd iso_cli__deform_cmd, iso_cli__field_cmd, iso_cli__metrics_cmd,
     iso_cli__bench_cmd, iso_cli__record_cmd, iso_cli__replay_cmd, iso_cli__inspect_cmd,
-    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__version_cmd;
+    iso_cli__devices_cmd, iso_cli__check_cmd, iso_cli__run_cmd, iso_cli__export_cmd,
+    iso_cli__version_cmd;
 
 /* All of them, in the order `isoshape --help` lists them; NULL-terminated
  * (cli_commands.c). */
@@ -269,6 +275,15 @@ int iso_cli__problem_load(const char *cmd, const iso_cli__source *src, iso_cli__
                           iso_err *err);
 void iso_cli__problem_deinit(iso_cli__problem *p);
 
+/* Writes p as the files `deform --mesh --sel --def` reads, into folder dir
+ * (made when absent, one level): NAME.off (the rest mesh, 17 significant
+ * digits, so it reads back to the same bits), NAME.sel (0 fixed, 1 free, 2
+ * handle, one per vertex) and NAME.def (the handle's final pose). Each file
+ * is written whole or not at all (a temporary name, then a rename). Their
+ * paths go into paths[3] (ISO_CLI_PATH_MAX each). */
+int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const char *name,
+                           char paths[3][ISO_CLI_PATH_MAX], iso_err *err);
+
 /* The figures of one run. */
 typedef struct iso_cli__run {
     iso_integrate_stats ist;
@@ -336,5 +351,11 @@ int iso_cli__scene_bench_find(void *ctx, const char *name, char *mesh, char *sel
  * The caller adds the devices and frees it with free(). NULL when out of
  * memory. */
 struct iso_scene *iso_cli__device_scene(const char *name, double hz, const iso_dev_map_opts *mo);
+/* A scene for replaying the recording at `path` (cmd_replay.c): the mesh of
+ * src (a built-in shape, or --mesh and --sel) with one handle the replay
+ * drives through mapping mo, steps ABM steps a tick (0: 1), at the
+ * recorded loop's period; without a mesh, the device side alone. */
+int iso_cli__replay_scene(const char *path, const iso_cli__source *src, const iso_dev_map_opts *mo,
+                          int steps, struct iso_scene **out, iso_err *err);
 
 #endif

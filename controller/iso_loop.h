@@ -50,6 +50,50 @@
  * arrives after it is recorded, but a replay ends at that TICK record), so
  * replaying an interrupted session reproduces it bit for bit.
  *
+ * Priorities: no thread the tick waits for runs below it. In real time
+ * (rt, not fast) the tick's thread runs SCHED_FIFO at ISO_LOOP_RT_PRIORITY,
+ * and every thread it can wait for runs at a real-time priority too:
+ *   - the factorization worker (solver.worker_lag), which the tick waits
+ *     for at each hand-over, just below the tick (ISO_LOOP_RT_PRIORITY - 1);
+ *   - the actuators' sender, whose lock the tick's publish takes, above
+ *     the tick (+1): it is the tick's watchdog and must run when the tick
+ *     does not; its work is a few microseconds every 2 ms;
+ *   - an emulated MCU (its native thread, or every thread of QEMU) above
+ *     that (+2): the hardware it stands for has a CPU of its own.
+ * The tick reads no tty itself: a read that finds the line empty waits for
+ * the kernel's buffer work, at normal priority (a flooded pty took the p99
+ * tick from 4 to 31-44 ms that way). The device hub's byte streams are
+ * read by a thread of the hub's (iso_dev_hub_set_priority) into lock-free
+ * rings that the tick only empties; it runs at -2, below the worker, for
+ * fresh input under load, though the tick never waits for it. The same
+ * kernel step sits in the actuators' sender's reads on a tty link (a real
+ * MCU on a UART or USB serial adapter): under heavy load the sender can
+ * wait there past the MCU's 100 ms watchdog, which then brakes the MCU
+ * (safe, but a stop). The emulated MCUs use stream sockets, not a tty;
+ * a loaded machine with real hardware wants a TCP or USB bulk link.
+ * The locks the tick shares with threads it does not raise (the live
+ * view's frame, the device hub's e-stop lines) inherit priority, so a
+ * holder runs at the tick's priority until it lets go. Nothing else is on
+ * the tick's path: the display's server, the USB hotplug thread and a
+ * one-thread BLAS (the isoshape command's, ISO_SOLVER_BLAS_SIZED) are
+ * never waited for. Not covered: a threaded BLAS's pool (set the BLAS to
+ * one thread, as iso_solver.h says) and OpenCL assembly on a CPU device
+ * (PoCL's threads; `auto` takes the C path on a CPU). With the rule, busy
+ * processes on every core cannot delay a tick: it ends when its own work
+ * and the worker's factorization are done (the worker keeps its core).
+ * Why wait at the hand-over rather than go on with the old factor when the
+ * worker is late: the hand-over at a fixed evaluation count is what makes
+ * a run bit-identical whatever the timing (a replay, a scripted scene at
+ * --fast against real time); a late hand-over would have to be written
+ * into every recording and forced in every replay, and a scripted scene
+ * would lose it. The waits stay bounded by the worker's own factorization
+ * (cactus ~25 ms on a core of its own), which is compute, not inversion.
+ * The library changes no thread but its own (the calling thread for the
+ * run, its worker, the hub's reader, its sender, its emulation and QEMU
+ * child), and only when o->rt asks; the calling thread, the worker and the
+ * reader go back to SCHED_OTHER when the run ends, the sender stays up for
+ * the safe stop and ends with the loop.
+ *
  * Safety (issue #14). The loop reports progress to the actuators' loop
  * watchdog at every tick, every ABM step, and inside every field
  * evaluation after its assembly, each factorization and each conjugate-
@@ -72,6 +116,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "iso_actuators.h"
 #include "iso_dev.h"
 #include "iso_err.h"
 #include "iso_metrics.h"
@@ -82,6 +127,8 @@ typedef struct iso_loop iso_loop; /* opaque */
 #define ISO_LOOP_SUBSTEP_DEG 1.0    /* rotation per sub-step of a late tick, at most */
 #define ISO_LOOP_SUBSTEP_DIAG 0.005 /* centroid travel per sub-step, of the diagonal */
 #define ISO_LOOP_MAX_SUBSTEPS 32
+/* The tick thread's SCHED_FIFO priority in real time (see "Priorities"). */
+#define ISO_LOOP_RT_PRIORITY 20
 
 /* What a tick did, for iso_loop_opts.on_tick. */
 typedef struct iso_loop_tick_info {
@@ -98,10 +145,11 @@ typedef struct iso_loop_opts {
     double speed;      /* wall pacing: stream seconds per wall second (1) */
     double duration_s; /* stop after this much stream time; 0: when the stream ends */
     long max_ticks;    /* stop after this many ticks; 0: no limit */
-    /* 1: ask for SCHED_FIFO and locked memory (real-time mode only). Both are
-     * process-wide (the scheduling policy of the loop's thread and the threads
-     * it starts later; mlockall of all the process holds), so the default is
-     * 0 and a program asks for them (the isoshape command's run does). */
+    /* 1: ask for SCHED_FIFO and locked memory (real-time mode only): the
+     * calling thread's policy and the loop's own threads' ("Priorities"
+     * above), and mlockall of all the process holds. mlockall is
+     * process-wide, so the default is 0 and a program asks for them (the
+     * isoshape command's run does). */
     int rt;
     int display;           /* -1: as the scene says, 0: off, 1: on */
     int port;              /* display port override; -1: the scene's; 0: any free port */
@@ -130,6 +178,15 @@ typedef struct iso_loop_opts {
      * mapping's decoded e-stop acts at each device tick as well. */
     int (*estop_probe)(void *ctx);
     void *estop_ctx;
+    /* File outputs of the command line, beside the scene's (NULL: none),
+     * written by the sinks' writer thread, never on the tick (loop_writer.c
+     * says how a disk slower than the loop is met: frames dropped and
+     * counted). pc2: a PC2 point cache of every tick (sinks/iso_pc2.h), with
+     * the rest mesh beside it as <name>.rest.ply; mcap: an MCAP file of the
+     * session's Foxglove channels (sinks/iso_foxglove.h). Both are written
+     * under a temporary name and renamed when the loop shuts down. */
+    const char *pc2;
+    const char *mcap;
 } iso_loop_opts;
 
 ISO_API void iso_loop_opts_default(iso_loop_opts *o);
@@ -161,10 +218,15 @@ typedef struct iso_loop_summary {
     int view_device; /* 1: the scene has one and the view is up */
     unsigned view_accepted, view_refused, view_malformed, view_dropped, view_grants, view_stops;
     long ply_frames, snapshots;
-    int rt_active; /* 1: SCHED_FIFO held */
+    long pc2_frames;     /* PC2 cache frames written (dropped ticks' repeats included) */
+    long mcap_messages;  /* MCAP messages written */
+    long frames_dropped; /* ticks the file writer could not take (the disk behind) */
+    int rt_active;       /* 1: SCHED_FIFO held */
     int mem_locked;
     char rt_note[400];   /* why not, "" when it is */
     char act_line[1700]; /* the actuator link's counters, "" without one */
+    int has_act;         /* 1: the scene has actuators, whose counters are in act */
+    iso_act_stats act;   /* (iso_actuators_stats; kept when they close) */
     int n_devices;       /* the hub's sources (a replay: its recorded ones) */
     char device_desc[ISO_DEV_MAX_SOURCES][192];       /* iso_dev_hub_describe */
     iso_dev_source_stats device[ISO_DEV_MAX_SOURCES]; /* events, bad frames by reason, gone,

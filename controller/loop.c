@@ -173,8 +173,16 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         if (iso_dev_usb_watch_create(&l->watch, &quiet) != ISO_OK)
             l->watch = NULL;
     }
-    if (rc == ISO_OK)
+    if (rc == ISO_OK) {
         plan_end(l);
+        /* the statistics' room before the first tick: the planned ticks,
+         * or 10 minutes of an open-ended run (longer runs go on in the
+         * histogram) */
+        long plan = l->k_end < INT64_MAX ? (long)l->k_end + 1 : (long)(600 * sc->tick_hz);
+        if (l->o.max_ticks > 0 && l->o.max_ticks < plan)
+            plan = l->o.max_ticks;
+        rc = iso_loop__stats_reserve(&l->stats, plan, err);
+    }
     if (rc != ISO_OK) {
         iso_loop_destroy(l);
         return rc;
@@ -195,6 +203,7 @@ int iso_loop_shutdown(iso_loop *l, iso_err *err)
          * at the last TICK record, computes exactly the ticks this run did. */
         iso_dev_event ev[64];
         size_t n = 0;
+        (void)iso_dev_hub_sync(l->hub, 200); /* the byte streams' reader caught up */
         int r1 = iso_dev_hub_drain(l->hub, iso_clock_ns(), ev, 64, &n, err);
         if (rc == ISO_OK)
             rc = r1;
@@ -247,12 +256,12 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
     s->mem_locked = l->rt.mem_locked;
     memcpy(s->rt_note, l->rt.rt_note, sizeof s->rt_note);
     const iso_loop_stats *st = &l->stats;
-    s->tick_median = iso_loop__quantile(st->tick_ms, st->n, 0.5);
-    s->tick_p99 = iso_loop__quantile(st->tick_ms, st->n, 0.99);
-    s->tick_max = iso_loop__quantile(st->tick_ms, st->n, 1.0);
-    s->latency_median = iso_loop__quantile(st->lat_ms, st->n, 0.5);
-    s->latency_p99 = iso_loop__quantile(st->lat_ms, st->n, 0.99);
-    s->latency_max = iso_loop__quantile(st->lat_ms, st->n, 1.0);
+    s->tick_median = iso_loop__stats_quantile(st, 0, 0.5);
+    s->tick_p99 = iso_loop__stats_quantile(st, 0, 0.99);
+    s->tick_max = iso_loop__stats_quantile(st, 0, 1.0);
+    s->latency_median = iso_loop__stats_quantile(st, 1, 0.5);
+    s->latency_p99 = iso_loop__stats_quantile(st, 1, 0.99);
+    s->latency_max = iso_loop__stats_quantile(st, 1, 1.0);
     s->misses = st->misses;
     s->skipped = st->skipped;
     s->restarts = l->restarts;

@@ -68,6 +68,9 @@ static int open_devices(iso_loop *l, iso_err *err)
                                    sc->path);
             if ((rc = iso_dev_rec_reader_load(&l->reader, d->path, err)) != ISO_OK)
                 return rc;
+            char cut[400];
+            if (iso_dev_rec_reader_cut(&l->reader, cut, sizeof cut, NULL))
+                fprintf(l->log, "isoshape %s: %s: %s\n", l->cmd, d->path, cut);
             l->replay = 1;
             if ((rc = iso_dev_replay_open(&l->reader, &s, err)) != ISO_OK)
                 return rc;

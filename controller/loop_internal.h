@@ -11,26 +11,43 @@
 #include "iso_snapshot.h"
 
 /* ---- statistics (controller/loop_stats.c) --------------------------------- */
-/* Per-tick samples kept whole (a 10-minute run at 60 Hz is 36 000 of each). */
+/* The tick's statistics live in fixed storage, sized before the first tick:
+ * the tick allocates nothing. Samples are kept whole for the first `cap`
+ * ticks (the planned run, or 10 minutes of an open-ended one), so the
+ * quantiles of a run that fits are exact; every tick also goes into a
+ * log-spaced histogram (bins 0.5 % wide), which answers the quantiles of a
+ * longer run to within 0.25 %, and the maxima are kept exactly. */
+#define ISO_LOOP_HIST_BINS 4800       /* 1e-4 ms to 2.5e6 ms at 0.5 % a bin */
+#define ISO_LOOP_RECENT 256           /* the live view's window */
+#define ISO_LOOP_SAMPLES_MAX 4000000L /* exact samples at most (64 MB) */
 typedef struct iso_loop_stats {
-    double *tick_ms, *lat_ms;
-    long n, cap;
+    double *tick_ms, *lat_ms; /* the first min(n, cap) ticks' samples */
+    long n, cap;              /* ticks added; samples room */
     long misses, skipped;
-    double recent[256]; /* the last 256 tick times, for the live view */
+    double last_lat_ms;
+    double max_tick_ms, max_lat_ms;
+    uint32_t hist_tick[ISO_LOOP_HIST_BINS], hist_lat[ISO_LOOP_HIST_BINS];
+    double recent[ISO_LOOP_RECENT];  /* the last ticks' compute times */
+    double scratch[ISO_LOOP_RECENT]; /* sorted copy of recent, for its quantiles */
     int n_recent, head;
 } iso_loop_stats;
 
 void iso_loop__stats_init(iso_loop_stats *s);
 void iso_loop__stats_deinit(iso_loop_stats *s);
-/* Room for n ticks now, so a run whose memory is locked at its start does
- * not grow them (and fault pages in) while it ticks. */
+/* Room for n ticks' samples (at most ISO_LOOP_SAMPLES_MAX), made before the
+ * first tick: before memory is locked, and so that no tick allocates. */
 ISO_NODISCARD int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err);
-ISO_NODISCARD int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms,
-                                      iso_err *err);
+/* Adds one tick's figures; never allocates (past the reserved room the
+ * histogram alone takes them). */
+void iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms);
 /* q-quantile (0..1, nearest rank) of n values; sorts a copy. NAN for n = 0. */
 double iso_loop__quantile(const double *v, long n, double q);
-/* median, p99, max of the recent window. */
-void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, double *max);
+/* The q-quantile of the run's tick times (lat = 0) or latencies (lat = 1):
+ * exact while every sample is kept, else from the histogram; q = 1 is the
+ * exact maximum. Allocates (for the summary, not the tick). */
+double iso_loop__stats_quantile(const iso_loop_stats *s, int lat, double q);
+/* median, p99, max of the recent window: no allocation, a sort of scratch. */
+void iso_loop__stats_recent(iso_loop_stats *s, double *med, double *p99, double *max);
 
 struct iso_loop_sinks; /* loop_sinks.c */
 
@@ -83,6 +100,9 @@ struct iso_loop {
     iso_loop_summary rt; /* rt_active, mem_locked, rt_note */
     struct iso_loop_sinks *sinks;
     int shut;
+    /* what the last tick did, for the sinks */
+    int last_merged, last_substeps, last_restart;
+    int64_t last_dt_ns;
 };
 
 /* loop_devices.c: the mapping, the devices or the replay, ready to tick. */
@@ -131,5 +151,30 @@ void iso_loop__sinks_alive(iso_loop *l);
 void iso_loop__sinks_estop(iso_loop *l, int on);
 /* A one-line note for the status line (display clients), "" if nothing. */
 void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap);
+
+/* loop_writer.c: the file sinks' writer thread and the bounded queue the
+ * tick hands it frames through (the file says the rules). */
+typedef struct iso_loop_writer iso_loop_writer;
+struct iso_fox_frame;
+struct iso_fox_session;
+/* The session the Foxglove channels describe (MCAP and the live view). */
+void iso_loop__fox_session(iso_loop *l, struct iso_fox_session *s);
+/* NULL in *out when the run has no file output. */
+ISO_NODISCARD int iso_loop__writer_open(iso_loop *l, iso_loop_writer **out, iso_err *err);
+/* The tick's side. The next free slot for tick `tick` (*want: what is
+ * written of it), or NULL when nothing is wanted or the queue is full (the
+ * frame is then dropped and counted); fill it, then push. No allocation,
+ * no lock, no wait. */
+struct iso_fox_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want);
+void iso_loop__writer_push(iso_loop_writer *w, const double *x);
+/* The writer thread's first error, if any (the run stops with it). */
+ISO_NODISCARD int iso_loop__writer_check(iso_loop_writer *w, iso_err *err);
+void iso_loop__writer_counts(const iso_loop_writer *w, iso_loop_summary *s);
+long iso_loop__writer_dropped(const iso_loop_writer *w);
+/* Writes what is queued, stops the thread, commits the PC2 and MCAP files
+ * (commit = 1; else they stay under their temporary names), stores the
+ * counts in *counts (may be NULL) and frees w. */
+ISO_NODISCARD int iso_loop__writer_close(iso_loop_writer *w, int commit, iso_loop_summary *counts,
+                                         iso_err *err);
 
 #endif

@@ -12,6 +12,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "iso_actuators.h"
 #include "iso_clock.h"
 
 /* ======================================================================== */
@@ -31,45 +32,65 @@ static void sleep_until(const iso_loop *l, int64_t t)
             return;
 }
 
+/* The threads the tick waits for, at their places around the tick's
+ * priority (iso_loop.h states the rule): the factorization worker just
+ * below it, the devices' byte-stream reader below that, the actuators'
+ * sender (the tick's watchdog) above it and an emulated MCU above that.
+ * Says what was not permitted into why. */
+static void threads_realtime(iso_loop *l, char *why, size_t cap)
+{
+    iso_err e;
+    iso_err_clear(&e);
+    if (l->solver &&
+        iso_solver_set_worker_priority(l->solver, ISO_LOOP_RT_PRIORITY - 1, &e) != ISO_OK)
+        snprintf(why + strlen(why), cap - strlen(why), "%s%.150s", why[0] ? "; " : "", e.msg);
+    iso_err_clear(&e);
+    if (l->hub && iso_dev_hub_set_priority(l->hub, ISO_LOOP_RT_PRIORITY - 2, &e) != ISO_OK)
+        snprintf(why + strlen(why), cap - strlen(why), "%s%.150s", why[0] ? "; " : "", e.msg);
+    iso_err_clear(&e);
+    struct iso_actuators *a = iso_loop_actuators(l);
+    if (a && iso_actuators_set_priority(a, ISO_LOOP_RT_PRIORITY + 1, &e) != ISO_OK)
+        snprintf(why + strlen(why), cap - strlen(why), "%s%.150s", why[0] ? "; " : "", e.msg);
+}
+
 /* SCHED_FIFO and locked memory, when this process may have them. Asked for
  * after the display's and BLAS's threads exist, so only the loop's thread
- * (and threads it starts later) run at real-time priority. Memory: what
- * the process holds now (MCL_CURRENT: the mesh, the solver and its factor,
- * the sinks, the tick statistics reserved for the planned run), not what
- * it allocates later, so a browser's buffers are never locked (issue #14:
- * lock only the memory the loop needs). */
+ * and the threads it waits for run at real-time priority (threads_realtime).
+ * Memory: what the process holds now (MCL_CURRENT: the mesh, the solver and
+ * its factor, the sinks, the tick statistics reserved for the planned run),
+ * not what it allocates later, so a browser's buffers are never locked
+ * (lock only the memory the loop needs). */
 static void go_realtime(iso_loop *l)
 {
     iso_loop_summary *r = &l->rt;
-    char why[200] = "";
+    char why[400] = "";
     struct sched_param sp;
     memset(&sp, 0, sizeof sp);
-    sp.sched_priority = 20;
-    if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0)
+    sp.sched_priority = ISO_LOOP_RT_PRIORITY;
+    if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
         r->rt_active = 1;
-    else
+        threads_realtime(l, why, sizeof why);
+    } else {
         snprintf(why, sizeof why, "SCHED_FIFO: %s", strerror(errno));
-    /* the planned ticks, or 10 minutes of a live run, before the lock */
-    long plan = l->k_end < INT64_MAX ? (long)l->k_end + 1 : (long)(600 * l->sc->tick_hz);
-    iso_err quiet;
-    iso_err_clear(&quiet);
-    if (iso_loop__stats_reserve(&l->stats, plan, &quiet) != ISO_OK)
-        snprintf(why + strlen(why), sizeof why - strlen(why), "%s%.100s", why[0] ? "; " : "",
-                 quiet.msg);
-    else if (mlockall(MCL_CURRENT) == 0)
+    }
+    /* the tick statistics' room was made at create (iso_loop__stats_reserve) */
+    if (mlockall(MCL_CURRENT) == 0)
         r->mem_locked = 1;
     else
         snprintf(why + strlen(why), sizeof why - strlen(why), "%smlockall: %s", why[0] ? "; " : "",
                  strerror(errno));
     if (why[0]) {
         snprintf(r->rt_note, sizeof r->rt_note,
-                 "not permitted (%s): normal priority (grant CAP_SYS_NICE and CAP_IPC_LOCK, or "
-                 "rtprio/memlock in limits.conf)",
+                 "not permitted (%.250s): normal priority (grant CAP_SYS_NICE and CAP_IPC_LOCK, "
+                 "or rtprio/memlock in limits.conf)",
                  why);
         fprintf(l->log, "isoshape %s: real-time scheduling %s\n", l->cmd, r->rt_note);
     } else {
-        fprintf(l->log, "isoshape %s: real-time: SCHED_FIFO priority %d, memory locked\n", l->cmd,
-                sp.sched_priority);
+        fprintf(l->log,
+                "isoshape %s: real-time: SCHED_FIFO priority %d (factorization worker %d%s), "
+                "memory locked\n",
+                l->cmd, sp.sched_priority, sp.sched_priority - 1,
+                iso_loop_actuators(l) ? ", actuator sender and its MCU above" : "");
     }
 }
 
@@ -170,9 +191,8 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         if ((rc = iso_loop__tick(l, timed ? wake : 0, err)) != ISO_OK)
             break;
         int64_t done = iso_clock_ns();
-        if ((rc = iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
-                                      (double)(done - prev_wake) * 1e-6, err)) != ISO_OK)
-            break;
+        iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
+                            (double)(done - prev_wake) * 1e-6);
         prev_wake = wake;
         double w = iso_clock_now();
         if (l->o.status_line && w - last_status > 0.25) {
@@ -184,11 +204,20 @@ int iso_loop_run(iso_loop *l, iso_err *err)
     l->wall_end = iso_clock_now();
     if (l->o.status_line)
         fprintf(l->log, "\r\033[K");
-    if (l->rt.rt_active) { /* the summary and shutdown need no real-time priority */
+    if (l->rt.rt_active) {
+        /* The summary needs no real-time priority, nor does an idle worker;
+         * the actuators' sender keeps its priority through the safe stop. */
         struct sched_param sp;
         memset(&sp, 0, sizeof sp);
         if (sched_setscheduler(0, SCHED_OTHER, &sp) != 0)
             fprintf(l->log, "isoshape %s: back to SCHED_OTHER: %s\n", l->cmd, strerror(errno));
+        iso_err e;
+        iso_err_clear(&e);
+        if (l->solver && iso_solver_set_worker_priority(l->solver, 0, &e) != ISO_OK)
+            fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
+        iso_err_clear(&e);
+        if (l->hub && iso_dev_hub_set_priority(l->hub, 0, &e) != ISO_OK)
+            fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
     }
     return rc;
 }

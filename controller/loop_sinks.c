@@ -1,8 +1,10 @@
 /* controller/loop_sinks.c -- where each tick's vertices go: the live display
- * (copied into its latest-frame slot; its own thread writes to browsers), PNG
- * snapshots at chosen ticks, a PLY frame sequence, and the actuators behind
- * the firmware bridge. A sink that fails to write stops the run with an error
- * naming it: files already written stay whole. */
+ * (copied into its latest-frame slot; its own thread writes to browsers), the
+ * file outputs (PNG snapshots at chosen ticks, a PLY frame sequence, a PC2
+ * point cache, an MCAP file: handed to the writer thread, loop_writer.c),
+ * and the actuators behind the firmware bridge. The tick allocates nothing
+ * and waits on no file or socket. A sink that fails to write stops the run
+ * with an error naming it: files already written stay whole. */
 #include "loop_internal.h"
 
 #include <errno.h>
@@ -12,15 +14,19 @@
 #include <sys/stat.h>
 
 #include "iso_actuators.h"
+#include "iso_foxglove.h"
 
 struct iso_loop_sinks {
     iso_display *display;
     iso_actuators *act;
-    char act_line[1000]; /* kept when the actuators close (the counters run ~650) */
-    char act_stop[600];  /* how the safe stop went */
-    iso_ply_frames *ply;
-    long ply_written, snapshots;
-    long frames_sent; /* kept when the display closes */
+    char act_line[1000];     /* kept when the actuators close (the counters run ~650) */
+    char act_stop[600];      /* how the safe stop went */
+    iso_act_stats act_stats; /* the counters, kept when the actuators close */
+    int had_act;
+    iso_loop_writer *writer; /* the file outputs; NULL without */
+    iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
+    iso_loop_summary files;  /* the writer's counts, kept when it closes */
+    long frames_sent;        /* kept when the display closes */
 };
 
 static void display_notice(void *ctx, const char *line)
@@ -165,37 +171,80 @@ int iso_loop__sinks_open(iso_loop *l, iso_err *err)
     int rc = open_display(l, err);
     if (rc == ISO_OK)
         rc = open_actuators(l, err);
-    if (rc == ISO_OK && l->sc->ply.enabled) {
-        rc = iso_ply_frames_create(l->sc->ply.dir, l->sc->mesh, l->sc->ply.every, &l->sinks->ply,
-                                   err);
-        if (rc == ISO_OK)
-            fprintf(l->log, "isoshape %s: PLY frames every %d ticks into %s\n", l->cmd,
-                    l->sc->ply.every, l->sc->ply.dir);
-    }
     if (rc == ISO_OK && l->sc->display.n_snapshots > 0) {
         const char *dir = l->sc->display.snapshot_dir;
         if (dir[0] && mkdir(dir, 0777) != 0 && errno != EEXIST)
             rc = iso_err_set(err, ISO_EIO, -1, "sinks.display.snapshot_dir %s: %s", dir,
                              strerror(errno));
     }
+    if (rc == ISO_OK)
+        rc = iso_loop__writer_open(l, &l->sinks->writer, err);
+    if (rc == ISO_OK && l->sinks->display) { /* Foxglove Studio may connect to the view too */
+        iso_fox_session s;
+        iso_loop__fox_session(l, &s);
+        rc = iso_display_foxglove(l->sinks->display, &s, err);
+    }
     return rc;
 }
 
-static int snapshot(iso_loop *l, long tick, iso_err *err)
+/* The devices' state for the writer: decoded samples and counters. */
+static void frame_devices(const iso_loop *l, iso_fox_frame *f)
 {
-    const iso_scene_display *d = &l->sc->display;
-    for (int i = 0; i < d->n_snapshots; i++) {
-        if (d->snapshot_ticks[i] != tick)
-            continue;
-        char path[ISO_SCENE_PATH_MAX + 32];
-        snprintf(path, sizeof path, "%s%stick_%08ld.png", d->snapshot_dir,
-                 d->snapshot_dir[0] ? "/" : "", tick);
-        int rc = iso_snapshot_png(l->sc->mesh, l->x, &l->sc->regions, path, 960, 720, NULL, err);
-        if (rc != ISO_OK)
-            return rc;
-        l->sinks->snapshots++;
+    size_t nd = l->hub ? iso_dev_hub_sources(l->hub) : 0;
+    for (size_t i = 0; i < nd && i < ISO_FOX_MAX_DEVICES; i++) {
+        iso_fox_device *d = &f->dev[i];
+        const iso_dev_map_src *m = &l->map.src[i];
+        if (iso_dev_hub_source_stats(l->hub, i, &d->stats) != ISO_OK)
+            memset(&d->stats, 0, sizeof d->stats);
+        d->present = d->stats.present;
+        d->stale = d->stats.is_stale;
+        memcpy(d->axes, m->axes, sizeof d->axes);
+        d->buttons = m->buttons;
+        d->has_pose = m->has_pose;
+        d->has_twist = m->has_twist;
+        memcpy(d->v, m->v, sizeof d->v);
     }
-    return ISO_OK;
+}
+
+/* Fills the writer's frame of this tick: everything but the positions,
+ * which the push copies. Plain copies: no allocation, no wait. */
+static void fill_frame(iso_loop *l, long tick, iso_fox_frame *f)
+{
+    f->tick = tick;
+    f->t_ns = l->t_now - l->stream0;
+    f->dt_ns = l->last_dt_ns;
+    for (int h = 0; h < l->nh && h < ISO_FOX_MAX_HANDLES; h++) {
+        f->commanded[h] = l->cmd_pose[h];
+        f->achieved[h] = *iso_stepper_pose(l->st, h);
+    }
+    f->substeps = l->last_substeps;
+    f->merged = l->last_merged;
+    f->restart = l->last_restart;
+    f->active = l->last.active;
+    f->clutch = l->last.clutch;
+    f->estop = l->last.estop;
+    f->buttons = l->last.buttons;
+    iso_solver_stats ss;
+    iso_solver_get_stats(l->solver, &ss);
+    iso_integrate_stats is;
+    iso_stepper_stats(l->st, &is);
+    f->evaluations = is.evaluations;
+    f->factorizations = ss.factorizations;
+    f->cg_iterations = ss.cg_iterations;
+    /* this tick's compute time is not known until it is published: the last one's */
+    long n = l->stats.n;
+    f->tick_ms =
+        n > 0 ? l->stats.recent[(l->stats.head + ISO_LOOP_RECENT - 1) % ISO_LOOP_RECENT] : NAN;
+    f->latency_ms = n > 0 ? l->stats.last_lat_ms : NAN;
+    f->misses = l->stats.misses;
+    f->dropped = iso_loop__writer_dropped(l->sinks->writer);
+    frame_devices(l, f);
+    f->have_act = 0;
+    if (l->sinks->act) {
+        uint32_t t;
+        f->have_act = iso_actuators_setpoints(l->sinks->act, f->setpoints, &t);
+        iso_actuators_stats(l->sinks->act, &f->act);
+    }
 }
 
 /* What the page shows of the handles and of the view device's commands:
@@ -232,25 +281,33 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
     if (k->display) {
         iso_display_stats ds;
         iso_loop__stats_recent(&l->stats, &ds.tick_ms_median, &ds.tick_ms_p99, &ds.tick_ms_max);
-        long n = l->stats.n;
-        ds.latency_ms = n > 0 ? l->stats.lat_ms[n - 1] : 0;
+        ds.latency_ms = l->stats.last_lat_ms;
         ds.misses = l->stats.misses;
         view_figures(l, &ds);
         rc = iso_display_publish(k->display, tick, l->x, &ds, err);
-    }
-    if (rc == ISO_OK && k->ply) {
-        rc = iso_ply_frames_write(k->ply, tick, l->x, err);
-        if (rc > 0) {
-            k->ply_written++;
-            rc = ISO_OK;
+        if (rc == ISO_OK) {
+            fill_frame(l, tick, &k->frame);
+            rc = iso_display_publish_frame(k->display, &k->frame, err);
         }
     }
-    if (rc == ISO_OK)
-        rc = snapshot(l, tick, err);
     if (rc == ISO_OK && k->act) {
         /* 1: streaming, 0: link down or handshaking (the sink recovers by itself) */
         int r = iso_actuators_publish(k->act, (uint32_t)tick, l->x, err);
         rc = r < 0 ? r : ISO_OK;
+    }
+    if (rc == ISO_OK && k->writer) {
+        rc = iso_loop__writer_check(k->writer, err);
+        int want;
+        iso_fox_frame *f = rc == ISO_OK ? iso_loop__writer_slot(k->writer, tick, &want) : NULL;
+        if (f) {
+            if (k->display) { /* filled for the view above */
+                const double *slot_x = f->x;
+                *f = k->frame;
+                f->x = slot_x;
+            } else
+                fill_frame(l, tick, f);
+            iso_loop__writer_push(k->writer, l->x);
+        }
     }
     return rc;
 }
@@ -272,6 +329,8 @@ static int close_actuators(struct iso_loop_sinks *k, iso_err *err)
     else
         snprintf(k->act_stop, sizeof k->act_stop, "safe state NOT confirmed: %s", err->msg);
     iso_actuators_format_stats(k->act, k->act_line, sizeof k->act_line);
+    iso_actuators_stats(k->act, &k->act_stats);
+    k->had_act = 1;
     iso_actuators_destroy(k->act);
     k->act = NULL;
     return rc;
@@ -288,9 +347,9 @@ int iso_loop__sinks_close(iso_loop *l, iso_err *err)
     /* The view stays up with its last frame until the loop is destroyed
      * (iso_loop_view_end), but takes no more commands. */
     iso_display_end(k->display, NULL);
-    iso_ply_frames_destroy(k->ply);
-    k->ply = NULL;
-    return rc;
+    int r2 = iso_loop__writer_close(k->writer, 1, &k->files, err);
+    k->writer = NULL;
+    return rc == ISO_OK ? r2 : rc;
 }
 
 void iso_loop__sinks_free(iso_loop *l)
@@ -344,12 +403,24 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
         s->view_stops = cs.stops;
         s->view_device = l->view_src != NULL;
     }
-    s->ply_frames = k->ply_written;
-    s->snapshots = k->snapshots;
+    if (k->writer)
+        iso_loop__writer_counts(k->writer, s);
+    else {
+        s->ply_frames = k->files.ply_frames;
+        s->snapshots = k->files.snapshots;
+        s->pc2_frames = k->files.pc2_frames;
+        s->mcap_messages = k->files.mcap_messages;
+        s->frames_dropped = k->files.frames_dropped;
+    }
     if (k->act)
         iso_actuators_format_stats(k->act, s->act_line, sizeof s->act_line);
     else if (k->act_line[0])
         snprintf(s->act_line, sizeof s->act_line, "%s; %s", k->act_line, k->act_stop);
+    s->has_act = k->act || k->had_act;
+    if (k->act)
+        iso_actuators_stats(k->act, &s->act);
+    else if (k->had_act)
+        s->act = k->act_stats;
 }
 
 void iso_loop__sinks_alive(iso_loop *l)

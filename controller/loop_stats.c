@@ -1,6 +1,6 @@
 /* controller/loop_stats.c -- tick statistics of the real-time loop, and the
- * summary it prints and writes as JSON. Samples are kept whole rather than
- * in a histogram: quantiles are exact, and a long run costs 16 bytes a tick. */
+ * summary it prints and writes as JSON. The storage is fixed before the
+ * first tick (loop_internal.h says how): the tick allocates nothing. */
 #include "loop_internal.h"
 
 #include <math.h>
@@ -9,6 +9,11 @@
 #include <string.h>
 
 #include "iso_json.h"
+
+/* The histogram's bins: bin b holds [HIST_LO g^b, HIST_LO g^(b+1)) ms with
+ * g = 1.005; the first and last also hold what lies beyond them. */
+#define HIST_LO 1e-4
+#define HIST_GROWTH 1.005
 
 void iso_loop__stats_init(iso_loop_stats *s)
 {
@@ -22,9 +27,10 @@ void iso_loop__stats_deinit(iso_loop_stats *s)
     memset(s, 0, sizeof *s);
 }
 
-/* Grows the sample arrays to hold at least n ticks. */
-static int stats_grow(iso_loop_stats *s, long n, iso_err *err)
+int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err)
 {
+    if (n > ISO_LOOP_SAMPLES_MAX)
+        n = ISO_LOOP_SAMPLES_MAX;
     if (n <= s->cap)
         return ISO_OK;
     double *a = realloc(s->tick_ms, (size_t)n * sizeof *a);
@@ -39,32 +45,43 @@ static int stats_grow(iso_loop_stats *s, long n, iso_err *err)
     return ISO_OK;
 }
 
-int iso_loop__stats_reserve(iso_loop_stats *s, long n, iso_err *err)
+static int hist_bin(double ms)
 {
-    return stats_grow(s, n, err);
+    if (!(ms > HIST_LO)) /* also NaN */
+        return 0;
+    double b = floor(log(ms / HIST_LO) / log(HIST_GROWTH));
+    return b >= ISO_LOOP_HIST_BINS - 1 ? ISO_LOOP_HIST_BINS - 1 : (int)b;
 }
 
-int iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms, iso_err *err)
+void iso_loop__stats_add(iso_loop_stats *s, double tick_ms, double lat_ms)
 {
-    if (s->n == s->cap) {
-        int rc = stats_grow(s, s->cap ? 2 * s->cap : 4096, err);
-        if (rc != ISO_OK)
-            return rc;
+    if (s->n < s->cap) {
+        s->tick_ms[s->n] = tick_ms;
+        s->lat_ms[s->n] = lat_ms;
     }
-    s->tick_ms[s->n] = tick_ms;
-    s->lat_ms[s->n] = lat_ms;
     s->n++;
+    s->hist_tick[hist_bin(tick_ms)]++;
+    s->hist_lat[hist_bin(lat_ms)]++;
+    s->max_tick_ms = s->n == 1 || tick_ms > s->max_tick_ms ? tick_ms : s->max_tick_ms;
+    s->max_lat_ms = s->n == 1 || lat_ms > s->max_lat_ms ? lat_ms : s->max_lat_ms;
+    s->last_lat_ms = lat_ms;
     s->recent[s->head] = tick_ms;
-    s->head = (s->head + 1) % (int)(sizeof s->recent / sizeof s->recent[0]);
-    if (s->n_recent < (int)(sizeof s->recent / sizeof s->recent[0]))
+    s->head = (s->head + 1) % ISO_LOOP_RECENT;
+    if (s->n_recent < ISO_LOOP_RECENT)
         s->n_recent++;
-    return ISO_OK;
 }
 
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
+}
+
+/* nearest rank: the smallest value with at least q of the samples at or below it */
+static long rank_of(long n, double q)
+{
+    long k = (long)ceil(q * (double)n) - 1;
+    return k < 0 ? 0 : k >= n ? n - 1 : k;
 }
 
 double iso_loop__quantile(const double *v, long n, double q)
@@ -76,22 +93,72 @@ double iso_loop__quantile(const double *v, long n, double q)
         return NAN;
     memcpy(c, v, (size_t)n * sizeof *c);
     qsort(c, (size_t)n, sizeof *c, cmp_double);
-    /* nearest rank: the smallest value with at least q of the samples at or below it */
-    long k = (long)ceil(q * (double)n) - 1;
-    if (k < 0)
-        k = 0;
-    if (k >= n)
-        k = n - 1;
-    double r = c[k];
+    double r = c[rank_of(n, q)];
     free(c);
     return r;
 }
 
-void iso_loop__stats_recent(const iso_loop_stats *s, double *med, double *p99, double *max)
+double iso_loop__stats_quantile(const iso_loop_stats *s, int lat, double q)
 {
-    *med = iso_loop__quantile(s->recent, s->n_recent, 0.5);
-    *p99 = iso_loop__quantile(s->recent, s->n_recent, 0.99);
-    *max = iso_loop__quantile(s->recent, s->n_recent, 1.0);
+    if (s->n <= 0)
+        return NAN;
+    if (q >= 1)
+        return lat ? s->max_lat_ms : s->max_tick_ms;
+    if (s->n <= s->cap)
+        return iso_loop__quantile(lat ? s->lat_ms : s->tick_ms, s->n, q);
+    const uint32_t *h = lat ? s->hist_lat : s->hist_tick;
+    long k = rank_of(s->n, q), seen = 0;
+    for (int b = 0; b < ISO_LOOP_HIST_BINS; b++) {
+        seen += h[b];
+        if (seen > k) /* the bin's geometric middle: within 0.25 % of any value in it */
+            return HIST_LO * pow(HIST_GROWTH, b + 0.5);
+    }
+    return lat ? s->max_lat_ms : s->max_tick_ms;
+}
+
+/* Heap sort in place: qsort may allocate (glibc's merge sort does for more
+ * than 1 KiB), and this runs on the tick. */
+static void sift_down(double *a, long i, long n)
+{
+    for (;;) {
+        long c = 2 * i + 1;
+        if (c >= n)
+            return;
+        if (c + 1 < n && a[c + 1] > a[c])
+            c++;
+        if (!(a[c] > a[i]))
+            return;
+        double t = a[i];
+        a[i] = a[c];
+        a[c] = t;
+        i = c;
+    }
+}
+
+static void heap_sort(double *a, long n)
+{
+    for (long i = n / 2 - 1; i >= 0; i--)
+        sift_down(a, i, n);
+    for (long e = n - 1; e > 0; e--) {
+        double t = a[0];
+        a[0] = a[e];
+        a[e] = t;
+        sift_down(a, 0, e);
+    }
+}
+
+void iso_loop__stats_recent(iso_loop_stats *s, double *med, double *p99, double *max)
+{
+    long n = s->n_recent;
+    if (n <= 0) {
+        *med = *p99 = *max = NAN;
+        return;
+    }
+    memcpy(s->scratch, s->recent, (size_t)n * sizeof *s->scratch);
+    heap_sort(s->scratch, n);
+    *med = s->scratch[rank_of(n, 0.5)];
+    *p99 = s->scratch[rank_of(n, 0.99)];
+    *max = s->scratch[n - 1];
 }
 
 /* ---- the summary ---------------------------------------------------------- */
@@ -169,10 +236,13 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
         const iso_dev_source_stats *d = &s->device[i];
         fprintf(f,
                 "  device %d    %s\n"
-                "              %u events, %u bad frames, %u garbage bytes, gone %u, back %u, "
-                "stale %u\n",
-                i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->gone,
-                d->back, d->stale);
+                "              %u events, %u bad frames, %u garbage bytes, %u resyncs, gone %u, "
+                "back %u, stale %u\n",
+                i, s->device_desc[i], d->events, d->dec.bad_frames, d->dec.garbage, d->dec.resyncs,
+                d->gone, d->back, d->stale);
+        if (d->dec.unrecorded)
+            fprintf(f, "              %u noise bytes left out of the recording (its cap)\n",
+                    d->dec.unrecorded);
     }
     if (sc->display.enabled || s->frames_sent)
         fprintf(f, "  display     %ld frames sent\n", s->frames_sent);
@@ -185,6 +255,14 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     if (s->ply_frames || s->snapshots)
         fprintf(f, "  files       %ld PLY frames, %ld PNG snapshots\n", s->ply_frames,
                 s->snapshots);
+    if (s->pc2_frames || s->mcap_messages)
+        fprintf(f, "  streams     %ld PC2 frames, %ld MCAP messages\n", s->pc2_frames,
+                s->mcap_messages);
+    if (s->frames_dropped)
+        fprintf(f,
+                "  dropped     %ld ticks not written to files (the disk was slower than the "
+                "loop)\n",
+                s->frames_dropped);
     if (s->act_line[0])
         print_wrapped(f, "actuators", s->act_line);
     fprintf(f, "  realtime    %s\n",
@@ -198,14 +276,73 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
 #define SRC(f) ISO_JSON_FIELD(iso_dev_source_stats, f, ISO_JSON_U32)
 static const iso_json_field dec_counters[] = {
     {DEC(reports)},     {DEC(bad_frames)},   {DEC(garbage)}, {DEC(short_reports)},
-    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(refused)}, {DEC(out_of_order)},
-    {DEC(grants)},      {DEC(releases)}};
+    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(resyncs)},  {DEC(unrecorded)},
+    {DEC(refused)},     {DEC(out_of_order)}, {DEC(grants)},   {DEC(releases)}};
 static const iso_json_field drop_counters[] = {
     {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},
     {DROP(out_of_order)}, {DROP(seq_gaps)}};
 static const iso_json_field src_counters[] = {{SRC(gone)}, {SRC(back)}, {SRC(stale)}};
+
+/* The actuator sink's counters (iso_act_stats), one number each, under
+ * their field's names: the summary line says the same for people. */
+#define ACT(f, t) ISO_JSON_FIELD(iso_act_stats, f, ISO_JSON_##t)
+static const iso_json_field act_counters[] = {{ACT(ticks, U64)},
+                                              {ACT(setpoints_sent, U64)},
+                                              {ACT(acks, U64)},
+                                              {ACT(echo_mismatches, U64)},
+                                              {ACT(echo_unknown, U64)},
+                                              {ACT(clamps, U64)},
+                                              {ACT(link_losses, U32)},
+                                              {ACT(reopens, U32)},
+                                              {ACT(emu_restarts, U32)},
+                                              {ACT(faults, U32)},
+                                              {ACT(last_fault_reason, U32)},
+                                              {ACT(last_fault_detail_ms, U32)},
+                                              {ACT(naks, U32)},
+                                              {ACT(handshakes, U32)},
+                                              {ACT(heartbeats, U32)},
+                                              {ACT(loop_stalls, U32)},
+                                              {ACT(estops, U32)},
+                                              {ACT(silences, U32)},
+                                              {ACT(safe_requests, U32)},
+                                              {ACT(safe_confirms, U32)},
+                                              {ACT(last_safe_ms, DOUBLE)},
+                                              {ACT(last_safe_cause, INT)},
+                                              {ACT(rtt_count, U32)},
+                                              {ACT(rtt_avg_ms, DOUBLE)},
+                                              {ACT(rtt_min_ms, DOUBLE)},
+                                              {ACT(rtt_max_ms, DOUBLE)},
+                                              {ACT(rtt_last_ms, DOUBLE)},
+                                              {ACT(publish_max_ms, DOUBLE)},
+                                              {ACT(publish_over_1ms, U64)},
+                                              {ACT(alive_calls, U64)},
+                                              {ACT(mcu_channels, INT)},
+                                              {ACT(mcu_state, INT)},
+                                              {ACT(mcu_uptime_ms, U32)}};
 #define N_OF(a) (sizeof(a) / sizeof(a)[0])
+
+/* The actuators' counters and the line that says them, or null without
+ * actuators. */
+static void json_actuators(iso_json *j, const iso_loop_summary *s)
+{
+    if (!s->has_act) {
+        iso_json_string(j, "actuators", NULL);
+        return;
+    }
+    iso_json_object(j, "actuators");
+    iso_json_fields(j, &s->act, act_counters, N_OF(act_counters));
+    iso_json_array(j, "clamps_by_channel");
+    for (int c = 0; c < ISO_ACT_MAX_CHANNELS; c++)
+        iso_json_int(j, NULL, (long long)s->act.clamps_ch[c]);
+    iso_json_close(j);
+    iso_json_array(j, "mcu_positions");
+    for (int c = 0; c < ISO_ACT_MAX_CHANNELS; c++)
+        iso_json_int(j, NULL, s->act.mcu_pos[c]);
+    iso_json_close(j);
+    iso_json_string(j, "line", s->act_line);
+    iso_json_close(j);
+}
 
 static void json_device(iso_json *j, const char *desc, const iso_dev_source_stats *d)
 {
@@ -298,9 +435,12 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     }
     iso_json_int(j, "ply_frames", s->ply_frames);
     iso_json_int(j, "snapshots", s->snapshots);
+    iso_json_int(j, "pc2_frames", s->pc2_frames);
+    iso_json_int(j, "mcap_messages", s->mcap_messages);
+    iso_json_int(j, "frames_dropped", s->frames_dropped);
     iso_json_bool(j, "realtime", s->rt_active);
     iso_json_bool(j, "memory_locked", s->mem_locked);
-    iso_json_string(j, "actuators", s->act_line);
+    json_actuators(j, s);
     char sum[17];
     snprintf(sum, sizeof sum, "%016llx", (unsigned long long)s->checksum);
     iso_json_string(j, "checksum", sum);

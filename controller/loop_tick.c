@@ -157,6 +157,10 @@ int iso_loop__tick(iso_loop *l, int64_t now, iso_err *err)
             return rc;
         int per = l->sc->steps_per_tick > 0 ? l->sc->steps_per_tick : 1;
         l->substeps += steps - per;
+        l->last_merged = merged;
+        l->last_substeps = steps;
+        l->last_restart = restart;
+        l->last_dt_ns = t - t_prev;
         if ((rc = iso_loop__sinks_publish(l, l->ticks, err)) != ISO_OK)
             return rc;
     } else if (restart && l->ticks > 0) {

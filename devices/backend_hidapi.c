@@ -16,8 +16,23 @@
 
 const int iso_dev__hidapi_built = 1;
 
+/* hidraw keeps 64 reports per reader (HIDRAW_BUFFER_SIZE, one slot kept
+ * free) and drops the newest when they are full. A 3D mouse reports every
+ * 8 ms or so while deflected, so a tick slower than a quarter second (a
+ * large mesh) reads a full buffer of older reports, and the newest are
+ * lost: while the cap is held that only delays its state by a tick, but
+ * when the lost ones hold its return to rest the handle would go on at the
+ * last deflection read. A deflected device keeps reporting; a released
+ * one falls silent. So a drain that found the buffer full, followed by one
+ * that finds nothing at all, ends with a report of rest: a 13-byte report
+ * 1 of zeros (all six axes, in any of the family's layouts). It is
+ * recorded like any report, so replays agree. */
+#define HIDRAW_KEEPS 63
+
 typedef struct hid {
     hid_device *dev;
+    int run;  /* reports read since the buffer was last found empty */
+    int full; /* the last drain found the buffer full */
 } hid;
 
 static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso_err *err)
@@ -25,10 +40,20 @@ static int hid_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out, 
     (void)until;
     hid *h = s->impl;
     int n = hid_read(h->dev, out->data, ISO_DEV_CHUNK_MAX);
-    if (iso_dev__chunk_read(out, n))
+    if (iso_dev__chunk_read(out, n)) {
+        h->run++;
         return 1;
-    if (n == 0)
-        return 0;
+    }
+    if (n == 0) {
+        int silent_after_full = h->full && h->run == 0;
+        h->full = h->run >= HIDRAW_KEEPS;
+        h->run = 0;
+        if (!silent_after_full)
+            return 0;
+        memset(out->data, 0, 13);
+        out->data[0] = 1;
+        return iso_dev__chunk_read(out, 13);
+    }
     const wchar_t *why = hid_error(h->dev);
     return iso_err_set(err, ISO_EIO, -1, "%s: %ls", s->info.name, why ? why : L"read failed");
 }
@@ -137,14 +162,28 @@ int iso_dev_hid_open_id(const char *path, uint16_t want_vid, uint16_t want_pid,
     return ISO_OK;
 }
 
+/* 1 if one of the first n entries already lists path. */
+static int listed(const iso_dev_found *out, size_t n, const char *path)
+{
+    for (size_t i = 0; i < n; i++)
+        if (strcmp(out[i].path, path) == 0)
+            return 1;
+    return 0;
+}
+
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap)
 {
     size_t n = 0;
     if (hid_init() != 0)
         return 0;
+    /* hidapi's hidraw backend (0.13) lists a device once per collection
+     * its report descriptor gives a usage, nested ones included: a
+     * SpaceNavigator comes three times (multi-axis controller, its vendor
+     * collection and the feature collection inside it) with one path. It
+     * is one device and one hidraw node to open. */
     struct hid_device_info *all = hid_enumerate(0, 0);
     for (struct hid_device_info *d = all; d && n < cap; d = d->next) {
-        if (!iso_dev_is_3dmouse(d->vendor_id, d->product_id))
+        if (!iso_dev_is_3dmouse(d->vendor_id, d->product_id) || listed(out, n, d->path))
             continue;
         iso_dev_found *f = &out[n++];
         memset(f, 0, sizeof *f);

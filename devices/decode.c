@@ -8,6 +8,7 @@
 
 #include <string.h>
 
+#include "internal.h"
 #include "iso_fb.h"
 _Static_assert(sizeof(iso_fb_parser) <= sizeof(((iso_dev_decoder *)0)->fb),
                "iso_dev_decoder.fb holds an iso_fb_parser");
@@ -67,6 +68,7 @@ int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info, uint8_t s
     memset(d, 0, sizeof *d);
     d->kind = info->kind;
     d->source = source;
+    d->noise_since = d->noise_last = INT64_MIN;
     d->debounce_ns = (int64_t)info->debounce_us * 1000;
     switch (info->kind) {
     case ISO_DEV_KIND_HID:
@@ -177,6 +179,22 @@ static size_t spnav_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size
 
 /* ---- the firmware bridge's serial stream ------------------------------- */
 
+/* Garbage: every byte since the last frame boundary that no accepted frame
+ * ends (the 0x00 that ends a stretch is a delimiter, not garbage). The
+ * parser says where stretches end: a drop (a 0x00 that ends a bad frame,
+ * or the byte that overflows the buffer, after which it skips to the next
+ * 0x00), an accepted frame, or a 0x00 that ends a skipped stretch. */
+static void serial_account(iso_dev_decoder *d, uint8_t byte, int rc)
+{
+    d->fb_pending++;
+    if (rc == ISO_FB_FRAME)
+        d->fb_pending = 0;
+    else if (rc < 0 || byte == 0) {
+        d->n.garbage += d->fb_pending - (byte == 0);
+        d->fb_pending = 0;
+    }
+}
+
 static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
                             iso_dev_event *ev, size_t cap)
 {
@@ -185,6 +203,7 @@ static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
     for (size_t i = 0; i < len; i++) {
         iso_fb_view v;
         int rc = iso_fb_parser_feed(fb, p[i], &v);
+        serial_account(d, p[i], rc);
         if (rc < 0) {
             d->n.bad_frames++;
             continue;
@@ -294,10 +313,61 @@ size_t iso_dev_decode_tick(iso_dev_decoder *d, int64_t now, iso_dev_event *ev, s
 
 /* ---- dispatch ------------------------------------------------------------ */
 
+/* Good input (a report, an accepted frame of any type) and bad input so
+ * far, for the noise bookkeeping. */
+static uint32_t good_count(const iso_dev_decoder *d)
+{
+    uint32_t g = d->n.reports;
+    if (d->kind == ISO_DEV_KIND_SERIAL)
+        g += ((const iso_fb_parser *)(const void *)d->fb)->n.frames_ok;
+    return g;
+}
+/* Bytes a serial parser skips to the next 0x00 after an overflow are
+ * garbage as they come, though counted as such only at that 0x00. */
+static uint32_t bad_count(const iso_dev_decoder *d)
+{
+    uint32_t skipping = 0;
+    if (d->kind == ISO_DEV_KIND_SERIAL && ((const iso_fb_parser *)(const void *)d->fb)->discarding)
+        skipping = d->fb_pending;
+    return d->n.short_reports + d->n.unknown_ids + d->n.bad_frames + d->n.garbage + skipping;
+}
+
+/* After a data chunk: good input ends a stretch of noise (one resync),
+ * bad input alone begins or extends it. */
+static void track_noise(iso_dev_decoder *d, int64_t t, uint32_t good0, uint32_t bad0)
+{
+    if (good_count(d) != good0) {
+        if (d->noise_since != INT64_MIN)
+            d->n.resyncs++;
+        d->noise_since = d->noise_last = INT64_MIN;
+    } else if (bad_count(d) != bad0) {
+        if (d->noise_since == INT64_MIN)
+            d->noise_since = t;
+        d->noise_last = t;
+    }
+}
+
+static size_t decode_data(iso_dev_decoder *d, const iso_dev_chunk *c, size_t len, iso_dev_event *ev,
+                          size_t cap)
+{
+    switch (d->kind) {
+    case ISO_DEV_KIND_HID: return iso_dev_sm_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_SPNAV: return spnav_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_SERIAL: return serial_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_GPIO: return gpio_decode(d, c->t_ns, c->data, len, ev, cap);
+    case ISO_DEV_KIND_VIEW: return iso_dev__view_decode(d, c->t_ns, c->data, len, ev, cap);
+    default: d->n.garbage += (uint32_t)len; return 0;
+    }
+}
+
 size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev, size_t cap)
 {
     size_t n = 0;
     size_t len = c->len <= ISO_DEV_CHUNK_MAX ? c->len : ISO_DEV_CHUNK_MAX;
+    if (c->type == ISO_DEV_CHUNK_SKIP) {
+        iso_dev__skip_apply(d, c->t_ns, c->data, len);
+        return 0;
+    }
     d->n.chunks++;
     switch (c->type) {
     case ISO_DEV_CHUNK_GONE:
@@ -313,6 +383,8 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
             iso_fb_counters keep = fb->n;
             iso_fb_parser_init(fb);
             fb->n = keep;
+            d->n.garbage += d->fb_pending; /* a frame the device never finished */
+            d->fb_pending = 0;
         }
         emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
         return n;
@@ -320,12 +392,114 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
     case ISO_DEV_CHUNK_DATA: break;
     default: return 0;
     }
-    switch (d->kind) {
-    case ISO_DEV_KIND_HID: return iso_dev_sm_decode(d, c->t_ns, c->data, len, ev, cap);
-    case ISO_DEV_KIND_SPNAV: return spnav_decode(d, c->t_ns, c->data, len, ev, cap);
-    case ISO_DEV_KIND_SERIAL: return serial_decode(d, c->t_ns, c->data, len, ev, cap);
-    case ISO_DEV_KIND_GPIO: return gpio_decode(d, c->t_ns, c->data, len, ev, cap);
-    case ISO_DEV_KIND_VIEW: return iso_dev__view_decode(d, c->t_ns, c->data, len, ev, cap);
-    default: d->n.garbage += (uint32_t)len; return 0;
+    uint32_t good0 = good_count(d), bad0 = bad_count(d);
+    n = decode_data(d, c, len, ev, cap);
+    track_noise(d, c->t_ns, good0, bad0);
+    return n;
+}
+
+int iso_dev__noise_chunk(const iso_dev_decoder *before, const iso_dev_decoder *after, size_t events)
+{
+    /* a view's refusals and changes of control are state, never noise */
+    return events == 0 && after->kind != ISO_DEV_KIND_GPIO && after->kind != ISO_DEV_KIND_VIEW &&
+           good_count(after) == good_count(before);
+}
+
+/* ---- SKIP records (RECORDING.md): noise the recording left out ---------- */
+
+static void put_le(uint8_t **w, uint64_t v, int bytes)
+{
+    for (int i = 0; i < bytes; i++)
+        *(*w)++ = (uint8_t)(v >> (8 * i));
+}
+
+static uint64_t get_le(const uint8_t **r, const uint8_t *end, int bytes, int *bad)
+{
+    uint64_t v = 0;
+    if (end - *r < bytes) {
+        *bad = 1;
+        return 0;
     }
+    for (int i = 0; i < bytes; i++)
+        v |= (uint64_t)(*r)[i] << (8 * i);
+    *r += bytes;
+    return v;
+}
+
+/* The decoder's counts a SKIP carries, in payload order, and the parser's. */
+#define SKIP_DEC(n)                                                                                \
+    &(n).short_reports, &(n).unknown_ids, &(n).bad_frames, &(n).garbage, &(n).bad_payloads
+#define SKIP_FB(n)                                                                                 \
+    &(n).too_long, &(n).bad_cobs, &(n).too_short, &(n).bad_crc, &(n).bad_version, &(n).bad_length, \
+        &(n).unknown_type, &(n).duplicate, &(n).out_of_order
+#define SKIP_N_FB 9
+
+int iso_dev__skip_encode(const iso_dev_decoder *after, const iso_dev_decoder *first, uint32_t bytes,
+                         uint32_t chunks, uint8_t *dst, size_t cap)
+{
+    const iso_fb_parser *fb = (const iso_fb_parser *)(const void *)after->fb;
+    const iso_fb_parser *fb0 = (const iso_fb_parser *)(const void *)first->fb;
+    int serial = after->kind == ISO_DEV_KIND_SERIAL;
+    size_t tail = serial && !fb->discarding ? fb->len : 0;
+    if (cap < 4 + 4 + 8 + 5 * 4 + SKIP_N_FB * 4 + 4 + 2 + tail)
+        return ISO_EINVAL;
+    uint8_t *w = dst;
+    put_le(&w, bytes, 4);
+    put_le(&w, chunks, 4);
+    put_le(&w, (uint64_t)after->noise_since, 8);
+    iso_dev_counters a = after->n, b = first->n;
+    const uint32_t *na[] = {SKIP_DEC(a)}, *nb[] = {SKIP_DEC(b)};
+    for (int i = 0; i < 5; i++)
+        put_le(&w, *na[i] - *nb[i], 4);
+    iso_fb_counters fa = fb->n, fz = fb0->n;
+    const uint32_t *fa_[] = {SKIP_FB(fa)}, *fz_[] = {SKIP_FB(fz)};
+    for (int i = 0; i < SKIP_N_FB; i++)
+        put_le(&w, serial ? *fa_[i] - *fz_[i] : 0, 4);
+    put_le(&w, serial ? after->fb_pending : 0, 4);
+    put_le(&w, serial && fb->discarding, 1);
+    put_le(&w, tail, 1);
+    memcpy(w, fb->buf, tail);
+    return (int)(w - dst) + (int)tail;
+}
+
+void iso_dev__skip_apply(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len)
+{
+    const uint8_t *r = p, *end = p + len;
+    int bad = 0;
+    uint32_t bytes = (uint32_t)get_le(&r, end, 4, &bad);
+    uint32_t chunks = (uint32_t)get_le(&r, end, 4, &bad);
+    int64_t since = (int64_t)get_le(&r, end, 8, &bad);
+    uint32_t dn[5], fn[SKIP_N_FB];
+    for (int i = 0; i < 5; i++)
+        dn[i] = (uint32_t)get_le(&r, end, 4, &bad);
+    for (int i = 0; i < SKIP_N_FB; i++)
+        fn[i] = (uint32_t)get_le(&r, end, 4, &bad);
+    uint32_t pending = (uint32_t)get_le(&r, end, 4, &bad);
+    int discarding = (int)get_le(&r, end, 1, &bad);
+    size_t tail = (size_t)get_le(&r, end, 1, &bad);
+    iso_fb_parser *fb = (iso_fb_parser *)(void *)d->fb;
+    if (bad || (size_t)(end - r) != tail || tail > sizeof fb->buf) {
+        d->n.garbage += (uint32_t)len; /* a SKIP that does not parse: said as what it is */
+        d->n.bad_frames++;
+        return;
+    }
+    d->n.chunks += chunks;
+    d->n.unrecorded += bytes;
+    uint32_t *nd[] = {SKIP_DEC(d->n)};
+    for (int i = 0; i < 5; i++)
+        *nd[i] += dn[i];
+    if (d->kind == ISO_DEV_KIND_SERIAL) {
+        uint32_t *nf[] = {SKIP_FB(fb->n)}, sum = 0;
+        for (int i = 0; i < SKIP_N_FB; i++) {
+            *nf[i] += fn[i];
+            sum += fn[i];
+        }
+        fb->n.resyncs += sum;
+        fb->discarding = (uint8_t)(discarding != 0);
+        fb->len = tail;
+        memcpy(fb->buf, r, tail);
+        d->fb_pending = pending;
+    }
+    d->noise_since = since;
+    d->noise_last = t;
 }

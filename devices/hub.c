@@ -7,13 +7,26 @@
  * that drains it, so a replay drains the same chunks into the same ticks. */
 #include "iso_dev.h"
 
+#include <inttypes.h>
 #include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "internal.h"
+
 #define HUB_EVENTS 2048u
+
+/* The noise cap's state for one source while recording: the second of
+ * stream time it counts, the noise bytes recorded in it, and the chunks
+ * left out since the last record of the source (RECORDING.md). */
+typedef struct hub_cap {
+    int64_t window;
+    uint32_t used;
+    uint32_t skip_bytes, skip_chunks; /* 0 chunks: none pending */
+    iso_dev_decoder first;            /* the decoder before the first one left out */
+} hub_cap;
 
 typedef struct hub_src {
     iso_dev_source *s; /* NULL while gone */
@@ -29,6 +42,9 @@ typedef struct hub_src {
     int64_t quiet_from;            /* stream time of the last twist before it went stale */
     uint32_t events, gone, back, stale_count;
     uint8_t estop_line; /* the source has an e-stop input (estop_level answers) */
+    uint8_t noise_told; /* the noise message went out for the present stretch */
+    uint8_t threaded;   /* its reads are the reader thread's (hub_reader.c) */
+    hub_cap cap;
 } hub_src;
 
 struct iso_dev_hub {
@@ -43,7 +59,9 @@ struct iso_dev_hub {
     iso_dev_rec_writer rec;
     int64_t last_tick;
     int ticked;
-    long tick_records; /* replay: TICK records drained so far */
+    long tick_records;       /* replay: TICK records drained so far */
+    iso_dev_decoder before;  /* take(): a decoder before its chunk, for the noise cap */
+    iso_dev__reader *reader; /* reads the byte streams (hub_reader.c); NULL until one */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
     /* Guards src[].s and n against iso_dev_hub_estop_probe on another
@@ -83,7 +101,13 @@ int iso_dev_hub_create(iso_dev_notify_fn notify, void *notify_ctx, iso_dev_hub *
     (*out)->notify = notify;
     (*out)->notify_ctx = notify_ctx;
     (*out)->retry_ns = 500000000;
-    pthread_mutex_init(&(*out)->line_mu, NULL);
+    /* the loop's tick and the actuators' sender both take it: whoever holds
+     * it runs at the other's priority until it lets go */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&(*out)->line_mu, &ma);
+    pthread_mutexattr_destroy(&ma);
     return ISO_OK;
 }
 
@@ -91,6 +115,7 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
 {
     if (!h)
         return;
+    iso_dev__reader_destroy(h->reader); /* first: it may be reading a source */
     for (size_t i = 0; i < h->n; i++)
         iso_dev_source_close(swap_source(h, i, NULL));
     iso_dev_source_close(h->mux);
@@ -98,6 +123,35 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
         say(h, "recording %s: could not be closed cleanly", h->rec.path);
     pthread_mutex_destroy(&h->line_mu);
     free(h);
+}
+
+/* A byte stream with a descriptor goes to the reader thread (started with
+ * the first); other sources (HID reports, spacenavd events, GPIO edges,
+ * fakes) are read by the tick itself, which no kernel work delays. */
+static int hand_over(iso_dev_hub *h, size_t i, iso_err *err)
+{
+    hub_src *x = &h->src[i];
+    x->threaded = 0;
+    if (x->info.kind != ISO_DEV_KIND_SERIAL || iso_dev_source_fd(x->s) < 0)
+        return ISO_OK;
+    int rc = h->reader ? ISO_OK : iso_dev__reader_create(&h->reader, err);
+    if (rc == ISO_OK)
+        rc = iso_dev__reader_attach(h->reader, i, x->s, err);
+    x->threaded = rc == ISO_OK;
+    return rc;
+}
+
+int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms)
+{
+    return !h || !h->reader || iso_dev__reader_sync(h->reader, timeout_ms);
+}
+
+int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err)
+{
+    if (!h || priority < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "device hub: priority %d: expected 0 or more",
+                           priority);
+    return h->reader ? iso_dev__reader_priority(h->reader, priority, err) : ISO_OK;
 }
 
 int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen, void *reopen_ctx,
@@ -147,7 +201,7 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
     x->s = s;
     h->n++;
     pthread_mutex_unlock(&h->line_mu);
-    return ISO_OK;
+    return hand_over(h, h->n - 1, err);
 }
 
 int iso_dev_hub_estop_probe(void *hub)
@@ -259,6 +313,39 @@ int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err)
     free(infos);
     if (rc == ISO_OK)
         h->recording = 1;
+    for (size_t i = 0; i < h->n; i++)
+        memset(&h->src[i].cap, 0, sizeof h->src[i].cap);
+    return rc;
+}
+
+/* The chunks of source i left out since its last record, as one SKIP
+ * record; `after` is its decoder after the last of them. The record bears
+ * the last one's time, which a replay's decoder takes as the latest noise,
+ * so that the noise message comes in the same tick. */
+static int flush_skip(iso_dev_hub *h, size_t i, const iso_dev_decoder *after, iso_err *err)
+{
+    hub_cap *k = &h->src[i].cap;
+    if (!k->skip_chunks || !h->recording)
+        return ISO_OK;
+    iso_dev_chunk c;
+    memset(&c, 0, sizeof c);
+    c.t_ns = after->noise_last;
+    c.source = (uint8_t)i;
+    c.type = ISO_DEV_CHUNK_SKIP;
+    int len = iso_dev__skip_encode(after, &k->first, k->skip_bytes, k->skip_chunks, c.data,
+                                   sizeof c.data);
+    k->skip_bytes = k->skip_chunks = 0;
+    if (len < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: a SKIP record does not fit", h->rec.path);
+    c.len = (uint16_t)len;
+    return iso_dev_rec_write(&h->rec, &c, err);
+}
+
+static int flush_skips(iso_dev_hub *h, iso_err *err)
+{
+    int rc = ISO_OK;
+    for (size_t i = 0; i < h->n && rc == ISO_OK; i++)
+        rc = flush_skip(h, i, &h->src[i].dec, err);
     return rc;
 }
 
@@ -266,8 +353,10 @@ int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
 {
     if (!h->recording)
         return ISO_OK;
+    int rc = flush_skips(h, err);
     h->recording = 0;
-    return iso_dev_rec_writer_close(&h->rec, err);
+    int rc2 = iso_dev_rec_writer_close(&h->rec, rc == ISO_OK ? err : NULL);
+    return rc != ISO_OK ? rc : rc2;
 }
 
 /* A view's changes of control and its stop, one sentence each (the
@@ -288,7 +377,33 @@ static void say_view(iso_dev_hub *h, const hub_src *x, const iso_dev_event *ev, 
     }
 }
 
-/* Records and decodes one chunk into the hub's event buffer. */
+/* Whether chunk c, just decoded by x->dec (h->before before it), is left
+ * out of the recording: noise beyond the cap of its second. */
+static int leave_out(iso_dev_hub *h, hub_src *x, const iso_dev_chunk *c, size_t events)
+{
+    if (c->type != ISO_DEV_CHUNK_DATA || !iso_dev__noise_chunk(&h->before, &x->dec, events))
+        return 0;
+    hub_cap *k = &x->cap;
+    int64_t window = c->t_ns / 1000000000LL;
+    if (window != k->window) {
+        k->window = window;
+        k->used = 0;
+    }
+    if (k->used + c->len <= ISO_DEV_REC_NOISE_CAP) {
+        k->used += c->len;
+        return 0;
+    }
+    if (!k->skip_chunks)
+        k->first = h->before;
+    k->skip_chunks++;
+    k->skip_bytes += c->len;
+    x->dec.n.unrecorded += c->len; /* what a replay's decoder counts from the SKIP */
+    return 1;
+}
+
+/* Decodes one chunk into the hub's event buffer, and records it: a chunk
+ * the noise cap leaves out waits in a SKIP, written before the source's
+ * next record or the tick's TICK record. */
 static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
 {
     if (c->type == ISO_DEV_CHUNK_TICK) {
@@ -297,11 +412,6 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
     }
     if (c->source >= h->n)
         return ISO_OK;
-    if (h->recording) {
-        int rc = iso_dev_rec_write(&h->rec, c, err);
-        if (rc != ISO_OK)
-            return rc;
-    }
     hub_src *x = &h->src[c->source];
     if (c->type == ISO_DEV_CHUNK_GONE) {
         x->gone++;
@@ -310,12 +420,17 @@ static int take(iso_dev_hub *h, const iso_dev_chunk *c, iso_err *err)
         x->back++;
         x->present = 1;
     }
+    if (h->recording)
+        h->before = x->dec;
     size_t k = iso_dev_decode(&x->dec, c, h->ev + h->nev, HUB_EVENTS - h->nev);
     if (x->info.kind == ISO_DEV_KIND_VIEW)
         say_view(h, x, h->ev + h->nev, k);
     x->events += (uint32_t)k;
     h->nev += k;
-    return ISO_OK;
+    if (!h->recording || leave_out(h, x, c, k))
+        return ISO_OK;
+    int rc = flush_skip(h, c->source, &h->before, err);
+    return rc == ISO_OK ? iso_dev_rec_write(&h->rec, c, err) : rc;
 }
 
 static int mark(iso_dev_hub *h, size_t i, int type, int64_t t, iso_err *err)
@@ -349,19 +464,27 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         memcpy(x->detail, x->s->detail, sizeof x->detail);
         say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
         int rc = mark(h, i, ISO_DEV_CHUNK_BACK, now, err);
+        if (rc == ISO_OK)
+            rc = hand_over(h, i, err);
         if (rc != ISO_OK)
             return rc;
     }
-    while (room(h)) {
+    for (size_t taken = 0; room(h) && taken < ISO_DEV_DRAIN_MAX;) {
         iso_dev_chunk c;
         iso_err e;
         iso_err_clear(&e);
-        int got = iso_dev_source_read(x->s, now, &c, &e);
+        int got = x->threaded ? iso_dev__reader_pop(h->reader, i, &c)
+                              : iso_dev_source_read(x->s, now, &c, &e);
         if (got == 0)
             return ISO_OK;
+        if (got > 0 && c.type == ISO_DEV_CHUNK_GONE) { /* the reader's read failed */
+            iso_err_set(&e, ISO_EIO, -1, "%.*s", (int)c.len, (const char *)c.data);
+            got = ISO_EIO;
+        }
         if (got < 0) {
             say(h, "%s %s went away (%s): its handles hold still until it is back",
                 iso_dev_kind_name(x->info.kind), x->info.name, e.msg);
+            x->threaded = 0;
             iso_dev_source_close(swap_source(h, i, NULL));
             x->next_try = now + h->retry_ns;
             return mark(h, i, ISO_DEV_CHUNK_GONE, now, err);
@@ -370,6 +493,7 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         c.type = ISO_DEV_CHUNK_DATA;
         if (c.t_ns > now)
             c.t_ns = now;
+        taken += c.len;
         int rc = take(h, &c, err);
         if (rc != ISO_OK)
             return rc;
@@ -456,12 +580,62 @@ static void watch_stale(iso_dev_hub *h, const iso_dev_map *m, const iso_dev_tick
     }
 }
 
+/* What a source's bad input tells its user, by kind. */
+static void noise_hint(const hub_src *x, char *buf, size_t cap)
+{
+    const iso_dev_info *f = &x->info;
+    const iso_dev_counters *n = &x->dec.n;
+    switch (f->kind) {
+    case ISO_DEV_KIND_SERIAL:
+        snprintf(buf, cap,
+                 "%u garbage bytes, %u bad frames: check the baud rate (this end reads %u %u%c%u; "
+                 "both ends must agree) and that this is the device that sends the handle stream",
+                 n->garbage, n->bad_frames, f->baud, f->data_bits ? f->data_bits : 8,
+                 f->parity ? f->parity : 'N', f->stop_bits ? f->stop_bits : 1);
+        break;
+    case ISO_DEV_KIND_HID:
+        snprintf(buf, cap,
+                 "%u reports of unknown IDs, %u too short: is this a 3D mouse (3Dconnexion)?",
+                 n->unknown_ids, n->short_reports);
+        break;
+    default:
+        snprintf(buf, cap, "%u garbage bytes, %u unknown: is this the right device?", n->garbage,
+                 n->unknown_ids);
+    }
+}
+
+/* One message when a source has delivered only bad input for
+ * ISO_DEV_NOISE_NOTICE_NS of stream time, one when good input comes back.
+ * Stream time: a replay says both in the same ticks. */
+static void watch_noise(iso_dev_hub *h)
+{
+    for (size_t i = 0; i < h->n; i++) {
+        hub_src *x = &h->src[i];
+        const iso_dev_decoder *d = &x->dec;
+        const char *kind = iso_dev_kind_name(x->info.kind);
+        if (!x->noise_told && d->noise_since != INT64_MIN &&
+            d->noise_last - d->noise_since >= ISO_DEV_NOISE_NOTICE_NS) {
+            char hint[300];
+            noise_hint(x, hint, sizeof hint);
+            x->noise_told = 1;
+            say(h, "%s %s: %.1f s of input and not one valid %s (%s)", kind, x->info.name,
+                (double)(d->noise_last - d->noise_since) * 1e-9,
+                x->info.kind == ISO_DEV_KIND_SERIAL ? "frame" : "report", hint);
+        } else if (x->noise_told && d->noise_since == INT64_MIN) {
+            x->noise_told = 0;
+            say(h, "%s %s: valid input again (%u garbage bytes so far, %u resyncs)", kind,
+                x->info.name, d->n.garbage, d->n.resyncs);
+        }
+    }
+}
+
 int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s,
                      const iso_pose *poses, iso_dev_tick *out, iso_err *err)
 {
     int rc = drain_all(h, now_ns, err);
     iso_dev_map_tick(m, h->ev, h->nev, now_ns, dt_s, poses, out);
     watch_stale(h, m, out);
+    watch_noise(h);
     h->nev = 0;
     h->last_tick = now_ns;
     h->ticked = 1;
@@ -477,6 +651,8 @@ int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s
                 say(h, "%s: trigger pulse: %s", s->info.name, e.msg);
         }
     }
+    if (h->recording && (rc = flush_skips(h, err)) != ISO_OK)
+        return rc;
     if (h->recording)
         return iso_dev_rec_tick(&h->rec, now_ns, err);
     return ISO_OK;

@@ -31,6 +31,41 @@ static inline void iso_dev__serial_info(iso_dev_info *info, uint32_t baud)
 /* The view's decoder (decode_view.c): one envelope of len bytes. */
 size_t iso_dev__view_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len,
                             iso_dev_event *ev, size_t cap);
+/* decode.c: the noise cap's side of the decoders (RECORDING.md, "The noise
+ * cap"). 1 when a data chunk that gave `events` events, decoded by a
+ * decoder that was `before` and is now `after`, is one a recording may
+ * leave out: no event and no good report or frame, so that nothing but the
+ * counts and the serial parser's unfinished frame changed (a SKIP carries
+ * both). The start of a good frame cut across two reads is such a chunk:
+ * left out only beyond the cap, and then exactly. */
+int iso_dev__noise_chunk(const iso_dev_decoder *before, const iso_dev_decoder *after,
+                         size_t events);
+/* A SKIP record's payload for chunks left out: `first` is the decoder
+ * before the first of them, `after` after the last. Returns its length, or
+ * ISO_EINVAL when cap is too small (ISO_DEV_CHUNK_MAX always suffices). */
+int iso_dev__skip_encode(const iso_dev_decoder *after, const iso_dev_decoder *first, uint32_t bytes,
+                         uint32_t chunks, uint8_t *dst, size_t cap);
+/* Applies a SKIP record's payload (t: its time) to the decoder. */
+void iso_dev__skip_apply(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len);
+
+/* hub_reader.c: the thread that reads the hub's byte streams, so that the
+ * tick never waits in the kernel's tty layer (the file says why). */
+typedef struct iso_dev__reader iso_dev__reader;
+ISO_NODISCARD int iso_dev__reader_create(iso_dev__reader **out, iso_err *err);
+void iso_dev__reader_destroy(iso_dev__reader *rd); /* stops and joins it; NULL is a no-op */
+/* From now on the thread alone reads s, as source i, into i's ring; the
+ * caller takes s back when it pops the GONE chunk that ends it. */
+ISO_NODISCARD int iso_dev__reader_attach(iso_dev__reader *rd, size_t i, iso_dev_source *s,
+                                         iso_err *err);
+/* The next chunk read from source i: 1 and *c (DATA, or GONE with the
+ * error's text as its bytes, after which s is the caller's), 0 when there
+ * is none now. Lock-free; one caller thread. */
+int iso_dev__reader_pop(iso_dev__reader *rd, size_t i, iso_dev_chunk *c);
+/* Waits up to timeout_ms for the thread to find its sources with nothing
+ * more to read (or its rings full); 1 when it did, 0 on the timeout. */
+int iso_dev__reader_sync(iso_dev__reader *rd, int timeout_ms);
+/* The thread's SCHED_FIFO priority (0: SCHED_OTHER), applied by itself. */
+ISO_NODISCARD int iso_dev__reader_priority(iso_dev__reader *rd, int priority, iso_err *err);
 
 /* Each appends at most cap entries and returns how many. */
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);

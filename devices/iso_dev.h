@@ -45,7 +45,15 @@ typedef enum iso_dev_chunk_type {
     ISO_DEV_CHUNK_DATA = 1, /* bytes from the device */
     ISO_DEV_CHUNK_GONE = 2, /* the device went away (unplugged, read error) */
     ISO_DEV_CHUNK_BACK = 3, /* the device was opened again */
-    ISO_DEV_CHUNK_TICK = 4  /* a tick boundary of the loop that recorded (no source) */
+    ISO_DEV_CHUNK_TICK = 4, /* a tick boundary of the loop that recorded (no source) */
+    /* Format 2 (RECORDING.md). END: the writer closed the recording; the
+     * reader consumes it and never hands it out. SKIP: noise the raw-byte
+     * cap left out of the recording (ISO_DEV_REC_NOISE_CAP): its payload
+     * is what the source's decoder counted and where its frame parser
+     * stood after it, so that a replay decodes what follows exactly as
+     * the live run did. */
+    ISO_DEV_CHUNK_END = 5,
+    ISO_DEV_CHUNK_SKIP = 6
 } iso_dev_chunk_type;
 
 typedef struct iso_dev_chunk {
@@ -253,16 +261,45 @@ typedef struct iso_dev_counters {
     uint32_t short_reports; /* HID: too short for their ID; spnav: truncated */
     uint32_t unknown_ids;   /* HID report IDs or spnav types we do not know */
     uint32_t bad_frames;    /* serial: COBS, CRC, length, version, sequence drops */
-    uint32_t garbage;       /* bytes skipped outside any frame or pair */
-    uint32_t bounces;       /* GPIO edges the debounce did not take at once */
-    uint32_t bad_payloads;  /* serial: HANDLE_SAMPLE frames whose payload does not unpack
-                               (counted in bad_frames too) */
-    uint32_t refused;       /* view: well-formed commands not applied (not from the viewer
-                               in control, or a kind the stream does not carry) */
-    uint32_t out_of_order;  /* view: targets whose sequence number did not grow (not applied) */
-    uint32_t grants;        /* view: times a viewer took control */
-    uint32_t releases;      /* view: times control ended (let go, the viewer left) */
+    /* Bytes that belong to no valid frame or pair: serial bytes outside
+     * every accepted frame (its 0x00 delimiters aside), unknown spnav
+     * bytes, a GPIO chunk's odd byte; and events beyond the caller's room
+     * (a HID report's only garbage: its bad reports are counted above). */
+    uint32_t garbage;
+    uint32_t bounces;      /* GPIO edges the debounce did not take at once */
+    uint32_t bad_payloads; /* serial: HANDLE_SAMPLE frames whose payload does not unpack
+                              (counted in bad_frames too) */
+    /* Times the decoder found its reports or frames again after bad
+     * input: each stretch of garbage, bad frames or unknown reports that
+     * a good one ended counts once. */
+    uint32_t resyncs;
+    uint32_t unrecorded;   /* raw bytes the recording left out (ISO_DEV_REC_NOISE_CAP) */
+    uint32_t refused;      /* view: well-formed commands not applied (not from the viewer
+                              in control, or a kind the stream does not carry) */
+    uint32_t out_of_order; /* view: targets whose sequence number did not grow (not applied) */
+    uint32_t grants;       /* view: times a viewer took control */
+    uint32_t releases;     /* view: times control ended (let go, the viewer left) */
 } iso_dev_counters;
+
+/* Noise. A device that delivers only bad input (bytes that are no frame,
+ * reports of unknown IDs) for ISO_DEV_NOISE_NOTICE_NS of stream time gets
+ * one message from the hub, with a hint (a serial line: its baud rate, and
+ * whether this is the right device), and one more when good input comes
+ * back. Stream time: a replay says it in the same tick. */
+#define ISO_DEV_NOISE_NOTICE_NS 2000000000LL
+/* A tick drains at most this many bytes from one source; the rest waits
+ * for the next tick. It bounds what a flood costs a tick: 16 KiB of noise
+ * decoded and recorded, 0.08 ms median and 0.17 ms p99 (tests/tools/
+ * noise_bench, SCHED_FIFO on a shared 2-core machine), far above any
+ * handle stream (a 115200-baud line brings 192 bytes in a 60 Hz tick; a 3D
+ * mouse, ~1 kB/s). The tick never reads a byte stream from the kernel
+ * itself (iso_dev_hub_set_priority says why). */
+#define ISO_DEV_DRAIN_MAX 16384u
+/* A recording keeps at most this many bytes per second of stream time of a
+ * source's chunks that decode to nothing; beyond it they become SKIP
+ * records (RECORDING.md, "The noise cap"). A 115200-baud line's whole
+ * stream (11.5 kB/s) fits under it. */
+#define ISO_DEV_REC_NOISE_CAP 16384u
 
 /* Serial: the frames the firmware bridge's parser dropped, by reason
  * (firmware-bridge/PROTOCOL.md, "Receiver"), kept across reconnects. */
@@ -366,6 +403,10 @@ typedef struct iso_dev_decoder {
     int64_t debounce_ns;
     iso_dev_gpio_line gpio[ISO_DEV_GPIO_ROLES];
     _Alignas(8) unsigned char fb[512]; /* the firmware bridge's iso_fb_parser */
+    uint32_t fb_pending; /* serial: bytes since the last frame boundary (garbage if no frame) */
+    /* Stream times of the first and the latest bad input since the last
+     * good report or frame; INT64_MIN while there is none. */
+    int64_t noise_since, noise_last;
     iso_dev_view_state view;           /* kind VIEW */
 } iso_dev_decoder;
 
@@ -376,7 +417,9 @@ ISO_API ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev
 /* Decodes one chunk into at most cap events appended at ev. Returns the
  * number written. Bad bytes are counted and skipped, never fatal. Events
  * beyond cap are dropped and counted as garbage (size ev for a chunk:
- * ISO_DEV_EVENTS_PER_CHUNK is always enough). */
+ * ISO_DEV_EVENTS_PER_CHUNK is always enough). A SKIP chunk (a recording's
+ * noise left out) adds its counts and leaves the serial parser where the
+ * live run's stood after it; it gives no event. */
 #define ISO_DEV_EVENTS_PER_CHUNK 130u
 ISO_API size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event *ev,
                               size_t cap);
@@ -428,6 +471,80 @@ ISO_API int iso_dev_is_view(const iso_dev_source *s);
  * bytes rotation, ID 3 buttons (little-endian bit mask). Axes are LE int16. */
 ISO_API size_t iso_dev_sm_decode(iso_dev_decoder *d, int64_t t_ns, const uint8_t *r, size_t len,
                                  iso_dev_event *ev, size_t cap);
+
+/* ---- a 3D mouse's axes, from the device to here ------------------------
+ * The axes this library hands on (ISO_DEV_EV_AXES, and so every mapping)
+ * are the device's own: its HID report's X Y Z Rx Ry Rz, in its counts
+ * (about ±350 on the 3Dconnexion family), from either backend:
+ *  - hidraw (hidapi) gives the report's bytes, whatever the kernel makes
+ *    of the device for evdev (the same bytes in every layout below). It
+ *    keeps 63 reports per reader and drops the newest when full: a tick
+ *    slower than that lasts (about 0.25 s at a mouse's 125 reports a
+ *    second) can lose the cap's return to rest. A deflected device keeps
+ *    reporting, a released one falls silent: so a drain that found the
+ *    buffer full, followed by one that finds nothing, ends with a report of
+ *    rest (13 bytes, ID 1, zeros);
+ *  - spacenavd reads evdev and changes the axes; the spnav backend undoes
+ *    it (iso_dev_spnav_to_device), so a scene maps a device the same
+ *    through either. What spacenavd (1.1) does, and what the kernel
+ *    (6.1) does before it:
+ *    Y/Z: for the 3Dconnexion devices it knows (every 256f one, and
+ *    046d:c623 c625 c626 c627 c628 c629 c62b) it swaps Y and Z and negates
+ *    both, rotations as translations: its (x, y, z) is the device's
+ *    (x, -z, -y).
+ *    Absolute axes (evdev ABS_X..ABS_RZ: a descriptor whose axes are
+ *    absolute, and the SpaceNavigator whose relative descriptor
+ *    hid-logitech fixes up, the one without unit items) are rescaled from
+ *    the logical range to [-500, 500]: 1.43 times the counts for ±350.
+ *    Relative ones (REL_*) pass as they are.
+ *    Relative axes never return to 0: the kernel passes no zero relative
+ *    value, so spacenavd keeps each axis's last non-zero one and sends it
+ *    again with the next event of any axis. A deflected device reports
+ *    every poll, so silence means the cap is at rest: after
+ *    ISO_DEV_SPNAV_REST_NS without motion (reads that find none for that
+ *    long, or spacenavd's period on the next motion, whichever tells
+ *    first) the backend reports rest itself (a recorded 'M' record of
+ *    zeros, before that next motion), and from then on takes an axis
+ *    that still shows the value spacenavd kept as 0, until it changes.
+ *    Values spacenavd kept from before the connection cannot be told.
+ *    spacenavd's dead zone (|v| < 2 is 0), its sensitivity and any
+ *    remapping in /etc/spnavrc stay in effect.
+ * Which device and layout spacenavd serves comes from the daemon
+ * (protocol 1: its USB id and evdev node) or, when it does not say, from
+ * the one 3D mouse among the input devices, and from sysfs (the node's
+ * axis capabilities, the HID descriptor's range); without them the
+ * backend assumes a swapping device with relative axes, which fails safe
+ * (a rest inferred too early stops motion; one never inferred would not).
+ * hidapi (0.13) lists a device once per collection that has a usage: a
+ * SpaceNavigator's hidraw node three times. It is one device: isoshape
+ * devices lists it once. */
+
+/* The six axes' Input items in a HID report descriptor. */
+typedef struct iso_dev_hid_axes_info {
+    uint8_t found;    /* bit per axis X..Rz (0..5) an Input item carries */
+    uint8_t relative; /* bit per axis whose Input item says relative */
+    int32_t lo, hi;   /* the axes' logical range (the last axis item's) */
+} iso_dev_hid_axes_info;
+/* Walks a report descriptor. ISO_OK when all six axes were found,
+ * ISO_ENOTSUP when not (out says which were), ISO_EPARSE for an item that
+ * runs past len. */
+ISO_API int iso_dev_hid_axes(const uint8_t *desc, size_t len, iso_dev_hid_axes_info *out);
+
+#define ISO_DEV_SPNAV_REST_NS 200000000LL /* silence that means rest (relative axes) */
+
+/* How spacenavd changed a device's axes (see above). */
+typedef struct iso_dev_spnav_layout {
+    int swap_yz;    /* 1: Y and Z swapped and negated */
+    int absolute;   /* 1: rescaled from [lo, hi] to [-500, 500]; 0: as they were */
+    int32_t lo, hi; /* the device's logical range (absolute only; hi > lo) */
+} iso_dev_spnav_layout;
+/* 1 if spacenavd 1.1 swaps and negates Y/Z for this USB id; vid 0 (the
+ * daemon did not say) counts as swapping, as nearly every device does. */
+ISO_API int iso_dev_spnav_swaps_yz(uint16_t vid, uint16_t pid);
+/* One spacenavd motion event (x y z rx ry rz) back to the device's axes and
+ * counts: the exact inverse of spacenavd's integer rescale, then of the
+ * swap; clamped to int16. */
+ISO_API void iso_dev_spnav_to_device(const iso_dev_spnav_layout *l, const int v[6], int16_t out[6]);
 
 /* ====================================================================== */
 /* Mapping: events to one command per tick                                */
@@ -482,7 +599,11 @@ typedef struct iso_dev_tick {
     iso_twist twist[ISO_DEV_MAX_HANDLES]; /* world twists, rotation about the handle */
     int active;                           /* the handle the devices drive */
     uint8_t clutch;                       /* 1: clutch held */
-    uint8_t estop;                        /* 1: emergency stop: every twist is zero */
+    uint8_t estop;                        /* 1: emergency stop: every twist is zero. Any
+                                           * e-stop line pressed, or gone with its
+                                           * source: an e-stop that cannot be read is
+                                           * not trusted, until its source is back
+                                           * and reports the line released */
     uint32_t buttons;                     /* OR of every source's buttons */
     uint32_t actions;                     /* bit ISO_DEV_ACT_*: pressed during this tick */
     uint32_t gone;                        /* bit per source that is unplugged */
@@ -499,6 +620,8 @@ typedef struct iso_dev_map_src { /* what one source last said */
     uint8_t stale;   /* 1: its twist or target is older than the stale time: ignored */
     int64_t t_twist; /* stream time of its last twist or target sample */
     double v[6];
+    uint8_t estop_line; /* 1: it has reported an e-stop line (kept while gone) */
+    uint8_t estop;      /* its e-stop: the line's last level; 1 while the source is gone */
 } iso_dev_map_src;
 
 /* Twist streams (ISO_DEV_EV_TWIST: the serial/TCP bridge's HANDLE_SAMPLE
@@ -523,7 +646,6 @@ typedef struct iso_dev_map {
     iso_dev_map_opts o;
     int active;
     uint8_t clutch, estop;
-    uint32_t estop_by; /* bit per source whose e-stop is pressed; estop = any */
     uint32_t gone;
     iso_dev_map_src src[ISO_DEV_MAX_SOURCES];
     int64_t stale_ns[ISO_DEV_MAX_SOURCES]; /* per source; ISO_DEV_STALE_DEFAULT_NS */
@@ -580,7 +702,9 @@ ISO_API void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n,
 /* Recordings (devices/RECORDING.md)                                       */
 /* ====================================================================== */
 
-#define ISO_DEV_REC_VERSION 1u
+/* Written: 2 (an END record closes every whole recording; SKIP records).
+ * Read: 1 and 2. */
+#define ISO_DEV_REC_VERSION 2u
 
 typedef struct iso_dev_rec_writer {
     void *f; /* FILE * */
@@ -617,6 +741,8 @@ typedef struct iso_dev_rec_reader {
     int torn;            /* 1: the recording ends inside a record */
     long end_at;         /* byte offset just past the last complete record */
     char note[320];      /* the last damage or the tear, as a sentence */
+    long header_len;     /* where the records start */
+    int ended;           /* 1: its END record was read (format 2) */
 } iso_dev_rec_reader;
 
 /* Parses the header of a recording in memory (not copied: data must
@@ -626,9 +752,30 @@ ISO_API ISO_NODISCARD int iso_dev_rec_reader_init(iso_dev_rec_reader *r, const u
 ISO_API ISO_NODISCARD int iso_dev_rec_reader_load(iso_dev_rec_reader *r, const char *path,
                                                   iso_err *err);
 /* Next complete record: returns 1 and fills *c, or 0 at the end (r->torn
- * and r->note then say where it stopped). Damaged records are counted,
- * described in r->note and skipped; *damaged_now tells the caller (may be NULL). */
+ * and r->note then say where it stopped; r->ended after an END record).
+ * Damaged records are counted, described in r->note and skipped;
+ * *damaged_now tells the caller (may be NULL). */
 ISO_API int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now);
+
+/* Whether the recording was cut off, and the one sentence that says so.
+ * Every command that reads a recording (run, replay, inspect, export)
+ * prints this sentence, from this function, when it opens the file: a
+ * replay that ends at its last TICK record never reads the torn end, so
+ * r->torn alone would leave the cut unsaid. Scans the records from the
+ * header to the end without moving the reader (r may be mid-replay).
+ * A recording is cut off when it ends inside a record, or when it ends
+ * without the END record its writer adds on closing (format 2; a writer
+ * killed, a disk full, a file cut at a record boundary). Damaged records
+ * inside are not a cut (iso_dev_rec_next says where each one is). Returns 1
+ * and fills msg (cap bytes, NUL-terminated) with a sentence naming the byte
+ * where the file ends, where the complete part ends and how much of it
+ * there is, e.g. "the recording is cut off at byte 376, inside a record
+ * that starts at byte 371: what came before is used (12 records, 5 ticks,
+ * up to byte 371)"; *at (may be NULL) gets the byte offset where the
+ * complete part ends. Returns 0, msg "" and *at the file's length when it
+ * ends whole. A format-1 recording has no END record: only a cut inside
+ * a record shows there. */
+ISO_API int iso_dev_rec_reader_cut(const iso_dev_rec_reader *r, char *msg, size_t cap, long *at);
 ISO_API void iso_dev_rec_reader_deinit(iso_dev_rec_reader *r);
 
 /* The replay backend: a multiplexed source over a reader (which it does not
@@ -666,6 +813,20 @@ ISO_API void iso_dev_hub_destroy(iso_dev_hub *h); /* closes its sources; NULL is
 ISO_API ISO_NODISCARD int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s,
                                           iso_dev_reopen_fn reopen, void *reopen_ctx, iso_err *err);
 ISO_API size_t iso_dev_hub_sources(const iso_dev_hub *h);
+/* Byte streams (serial sources with a descriptor: a tty, a TCP bridge,
+ * libserialport) are read on a thread of the hub's own, into one lock-free
+ * ring per source, so that drain and tick never wait in the kernel (a tty
+ * read that finds nothing waits for the kernel's buffer work, which any
+ * busy process can hold up). Other sources are read by drain itself. This
+ * sets that thread's SCHED_FIFO priority (0: SCHED_OTHER), for a real-time
+ * loop that wants its input fresh under load; no-op without a byte stream.
+ * ISO_EIO with the reason when not permitted. */
+ISO_API ISO_NODISCARD int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err);
+/* Waits up to timeout_ms until that thread has read what its byte streams
+ * had sent by now, so that a drain after it misses nothing (a recording's
+ * last drain, a test). Returns 1 when it has, 0 on the timeout. Never in a
+ * tick: it waits. */
+ISO_API int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms);
 /* The e-stop inputs (sources whose estop_level answers, e.g. a GPIO e-stop
  * line), read now: 1 when any is pressed, or is gone or unreadable (an
  * e-stop circuit that cannot be read is not trusted), else 0. Safe to call

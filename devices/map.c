@@ -324,25 +324,23 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
         case ISO_DEV_EV_RELEASE: s->has_target = 0; break;
         case ISO_DEV_EV_GPIO:
             if (e->line == ISO_DEV_GPIO_ESTOP) {
-                if (e->level)
-                    m->estop_by |= bit;
-                else
-                    m->estop_by &= ~bit;
-                m->estop = m->estop_by != 0;
-                if (m->estop) /* what was commanded before a stop is not resumed after it */
-                    for (unsigned j = 0; j < ISO_DEV_MAX_SOURCES; j++)
-                        m->src[j].has_target = 0;
+                s->estop_line = 1;
+                s->estop = e->level;
             } else if (e->line == ISO_DEV_GPIO_CLUTCH) {
                 gpio_clutch = e->level ? 2 : 0;
                 if (e->level)
                     out->actions |= (uint32_t)1 << ISO_DEV_ACT_CLUTCH;
             }
             break;
-        case ISO_DEV_EV_GONE:
-            /* Its handles hold still until it is back. */
+        case ISO_DEV_EV_GONE: {
+            /* Its handles hold still until it is back; its e-stop line,
+             * if it had one, counts as pressed until it reads released. */
+            uint8_t line = s->estop_line;
             memset(s, 0, sizeof *s);
+            s->estop_line = s->estop = line;
             m->gone |= bit;
             break;
+        }
         case ISO_DEV_EV_BACK: m->gone &= ~bit; break;
         default: break;
         }
@@ -357,8 +355,14 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             out->targeting |= (uint32_t)1 << i;
     }
     uint32_t buttons = 0;
-    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
+    m->estop = 0;
+    for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         buttons |= m->src[i].buttons;
+        m->estop |= m->src[i].estop;
+    }
+    if (m->estop) /* what was commanded before a stop is not resumed after it */
+        for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++)
+            m->src[i].has_target = 0;
     m->clutch = (uint8_t)(gpio_clutch | clutch_from_buttons(m, buttons));
     out->active = m->active;
     out->clutch = m->clutch != 0;

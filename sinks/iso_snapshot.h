@@ -41,6 +41,11 @@ typedef struct iso_snapshot_view {
  * The page uses the same scale. */
 ISO_API void iso_display_strain_color(double s, double rgb[3]);
 
+/* Tints a triangle's colour rgb (in place) as the page and the picture do:
+ * magenta when it touches a handle vertex, else grey when it touches a
+ * fixed one, else unchanged. */
+ISO_API void iso_display_tint_color(int touches_handle, int touches_fixed, double rgb[3]);
+
 /* Renders mesh m at positions x (3*nv; NULL = rest) to an RGB PNG of
  * width x height pixels at `path`. regions may be NULL (no tint), view may
  * be NULL (defaults). Errors: ISO_EINVAL (sizes outside 16..8192, NULL mesh,

@@ -63,9 +63,14 @@ static void triangle_color(const iso_mesh *m, const double *x, const iso_regions
         handle |= r->kind[tri[k]] == ISO_HANDLE;
         fixed |= r->kind[tri[k]] == ISO_FIXED;
     }
+    iso_display_tint_color(handle, fixed, rgb);
+}
+
+void iso_display_tint_color(int touches_handle, int touches_fixed, double rgb[3])
+{
     static const double magenta[3] = {0.90, 0.25, 0.90}, grey[3] = {0.45, 0.47, 0.52};
-    const double *tint = handle ? magenta : fixed ? grey : NULL;
-    double a = handle ? 0.5 : 0.55;
+    const double *tint = touches_handle ? magenta : touches_fixed ? grey : NULL;
+    double a = touches_handle ? 0.5 : 0.55;
     if (tint)
         for (int c = 0; c < 3; c++)
             rgb[c] = rgb[c] * (1 - a) + tint[c] * a;

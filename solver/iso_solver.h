@@ -20,6 +20,7 @@
 #include "iso_element.h"
 #include "iso_err.h"
 #include "iso_mesh.h"
+#include "iso_range.h"
 #include "iso_regions.h"
 
 typedef struct iso_solver iso_solver; /* opaque */
@@ -154,8 +155,8 @@ typedef struct iso_solver_opts {
      * late). Which factor serves which evaluation depends on evaluation
      * counts only, so results are bit-identical from run to run whatever
      * the timing. The worker takes one core while it factors; it runs
-     * under the default scheduling policy and with all signals blocked
-     * (solver/worker.c says why). Give the BLAS one thread
+     * under the default scheduling policy (iso_solver_set_worker_priority
+     * changes it) and with all signals blocked (solver/worker.c says why). Give the BLAS one thread
      * (ISO_SOLVER_BLAS_SIZED, or OPENBLAS_NUM_THREADS=1): a threaded BLAS
      * spreads the worker's factorization over the evaluating thread's
      * core too (the cactus's median tick went from 16 to 28 ms). */
@@ -179,6 +180,17 @@ typedef struct iso_solver_opts {
 #define ISO_SOLVER_WORKER_LAG_MAX 100
 
 ISO_API void iso_solver_opts_default(iso_solver_opts *o);
+
+/* The range of each numeric solver and integrator setting, in one table
+ * that scene files and the command line both check against
+ * (iso_range_parse), so that a value one refuses the other refuses too, in
+ * the same words. Named by the setting's field: "omega" (0, 1], "cg_tol"
+ * (0, 1), "cg_max_iter" [1, 100000], "worker_lag" [0,
+ * ISO_SOLVER_WORKER_LAG_MAX], "restore_mu" >= 0, "restore_tau" > 0 (of
+ * iso_solver_opts); "restore_kappa" >= 0, "cg_share" [0, 1] (of
+ * iso_integrate_opts); "steps_per_tick" [1, 1000] (ABM steps a tick of the
+ * real-time loop). NULL for a name the table lacks. */
+ISO_API const iso_range *iso_solver_range(const char *name);
 
 /* The solver keeps pointers to mesh and regions: both must outlive it. */
 ISO_API ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions *r,
@@ -212,6 +224,17 @@ ISO_API ISO_NODISCARD int iso_solver_field_from(iso_solver *s, const double *x, 
  * instead of a factorization (cactus: ~25 ms, a 60 Hz period's 1.5). Counts
  * as a factorization in the stats. Failures as iso_solver_field's. */
 ISO_API ISO_NODISCARD int iso_solver_factor_at(iso_solver *s, const double *x, iso_err *err);
+
+/* The factorization worker's scheduling (worker_lag > 0; without a worker
+ * a no-op): priority > 0 puts its thread under SCHED_FIFO at that
+ * priority, 0 back under SCHED_OTHER. For a real-time loop, whose tick
+ * waits for the worker at each hand-over: below the tick's priority and
+ * above everything else, no busy process can hold the tick up through it
+ * (controller/iso_loop.h). Only the worker's own thread changes; a
+ * threaded BLAS's pool would be on the hand-over path too, which is one
+ * more reason to give the BLAS one thread (worker_lag above). ISO_EIO
+ * with the reason when it is not permitted (CAP_SYS_NICE, rtprio). */
+ISO_API ISO_NODISCARD int iso_solver_set_worker_priority(iso_solver *s, int priority, iso_err *err);
 
 /* Progress inside a field evaluation, for a watchdog that must tell a slow
  * evaluation from a stuck one (the actuators' loop watchdog, issue #14).

@@ -15,10 +15,14 @@
  * threads) and its own copy of the values of A. It sets OpenMP's
  * max-active-levels on its own thread once (the setting is per thread;
  * made on the evaluating thread it would not reach this one), blocks all
- * signals (they stay with the program's threads) and runs under the
- * default scheduling policy whatever the creator's, so that a real-time
- * tick thread preempts it. */
+ * signals (they stay with the program's threads) and starts under the
+ * default scheduling policy whatever the creator's. A real-time loop, whose
+ * tick waits for it at each hand-over, puts it just below the tick's
+ * priority (iso_solver_set_worker_priority; controller/iso_loop.h states
+ * the rule): under SCHED_OTHER any busy process on the machine could hold
+ * up the tick through it. Its lock inherits priority for the same reason. */
 #include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -108,7 +112,11 @@ int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso
     w->L = w->A ? cholmod_copy_factor(s->L, &w->c) : NULL;
     if (s->frame)
         w->frame = iso_solver__frame_create(s->rings, s->nv);
-    int ok = w->A && w->L && (!s->frame || w->frame) && pthread_mutex_init(&w->mu, NULL) == 0;
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    int ok = w->A && w->L && (!s->frame || w->frame) && pthread_mutex_init(&w->mu, &ma) == 0;
+    pthread_mutexattr_destroy(&ma);
     if (ok && pthread_cond_init(&w->cv, NULL) != 0) {
         pthread_mutex_destroy(&w->mu);
         ok = 0;
@@ -186,4 +194,20 @@ int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, iso_sol
         w->frame = t;
     }
     return ok;
+}
+
+int iso_solver_set_worker_priority(iso_solver *s, int priority, iso_err *err)
+{
+    if (!s || priority < 0)
+        return iso_err_set(err, ISO_EINVAL, -1, "worker priority %d: expected 0 or more", priority);
+    if (!s->w)
+        return ISO_OK;
+    struct sched_param sp;
+    memset(&sp, 0, sizeof sp);
+    sp.sched_priority = priority;
+    int rc = pthread_setschedparam(s->w->thread, priority > 0 ? SCHED_FIFO : SCHED_OTHER, &sp);
+    if (rc != 0)
+        return iso_err_set(err, ISO_EIO, -1, "factorization worker: SCHED_FIFO %d: %s", priority,
+                           strerror(rc));
+    return ISO_OK;
 }

@@ -212,7 +212,7 @@ static void wrong_type_is_refused_naming_option_and_range(void **state)
                    "--count '2.5' is not an integer: expected an integer in [1, 99].");
     assert_refused("--count 7x", "--count '7x' is not an integer: expected an integer in [1, 99].");
     assert_refused("--count 99999999999",
-                   "--count '99999999999' is not an integer: expected an integer in [1, 99].");
+                   "--count '99999999999' is out of range: expected an integer in [1, 99].");
     assert_refused("--weight abc", "--weight 'abc' is not a number: expected a value in (0, 1].");
     assert_refused("--weight nan", "--weight 'nan' is not a number: expected a value in (0, 1].");
     assert_refused("--x inf", "--x 'inf' is not a number: expected a finite number.");
@@ -446,8 +446,14 @@ static void every_command_table_is_well_formed(void **state)
                 fail_msg("isoshape %s: %s is CALL without a setter or a metavar", cmd->name, a);
             if (o->kind == ISO_CLI_OPT_ENUM && (!o->names || !o->names[0]))
                 fail_msg("isoshape %s: %s is ENUM without names", cmd->name, a);
-            if ((o->lo_end || o->hi_end) && !strstr(o->help, "%R"))
+            iso_range range;
+            iso_cli__opt_range_of(o, &range);
+            if ((range.lo_end || range.hi_end) && !strstr(o->help, "%R"))
                 fail_msg("isoshape %s: %s has a range its help does not place (%%R)", cmd->name, a);
+            if (o->solver && (!iso_solver_range(o->solver) || o->lo_end || o->hi_end))
+                fail_msg("isoshape %s: %s names the solver's range '%s', which %s", cmd->name, a,
+                         o->solver,
+                         iso_solver_range(o->solver) ? "it overrides" : "the solver lacks");
             for (int k = 0; k < i; k++)
                 if (strcmp(a, iso_cli__opt_spelling(r.o[k], b, sizeof b)) == 0 ||
                     (o->short_name && o->short_name == r.o[k]->short_name))
@@ -496,6 +502,8 @@ static void every_number_option_refuses_out_of_range_and_wrong_type(void **state
             if (o->kind != ISO_CLI_OPT_INT && o->kind != ISO_CLI_OPT_DOUBLE)
                 continue;
             char opt[64], range[96], v[64];
+            iso_range e; /* the row's ends, its own or the solver's */
+            iso_cli__opt_range_of(o, &e);
             iso_cli__opt_spelling(o, opt, sizeof opt);
             iso_cli__opt_range(o, range, sizeof range);
             const char *type = o->kind == ISO_CLI_OPT_INT ? "is not an integer: expected an integer"
@@ -505,13 +513,13 @@ static void every_number_option_refuses_out_of_range_and_wrong_type(void **state
             if (o->kind == ISO_CLI_OPT_INT)
                 assert_both_forms_refuse(cmd->name, opt, "2.5", wrong_type);
             const char *out_of_range[] = {"is out of range: expected", range, NULL};
-            if (o->lo_end) { /* the end itself when open, just below it when closed */
-                snprintf(v, sizeof v, "%.17g", o->lo_end == ISO_CLI_OPEN ? o->lo : o->lo - 1);
+            if (e.lo_end) { /* the end itself when open, just below it when closed */
+                snprintf(v, sizeof v, "%.17g", e.lo_end == ISO_RANGE_OPEN ? e.lo : e.lo - 1);
                 assert_both_forms_refuse(cmd->name, opt, v, out_of_range);
                 checked++;
             }
-            if (o->hi_end) {
-                snprintf(v, sizeof v, "%.17g", o->hi_end == ISO_CLI_OPEN ? o->hi : o->hi + 1);
+            if (e.hi_end) {
+                snprintf(v, sizeof v, "%.17g", e.hi_end == ISO_RANGE_OPEN ? e.hi : e.hi + 1);
                 assert_both_forms_refuse(cmd->name, opt, v, out_of_range);
                 checked++;
             }
@@ -519,6 +527,121 @@ static void every_number_option_refuses_out_of_range_and_wrong_type(void **state
     }
     printf("%d range ends refused, each in both forms\n", checked);
     assert_true(checked >= 20); /* every command with numbers has ranges */
+}
+
+/* Where each solver setting is written in a scene, "%s" standing for its
+ * value: every command-line row that takes a solver range (.solver) must
+ * have its place here, so that the two refusals are compared. */
+static const struct {
+    const char *setting, *key, *yaml;
+} scene_places[] = {
+    {"omega", "solver.omega", "solver: {omega: '%s'}"},
+    {"cg_tol", "solver.cg_tol", "solver: {cg_tol: '%s'}"},
+    {"worker_lag", "solver.worker_lag", "solver: {worker_lag: '%s'}"},
+    {"steps_per_tick", "integrator.steps_per_tick", "integrator: {steps_per_tick: '%s'}"},
+};
+
+/* What follows "'V' " in a refusal line: the words iso_range_parse chose. */
+static const char *after_value(const char *line, const char *v, char *buf, size_t cap)
+{
+    char quoted[96];
+    snprintf(quoted, sizeof quoted, "'%s' ", v);
+    const char *p = strstr(line, quoted);
+    if (!p)
+        return NULL;
+    snprintf(buf, cap, "%s", p + strlen(quoted));
+    buf[strcspn(buf, "\n")] = '\0';
+    size_t n = strlen(buf);
+    if (n && buf[n - 1] == '.') /* the command line ends its sentences */
+        buf[n - 1] = '\0';
+    return buf;
+}
+
+/* `isoshape check` on a scene holding `yaml` (with v) and `isoshape CMD OPT
+ * ARG` must refuse v in the same words after the value; the scene's line
+ * names its file:line:column and key. */
+static void assert_refused_alike(const char *cmd, const char *opt, const char *arg, const char *key,
+                                 const char *yaml, const char *v)
+{
+    char path[512], text[1024], line[256], cli[512], scene[512];
+    iso_test_tmp(path, sizeof path, "agree.yaml");
+    snprintf(line, sizeof line, yaml, v);
+    snprintf(text, sizeof text,
+             "mesh: {shape: bar, resolution: 4}\nregions: {sel: builtin, handles: [{driver: "
+             "none}]}\n%s\n",
+             line);
+    iso_test_write(path, text, -1);
+    assert_int_equal(iso("%s %s '%s'", cmd, opt, arg), 2);
+    if (!after_value(g.stderr_text, v, cli, sizeof cli))
+        fail_msg("isoshape %s %s %s: %s", cmd, opt, arg, g.stderr_text);
+    assert_int_equal(iso("check '%s'", path), 1);
+    char where[600];
+    snprintf(where, sizeof where, "agree.yaml:3:");
+    if (!strstr(g.stderr_text, where) || !strstr(g.stderr_text, key) ||
+        !after_value(g.stderr_text, v, scene, sizeof scene))
+        fail_msg("scene %s: '%s': %s", key, v, g.stderr_text);
+    if (strcmp(cli, scene) != 0)
+        fail_msg("%s '%s' and scene key %s disagree:\n  command line: %s\n  scene:        %s", opt,
+                 arg, key, cli, scene);
+}
+
+static void assert_scene_and_option_agree(const char *cmd, const char *opt, const char *key,
+                                          const char *yaml, const char *v)
+{
+    assert_refused_alike(cmd, opt, v, key, yaml, v);
+}
+
+/* One table for solver ranges: each command-line row that takes one is
+ * refused out of range and with the wrong type in the very words the scene
+ * key of the same setting is, and both hold the table's ends. */
+static void solver_options_and_scene_keys_refuse_alike(void **state)
+{
+    (void)state;
+    need_binary();
+    int compared = 0;
+    for (int c = 0; iso_cli__commands[c]; c++) {
+        const iso_cli__cmd *cmd = iso_cli__commands[c];
+        rows r = {0};
+        flatten(cmd->opts, &r);
+        for (int i = 0; i < r.n; i++) {
+            const iso_cli__opt *o = r.o[i];
+            if (!o->solver)
+                continue;
+            size_t j = 0;
+            while (j < sizeof scene_places / sizeof scene_places[0] &&
+                   strcmp(scene_places[j].setting, o->solver) != 0)
+                j++;
+            if (j == sizeof scene_places / sizeof scene_places[0])
+                fail_msg("isoshape %s: no scene place for the solver setting '%s'", cmd->name,
+                         o->solver);
+            const iso_range *e = iso_solver_range(o->solver);
+            char opt[64], v[64];
+            iso_cli__opt_spelling(o, opt, sizeof opt);
+            assert_scene_and_option_agree(cmd->name, opt, scene_places[j].key, scene_places[j].yaml,
+                                          "x1");
+            if (e->lo_end) {
+                snprintf(v, sizeof v, "%.17g", e->lo_end == ISO_RANGE_OPEN ? e->lo : e->lo - 1);
+                assert_scene_and_option_agree(cmd->name, opt, scene_places[j].key,
+                                              scene_places[j].yaml, v);
+            }
+            if (e->hi_end) {
+                snprintf(v, sizeof v, "%.17g", e->hi_end == ISO_RANGE_OPEN ? e->hi : e->hi + 1);
+                assert_scene_and_option_agree(cmd->name, opt, scene_places[j].key,
+                                              scene_places[j].yaml, v);
+            }
+            compared++;
+        }
+    }
+    /* --restore MU,TAU is one value of two numbers: each is the scene's
+     * solver.restore.mu or .tau, in the same words after its name */
+    assert_refused_alike("deform --shape bar", "--restore", "-1,1", "solver.restore.mu",
+                         "solver: {restore: {mu: '%s', tau: 1}}", "-1");
+    assert_refused_alike("deform --shape bar", "--restore", "1,0", "solver.restore.tau",
+                         "solver: {restore: {mu: 1, tau: '%s'}}", "0");
+    assert_refused_alike("deform --shape bar", "--restore", "1,soon", "solver.restore.tau",
+                         "solver: {restore: {mu: 1, tau: '%s'}}", "soon");
+    printf("%d solver options refuse as their scene keys do\n", compared);
+    assert_true(compared >= 5); /* omega, cg-tol, worker-lag twice, steps */
 }
 
 static void every_enum_option_lists_its_names(void **state)
@@ -564,6 +687,7 @@ int main(void)
         cmocka_unit_test(every_command_lists_its_table_and_no_other_option),
         cmocka_unit_test(every_number_option_refuses_out_of_range_and_wrong_type),
         cmocka_unit_test(every_enum_option_lists_its_names),
+        cmocka_unit_test(solver_options_and_scene_keys_refuse_alike),
     };
     return cmocka_run_group_tests_name("cli_opts", t, NULL, NULL);
 }

@@ -319,6 +319,61 @@ static void map_tick_buttons_estop_pose(void **state)
     assert_true(fabs(t.twist[1].w[2] - 0.3 / 0.002) < 1e-9);
 }
 
+/* An e-stop line that goes away (its GPIO chip unplugged, a read error)
+ * counts as pressed: its source's GONE stops everything, BACK alone does
+ * not release it, the line's next level does. A source that never had an
+ * e-stop line stops nothing by going away; two lines: either one pressed. */
+static void map_estop_gone_is_pressed(void **state)
+{
+    (void)state;
+    iso_dev_map_opts o;
+    iso_dev_map_opts_default(&o);
+    iso_dev_map m;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_map_init(&m, &o, &err), ISO_OK);
+    iso_pose P[1];
+    iso_pose_identity(&P[0]);
+    iso_dev_tick t;
+    iso_dev_event e[3];
+    e[0] = ev_of(ISO_DEV_EV_AXES, 0); /* a mouse deflected on source 0 */
+    e[0].axes[0] = 350;
+    e[1] = ev_of(ISO_DEV_EV_GPIO, 1); /* e-stop line on source 1, released */
+    e[1].line = ISO_DEV_GPIO_ESTOP;
+    e[1].level = 0;
+    e[2] = ev_of(ISO_DEV_EV_GPIO, 2); /* a clutch-only GPIO source */
+    e[2].line = ISO_DEV_GPIO_CLUTCH;
+    e[2].level = 0;
+    iso_dev_map_tick(&m, e, 3, 1, 1e-3, P, &t);
+    assert_int_equal(t.estop, 0);
+    assert_true(t.twist[0].v[0] > 0);
+    e[0] = ev_of(ISO_DEV_EV_GONE, 2);
+    iso_dev_map_tick(&m, e, 1, 2, 1e-3, P, &t);
+    assert_int_equal(t.estop, 0); /* no e-stop line went away */
+    e[0] = ev_of(ISO_DEV_EV_GONE, 1);
+    iso_dev_map_tick(&m, e, 1, 3, 1e-3, P, &t);
+    assert_int_equal(t.estop, 1);
+    assert_true(t.twist[0].v[0] == 0);
+    e[0] = ev_of(ISO_DEV_EV_BACK, 1);
+    iso_dev_map_tick(&m, e, 1, 4, 1e-3, P, &t);
+    assert_int_equal(t.estop, 1); /* back, but the line not read yet */
+    e[0] = ev_of(ISO_DEV_EV_GPIO, 1);
+    e[0].line = ISO_DEV_GPIO_ESTOP;
+    e[0].level = 0;
+    iso_dev_map_tick(&m, e, 1, 5, 1e-3, P, &t);
+    assert_int_equal(t.estop, 0);
+    assert_true(t.twist[0].v[0] > 0);
+    /* a second e-stop line pressed, the first released: still stopped */
+    e[0] = ev_of(ISO_DEV_EV_GPIO, 3);
+    e[0].line = ISO_DEV_GPIO_ESTOP;
+    e[0].level = 1;
+    e[1] = ev_of(ISO_DEV_EV_GPIO, 1);
+    e[1].line = ISO_DEV_GPIO_ESTOP;
+    e[1].level = 0;
+    iso_dev_map_tick(&m, e, 2, 6, 1e-3, P, &t);
+    assert_int_equal(t.estop, 1);
+}
+
 static void map_init_errors(void **state)
 {
     (void)state;
@@ -393,6 +448,7 @@ int main(void)
         cmocka_unit_test(map_axis_shaping),
         cmocka_unit_test(map_frames),
         cmocka_unit_test(map_tick_buttons_estop_pose),
+        cmocka_unit_test(map_estop_gone_is_pressed),
         cmocka_unit_test(map_init_errors),
         cmocka_unit_test(map_ranges_are_one_table),
     };

@@ -14,9 +14,11 @@
 #include "testutil.h"
 
 static uint8_t g_buf[20000];
+static size_t g_end; /* where build()'s END record starts */
 
-/* A recording of two sources and 40 records, in g_buf; returns its length
- * and the start of every record in starts (ns of them). */
+/* A recording of two sources and 40 records closed by its END record, in
+ * g_buf; returns its length and the start of every record but END in
+ * starts (ns of them). */
 static size_t build(size_t *starts, size_t *ns)
 {
     iso_dev_info in[2];
@@ -51,7 +53,11 @@ static size_t build(size_t *starts, size_t *ns)
         assert_true(n > 0);
         len += (size_t)n;
     }
-    return len;
+    iso_dev_chunk end = {.type = ISO_DEV_CHUNK_END};
+    g_end = len;
+    int n = iso_dev_rec_encode_record(g_buf + len, sizeof g_buf - len, &end);
+    assert_int_equal(n, 17);
+    return len + (size_t)n;
 }
 
 static void crc32_check_value(void **state)
@@ -131,20 +137,37 @@ static void cut_at_every_byte(void **state)
         long want = 0;
         size_t last_end = hlen;
         for (size_t i = 0; i < ns; i++) {
-            size_t end = i + 1 < ns ? starts[i + 1] : len;
+            size_t end = i + 1 < ns ? starts[i + 1] : g_end;
             if (end <= cut) {
                 want++;
                 last_end = end;
             }
         }
+        if (cut == len)
+            last_end = len; /* the END record */
         assert_int_equal(n, want);
         assert_int_equal(r.damaged, 0);
         assert_int_equal(r.torn, cut != last_end);
+        assert_int_equal(r.ended, cut == len);
         assert_int_equal(r.end_at, (long)last_end);
-        if (r.torn) {
-            char expect[64];
-            snprintf(expect, sizeof expect, "cut off at byte %zu", cut);
+        char expect[64], msg[400];
+        snprintf(expect, sizeof expect, "cut off at byte %zu", cut);
+        if (r.torn)
             assert_non_null(strstr(r.note, expect));
+        /* the one sentence every command prints: a cut anywhere, records
+         * boundaries and the END record's own bytes included, says where */
+        long at = -1;
+        assert_int_equal(iso_dev_rec_reader_cut(&r, msg, sizeof msg, &at), cut != len);
+        if (cut != len) {
+            assert_non_null(strstr(msg, expect));
+            assert_int_equal(at, (long)(last_end < g_end ? last_end : g_end));
+            char used[128];
+            snprintf(used, sizeof used, "(%ld records, %ld ticks, up to byte %ld)", want, want / 5,
+                     at);
+            assert_non_null(strstr(msg, used));
+        } else {
+            assert_string_equal(msg, "");
+            assert_int_equal(at, (long)len);
         }
         iso_dev_rec_reader_deinit(&r);
         free(copy);
@@ -176,6 +199,8 @@ static void damage_anywhere_is_skipped(void **state)
             assert_int_equal(seen, 1);
             assert_int_equal(r.last_damage_at, (long)starts[i]);
             assert_int_equal(r.torn, 0);
+            char msg[400];
+            assert_int_equal(iso_dev_rec_reader_cut(&r, msg, sizeof msg, NULL), 0); /* whole */
             char expect[64];
             snprintf(expect, sizeof expect, "damaged record at byte %zu", starts[i]);
             assert_non_null(strstr(r.note, expect));
@@ -200,11 +225,11 @@ static void header_errors(void **state)
     assert_string_equal(err.msg,
                         "recording header, byte 0: not an isoshape recording (no ISOSHREC magic)");
     memcpy(copy, g_buf, len);
-    copy[8] = 2;
+    copy[8] = 3;
     iso_err_clear(&err);
     assert_int_equal(iso_dev_rec_reader_init(&r, copy, len, &err), ISO_EPARSE);
     assert_string_equal(err.msg, "recording header, byte 8: format version unknown to this "
-                                 "build (it reads 1)");
+                                 "build (it reads 1 and 2)");
     memcpy(copy, g_buf, len);
     copy[30] ^= 1;
     iso_err_clear(&err);

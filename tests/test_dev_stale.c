@@ -128,7 +128,8 @@ static void twist_stream_goes_quiet_on_a_pty(void **state)
             uint8_t wire[ISO_FB_WIRE_MAX(ISO_FB_MAX_PAYLOAD)];
             size_t len = sample_frame(wire, sizeof wire, seq++, ISO_FB_SAMPLE_TWIST, 0.5);
             assert_int_equal(write(master, wire, len), (ssize_t)len);
-            usleep(1000); /* let the pty pass it on before the tick reads */
+            usleep(1000);             /* let the pty pass it on, */
+            iso_dev_hub_sync(h, 200); /* and the hub's reader thread read it */
         }
         int64_t now = iso_clock_ns();
         int64_t seen = m.src[0].t_twist;

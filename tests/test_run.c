@@ -377,6 +377,78 @@ static void keyframes_end_at_their_pose(void **state)
     assert_true(iso_test_json_num(j, "restarts") >= 1); /* the key at 0.5 s is a velocity jump */
 }
 
+/* The number the summary line says before (or after) `words`, e.g. "47
+ * setpoints sent" or "loop stalls 0". */
+static double line_number(const char *line, const char *words, int before)
+{
+    const char *p = strstr(line, words);
+    if (!p)
+        fail_msg("the actuators' line lacks '%s': %s", words, line);
+    if (!before)
+        return strtod(p + strlen(words), NULL);
+    while (p > line && p[-1] == ' ')
+        p--;
+    while (p > line && p[-1] >= '0' && p[-1] <= '9')
+        p--;
+    return strtod(p, NULL);
+}
+
+/* --stats-json gives the actuators' counters one number each, the same
+ * numbers the summary line says for people (kept beside them as "line");
+ * without actuators, "actuators" is null. */
+static void actuator_counters_are_numbers(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], json[PATH_MAX];
+    static char j[16384];
+    write_scene(iso_test_tmp(scene, sizeof scene, "act.yaml"), "", "{screw: {duration: 0.5}}",
+                "sinks:\n  actuators:\n    link: {emulated: native}\n    channels:\n"
+                "      - {channel: 0, region: top, axis: z, min: -1, max: 1, scale: 1000}\n");
+    iso_test_tmp(json, sizeof json, "act.json");
+    assert_int_equal(iso("run '%s' --no-rt --quiet --stats-json '%s'", scene, json), 0);
+    slurp(json, j, sizeof j);
+    const char *act = strstr(j, "\"actuators\": {");
+    if (!act)
+        fail_msg("no actuators object in %s", j);
+    char line[4096];
+    const char *l = strstr(act, "\"line\": \"");
+    assert_non_null(l);
+    snprintf(line, sizeof line, "%s", l + strlen("\"line\": \""));
+    static const struct {
+        const char *key, *words;
+        int before;
+    } said[] = {{"ticks", " ticks,", 1},
+                {"setpoints_sent", " setpoints sent", 1},
+                {"acks", " acked", 1},
+                {"echo_mismatches", " echo mismatches", 1},
+                {"clamps", " clamps,", 1},
+                {"link_losses", "losses ", 0},
+                {"emu_restarts", "emulation restarts ", 0},
+                {"loop_stalls", "loop stalls ", 0},
+                {"estops", "e-stops ", 0},
+                {"silences", "silences ", 0},
+                {"safe_requests", "SAFE requests ", 0},
+                {"safe_confirms", "safe states confirmed ", 0}};
+    for (size_t i = 0; i < sizeof said / sizeof said[0]; i++) {
+        double n = iso_test_json_num(act, said[i].key);
+        double m = line_number(line, said[i].words, said[i].before);
+        if (n != m)
+            fail_msg("actuators.%s is %g, the line says %g: %s", said[i].key, n, m, line);
+    }
+    double sent = iso_test_json_num(act, "setpoints_sent");
+    printf("actuators: %g ticks, %g setpoints sent, %g acked, %g safe states confirmed\n",
+           iso_test_json_num(act, "ticks"), sent, iso_test_json_num(act, "acks"),
+           iso_test_json_num(act, "safe_confirms"));
+    assert_true(sent >= 1 && iso_test_json_num(act, "acks") <= sent);
+    assert_true(iso_test_json_num(act, "safe_confirms") >= 1); /* the clean stop */
+    assert_non_null(strstr(act, "\"clamps_by_channel\": ["));
+    /* no actuators: null, not an empty line */
+    write_scene(scene, "", "none", "");
+    assert_int_equal(iso("run '%s' --fast --quiet --ticks 1 --stats-json '%s'", scene, json), 0);
+    slurp(json, j, sizeof j);
+    assert_non_null(strstr(j, "\"actuators\": null"));
+}
+
 /* ---- time ------------------------------------------------------------------------ */
 
 /* 1 kHz ticks on a mesh that needs ~10 ms a tick: every tick is late. A
@@ -688,6 +760,9 @@ static void exits_and_files(void **state)
     assert_non_null(
         strstr(g_err, "--out /nonexistent/dir/x.off: cannot write in /nonexistent/dir"));
     assert_null(strstr(g_err, "tick")); /* refused before the run, not after it */
+    assert_int_equal(iso("run '%s' --fast --quiet --record /nonexistent/dir/r.isorec", scene), 1);
+    assert_non_null(
+        strstr(g_err, "--record /nonexistent/dir/r.isorec: cannot write in /nonexistent/dir"));
     /* stdout closed early: the summary's write fails once, status 1 */
     iso_test_tmp(st, sizeof st, "exits.status");
     snprintf(cmd, sizeof cmd, "{ ( '%s' run '%s' --fast --no-display; echo $? > '%s' ) | true; }",
@@ -723,6 +798,7 @@ int main(void)
         cmocka_unit_test(screw_driver_equals_deform),
         cmocka_unit_test(pec_takes_half_the_evaluations),
         cmocka_unit_test(keyframes_end_at_their_pose),
+        cmocka_unit_test(actuator_counters_are_numbers),
         cmocka_unit_test(overruns_are_counted_and_skipped),
         cmocka_unit_test(pacing_follows_speed),
         cmocka_unit_test(sigterm_closes_the_recording_whole),

@@ -19,9 +19,9 @@
 
 #include <cmocka.h>
 
-#include "internal.h" /* config/: the scene schema */
 #include "iso_names.h"
 #include "iso_scene.h"
+#include "scene_schema.h"
 #include "testutil.h"
 
 /* `rel` in this source tree (from this file's own path) into buf. */
@@ -82,8 +82,8 @@ static void expect_error(const char *text, int code, ...)
 static void test_examples_load(void **state)
 {
     (void)state;
-    static const char *const names[] = {"cactus",    "bar",          "cylinder",
-                                        "bumpplane", "mouse_cactus", "replay_cactus"};
+    static const char *const names[] = {"cactus",       "bar",           "cylinder",   "bumpplane",
+                                        "mouse_cactus", "replay_cactus", "soak_cactus"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         char path[1100];
         snprintf(path, sizeof path, "%s/%s.yaml", SCENES, names[i]);
@@ -248,8 +248,9 @@ static void test_errors(void **state)
                       "      driver: {screw: {duration: &d 1}}\n",
                  ISO_EPARSE, "regions.handles[0].driver.screw.duration: anchors ('&d')", NULL);
     /* Types. */
-    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: fast\n", ISO_EPARSE,
-                 "bad.yaml:7:10:", "tick_hz", "expected a finite number", NULL);
+    expect_error(
+        BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz: fast\n", ISO_EPARSE,
+        "bad.yaml:7:10:", "tick_hz: 'fast' is not a number: expected a value in (0, 100000]", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n  handles: {a: 1}\n", ISO_EPARSE,
                  "regions.handles", "expected a non-empty list", NULL);
     /* Ranges. */
@@ -292,8 +293,9 @@ static void test_errors(void **state)
     /* An enum value with a suggestion; a key of another device kind. */
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "solver: {weighting: aera}\n",
                  ISO_EPARSE, "solver.weighting", "did you mean 'area'", NULL);
-    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n",
-                 ISO_EINVAL, "bad.yaml:", "integrator.cg_share", "[0, 1]", "found 2", NULL);
+    expect_error(
+        BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {cg_share: 2}\n", ISO_EINVAL,
+        "bad.yaml:", "integrator.cg_share: '2' is out of range: expected a value in [0, 1]", NULL);
     expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "integrator: {abm: pex}\n", ISO_EPARSE,
                  "integrator.abm", "did you mean 'pec'", NULL);
     expect_error(BASE "devices: [{name: m, kind: tty, path: /dev/x, address: 'h:1'}]\n"
@@ -303,13 +305,15 @@ static void test_errors(void **state)
     expect_error(BASE "devices: [{name: b, kind: tcp, address: 'h:1', stale_ms: 0}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EINVAL, "bad.yaml:2:", "devices[0].stale_ms",
-                 "expected an integer in [1, 10000], found 0", NULL);
+                 "'0' is out of range: expected an integer in [1, 10000]", NULL);
     expect_error(BASE "devices:\n  - {name: b, kind: serialport, port: /dev/ttyS0,\n"
                       "     stale_ms: 20000}\nregions:\n  sel: builtin\n" HANDLES,
-                 ISO_EINVAL, "bad.yaml:4:16:", "devices[0].stale_ms", "found 20000", NULL);
+                 ISO_EINVAL, "bad.yaml:4:16:", "devices[0].stale_ms: '20000' is out of range",
+                 NULL);
     expect_error(BASE "devices: [{name: b, kind: tty, path: /dev/x, stale_ms: soon}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
-                 ISO_EPARSE, "devices[0].stale_ms", "expected an integer, found 'soon'", NULL);
+                 ISO_EPARSE, "devices[0].stale_ms",
+                 "'soon' is not an integer: expected an integer in [1, 10000]", NULL);
     expect_error(BASE "devices: [{name: m, kind: spnav, stale_ms: 100}]\n"
                       "regions:\n  sel: builtin\n" HANDLES,
                  ISO_EPARSE, "bad.yaml:2:", "devices[0].stale_ms",
@@ -350,6 +354,124 @@ static void test_errors(void **state)
     expect_error("", ISO_EPARSE, "bad.yaml:1:1:", "empty", NULL);
 }
 
+/* Regions a bar's scene builds: the shape's own fixed and handle. */
+#define RGN "regions: {sel: builtin, handles: [{driver: none}]}\n"
+
+/* Loads `text` as a scene (files checked); ISO_OK or fails with the message. */
+static void expect_ok(const char *text)
+{
+    iso_scene *s = NULL;
+    iso_err err;
+    if (load_text("ok.yaml", text, &s, &err) != ISO_OK)
+        fail_msg("refused: %s\n%s", err.msg, text);
+    iso_scene_destroy(s);
+}
+
+/* YAML's null is no value: an empty value, ~ or null is refused where a
+ * key is written, at the key's own line and column (an empty value has no
+ * token of its own), with what the key takes; a quoted "~" is text. */
+static void test_null_is_no_value(void **state)
+{
+    (void)state;
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "tick_hz:\n", ISO_EPARSE,
+                 "bad.yaml:7:1: tick_hz: expected a value in (0, 100000], found an empty value; "
+                 "leave the key out for its default (60)",
+                 NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "recording: ~\n", ISO_EPARSE,
+                 "bad.yaml:7:12: recording: expected a file or folder name, found null ('~')",
+                 NULL);
+    expect_error(BASE "regions:\n  sel: builtin\n" HANDLES "name: null\n", ISO_EPARSE,
+                 "bad.yaml:7:7: name: expected a non-empty text, found null;", NULL);
+    expect_error(BASE RGN "sinks:\n  ply:\n    dir:\n    every: 2\n", ISO_EPARSE,
+                 "bad.yaml:5:5: sinks.ply.dir: expected a file or folder name, found an empty "
+                 "value (the key is required)",
+                 NULL);
+    expect_error(BASE RGN "sinks: {display: {snapshot_dir: Null}}\n", ISO_EPARSE,
+                 "bad.yaml:3:33: sinks.display.snapshot_dir:", "found null", NULL);
+    expect_error(BASE RGN "sinks:\n  actuators:\n    link: {tty: ~}\n"
+                          "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 ISO_EPARSE, "bad.yaml:5:17: sinks.actuators.link.tty:", "found null ('~')", NULL);
+    expect_error(BASE RGN "devices:\n  -\n", ISO_EPARSE,
+                 "bad.yaml:3:1: devices[0]: expected a device {name, kind, ...}, found an empty "
+                 "value",
+                 NULL);
+    expect_error(BASE RGN "solver: {restore: ~}\n", ISO_EPARSE,
+                 "bad.yaml:3:19: solver.restore: expected off or {mu, tau}, found null ('~')",
+                 NULL);
+    expect_error("mesh:\n" RGN, ISO_EPARSE, "bad.yaml:1:1: mesh:", "found an empty value",
+                 "(the key is required)", NULL);
+    /* quoted, it is a name like any other */
+    expect_ok(BASE "regions:\n  sel: builtin\n" HANDLES "name: '~'\nrecording: 'null'\n");
+}
+
+/* What `run` would refuse when it opens its sinks and devices, the loader
+ * refuses first, so that `check` says it too, at the key. */
+static void test_run_refusals_are_the_loaders(void **state)
+{
+    (void)state;
+    static const char *const remote[] = {"0.0.0.0", "'::'", "192.168.1.20", NULL};
+    static const char *const bad[] = {"example.com", "'true'", "987654.5", "'1.2.3.4.5'", NULL};
+    static const char *const good[] = {"127.0.0.1", "127.1.2.3", "localhost",
+                                       "'::1'",     "'[::1]'",   NULL};
+    char text[512];
+    for (int i = 0; remote[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s}}\n", remote[i]);
+        expect_error(text, ISO_EINVAL, "bad.yaml:3:2",
+                     "sinks.display.host:", "can be reached from other machines",
+                     "allow_remote: true", NULL);
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s, allow_remote: true}}\n",
+                 remote[i]);
+        expect_ok(text);
+    }
+    for (int i = 0; bad[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s, allow_remote: true}}\n",
+                 bad[i]);
+        expect_error(text, ISO_EINVAL, "bad.yaml:3:2",
+                     "sinks.display.host:", "is not a numeric IPv4 or IPv6 address or localhost",
+                     NULL);
+    }
+    for (int i = 0; good[i]; i++) {
+        snprintf(text, sizeof text, BASE RGN "sinks: {display: {host: %s}}\n", good[i]);
+        expect_ok(text);
+    }
+    /* a SETPOINTS frame carries 8 channels; a scale of 0 makes every
+     * position one setpoint; a fixed region that is empty */
+    expect_error(BASE RGN "sinks:\n  actuators:\n    link: emulated\n"
+                          "    channels: [{channel: 8, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 ISO_EINVAL,
+                 "bad.yaml:6:26: sinks.actuators.channels[0].channel: '8' is out of "
+                 "range: expected an integer in [0, 7]",
+                 NULL);
+    expect_error(
+        BASE RGN "sinks:\n  actuators:\n    link: emulated\n"
+                 "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1, scale: 0}]\n",
+        ISO_EINVAL, "bad.yaml:6:72: sinks.actuators.channels[0].scale: '0' is out of range", NULL);
+    expect_error(BASE "regions: {handles: [{select: {vertices: [0]}, driver: none}]}\n"
+                      "sinks:\n  actuators:\n    link: emulated\n"
+                      "    channels: [{channel: 0, region: fixed, axis: x, min: 0, max: 1}]\n",
+                 ISO_ECONSTRAINT,
+                 "bad.yaml:6:17: sinks.actuators.channels[0].region:", "'fixed' has no vertices",
+                 NULL);
+    /* a replay stands for the devices it recorded */
+    snprintf(text, sizeof text,
+             BASE "devices:\n  - {name: r, kind: replay, file: %s/sm_twist.isorec}\n"
+                  "  - {name: m, kind: spnav}\n" RGN,
+             ISO_TEST_STREAMS);
+    expect_error(text, ISO_EINVAL,
+                 "bad.yaml:3:21: devices[0].kind: 'replay' stands for every device", NULL);
+    /* a recording run could not read is refused at its key */
+    char junk[512];
+    iso_test_write(iso_test_tmp(junk, sizeof junk, "junk.isorec"), "not a recording at all", -1);
+    expect_error(BASE "devices: [{name: r, kind: replay, file: junk.isorec}]\n" RGN, ISO_EPARSE,
+                 "bad.yaml:2:41: devices[0].file: ", "not an isoshape recording", NULL);
+    /* outputs go in folders that exist, checked before the run */
+    expect_error(BASE RGN "sinks: {ply: {dir: no/such/frames}}\n", ISO_EIO,
+                 "bad.yaml:3:20: sinks.ply.dir: cannot write", "folder", "does not exist", NULL);
+    expect_error(BASE RGN "recording: nowhere/r.isorec\n", ISO_EIO,
+                 "bad.yaml:3:12: recording: cannot write", NULL);
+    expect_ok(BASE RGN "sinks: {ply: {dir: frames/}}\nrecording: r.isorec\n");
+}
+
 static void test_distance(void **state)
 {
     (void)state;
@@ -362,228 +484,6 @@ static void test_distance(void **state)
 /* ------------------------------------------------------------------------ */
 /* The schema (config/internal.h)                                            */
 /* ------------------------------------------------------------------------ */
-
-#define MESH "mesh: {shape: bar, resolution: 1}"
-#define REGIONS "regions: {handles: [{driver: none}]}"
-#define TCP_DEVICE "devices: [{name: d, kind: tcp, address: 'h:1'}]"
-#define CHANNEL "{channel: 0, vertex: 0, axis: x, min: 0, max: 1}"
-
-/* Where each section is written in a scene: `doc` with %s where the
- * section's mapping content goes, `path` its key path in messages, and
- * off, size: where its struct lies in iso_scene. */
-#define AT(member) offsetof(iso_scene, member), sizeof(((iso_scene *)0)->member)
-#define WHOLE 0, sizeof(iso_scene)
-static const struct place {
-    const char *section, *path, *doc;
-    size_t off, size;
-} places[] = {
-    {"", "", "{%s}", WHOLE},
-    {"mesh", "mesh", "{mesh: {%s}, " REGIONS "}", AT(mesh_src)},
-    {"devices[]", "devices[0]", "{" MESH ", devices: [{%s}], " REGIONS "}", AT(devices[0])},
-    {"regions", "regions", "{" MESH ", regions: {%s}}", WHOLE},
-    {"regions.handles[]", "regions.handles[0]", "{" MESH ", regions: {handles: [{%s}]}}",
-     AT(handles[0])},
-    {"selection", "regions.fixed", "{" MESH ", regions: {fixed: {%s}, handles: [{driver: none}]}}",
-     AT(fixed.sel[0])},
-    {"selection.box", "regions.fixed.box",
-     "{" MESH ", regions: {fixed: {box: {%s}}, handles: [{driver: none}]}}", AT(fixed.sel[0])},
-    {"selection.sphere", "regions.fixed.sphere",
-     "{" MESH ", regions: {fixed: {sphere: {%s}}, handles: [{driver: none}]}}", AT(fixed.sel[0])},
-    {"selection.beyond", "regions.fixed.beyond",
-     "{" MESH ", regions: {fixed: {beyond: {%s}}, handles: [{driver: none}]}}", AT(fixed.sel[0])},
-    {"regions.handles[].driver", "regions.handles[0].driver",
-     "{" MESH ", " TCP_DEVICE ", regions: {handles: [{driver: {%s}}]}}", AT(handles[0].driver)},
-    {"regions.handles[].driver.mapping", "regions.handles[0].driver.mapping",
-     "{" MESH ", " TCP_DEVICE ", regions: {handles: [{driver: {device: d, mapping: {%s}}}]}}",
-     AT(handles[0].driver.map)},
-    {"regions.handles[].driver.screw", "regions.handles[0].driver.screw",
-     "{" MESH ", regions: {handles: [{driver: {screw: {%s}}}]}}", AT(handles[0].driver)},
-    {"regions.handles[].driver.keyframes[]", "regions.handles[0].driver.keyframes[0]",
-     "{" MESH ", regions: {handles: [{driver: {keyframes: [{%s}]}}]}}",
-     AT(handles[0].driver.keys[0])},
-    {"solver", "solver", "{" MESH ", " REGIONS ", solver: {%s}}", AT(solver)},
-    {"solver.restore", "solver.restore", "{" MESH ", " REGIONS ", solver: {restore: {%s}}}",
-     AT(solver)},
-    {"integrator", "integrator", "{" MESH ", " REGIONS ", integrator: {%s}}", WHOLE},
-    {"sinks", "sinks", "{" MESH ", " REGIONS ", sinks: {%s}}", WHOLE},
-    {"sinks.display", "sinks.display", "{" MESH ", " REGIONS ", sinks: {display: {%s}}}",
-     AT(display)},
-    {"sinks.ply", "sinks.ply", "{" MESH ", " REGIONS ", sinks: {ply: {%s}}}", AT(ply)},
-    {"sinks.actuators", "sinks.actuators", "{" MESH ", " REGIONS ", sinks: {actuators: {%s}}}",
-     AT(actuators)},
-    {"sinks.actuators.link", "sinks.actuators.link",
-     "{" MESH ", " REGIONS ", sinks: {actuators: {channels: [" CHANNEL "], link: {%s}}}}",
-     AT(actuators)},
-    {"sinks.actuators.channels[]", "sinks.actuators.channels[0]",
-     "{" MESH ", " REGIONS ", sinks: {actuators: {link: emulated, channels: [{%s}]}}}",
-     AT(actuators.ch[0])},
-};
-
-/* Values for keys whose kind says too little to make one up. */
-static const struct {
-    const char *key, *value;
-} examples[] = {
-    {"mesh", "{shape: bar, resolution: 1}"},
-    {"devices", "[{name: d, kind: spnav}]"},
-    {"regions", "{handles: [{driver: none}]}"},
-    {"solver", "{omega: 0.5}"},
-    {"integrator", "{abm: pec}"},
-    {"sinks", "{ply: {dir: out}}"},
-    {"regions.fixed", "{vertices: [0]}"},
-    {"regions.handles", "[{driver: none}]"},
-    {"selection.vertices", "[0, 1]"},
-    {"selection.box", "{min: [0, 0, 0], max: [1, 1, 1]}"},
-    {"selection.sphere", "{center: [0, 0, 0], radius: 1}"},
-    {"selection.beyond", "{point: [0, 0, 0], normal: [0, 0, 1]}"},
-    {"regions.handles[].select", "[{vertices: [1]}]"},
-    {"regions.handles[].driver", "none"},
-    {"regions.handles[].driver.device", "d"},
-    {"regions.handles[].driver.mapping", "{curve: 2}"},
-    {"regions.handles[].driver.screw", "{duration: 1}"},
-    {"regions.handles[].driver.keyframes", "[{t: 0}]"},
-    {"regions.handles[].driver.mapping.remap", "{ty: tz}"},
-    {"regions.handles[].driver.mapping.invert", "[tx]"},
-    {"regions.handles[].driver.mapping.buttons", "[clutch]"},
-    {"solver.restore", "off"},
-    {"solver.restore.mu", "0"},
-    {"devices[].address", "'h:1'"},
-    {"sinks.display", "{port: 8081}"},
-    {"sinks.display.snapshot_ticks", "[1]"},
-    {"sinks.ply", "{dir: out}"},
-    {"sinks.actuators", "{link: emulated, channels: [" CHANNEL "]}"},
-    {"sinks.actuators.link", "emulated"},
-    {"sinks.actuators.link.tcp", "'h:1'"},
-    {"sinks.actuators.channels", "[" CHANNEL "]"},
-    {"sinks.actuators.channels[].region", "fixed"},
-    {"sinks.actuators.channels[].min", "0"},
-    {"sinks.actuators.channels[].max", "1"},
-};
-
-static const struct place *place_of(const scene_section *sec)
-{
-    for (size_t i = 0; i < sizeof places / sizeof places[0]; i++)
-        if (strcmp(places[i].section, sec->name) == 0)
-            return &places[i];
-    fail_msg("test_scene: no place for section '%s' in places[]", sec->name);
-    return NULL;
-}
-
-/* Every section once, from the top: n of them into all. */
-static int all_sections(const scene_section **all, int cap)
-{
-    int n = 0;
-    all[n++] = &iso_scene__schema;
-    for (int i = 0; i < n; i++)
-        for (const scene_key *k = all[i]->keys; k->key; k++) {
-            int seen = !k->sub;
-            for (int j = 0; j < n && !seen; j++)
-                seen = all[j] == k->sub;
-            if (!seen && n < cap)
-                all[n++] = k->sub;
-        }
-    return n;
-}
-
-static const char *const *names_of(const scene_key *k)
-{
-    return k->names ? k->names : k->names_fn ? k->names_fn() : NULL;
-}
-
-/* A value of k's range (or of the devices layer's, for dev). */
-static double number_in_range(const scene_key *k)
-{
-    static const double tries[] = {1, 0.5, 0.1, 2, 10, 350};
-    char why[128];
-    if (k->dev) {
-        for (size_t i = 0; i < sizeof tries / sizeof tries[0]; i++)
-            if (iso_dev_map_check(k->dev, tries[i], why, sizeof why) == 0)
-                return tries[i];
-        fail_msg("%s: no value in the devices layer's range", k->key);
-    }
-    if (!k->ranged)
-        return 1;
-    return isinf(k->hi) ? k->lo + 1 : (k->lo + k->hi) / 2;
-}
-
-/* A value for row k of sec, as YAML, into buf. */
-static const char *sample(const scene_section *sec, const scene_key *k, const char *variant,
-                          char *buf, size_t cap)
-{
-    char key[ISO_SCENE_KEY_MAX];
-    iso_scene__join(key, sizeof key, sec->name, k->key);
-    for (size_t i = 0; i < sizeof examples / sizeof examples[0]; i++)
-        if (strcmp(examples[i].key, key) == 0)
-            return examples[i].value;
-    switch (k->kind) {
-    case SK_NUMBER: snprintf(buf, cap, "%.17g", number_in_range(k)); return buf;
-    case SK_INT: snprintf(buf, cap, "%ld", (long)k->lo); return buf;
-    case SK_BOOL: return "true";
-    case SK_STRING: return "x";
-    case SK_FILE: return "f.txt";
-    case SK_PATH: return "out";
-    case SK_ENUM: return (k->flags & SK_SELECTOR) && variant ? variant : names_of(k)[0];
-    case SK_VEC3: return "[0, 0, 1]";
-    default: fail_msg("test_scene: no example for %s in examples[]", key);
-    }
-    return NULL;
-}
-
-static int required_for(const scene_key *k, const char *variant)
-{
-    return (k->flags & SK_REQUIRED) ||
-           (k->need && variant && iso_scene__in_words(k->need, variant));
-}
-
-/* The variant that row k needs: its first `with`, itself if SK_ONE_OF, or
- * the section's first (SK_ONE_OF key or selector's name). */
-static const char *variant_for(const scene_section *sec, const scene_key *k, char *buf, size_t cap)
-{
-    if (k && k->with) {
-        snprintf(buf, cap, "%s", k->with);
-        buf[strcspn(buf, " ")] = '\0';
-        return buf;
-    }
-    if (k && (k->flags & SK_ONE_OF))
-        return k->key;
-    for (const scene_key *o = sec->keys; o->key; o++)
-        if (o->flags & SK_ONE_OF)
-            return o->key;
-        else if (o->flags & SK_SELECTOR)
-            return names_of(o)[0];
-    return NULL;
-}
-
-/* The smallest content of sec that holds row k with `value`, into buf.
- * value NULL: k only chooses the variant and is left out. */
-static const char *content(const scene_section *sec, const scene_key *k, const char *value,
-                           char *buf, size_t cap)
-{
-    char vbuf[64], sbuf[64];
-    const char *variant = variant_for(sec, k, vbuf, sizeof vbuf);
-    size_t n = 0;
-    buf[0] = '\0';
-    for (const scene_key *r = sec->keys; r->key; r++) {
-        int one_of = (r->flags & SK_ONE_OF) && variant && strcmp(r->key, variant) == 0;
-        if (r == k && !value)
-            continue;
-        if (r != k && !required_for(r, variant) && !one_of && !(r->flags & SK_SELECTOR))
-            continue;
-        const char *v = r == k ? value : sample(sec, r, variant, sbuf, sizeof sbuf);
-        n += (size_t)snprintf(buf + n, cap - n, "%s%s: %s", n ? ", " : "", r->key, v);
-        assert_true(n < cap);
-    }
-    return buf;
-}
-
-static int load_section(const scene_section *sec, const char *what, iso_scene **s, iso_err *err)
-{
-    static char doc[8192];
-    iso_scene_opts o = {.flags = ISO_SCENE_PARSE_ONLY};
-    snprintf(doc, sizeof doc, place_of(sec)->doc, what);
-    iso_err_clear(err);
-    *s = NULL;
-    return iso_scene_load_mem(doc, strlen(doc), "schema.yaml", &o, s, err);
-}
 
 /* Whether the scalar at obj + k->off is the one `value` says. */
 static int stored(const scene_key *k, const void *obj, const char *value, const char *variant)
@@ -731,19 +631,21 @@ static void out_of_range_values(const scene_key *k, char lo[64], char hi[64])
 {
     static const double tries[] = {-1, 0, 0.995, 11, 2e6};
     char why[128];
+    iso_range r;
     lo[0] = hi[0] = '\0';
     if (k->dev) {
         for (size_t i = 0; i < sizeof tries / sizeof tries[0] && !lo[0]; i++)
             if (iso_dev_map_check(k->dev, tries[i], why, sizeof why) != 0)
                 snprintf(lo, 64, "%g", tries[i]);
-    } else if (k->kind == SK_NUMBER) {
-        snprintf(lo, 64, "%.17g", k->lo_open ? k->lo : k->lo - 1);
-        if (!isinf(k->hi))
-            snprintf(hi, 64, "%.17g", k->hi_open ? k->hi : k->hi + 1);
-    } else {
-        snprintf(lo, 64, k->kind == SK_LIST ? "[%ld]" : "%ld", (long)k->lo - 1);
-        snprintf(hi, 64, k->kind == SK_LIST ? "[%ld]" : "%ld", (long)k->hi + 1);
+        return;
     }
+    iso_scene__range(k, &r);
+    const char *form = k->kind == SK_LIST ? "[%.17g]" : "%.17g";
+    /* an open end is itself out, a closed one 1 past it */
+    if (r.lo_end)
+        snprintf(lo, 64, form, r.lo_end == ISO_RANGE_OPEN ? r.lo : r.lo - 1);
+    if (r.hi_end)
+        snprintf(hi, 64, form, r.hi_end == ISO_RANGE_OPEN ? r.hi : r.hi + 1);
 }
 
 /* Every ranged key refuses a value beyond each end, and every list with a
@@ -756,9 +658,11 @@ static void test_schema_ranges(void **state)
     for (int i = 0; i < n; i++)
         for (const scene_key *k = all[i]->keys; k->key; k++) {
             char lo[64], hi[64], many[512] = "[";
-            if (k->ranged || k->dev) {
+            iso_range r;
+            if (iso_scene__range(k, &r) || k->dev) {
                 out_of_range_values(k, lo, hi);
-                expect_out_of_range(all[i], k, lo);
+                if (lo[0])
+                    expect_out_of_range(all[i], k, lo);
                 if (hi[0])
                     expect_out_of_range(all[i], k, hi);
                 ranged++;
@@ -956,11 +860,18 @@ static void test_schema_scenes_md(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_examples_load),    cmocka_unit_test(test_check_benchmark),
-        cmocka_unit_test(test_round_trip),       cmocka_unit_test(test_errors),
-        cmocka_unit_test(test_distance),         cmocka_unit_test(test_schema_shape),
-        cmocka_unit_test(test_schema_every_key), cmocka_unit_test(test_schema_unknown_key),
-        cmocka_unit_test(test_schema_ranges),    cmocka_unit_test(test_schema_defaults),
+        cmocka_unit_test(test_examples_load),
+        cmocka_unit_test(test_check_benchmark),
+        cmocka_unit_test(test_round_trip),
+        cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_distance),
+        cmocka_unit_test(test_schema_shape),
+        cmocka_unit_test(test_null_is_no_value),
+        cmocka_unit_test(test_run_refusals_are_the_loaders),
+        cmocka_unit_test(test_schema_every_key),
+        cmocka_unit_test(test_schema_unknown_key),
+        cmocka_unit_test(test_schema_ranges),
+        cmocka_unit_test(test_schema_defaults),
         cmocka_unit_test(test_schema_scenes_md),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

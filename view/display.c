@@ -22,6 +22,7 @@
 #define CONTROLS_DIR "/usr/share/javascript/three/examples/js/controls/"
 #define ORBIT_JS CONTROLS_DIR "OrbitControls.js"
 #define GIZMO_JS CONTROLS_DIR "TransformControls.js"
+#define GLTF_JS "/usr/share/javascript/three/examples/js/exporters/GLTFExporter.js"
 
 /* ---- JSON helpers --------------------------------------------------------- */
 
@@ -193,7 +194,13 @@ static void init_state(iso_display *d, const iso_display_opts *o, int nv)
     d->listen_fd = d->wake[0] = d->wake[1] = -1;
     d->frame_len = ISO_DISPLAY_FRAME_HEADER + (size_t)ISO_DISPLAY_FRAME_POSE * (size_t)d->nh +
                    (size_t)12 * (size_t)nv;
-    pthread_mutex_init(&d->frame_lock, NULL);
+    /* The loop's tick takes it to publish: a server thread holding it runs
+     * at the tick's priority until it lets go (no priority inversion). */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&d->frame_lock, &ma);
+    pthread_mutexattr_destroy(&ma);
     pthread_mutex_init(&d->note_lock, NULL);
     atomic_init(&d->published, 0);
     atomic_init(&d->wake_pending, 0);
@@ -223,6 +230,8 @@ static int read_scripts(iso_display *d, const iso_display_opts *o, iso_err *err)
         d->orbit = NULL;
     if (iso_file_read(GIZMO_JS, 0, &d->gizmo, &d->gizmo_len, NULL) < 0)
         d->gizmo = NULL;
+    if (iso_file_read(GLTF_JS, 0, &d->gltf, &d->gltf_len, NULL) < 0)
+        d->gltf = NULL; /* the page's Save .glb button then says what is missing */
     return ISO_OK;
 }
 
@@ -456,9 +465,12 @@ void iso_display_destroy(iso_display *d)
             close(d->wake[i]);
     pthread_mutex_destroy(&d->frame_lock);
     pthread_mutex_destroy(&d->note_lock);
+    iso_display__fox_shared_free(atomic_load(&d->fox));
+    free(d->fox_frame);
     free(d->three);
     free(d->orbit);
     free(d->gizmo);
+    free(d->gltf);
     free(d->topology);
     free(d->latest);
     free(d->note);

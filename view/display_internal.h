@@ -119,6 +119,32 @@ const char *iso_display__query_get(const char *q, size_t n, const char *key, siz
 int iso_display__token_eq(const char *p, size_t n, const char *s);
 int iso_display__contains_ci(const char *p, size_t n, const char *s);
 
+/* ---- Foxglove's protocol (foxglove.c, foxglove_rx.c) ----------------------- */
+
+/* What a Foxglove client says, and the subscriptions it asked for. */
+#define ISO_DISPLAY_FOX_MAX_CHANNELS 64
+typedef struct iso_display__fox_rx {
+    long sub[ISO_DISPLAY_FOX_MAX_CHANNELS]; /* subscription id per channel, -1: none */
+    char msg[ISO_DISPLAY_MAX_CLIENT_FRAME + 1];
+    long messages; /* text messages taken */
+} iso_display__fox_rx;
+
+void iso_display__fox_rx_init(iso_display__fox_rx *rx);
+/* One whole text message (n bytes, any content) from a client of a session
+ * with n_channels channels: subscribes and unsubscribes as told, ignores
+ * the rest. A message longer than ISO_DISPLAY_MAX_CLIENT_FRAME is cut
+ * there (the WebSocket reader refuses those before). */
+void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_channels, const unsigned char *p,
+                                 size_t n);
+
+typedef struct iso_display__fox iso_display__fox;               /* one client's */
+typedef struct iso_display__fox_shared iso_display__fox_shared; /* all clients' */
+
+/* Does the request (NUL-terminated, headers included) offer Foxglove's
+ * subprotocol? */
+int iso_display__fox_offered(const char *req);
+void iso_display__fox_shared_free(iso_display__fox_shared *s);
+
 /* ---- connections ----------------------------------------------------------- */
 
 typedef struct iso_display__conn iso_display__conn;
@@ -143,6 +169,7 @@ typedef struct iso_display__proto {
 } iso_display__proto;
 
 extern const iso_display__proto iso_display__view_proto;
+extern const iso_display__proto iso_display__fox_proto; /* foxglove.c */
 
 typedef enum iso_display__conn_state {
     C_FREE,
@@ -192,6 +219,7 @@ struct iso_display__conn {
     const iso_display__proto *proto;
     iso_display__ws_rx rx;
     iso_display__viewer v;
+    iso_display__fox *fox; /* Foxglove's part (foxglove.c) */
 };
 
 /* ---- the display's state -------------------------------------------------- */
@@ -203,8 +231,8 @@ struct iso_display {
     int listen_fd;
     int remote;                  /* bound beyond loopback */
     char host_name[64];          /* the bound address as a Host header spells it: [::1] */
-    char *three, *orbit, *gizmo; /* file contents; orbit and gizmo may be NULL */
-    size_t three_len, orbit_len, gizmo_len;
+    char *three, *orbit, *gizmo, *gltf; /* file contents; all but three may be NULL */
+    size_t three_len, orbit_len, gizmo_len, gltf_len;
     char *topology; /* the JSON sent on connect */
     size_t topology_len;
     size_t frame_len;
@@ -217,9 +245,12 @@ struct iso_display {
      * it out under the same lock. Nobody holds the lock for anything else. */
     pthread_mutex_t frame_lock;
     unsigned char *latest;
-    unsigned long latest_seq; /* under frame_lock; 0 = nothing yet */
-    atomic_ulong published;   /* latest_seq, readable without the lock */
-    atomic_int wake_pending;  /* a byte is in the pipe: publish need not write */
+    unsigned long latest_seq;        /* under frame_lock; 0 = nothing yet */
+    atomic_ulong published;          /* latest_seq, readable without the lock */
+    struct iso_fox_frame *fox_frame; /* under frame_lock: the last publish_frame's copy */
+    unsigned long fox_frame_seq;
+    _Atomic(iso_display__fox_shared *) fox; /* set once by iso_display_foxglove */
+    atomic_int wake_pending;                /* a byte is in the pipe: publish need not write */
     atomic_int stopping;
 
     /* The run's end (iso_display_end): note_lock guards note. */

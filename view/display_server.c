@@ -158,6 +158,14 @@ static int origin_is_ours(const iso_display *d, const iso_display__conn *c,
 {
     if (!r->origin) /* not a web page: browsers send Origin on every upgrade */
         return 1;
+    static const char studio[] = "https://app.foxglove.dev"; /* Foxglove's web app */
+    if (iso_display__fox_offered(c->req) && r->origin_len == sizeof studio - 1 &&
+        strncasecmp(r->origin, studio, sizeof studio - 1) == 0)
+        return 1;
+    static const char studio[] = "https://app.foxglove.dev"; /* Foxglove's web app */
+    if (iso_display__fox_offered(c->req) && r->origin_len == sizeof studio - 1 &&
+        strncasecmp(r->origin, studio, sizeof studio - 1) == 0)
+        return 1;
     return r->origin_len > 7 && strncasecmp(r->origin, "http://", 7) == 0 &&
            authority_is_ours(d, c, r->origin + 7, r->origin_len - 7, 0);
 }
@@ -173,15 +181,17 @@ static int count_sockets(const iso_display *d)
 }
 
 /* The kind a Sec-WebSocket-Protocol offer asks for: the first offered name
- * that a kind answers to; the view's own when there is no offer. NULL when
- * nothing offered is spoken here. */
-static const iso_display__proto *choose_proto(const iso_display__request *r)
+ * that a kind answers to (Foxglove's only once iso_display_foxglove made
+ * the session); the view's own when there is no offer. NULL when nothing
+ * offered is spoken here. */
+static const iso_display__proto *choose_proto(iso_display *d, const iso_display__request *r)
 {
-    static const iso_display__proto *const kinds[] = {&iso_display__view_proto};
+    static const iso_display__proto *const kinds[] = {&iso_display__view_proto,
+                                                        &iso_display__fox_proto};
     if (!r->protocol)
         return &iso_display__view_proto;
     for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
-        if (kinds[k]->name &&
+        if (kinds[k]->name && (kinds[k] != &iso_display__fox_proto || atomic_load(&d->fox)) &&
             iso_display__contains_ci(r->protocol, r->protocol_len, kinds[k]->name))
             return kinds[k];
     return NULL;
@@ -221,7 +231,7 @@ static void start_socket(iso_display *d, iso_display__conn *c, const iso_display
 
 static void upgrade(iso_display *d, iso_display__conn *c, const iso_display__request *r, int head)
 {
-    const iso_display__proto *proto = choose_proto(r);
+    const iso_display__proto *proto = choose_proto(d, r);
     if (!origin_is_ours(d, c, r))
         respond_error(c, 403, "Forbidden", NULL,
                       "the stream is only for this view's own page (foreign Origin)", head);
@@ -273,6 +283,8 @@ static void answer(iso_display *d, iso_display__conn *c)
         respond(c, 200, "OK", js, NULL, d->orbit, d->orbit_len, head);
     else if (PATH_IS("/TransformControls.js") && d->gizmo)
         respond(c, 200, "OK", js, NULL, d->gizmo, d->gizmo_len, head);
+    else if (PATH_IS("/GLTFExporter.js") && d->gltf)
+        respond(c, 200, "OK", js, NULL, d->gltf, d->gltf_len, head);
     else if (PATH_IS("/ws"))
         upgrade(d, c, &r, head);
     else
@@ -355,7 +367,7 @@ static int socket_input(iso_display *d, iso_display__conn *c, const unsigned cha
             return -1;
         }
     }
-    if (c->ctl_len && !pending(c))
+    if (!pending(c)) /* a pong, or what the message asked for (a subscription's tick) */
         socket_pump(d, c, now_ms());
     return 0;
 }

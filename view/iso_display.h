@@ -86,7 +86,12 @@
  *   /three.min.js        read at create time from Debian's libjs-three
  *   /OrbitControls.js    from libjs-three's examples when installed (the
  *   /TransformControls.js  page falls back to its own controls otherwise)
+ *   /GLTFExporter.js     from libjs-three's examples: the page's "Save .glb"
  *   /ws                  the WebSocket (query: token=T)
+ *
+ * A client that offers the subprotocol "foxglove.websocket.v1" on /ws, once
+ * iso_display_foxglove has made the session, gets Foxglove's protocol
+ * instead (below); its Origin may also be Foxglove's web app.
  *
  * Wire format on /ws, server to browser:
  *   on connect, one text message, JSON:
@@ -259,6 +264,27 @@ ISO_API int iso_display_publish(iso_display *d, long tick, const double *x,
  * run's summary, or NULL for none), until the display is destroyed. Any
  * thread; takes a lock for the copy of text (at most 4 KiB are kept). */
 ISO_API void iso_display_end(iso_display *d, const char *text);
+/* Foxglove, live. After this call the view's server also speaks Foxglove's
+ * WebSocket protocol on /ws to a client that offers the subprotocol
+ * "foxglove.websocket.v1" (Foxglove Studio's "Open connection"): it
+ * advertises the session's channels, the same as an MCAP export's
+ * (sinks/iso_foxglove.h), and streams the ticks iso_display_publish_frame
+ * hands it, under the page's rules: latest wins, nothing waits for a
+ * client, a client whose batch is unwritten ISO_DISPLAY_STALL_MS is
+ * disconnected, and it counts among ISO_DISPLAY_MAX_VIEWERS. Its Origin,
+ * when it sends one, must be the page's own or Foxglove's web app
+ * (https://app.foxglove.dev). session->mesh must be the display's mesh.
+ * Call it once, before the first publish. ISO_EINVAL, ISO_ENOMEM. */
+struct iso_fox_session;
+struct iso_fox_frame;
+ISO_API ISO_NODISCARD int iso_display_foxglove(iso_display *d,
+                                               const struct iso_fox_session *session, iso_err *err);
+
+/* Hands the display the rest of a tick's channels (poses, devices, the
+ * loop, actuators; f->x is ignored: the positions are those of the
+ * iso_display_publish just before). A copy under the frame lock, no
+ * allocation, no I/O. ISO_EINVAL for NULL arguments. */
+ISO_API int iso_display_publish_frame(iso_display *d, const struct iso_fox_frame *f, iso_err *err);
 
 /* Stops the server thread, closes every connection and frees everything.
  * Never waits on a browser: returns within one pass of the server's loop

@@ -60,6 +60,13 @@ static void tick(int64_t t)
     rec(ISO_DEV_CHUNK_TICK, 0, t, NULL, 0);
 }
 
+/* A whole recording ends with the END record its writer adds on closing. */
+static void finish(void)
+{
+    rec(ISO_DEV_CHUNK_END, 0, 0, NULL, 0);
+    fclose(g.f);
+}
+
 static void hid6(int src, int64_t t, int tx, int ty, int tz, int rx, int ry, int rz)
 {
     int v[6] = {tx, ty, tz, rx, ry, rz};
@@ -165,7 +172,7 @@ static void session(void)
             next_tick += tick_ns;
         }
     }
-    fclose(g.f);
+    finish();
 }
 
 int main(int argc, char **argv)
@@ -192,7 +199,7 @@ int main(int argc, char **argv)
             hid6(0, t - MS / 2, 0, 0, 0, 0, 0, 0);
         tick(t);
     }
-    fclose(g.f);
+    finish();
 
     /* 2. A button-driven clutch sequence: deflected throughout; button 0
      * (clutch) held over ticks 3..5, button 1 (next handle) at tick 8. */
@@ -211,7 +218,7 @@ int main(int argc, char **argv)
             hid_buttons(0, t - 10, 0x0);
         tick(t);
     }
-    fclose(g.f);
+    finish();
 
     /* 3. An unplug and replug: deflected, gone at tick 4, back at tick 7,
      * deflected again (a fresh device starts from rest). */
@@ -227,7 +234,7 @@ int main(int argc, char **argv)
             hid6(0, t - 10, 0, 0, -350, 0, 0, 0);
         tick(t);
     }
-    fclose(g.f);
+    finish();
 
     /* 4. A serial pose stream with garbage and a bad checksum: four pose
      * samples (x = 1, 2, 3, 4 mm); noise before the first, the second split
@@ -262,7 +269,7 @@ int main(int argc, char **argv)
         n = 0;
         tick(t);
     }
-    fclose(g.f);
+    finish();
 
     /* 5. GPIO: the clutch bounces (three edges within 1 ms), the e-stop is
      * pressed at 5.2 ms and released with a bounce at 8 ms; 2 ms debounce. */
@@ -289,10 +296,11 @@ int main(int argc, char **argv)
         }
         tick(t);
     }
-    fclose(g.f);
+    finish();
 
     /* 6. Torn: the twist stream with record 6 damaged (one byte flipped)
-     * and the file cut off 5 bytes into its last record. */
+     * and the file cut off 5 bytes into its last TICK record (so its END
+     * record is gone too). */
     char src[1200], dst[1200];
     snprintf(src, sizeof src, "%s/sm_twist.isorec", g.dir);
     snprintf(dst, sizeof dst, "%s/torn.isorec", g.dir);
@@ -314,7 +322,7 @@ int main(int argc, char **argv)
         starts[ns++] = r.pos;
     iso_dev_rec_reader_deinit(&r);
     all[starts[5] + 8] ^= 0x01;      /* inside record 6's timestamp */
-    size_t cut = starts[ns - 2] + 5; /* 5 bytes into the last record */
+    size_t cut = starts[ns - 2] + 5; /* 5 bytes into the last record before END */
     FILE *o = fopen(dst, "wb");
     if (!o || fwrite(all, 1, cut, o) != cut || fclose(o) != 0) {
         perror(dst);

@@ -159,14 +159,33 @@ function update(x) {
 }
 
 // ---- drawing: on the browser's frames, when something changed -------------
-var spin = false, rafs = 0, drawn = 0, latest = null;
+var spin = false, rafs = 0, drawn = 0, latest = null, shown = 0, lastTick = 0;
+// The mesh as shown (positions and the flat strain colours as vertex
+// colours), as a binary glTF file, with three.js's GLTFExporter from
+// libjs-three's examples. The page's address with ?glb=1 saves once after
+// the first frame drawn and sets data-glb to the file's size (a headless
+// browser has no button to press).
+function saveGlb() {
+  if (!THREE.GLTFExporter || !geom) { $('glb').textContent = 'no GLTFExporter (libjs-three)'; return; }
+  new THREE.GLTFExporter().parse(geom.userData.obj, function (glb) {
+    document.body.setAttribute('data-glb', String(glb.byteLength));
+    var a = document.createElement('a');
+    a.href = URL.createObjectURL(new Blob([glb], {type: 'model/gltf-binary'}));
+    a.download = 'isoshape_tick_' + lastTick + '.glb';
+    document.body.appendChild(a); a.click(); document.body.removeChild(a);
+  }, {binary: true});
+}
+$('glb').onclick = saveGlb;
 function tick() {
   rafs++;
   if (spin) { orbit.yaw += 0.01; if (controls && controls !== 'own') { place(); controls.update(); } else place(); }
   // the newest frame only: frames that came faster than the page draws are
   // skipped, so a slow page never falls behind the stream (and the server
   // never finds it too slow to read)
-  if (latest && topo) { update(new Float32Array(latest.buf, latest.at, 3 * topo.nv)); latest = null; }
+  if (latest && topo) {
+    update(new Float32Array(latest.buf, latest.at, 3 * topo.nv)); latest = null; shown++;
+    if (shown === 1 && /[?&]glb=1/.test(location.search)) saveGlb();
+  }
   if (dirty) { renderer.render(scene, camera); drawn++; dirty = false; }
   window.requestAnimationFrame(tick);
 }
@@ -194,6 +213,7 @@ function onFrame(buf) {
     ' | misses ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
   document.body.setAttribute('data-frames', String(frames));
   document.body.setAttribute('data-tick', String(tick));
+  lastTick = tick;
 }
 
 // ---- the control surface -----------------------------------------------------

@@ -1,0 +1,168 @@
+/* tests/test_scene_agree.c -- `isoshape check` and `isoshape run` validate
+ * a scene alike. For every key of the loader's own schema (the tables that
+ * SCENES.md's key table is generated from, which test_scene holds SCENES.md
+ * to), a value of the wrong type, YAML's null and an empty value are each
+ * refused by both commands: exit status 1, and the same one line, which
+ * names the key's path and a FILE:LINE:COLUMN inside the key's own text.
+ *
+ * White-box: it walks the schema (config/internal.h, through
+ * scene_schema.c) and runs the built binary ($ISOSHAPE_BIN). */
+#include <limits.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "scene_schema.h"
+#include "testutil.h"
+
+/* The test program's state (the SQLite manner). */
+static struct {
+    char bin[PATH_MAX];
+    char path[512];                 /* the scene written */
+    char doc[8192];                 /* its text */
+    char out[16384], err[2][16384]; /* the last commands' output: check's, run's */
+} g;
+
+/* The wrong values: a mapping no key takes (every kind refuses it: a
+ * scalar or a list is not a mapping, and no section has a key "wrong"),
+ * YAML's null, and nothing at all. */
+static const struct {
+    const char *value, *label;
+} wrong[] = {{"{wrong: 1}", "a value of the wrong type"}, {"~", "null"}, {"", "an empty value"}};
+
+/* Runs `isoshape check` (i = 0) or `isoshape run` (i = 1) on the scene,
+ * run for one tick with `run_args`; its stderr into g.err[i]. */
+static int run_iso(int i, const char *run_args)
+{
+    char cmd[PATH_MAX + 1024];
+    /* a scene wrongly accepted would start the run: bound it */
+    snprintf(cmd, sizeof cmd, "timeout 60 '%s' %s '%s' %s </dev/null", g.bin, i ? "run" : "check",
+             g.path, i ? run_args : "");
+    return iso_test_sh(cmd, g.out, sizeof g.out, g.err[i], sizeof g.err[i]);
+}
+
+#define RUN_ONE_TICK "--no-rt --quiet --ticks 1"
+
+/* The line after "isoshape CMD: ", or NULL. */
+static const char *said(const char *text, const char *cmd)
+{
+    char prefix[64];
+    snprintf(prefix, sizeof prefix, "isoshape %s: ", cmd);
+    return strncmp(text, prefix, strlen(prefix)) == 0 ? text + strlen(prefix) : NULL;
+}
+
+/* 1 if column col of line 1 lies inside some "KEY: VALUE" of the document
+ * (from the key's first character to the value's last). */
+static int inside_key(const char *key, const char *value, int col)
+{
+    char text[512];
+    snprintf(text, sizeof text, "%s: %s", key, value);
+    for (const char *p = g.doc; (p = strstr(p, text)) != NULL; p++) {
+        int from = (int)(p - g.doc) + 1, to = from + (int)strlen(text);
+        if ((p == g.doc || p[-1] == ' ' || p[-1] == '{') && col >= from && col <= to)
+            return 1;
+    }
+    return 0;
+}
+
+static void agree(const scene_section *sec, const scene_key *k, const char *value,
+                  const char *label)
+{
+    char what[4096], key[ISO_SCENE_KEY_MAX], file[600];
+    content(sec, k, value, what, sizeof what);
+    snprintf(g.doc, sizeof g.doc, place_of(sec)->doc, what);
+    iso_scene__join(key, sizeof key, place_of(sec)->path, k->key);
+    iso_test_write(g.path, g.doc, -1);
+    int check = run_iso(0, NULL), run = run_iso(1, RUN_ONE_TICK " --no-display");
+    const char *a = said(g.err[0], "check"), *b = said(g.err[1], "run");
+    if (check != 1 || run != 1 || !a || !b)
+        fail_msg("%s as %s: check exited %d, run %d:\n%s%s\nscene: %s", key, label, check, run,
+                 g.err[0], g.err[1], g.doc);
+    if (strcmp(a, b) != 0)
+        fail_msg("%s as %s: check and run disagree:\n  check: %s  run:   %s", key, label, a, b);
+    if (strchr(a, '\n') != a + strlen(a) - 1)
+        fail_msg("%s as %s: not one line: %s", key, label, a);
+    int line = 0, col = 0, n = 0;
+    snprintf(file, sizeof file, "%s:%%d:%%d: %%n", g.path);
+    if (sscanf(a, file, &line, &col, &n) != 2 || n == 0 || line != 1 ||
+        !inside_key(k->key, value, col))
+        fail_msg("%s as %s: the refusal is not at the key (%s: %s):\n  %s  scene: %s", key, label,
+                 k->key, value, a, g.doc);
+    if (strncmp(a + n, key, strlen(key)) != 0)
+        fail_msg("%s as %s: the refusal does not name the key: %s", key, label, a);
+}
+
+static void need_binary(void)
+{
+    if (iso_test_isoshape_bin(g.bin, sizeof g.bin) != 0) {
+        print_message("skipped: no isoshape binary at %s (set ISOSHAPE_BIN)\n", g.bin);
+        skip();
+    }
+    iso_test_tmp(g.path, sizeof g.path, "agree.yaml");
+}
+
+static void check_and_run_refuse_every_key_alike(void **state)
+{
+    (void)state;
+    need_binary();
+    const scene_section *all[64];
+    int n = all_sections(all, 64), keys = 0;
+    for (int i = 0; i < n; i++)
+        for (const scene_key *k = all[i]->keys; k->key; k++, keys++)
+            for (size_t w = 0; w < sizeof wrong / sizeof wrong[0]; w++)
+                agree(all[i], k, wrong[w].value, wrong[w].label);
+    print_message("%d keys, each refused alike by check and run as %zu wrong values\n", keys,
+                  sizeof wrong / sizeof wrong[0]);
+    assert_true(keys > 90);
+}
+
+/* The live view's host: what run would refuse when it binds, check
+ * refuses too, in the same words; what check accepts, run serves on. */
+static void check_and_run_agree_on_display_hosts(void **state)
+{
+    (void)state;
+    static const char *const refused[] = {"0.0.0.0",  "'::'", "example.com", "null",   "true", "~",
+                                          "987654.5", "''",   "[1, 2]",      "{a: 1}", NULL};
+    static const char *const served[] = {"127.0.0.1", "localhost", NULL};
+    need_binary();
+    for (int i = 0; refused[i]; i++) {
+        snprintf(g.doc, sizeof g.doc,
+                 "mesh: {shape: bar, resolution: 4}\nregions: {sel: builtin, handles: [{driver: "
+                 "none}]}\nsinks: {display: {host: %s, port: 8080}}\n",
+                 refused[i]);
+        iso_test_write(g.path, g.doc, -1);
+        int check = run_iso(0, NULL), run = run_iso(1, RUN_ONE_TICK " --port 0");
+        const char *a = said(g.err[0], "check"), *b = said(g.err[1], "run");
+        if (check != 1 || run != 1 || !a || !b || strcmp(a, b) != 0)
+            fail_msg("host %s: check exited %d, run %d:\n%s%s", refused[i], check, run, g.err[0],
+                     g.err[1]);
+        if (!strstr(a, "agree.yaml:3:") || !strstr(a, "sinks.display.host: "))
+            fail_msg("host %s: not at the key: %s", refused[i], a);
+        print_message("host %-12s %s", refused[i], strstr(a, "host: ") + 6);
+    }
+    for (int i = 0; served[i]; i++) {
+        snprintf(g.doc, sizeof g.doc,
+                 "mesh: {shape: bar, resolution: 4}\nregions: {sel: builtin, handles: [{driver: "
+                 "none}]}\nsinks: {display: {host: %s}}\n",
+                 served[i]);
+        iso_test_write(g.path, g.doc, -1);
+        int check = run_iso(0, NULL), run = run_iso(1, RUN_ONE_TICK " --port 0");
+        if (check != 0 || run != 0)
+            fail_msg("host %s: check exited %d, run %d:\n%s%s", served[i], check, run, g.err[0],
+                     g.err[1]);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(check_and_run_agree_on_display_hosts),
+        cmocka_unit_test(check_and_run_refuse_every_key_alike),
+    };
+    return cmocka_run_group_tests_name("scene_agree", tests, NULL, NULL);
+}

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# tests/tools/sink_cost.sh -- what writing a PC2 cache and an MCAP file live
+# costs the tick: the README's demo scene (config/scenes/replay_cactus.yaml:
+# the recorded session bending the cactus at 60 Hz, in real time) run
+# without and with `--pc2 --mcap`, alternately, ROUNDS times each, so that
+# both see the same machine. Prints each run's tick median and p99, then the
+# median of the medians of each and their ratio (the target: at most 1.05).
+# The live view is off in both (its cost is not the question here).
+#   usage: tests/tools/sink_cost.sh [BUILD_DIR] [ROUNDS]   (default: build 3)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+build=${1:-build}
+rounds=${2:-3}
+bin="$build/isoshape"
+[ -x "$bin" ] || { echo "sink_cost: no $bin; build first (bash .ci/setup)" >&2; exit 2; }
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+scene=config/scenes/replay_cactus.yaml
+
+# The tick_ms object's field (median, p99) from a --stats-json file.
+tick() { tr -d '\n ' <"$1" | grep -o "\"tick_ms\":{[^}]*}" | grep -o "\"$2\":[-0-9.e+]*" | cut -d: -f2; }
+median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
+
+echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+printf '%-8s %5s %10s %10s %8s %8s\n' run round "median ms" "p99 ms" ticks dropped
+: >"$tmp/without" && : >"$tmp/with"
+for r in $(seq 1 "$rounds"); do
+    for mode in without with; do
+        extra=()
+        [ "$mode" = with ] && extra=(--pc2 "$tmp/run.pc2" --mcap "$tmp/run.mcap")
+        "$bin" run "$scene" --no-display --quiet --stats-json "$tmp/s.json" "${extra[@]}" \
+            2>"$tmp/err" || { cat "$tmp/err" >&2; exit 1; }
+        med=$(tick "$tmp/s.json" median)
+        p99=$(tick "$tmp/s.json" p99)
+        ticks=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"ticks":[0-9]*' | cut -d: -f2)
+        dropped=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"frames_dropped":[0-9]*' | cut -d: -f2)
+        printf '%-8s %5s %10.3f %10.3f %8s %8s\n' "$mode" "$r" "$med" "$p99" "$ticks" "$dropped"
+        echo "$med" >>"$tmp/$mode"
+    done
+done
+a=$(median <"$tmp/without")
+b=$(median <"$tmp/with")
+awk -v a="$a" -v b="$b" 'BEGIN {printf "median of medians: without %.3f ms, with PC2+MCAP %.3f ms, ratio %.3f (target <= 1.05)\n", a, b, b / a}'

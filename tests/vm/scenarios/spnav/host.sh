@@ -1,0 +1,11 @@
+# spacenavd's axes came back to the device's own: the recordings hold the
+# sequence played (in the device's frame and counts, both layouts), and
+# replay here to the VM runs' bits. The kill: GONE is recorded within the
+# stated bound of the kill, and input flows again after BACK.
+. "$VM_HOST_LIB"
+for layout in abs rel; do
+    replay_same_bits $layout
+done
+check_sequence rel spacemouse.seq
+check_sequence abs spacemouse_kill.seq
+gone_within abs

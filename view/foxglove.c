@@ -1,0 +1,315 @@
+/* view/foxglove.c -- the view's server speaking Foxglove's WebSocket
+ * protocol (subprotocol "foxglove.websocket.v1", its specification is
+ * public) to a client that offers it: Foxglove Studio connected live.
+ *
+ * On connect the server sends serverInfo and advertises the session's
+ * channels, the same as an MCAP export's (sinks/iso_foxglove.h). The client
+ * subscribes (JSON text frames: subscribe, unsubscribe); the server then
+ * sends, for the newest published tick, one binary message per subscribed
+ * channel: opcode 0x01, u32 subscription id, u64 time (stream time, ns),
+ * the JSON payload. The rules are the page's: a client gets the newest tick
+ * once it has taken the last batch whole (latest wins, ticks in between are
+ * skipped), the tick never waits for it, and a client whose batch is not
+ * written ISO_DISPLAY_STALL_MS after it was queued is disconnected. What a
+ * client sends is read into a fixed buffer of ISO_DISPLAY_MAX_CLIENT_FRAME
+ * bytes; a larger frame closes it (1009).
+ *
+ * Encoding happens on the server thread, once per published tick for all
+ * clients (a cache by tick), never on the loop's. */
+#include "display_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "iso_foxglove.h"
+
+#define FOX_SUBPROTOCOL "foxglove.websocket.v1"
+
+/* ---- growable output ------------------------------------------------------ */
+
+typedef struct obuf {
+    unsigned char *p;
+    size_t n, cap;
+    int oom;
+} obuf;
+
+static void put(obuf *b, const void *p, size_t n)
+{
+    if (b->oom)
+        return;
+    if (b->n + n > b->cap) {
+        size_t cap = b->cap ? b->cap : 4096;
+        while (cap < b->n + n)
+            cap *= 2;
+        unsigned char *q = realloc(b->p, cap);
+        if (!q) {
+            b->oom = 1;
+            return;
+        }
+        b->p = q;
+        b->cap = cap;
+    }
+    memcpy(b->p + b->n, p, n);
+    b->n += n;
+}
+
+static void puts_(obuf *b, const char *s)
+{
+    put(b, s, strlen(s));
+}
+
+/* A JSON string's contents, escaped. */
+static void put_escaped(obuf *b, const char *s)
+{
+    for (; *s; s++) {
+        char e[8];
+        if (*s == '"' || *s == '\\') {
+            e[0] = '\\';
+            e[1] = *s;
+            put(b, e, 2);
+        } else if ((unsigned char)*s < 0x20) {
+            snprintf(e, sizeof e, "\\u%04x", (unsigned)(unsigned char)*s);
+            put(b, e, 6);
+        } else {
+            put(b, s, 1);
+        }
+    }
+}
+
+static void put_ws_header(obuf *b, int opcode, size_t len)
+{
+    unsigned char h[10];
+    put(b, h, iso_display__ws_header(h, opcode, len));
+}
+
+/* ---- what all clients share ------------------------------------------------ */
+
+struct iso_display__fox_shared {
+    iso_fox_encoder *enc;
+    iso_fox_channel ch[ISO_FOX_MAX_CHANNELS];
+    int n_ch;
+    obuf hello;          /* serverInfo and advertise, as two text frames */
+    iso_fox_frame frame; /* the newest tick's, copied from publish */
+    double *x;           /* its positions */
+    unsigned long cached_seq;
+    obuf payload[ISO_FOX_MAX_CHANNELS]; /* the cached tick's messages */
+    uint64_t cached_t;
+};
+
+/* ---- one client -------------------------------------------------------------- */
+
+_Static_assert(ISO_FOX_MAX_CHANNELS <= ISO_DISPLAY_FOX_MAX_CHANNELS,
+               "every channel can be subscribed");
+
+struct iso_display__fox {
+    iso_display__fox_rx rx; /* what the client says, and its subscriptions */
+    int hello_queued;
+    unsigned long seq_sent;
+    obuf out; /* the batch being written */
+};
+
+int iso_display__fox_offered(const char *req)
+{
+    /* the header's value lists subprotocols, comma separated */
+    for (const char *p = req; (p = strchr(p, '\n')) != NULL;) {
+        p++;
+        static const char key[] = "sec-websocket-protocol:";
+        if (strncasecmp(p, key, sizeof key - 1) != 0)
+            continue;
+        const char *e = strchr(p, '\r');
+        size_t n = e ? (size_t)(e - p) : strlen(p);
+        return iso_display__contains_ci(p, n, FOX_SUBPROTOCOL);
+    }
+    return 0;
+}
+
+static void build_hello(iso_display__fox_shared *s, const iso_display *d)
+{
+    obuf j = {0};
+    char tmp[160];
+    snprintf(tmp, sizeof tmp,
+             "{\"op\":\"serverInfo\",\"name\":\"isoshape\",\"capabilities\":[],"
+             "\"supportedEncodings\":[\"json\"],\"metadata\":{},\"sessionId\":\"%d\"}",
+             d->port);
+    puts_(&j, tmp);
+    put_ws_header(&s->hello, 1, j.n);
+    put(&s->hello, j.p, j.n);
+    j.n = 0;
+    puts_(&j, "{\"op\":\"advertise\",\"channels\":[");
+    for (int c = 0; c < s->n_ch; c++) {
+        snprintf(tmp, sizeof tmp, "%s{\"id\":%d,\"topic\":\"", c ? "," : "", c);
+        puts_(&j, tmp);
+        put_escaped(&j, s->ch[c].topic);
+        puts_(&j, "\",\"encoding\":\"json\",\"schemaName\":\"");
+        put_escaped(&j, s->ch[c].schema_name);
+        puts_(&j, "\",\"schemaEncoding\":\"jsonschema\",\"schema\":\"");
+        put_escaped(&j, s->ch[c].schema);
+        puts_(&j, "\"}");
+    }
+    puts_(&j, "]}");
+    put_ws_header(&s->hello, 1, j.n);
+    put(&s->hello, j.p, j.n);
+    if (j.oom)
+        s->hello.oom = 1;
+    free(j.p);
+}
+
+void iso_display__fox_shared_free(iso_display__fox_shared *s)
+{
+    if (!s)
+        return;
+    iso_fox_encoder_destroy(s->enc);
+    free(s->hello.p);
+    free(s->x);
+    for (int c = 0; c < ISO_FOX_MAX_CHANNELS; c++)
+        free(s->payload[c].p);
+    free(s);
+}
+
+int iso_display_foxglove(iso_display *d, const iso_fox_session *session, iso_err *err)
+{
+    if (!d || !session || session->mesh != d->mesh)
+        return iso_err_set(err, ISO_EINVAL, -1, "display: Foxglove needs the display's own mesh");
+    if (atomic_load(&d->fox))
+        return iso_err_set(err, ISO_EINVAL, -1, "display: Foxglove is on already");
+    iso_display__fox_shared *s = calloc(1, sizeof *s);
+    int rc = s ? iso_fox_encoder_create(session, &s->enc, err)
+               : iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory");
+    iso_fox_frame *latest = rc == ISO_OK ? calloc(1, sizeof *latest) : NULL;
+    if (rc == ISO_OK) {
+        s->n_ch = iso_fox_channels(session, s->ch, ISO_FOX_MAX_CHANNELS);
+        s->x = calloc((size_t)d->nv * 3, sizeof *s->x);
+        build_hello(s, d);
+        if (!s->x || !latest || s->hello.oom)
+            rc = iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory");
+    }
+    if (rc != ISO_OK) {
+        free(latest);
+        iso_display__fox_shared_free(s);
+        return rc;
+    }
+    pthread_mutex_lock(&d->frame_lock);
+    d->fox_frame = latest;
+    pthread_mutex_unlock(&d->frame_lock);
+    atomic_store(&d->fox, s);
+    return ISO_OK;
+}
+
+int iso_display_publish_frame(iso_display *d, const iso_fox_frame *f, iso_err *err)
+{
+    if (!d || !f)
+        return iso_err_set(err, ISO_EINVAL, -1, "display: NULL display or frame");
+    pthread_mutex_lock(&d->frame_lock);
+    int on = d->fox_frame != NULL;
+    if (on) {
+        *d->fox_frame = *f;
+        d->fox_frame->x = NULL;
+        d->fox_frame_seq = d->latest_seq; /* the positions published with it */
+    }
+    pthread_mutex_unlock(&d->frame_lock);
+    return on ? ISO_OK
+              : iso_err_set(err, ISO_EINVAL, -1, "display: Foxglove is off (iso_display_foxglove)");
+}
+
+/* Encodes the newest tick into the shared cache, if it is not there. */
+static int refresh_cache(iso_display *d, iso_display__fox_shared *s)
+{
+    pthread_mutex_lock(&d->frame_lock);
+    unsigned long seq = d->fox_frame_seq;
+    int have = seq != 0 && seq != s->cached_seq;
+    if (have) {
+        s->frame = *d->fox_frame;
+        const float *p = (const float *)(d->latest + ISO_DISPLAY_FRAME_HEADER +
+                                          (size_t)ISO_DISPLAY_FRAME_POSE * (size_t)d->nh);
+        for (int i = 0; i < 3 * d->nv; i++)
+            s->x[i] = p[i]; /* the page's float positions: what every viewer sees */
+    }
+    pthread_mutex_unlock(&d->frame_lock);
+    if (!have)
+        return s->cached_seq != 0;
+    s->frame.x = s->x;
+    s->cached_t = (uint64_t)(s->frame.t_ns > 0 ? s->frame.t_ns : 0);
+    for (int c = 0; c < s->n_ch; c++) {
+        const char *data;
+        size_t len;
+        s->payload[c].n = 0;
+        if (iso_fox_encode(s->enc, &s->ch[c], &s->frame, &data, &len, NULL) == ISO_OK)
+            put(&s->payload[c], data, len);
+    }
+    s->cached_seq = seq;
+    return 1;
+}
+
+/* ---- the connection kind (display_internal.h, iso_display__proto) --------- */
+
+static int fox_open(iso_display *d, iso_display__conn *c, const iso_display__request *r)
+{
+    (void)d;
+    (void)r;
+    c->fox = calloc(1, sizeof *c->fox);
+    if (!c->fox)
+        return 503;
+    iso_display__fox_rx_init(&c->fox->rx);
+    return 0;
+}
+
+static void fox_close(iso_display *d, iso_display__conn *c)
+{
+    (void)d;
+    if (c->fox)
+        free(c->fox->out.p);
+    free(c->fox);
+    c->fox = NULL;
+}
+
+static int fox_message(iso_display *d, iso_display__conn *c, int opcode, const unsigned char *p,
+                       size_t n)
+{
+    if (opcode == 1) /* binary messages (client channels) are not served */
+        iso_display__fox_rx_message(&c->fox->rx, atomic_load(&d->fox)->n_ch, p, n);
+    return 0;
+}
+
+/* serverInfo and advertise first; then, once something is subscribed, the
+ * newest tick it has not had, one binary message per subscribed channel,
+ * written as one batch. */
+static int fox_next(iso_display *d, iso_display__conn *c, long long now)
+{
+    (void)now;
+    iso_display__fox_shared *s = atomic_load(&d->fox);
+    iso_display__fox *f = c->fox;
+    f->out.n = 0;
+    if (!f->hello_queued) {
+        f->hello_queued = 1;
+        iso_display__set_output(c, s->hello.p, s->hello.n);
+        return 1;
+    }
+    int any = 0;
+    for (int ch = 0; ch < s->n_ch; ch++)
+        any |= f->rx.sub[ch] >= 0;
+    if (!any || !refresh_cache(d, s) || s->cached_seq == f->seq_sent)
+        return 0;
+    for (int ch = 0; ch < s->n_ch; ch++) {
+        if (f->rx.sub[ch] < 0)
+            continue;
+        unsigned char m[13];
+        m[0] = 0x01;
+        for (int i = 0; i < 4; i++)
+            m[1 + i] = (unsigned char)((uint32_t)f->rx.sub[ch] >> (8 * i));
+        for (int i = 0; i < 8; i++)
+            m[5 + i] = (unsigned char)(s->cached_t >> (8 * i));
+        put_ws_header(&f->out, 2, sizeof m + s->payload[ch].n);
+        put(&f->out, m, sizeof m);
+        put(&f->out, s->payload[ch].p, s->payload[ch].n);
+    }
+    if (f->out.oom)
+        return 0; /* out of memory: this tick is skipped, the next may fit */
+    f->seq_sent = s->cached_seq;
+    iso_display__set_output(c, f->out.p, f->out.n);
+    return 1;
+}
+
+const iso_display__proto iso_display__fox_proto = {FOX_SUBPROTOCOL, fox_open, fox_message, fox_next,
+                                                   fox_close};
