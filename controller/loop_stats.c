@@ -276,8 +276,8 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
 #define SRC(f) ISO_JSON_FIELD(iso_dev_source_stats, f, ISO_JSON_U32)
 static const iso_json_field dec_counters[] = {
     {DEC(reports)},     {DEC(bad_frames)},   {DEC(garbage)}, {DEC(short_reports)},
-    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(resyncs)},  {DEC(unrecorded)},
-    {DEC(refused)},     {DEC(out_of_order)}, {DEC(grants)},   {DEC(releases)}};
+    {DEC(unknown_ids)}, {DEC(bad_payloads)}, {DEC(resyncs)}, {DEC(unrecorded)},
+    {DEC(refused)},     {DEC(out_of_order)}, {DEC(grants)},  {DEC(releases)}};
 static const iso_json_field drop_counters[] = {
     {DROP(too_long)},     {DROP(bad_cobs)},   {DROP(too_short)},    {DROP(bad_crc)},
     {DROP(bad_version)},  {DROP(bad_length)}, {DROP(unknown_type)}, {DROP(duplicate)},

@@ -407,7 +407,7 @@ typedef struct iso_dev_decoder {
     /* Stream times of the first and the latest bad input since the last
      * good report or frame; INT64_MIN while there is none. */
     int64_t noise_since, noise_last;
-    iso_dev_view_state view;           /* kind VIEW */
+    iso_dev_view_state view; /* kind VIEW */
 } iso_dev_decoder;
 
 /* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown

@@ -125,14 +125,14 @@ int iso_display__contains_ci(const char *p, size_t n, const char *s);
 #define ISO_DISPLAY_FOX_MAX_CHANNELS 64
 typedef struct iso_display__fox_rx {
     long sub[ISO_DISPLAY_FOX_MAX_CHANNELS]; /* subscription id per channel, -1: none */
-    char msg[ISO_DISPLAY_MAX_CLIENT_FRAME + 1];
+    char msg[ISO_DISPLAY_MAX_CLIENT_MESSAGE + 1];
     long messages; /* text messages taken */
 } iso_display__fox_rx;
 
 void iso_display__fox_rx_init(iso_display__fox_rx *rx);
 /* One whole text message (n bytes, any content) from a client of a session
  * with n_channels channels: subscribes and unsubscribes as told, ignores
- * the rest. A message longer than ISO_DISPLAY_MAX_CLIENT_FRAME is cut
+ * the rest. A message longer than ISO_DISPLAY_MAX_CLIENT_MESSAGE is cut
  * there (the WebSocket reader refuses those before). */
 void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_channels, const unsigned char *p,
                                  size_t n);
@@ -229,8 +229,8 @@ struct iso_display {
     const iso_mesh *mesh;
     int nv, nh, port;
     int listen_fd;
-    int remote;                  /* bound beyond loopback */
-    char host_name[64];          /* the bound address as a Host header spells it: [::1] */
+    int remote;                         /* bound beyond loopback */
+    char host_name[64];                 /* the bound address as a Host header spells it: [::1] */
     char *three, *orbit, *gizmo, *gltf; /* file contents; all but three may be NULL */
     size_t three_len, orbit_len, gizmo_len, gltf_len;
     char *topology; /* the JSON sent on connect */

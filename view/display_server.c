@@ -162,10 +162,6 @@ static int origin_is_ours(const iso_display *d, const iso_display__conn *c,
     if (iso_display__fox_offered(c->req) && r->origin_len == sizeof studio - 1 &&
         strncasecmp(r->origin, studio, sizeof studio - 1) == 0)
         return 1;
-    static const char studio[] = "https://app.foxglove.dev"; /* Foxglove's web app */
-    if (iso_display__fox_offered(c->req) && r->origin_len == sizeof studio - 1 &&
-        strncasecmp(r->origin, studio, sizeof studio - 1) == 0)
-        return 1;
     return r->origin_len > 7 && strncasecmp(r->origin, "http://", 7) == 0 &&
            authority_is_ours(d, c, r->origin + 7, r->origin_len - 7, 0);
 }
@@ -187,7 +183,7 @@ static int count_sockets(const iso_display *d)
 static const iso_display__proto *choose_proto(iso_display *d, const iso_display__request *r)
 {
     static const iso_display__proto *const kinds[] = {&iso_display__view_proto,
-                                                        &iso_display__fox_proto};
+                                                      &iso_display__fox_proto};
     if (!r->protocol)
         return &iso_display__view_proto;
     for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)

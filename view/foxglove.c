@@ -11,7 +11,7 @@
  * once it has taken the last batch whole (latest wins, ticks in between are
  * skipped), the tick never waits for it, and a client whose batch is not
  * written ISO_DISPLAY_STALL_MS after it was queued is disconnected. What a
- * client sends is read into a fixed buffer of ISO_DISPLAY_MAX_CLIENT_FRAME
+ * client sends is read into a fixed buffer of ISO_DISPLAY_MAX_CLIENT_MESSAGE
  * bytes; a larger frame closes it (1009).
  *
  * Encoding happens on the server thread, once per published tick for all
@@ -222,7 +222,7 @@ static int refresh_cache(iso_display *d, iso_display__fox_shared *s)
     if (have) {
         s->frame = *d->fox_frame;
         const float *p = (const float *)(d->latest + ISO_DISPLAY_FRAME_HEADER +
-                                          (size_t)ISO_DISPLAY_FRAME_POSE * (size_t)d->nh);
+                                         (size_t)ISO_DISPLAY_FRAME_POSE * (size_t)d->nh);
         for (int i = 0; i < 3 * d->nv; i++)
             s->x[i] = p[i]; /* the page's float positions: what every viewer sees */
     }

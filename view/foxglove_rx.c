@@ -76,8 +76,8 @@ void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_ch, const unsign
 {
     if (n_ch > ISO_DISPLAY_FOX_MAX_CHANNELS)
         n_ch = ISO_DISPLAY_FOX_MAX_CHANNELS;
-    if (n > ISO_DISPLAY_MAX_CLIENT_FRAME)
-        n = ISO_DISPLAY_MAX_CLIENT_FRAME;
+    if (n > ISO_DISPLAY_MAX_CLIENT_MESSAGE)
+        n = ISO_DISPLAY_MAX_CLIENT_MESSAGE;
     char *m = rx->msg;
     memcpy(m, p, n);
     m[n] = 0; /* a NUL inside ends the text early: what follows is not read */
