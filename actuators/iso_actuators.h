@@ -39,7 +39,7 @@
  * the MCU's 100 ms link watchdog holds however slow the loop's ticks are (a
  * 40k-vertex tick takes longer than 100 ms), and publish never touches I/O.
  *
- * Safety (issue #14). The sender streams only while three things hold; when
+ * Safety. The sender streams only while three things hold; when
  * one fails it stops sending SETPOINTS and sends SAFE (PROTOCOL.md step 5):
  * the MCU brakes to its safe state at once, one frame after the sender saw
  * the cause. An MCU without SAFE (firmware 1.0) brakes by its own link
@@ -161,8 +161,9 @@ typedef struct iso_act_link_spec {
 typedef void (*iso_act_notice_fn)(void *ctx, const char *line);
 
 /* Reads an e-stop line: returns nonzero while the e-stop is pressed. Called
- * by the sender thread every cycle (10 ms), independently of the loop, so
- * it must be quick and thread-safe (e.g. a GPIO read or an atomic load). */
+ * by the sender thread every 2 ms, between its setpoint periods too, and
+ * independently of the loop, so it must be quick and thread-safe (e.g. a
+ * GPIO read or an atomic load). */
 typedef int (*iso_act_estop_fn)(void *ctx);
 
 typedef struct iso_act_opts {
@@ -171,7 +172,7 @@ typedef struct iso_act_opts {
     void *notice_ctx;
 } iso_act_opts;
 
-/* The safety options of iso_actuators_create_v2 (issue #14). A struct of
+/* The safety options of iso_actuators_create_v2. A struct of
  * its own, not fields added to iso_act_opts: callers initialise that one
  * positionally, which -Wextra -Werror would turn into a build break. Zero
  * means the default everywhere; NULL is all defaults. */
@@ -228,7 +229,7 @@ typedef struct iso_act_stats {
     uint32_t mcu_uptime_ms;                /* last HEARTBEAT's */
     int16_t mcu_pos[ISO_ACT_MAX_CHANNELS]; /* last HEARTBEAT's positions */
     uint32_t heartbeats;
-    /* ---- added for issue #14 ---- */
+    /* ---- safety: link recovery, holds and the MCU's safe-state reports ---- */
     uint32_t reopens;       /* the link reopened after a loss (the host's count) */
     uint32_t emu_restarts;  /* emulated link: QEMU relaunched / native MCU thread restarted */
     uint32_t loop_stalls;   /* the loop watchdog tripped */
@@ -335,7 +336,7 @@ ISO_API int iso_actuators_mcu_hello(const iso_actuators *a, iso_fb_hello *out);
  * then the link's (iso_fb_host_format_stats). Returns snprintf's result. */
 ISO_API int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap);
 
-/* ---- safety (issue #14); all lock-free, any thread, NULL a is a no-op ---- */
+/* ---- safety; all lock-free, any thread, NULL a is a no-op ---- */
 
 /* The loop reports progress: at every tick and from inside long ticks as
  * the solver advances (every iteration, or at least every loop_timeout/2).

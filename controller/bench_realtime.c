@@ -1,8 +1,8 @@
 /* controller/bench_realtime.c -- `isoshape bench`'s real-time table: each
  * benchmark scene through the tick engine as fast as possible, beside one
  * bare solve of the same system measured in the same run, so that the
- * tick's cost reads in solves (issue 12: a tick near the cost of one
- * solve). Kept apart from cmd_bench.c, which only calls it.
+ * tick's cost reads in solves (a tick near the cost of one solve is at
+ * its wall; docs/performance.md). Kept apart from cmd_bench.c, which only calls it.
  *
  * The scenes are config/scenes/{cactus,bar,cylinder,bumpplane}.yaml as
  * written there (the benchmark problem or the built-in shape of its name,

@@ -21,8 +21,9 @@
 #include "iso_shapes.h"
 #include "iso_solver.h"
 
-/* Restoration defaults (see the closing note of issue 7 for the
- * measurements behind them). */
+/* Restoration defaults: at mu 1, tau 0.05 restoration put metricErr and
+ * angleErr below a converged ARAP's on all four benchmark problems; a
+ * larger mu wrecked the bar's twist (docs/method.md). */
 #define RESTORE_DEFAULT_MU 1.0
 #define RESTORE_DEFAULT_TAU 0.05
 #define RESTORE_DEFAULT_TEXT "1,0.05"

@@ -94,7 +94,7 @@
  * reader go back to SCHED_OTHER when the run ends, the sender stays up for
  * the safe stop and ends with the loop.
  *
- * Safety (issue #14). The loop reports progress to the actuators' loop
+ * Safety. The loop reports progress to the actuators' loop
  * watchdog at every tick, every ABM step, and inside every field
  * evaluation after its assembly, each factorization and each conjugate-
  * gradient iteration (iso_solver_set_progress). The rule: the loop is live

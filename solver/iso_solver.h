@@ -237,7 +237,7 @@ ISO_API ISO_NODISCARD int iso_solver_factor_at(iso_solver *s, const double *x, i
 ISO_API ISO_NODISCARD int iso_solver_set_worker_priority(iso_solver *s, int priority, iso_err *err);
 
 /* Progress inside a field evaluation, for a watchdog that must tell a slow
- * evaluation from a stuck one (the actuators' loop watchdog, issue #14).
+ * evaluation from a stuck one (the actuators' loop watchdog, iso_actuators.h).
  * fn(ctx) is called on the evaluating thread after the assembly, after each
  * factorization and after each conjugate-gradient iteration, so the longest
  * silence is one of those pieces (cactus: ~25 ms factorization; the 40k

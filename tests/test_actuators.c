@@ -1065,7 +1065,7 @@ static void scene_runs_hardware_free(void **state)
     iso_scene_destroy(s);
 }
 
-/* ---- safety (issue #14): loop watchdog, e-stop, MCU loss ------------------ */
+/* ---- safety: loop watchdog, e-stop, MCU loss ------------------------------ */
 
 static void sleep_ms(double ms)
 {
@@ -1136,7 +1136,8 @@ static int loop_stall_brakes_then_rearms(int mode, const char *label)
     const char *st = iso_actuators_link_state(a);
     double stall_ms = (t_stall - t_last) * 1000, safe_ms = (t_safe - t_last) * 1000;
     printf("%s: loop stalled: detected %.1f ms after its last progress, MCU safe %.1f ms after it "
-           "(sink: %.1f ms; the issue's bound: timeout 250 + 100 = 350 ms: %s), MCU FAULT reason "
+           "(sink: %.1f ms; the bound: loop timeout 250 + MCU watchdog 100 = 350 ms: %s), MCU "
+           "FAULT reason "
            "%u detail %u; state '%s'\n",
            label, stall_ms, safe_ms, s1.last_safe_ms, safe_ms <= 350.0 ? "met" : "MISSED",
            (unsigned)s1.last_fault_reason, (unsigned)s1.last_fault_detail_ms, st);
@@ -1250,7 +1251,7 @@ static int read_estop_line(void *ctx)
 /* An e-stop pressed while the loop's tick is stuck (0.6 s, under the 2 s
  * loop watchdog, so only the e-stop acts): the sender sees it within its
  * 2 ms look, stops the setpoints and sends SAFE, and the MCU reports its
- * safe state within 20 ms of the press (issue #14's bound; measured ~2 ms,
+ * safe state within 20 ms of the press (the e-stop's bound, docs/realtime.md; measured ~2 ms,
  * so the bound holds with a wide margin on a loaded CI machine). A loop
  * that ticks again does not re-arm while the e-stop is held; after the
  * release it does. */

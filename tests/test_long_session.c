@@ -1,6 +1,6 @@
 /* tests/test_long_session.c -- a long interactive session, scripted: the
  * built-in cylinder bent to 60° and back twenty times, integrated with a
- * constant step, with and without isometry restoration (issue 7).
+ * constant step, with and without isometry restoration (docs/method.md).
  *
  * The handle path is θ(t) = θmax sin²(π t), t ∈ [0, 20]: one cycle per
  * time unit, back at the rest pose at every integer t. The paper's method

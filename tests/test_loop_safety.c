@@ -1,5 +1,5 @@
 /* tests/test_loop_safety.c -- the tick engine and the actuators' safety
- * paths together (issue #14), in-process, on the emulated MCU (native: the
+ * paths together, in-process, on the emulated MCU (native: the
  * same iso_fb_mcu.c logic as the firmware, in a thread behind a pty).
  *
  * - A tick stuck on purpose (a tick hook that sleeps 1 s, reporting no

@@ -1,4 +1,4 @@
-/* tests/test_opencl.c -- the OpenCL assembly against the C path (issue 3).
+/* tests/test_opencl.c -- the OpenCL assembly against the C path.
  *
  * White-box: both paths fill the same cached CHOLMOD matrix (upper
  * triangle of A_ff) and right-hand side, so this compares s->A->x and

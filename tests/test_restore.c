@@ -1,4 +1,4 @@
-/* tests/test_restore.c -- the isometry restoration term (issue 7):
+/* tests/test_restore.c -- the isometry restoration term (docs/method.md):
  *
  *     μ Σ_e w_e (u_e · (v_j − v_i) + (|e| − L_e) / τ)²      (iso_solver.h)
  *

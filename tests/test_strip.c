@@ -225,7 +225,7 @@ static void bilaplacian(const strip *s, double *xout)
  * steps: the metrics change by under 1% from 40 to 80 steps (measured),
  * so what is measured is the method's distortion, not integration error.
  *  - ω = 1/3: relative RMS edge-length change below 2e-3 (property 4's
- *    bound, the issue's test 5; measured 5.3e-4);
+ *    bound; measured 5.3e-4);
  *  - metricErr under 1% of the bi-Laplacian baseline's (measured 5e-5);
  *  - the strip is rolled: the centre of the free part is at the top of the
  *    arc, height ℓ/π, within 5% of ℓ;

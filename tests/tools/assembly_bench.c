@@ -1,7 +1,7 @@
 /* tests/tools/assembly_bench.c -- median time of one assembly (A_ff and the
  * right-hand side, no factorization, no solve) on a benchmark problem, the
  * C path and the OpenCL path alternating so that both see the same load on
- * a shared machine: the figures behind issue 12's assembly work.
+ * a shared machine: the assembly figures of docs/performance.md.
  *
  *   assembly_bench PREFIX [REPS [cpu|opencl|both [cold]]]
  *

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # tests/tools/realtime_figures.sh -- the real-time loop's figures on the
-# four benchmark scenes (issue 6): each scene's scripted path through
+# four benchmark scenes (docs/performance.md): each scene's scripted path through
 # `isoshape run --fast` (one ABM step per tick, every tick computed, no
 # waiting), under both ABM modes in the same run, so the ratio stands beside
 # the figures. The scenes read ../shared/data/benchmark when it is there and

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# tests/tools/restore_figures.sh -- prints the figures of issue 7 (isometry
-# restoration): the four benchmark problems under the paper's method, with
+# tests/tools/restore_figures.sh -- prints the figures of isometry
+# restoration (docs/method.md): the four benchmark problems under the paper's method, with
 # restoration and under converged ARAP, and a mu x tau table.
 #
 #   restore_figures.sh BUILD_DIR [BENCHMARK_DIR] [problems|table|all]

@@ -1,6 +1,6 @@
 /* tests/tools/restore_run.c -- one deformation of a benchmark problem with
  * or without isometry restoration, printed as one line of figures: the
- * measurement behind the tables of issue 7 (restore_figures.sh runs it).
+ * measurement behind restoration's tables (restore_figures.sh runs it).
  *
  *   restore_run PREFIX MU TAU STEPS [KAPPA]
  *
