@@ -70,7 +70,7 @@ typedef struct emu_link {
     int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
 
-void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg)
+void iso_actuators_emu_firmware_config(iso_fb_mcu_config *cfg)
 {
     /* Keep in step with firmware-bridge/firmware/main.c; test_actuators
      * compares this HELLO with the firmware's own under QEMU. */
@@ -341,7 +341,7 @@ static int native_open(emu_link *e, iso_err *err)
     e->sock = sv[1];
     e->sock_dead = 0;
     iso_fb_mcu_config cfg;
-    iso_act_emu_firmware_config(&cfg);
+    iso_actuators_emu_firmware_config(&cfg);
     e->t0_ns = iso_clock_ns();
     if (iso_fb_mcu_init(&e->mcu, &cfg, mcu_write, e, mcu_ms(e)) != 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: the firmware configuration is invalid",
@@ -662,7 +662,7 @@ int iso_act__emu_priority(iso_link *l, int priority, iso_err *err)
 /* Choosing                                                                   */
 /* ------------------------------------------------------------------------ */
 
-int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err)
+int iso_actuators_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err)
 {
     iso_act_emu_info local;
     if (!info)
