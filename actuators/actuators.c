@@ -115,7 +115,7 @@ static int collect_region(act_channel *c, int nv, const iso_regions *r, int i, i
 
 static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
 {
-    int baud = l->baud > 0 ? l->baud : 115200;
+    int baud = l->baud > 0 ? l->baud : (int)ISO_FB_BOARD_BAUD;
     switch (l->kind) {
     case ISO_ACT_LINK_TTY: return iso_link_tty_open(l->path, baud, &a->link, err);
     case ISO_ACT_LINK_SERIAL: return iso_link_sp_open(l->path, baud, &a->link, err);

@@ -70,19 +70,6 @@ typedef struct emu_link {
     int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
 
-void iso_actuators_emu_firmware_config(iso_fb_mcu_config *cfg)
-{
-    /* Keep in step with firmware-bridge/firmware/main.c; test_actuators
-     * compares this HELLO with the firmware's own under QEMU. */
-    iso_fb_mcu_config_default(cfg, 4);
-    cfg->ch[1].min = -1500;
-    cfg->ch[1].max = 1500;
-    cfg->ch[2].max_rate = 500;
-    cfg->ch[3].min = 0;
-    cfg->ch[3].max = 2000;
-    cfg->ch[3].safe = 0;
-}
-
 /* ------------------------------------------------------------------------ */
 /* Socket I/O for the QEMU stream                                            */
 /* ------------------------------------------------------------------------ */
@@ -340,8 +327,8 @@ static int native_open(emu_link *e, iso_err *err)
     e->master = sv[0];
     e->sock = sv[1];
     e->sock_dead = 0;
-    iso_fb_mcu_config cfg;
-    iso_actuators_emu_firmware_config(&cfg);
+    iso_fb_mcu_config cfg; /* the firmware's own (test_actuators compares the HELLOs) */
+    iso_fb_mcu_config_board(&cfg);
     e->t0_ns = iso_clock_ns();
     if (iso_fb_mcu_init(&e->mcu, &cfg, mcu_write, e, mcu_ms(e)) != 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: the firmware configuration is invalid",

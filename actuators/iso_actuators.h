@@ -390,12 +390,6 @@ typedef struct iso_act_emu_info {
     char line[768]; /* which emulation runs and why, one line */
 } iso_act_emu_info;
 
-/* The firmware's fixed channel configuration (firmware-bridge/firmware/
- * main.c): 4 channels, limits [-1000, 1000] except channel 1 [-1500, 1500]
- * and channel 3 [0, 2000], rate 2000/s except channel 2 at 500/s, safe
- * position 0. The native emulation runs with this, so both behave alike. */
-ISO_API void iso_actuators_emu_firmware_config(iso_fb_mcu_config *cfg);
-
 /* Starts an emulated MCU and opens a link to it. AUTO tries QEMU (found as
  * $ISO_FB_QEMU, "" meaning none, then on PATH; the ELF as $ISO_FB_FIRMWARE,
  * then next to the running program (where a build puts it, beside the

@@ -475,7 +475,7 @@ static int end_to_end(int mode, const char *label)
     iso_fb_hello h;
     assert_int_equal(iso_actuators_mcu_hello(a, &h), 1);
     iso_fb_mcu_config cfg;
-    iso_actuators_emu_firmware_config(&cfg);
+    iso_fb_mcu_config_board(&cfg);
     assert_int_equal(h.n_channels, 4);
     for (int c = 0; c < 4; c++) {
         assert_int_equal(h.ch[c].min, cfg.ch[c].min);
