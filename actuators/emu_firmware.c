@@ -95,19 +95,31 @@ static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_
                        n == 0 ? "end of stream" : strerror(errno));
 }
 
+/* Sends what the socket takes now of buf[*done, n), advancing *done: 1 when
+ * all of it is sent, 0 when the socket is full (poll for POLLOUT and call
+ * again), -1 on an error (errno says which). */
+static int send_now(int fd, const uint8_t *buf, size_t n, size_t *done)
+{
+    while (*done < n) {
+        ssize_t w = send(fd, buf + *done, n - *done, MSG_NOSIGNAL);
+        if (w > 0)
+            *done += (size_t)w;
+        else if (w < 0 && errno != EAGAIN && errno != EINTR)
+            return -1;
+        else
+            return 0;
+    }
+    return 1;
+}
+
 static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
     if (e->sock < 0 || e->sock_dead)
         return iso_err_set(err, ISO_EIO, -1, "%s: no UART stream (QEMU restarting)", e->what);
     uint64_t deadline = iso_clock_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     size_t done = 0;
-    while (done < n) {
-        ssize_t w = send(e->sock, buf + done, n - done, MSG_NOSIGNAL);
-        if (w > 0) {
-            done += (size_t)w;
-            continue;
-        }
-        if (w < 0 && errno != EAGAIN && errno != EINTR) {
+    for (int r; (r = send_now(e->sock, buf, n, &done)) != 1;) {
+        if (r < 0) {
             e->sock_dead = 1;
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", e->what, strerror(errno));
         }
@@ -225,17 +237,9 @@ static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
 {
     emu_link *e = ctx;
     size_t done = 0;
-    int waits = 0;
-    while (done < n) {
-        ssize_t w = send(e->master, bytes + done, n - done, MSG_NOSIGNAL);
-        if (w > 0) {
-            done += (size_t)w;
-            continue;
-        }
-        if (w < 0 && errno != EAGAIN && errno != EINTR)
-            break;
+    for (int waits = 0; send_now(e->master, bytes, n, &done) == 0; waits++) {
         struct pollfd p = {e->master, POLLOUT, 0};
-        if (waits++ >= 10 || poll(&p, 1, 1) < 0)
+        if (waits >= 10 || poll(&p, 1, 1) < 0)
             break;
     }
     if (done < n)
