@@ -133,7 +133,7 @@ int iso_act__gap_since_look(const iso_actuators *a);
 void iso_act__host_callbacks(iso_actuators *a, iso_fb_host_callbacks *cb);
 void *iso_act__sender_main(void *arg);
 
-/* 1 when l came from iso_act_emu_open(). */
+/* 1 when l came from iso_actuators_emu_open(). */
 int iso_act__emu_is(const iso_link *l);
 /* Times the emulation was relaunched after it died; any thread. */
 unsigned iso_act__emu_restarts(const iso_link *l);

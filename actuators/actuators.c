@@ -115,7 +115,7 @@ static int collect_region(act_channel *c, int nv, const iso_regions *r, int i, i
 
 static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
 {
-    int baud = l->baud > 0 ? l->baud : 115200;
+    int baud = l->baud > 0 ? l->baud : (int)ISO_FB_BOARD_BAUD;
     switch (l->kind) {
     case ISO_ACT_LINK_TTY: return iso_link_tty_open(l->path, baud, &a->link, err);
     case ISO_ACT_LINK_SERIAL: return iso_link_sp_open(l->path, baud, &a->link, err);
@@ -123,7 +123,7 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
     case ISO_ACT_LINK_TCP: return iso_link_tcp_open(l->host, l->port, 5, &a->link, err);
     case ISO_ACT_LINK_EMULATED: {
         iso_act_emu_info info;
-        int rc = iso_act_emu_open(l->emulation, &a->link, &info, err);
+        int rc = iso_actuators_emu_open(l->emulation, &a->link, &info, err);
         if (rc == ISO_OK && !a->link)
             rc = iso_err_set(err, ISO_EIO, -1, "actuators: the emulated MCU gave no link");
         if (rc == ISO_OK)
@@ -531,7 +531,7 @@ int iso_actuators_format_stats(const iso_actuators *a, char *buf, size_t cap)
     pthread_mutex_unlock(lock_of(a));
     buf[n] = ';';
     buf[n + 1] = ' ';
-    return n + 2 + iso_fb_host_stats_format(&hs, buf + n + 2, cap - (size_t)n - 2);
+    return n + 2 + iso_fb_host_format_stats_copy(&hs, buf + n + 2, cap - (size_t)n - 2);
 }
 
 int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err)

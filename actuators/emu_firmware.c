@@ -70,19 +70,6 @@ typedef struct emu_link {
     int64_t t0_ns;          /* iso_clock_ns() at the MCU's start: its uptime counts from here */
 } emu_link;
 
-void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg)
-{
-    /* Keep in step with firmware-bridge/firmware/main.c; test_actuators
-     * compares this HELLO with the firmware's own under QEMU. */
-    iso_fb_mcu_config_default(cfg, 4);
-    cfg->ch[1].min = -1500;
-    cfg->ch[1].max = 1500;
-    cfg->ch[2].max_rate = 500;
-    cfg->ch[3].min = 0;
-    cfg->ch[3].max = 2000;
-    cfg->ch[3].safe = 0;
-}
-
 /* ------------------------------------------------------------------------ */
 /* Socket I/O for the QEMU stream                                            */
 /* ------------------------------------------------------------------------ */
@@ -108,19 +95,31 @@ static int sock_read(emu_link *e, uint8_t *buf, size_t cap, int timeout_ms, iso_
                        n == 0 ? "end of stream" : strerror(errno));
 }
 
+/* Sends what the socket takes now of buf[*done, n), advancing *done: 1 when
+ * all of it is sent, 0 when the socket is full (poll for POLLOUT and call
+ * again), -1 on an error (errno says which). */
+static int send_now(int fd, const uint8_t *buf, size_t n, size_t *done)
+{
+    while (*done < n) {
+        ssize_t w = send(fd, buf + *done, n - *done, MSG_NOSIGNAL);
+        if (w > 0)
+            *done += (size_t)w;
+        else if (w < 0 && errno != EAGAIN && errno != EINTR)
+            return -1;
+        else
+            return 0;
+    }
+    return 1;
+}
+
 static int sock_write(emu_link *e, const uint8_t *buf, size_t n, int timeout_ms, iso_err *err)
 {
     if (e->sock < 0 || e->sock_dead)
         return iso_err_set(err, ISO_EIO, -1, "%s: no UART stream (QEMU restarting)", e->what);
     uint64_t deadline = iso_clock_us() + (uint64_t)(timeout_ms < 0 ? 0 : timeout_ms) * 1000u;
     size_t done = 0;
-    while (done < n) {
-        ssize_t w = send(e->sock, buf + done, n - done, MSG_NOSIGNAL);
-        if (w > 0) {
-            done += (size_t)w;
-            continue;
-        }
-        if (w < 0 && errno != EAGAIN && errno != EINTR) {
+    for (int r; (r = send_now(e->sock, buf, n, &done)) != 1;) {
+        if (r < 0) {
             e->sock_dead = 1;
             return iso_err_set(err, ISO_EIO, -1, "%s: write: %s", e->what, strerror(errno));
         }
@@ -238,17 +237,9 @@ static void mcu_write(void *ctx, const uint8_t *bytes, size_t n)
 {
     emu_link *e = ctx;
     size_t done = 0;
-    int waits = 0;
-    while (done < n) {
-        ssize_t w = send(e->master, bytes + done, n - done, MSG_NOSIGNAL);
-        if (w > 0) {
-            done += (size_t)w;
-            continue;
-        }
-        if (w < 0 && errno != EAGAIN && errno != EINTR)
-            break;
+    for (int waits = 0; send_now(e->master, bytes, n, &done) == 0; waits++) {
         struct pollfd p = {e->master, POLLOUT, 0};
-        if (waits++ >= 10 || poll(&p, 1, 1) < 0)
+        if (waits >= 10 || poll(&p, 1, 1) < 0)
             break;
     }
     if (done < n)
@@ -340,8 +331,8 @@ static int native_open(emu_link *e, iso_err *err)
     e->master = sv[0];
     e->sock = sv[1];
     e->sock_dead = 0;
-    iso_fb_mcu_config cfg;
-    iso_act_emu_firmware_config(&cfg);
+    iso_fb_mcu_config cfg; /* the firmware's own (test_actuators compares the HELLOs) */
+    iso_fb_mcu_config_board(&cfg);
     e->t0_ns = iso_clock_ns();
     if (iso_fb_mcu_init(&e->mcu, &cfg, mcu_write, e, mcu_ms(e)) != 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: the firmware configuration is invalid",
@@ -662,7 +653,7 @@ int iso_act__emu_priority(iso_link *l, int priority, iso_err *err)
 /* Choosing                                                                   */
 /* ------------------------------------------------------------------------ */
 
-int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err)
+int iso_actuators_emu_open(int mode, iso_link **out, iso_act_emu_info *info, iso_err *err)
 {
     iso_act_emu_info local;
     if (!info)

@@ -94,7 +94,9 @@
  * actuators/ does not depend on config/: the controller converts a scene's
  * iso_scene_actuators into the structs below. Publish, poll and safe_stop
  * from one thread (the real-time loop); stats, format_stats, mcu_hello,
- * alive, estop, state and link_state from any (the last four lock-free). */
+ * alive, estop, state and link_state from any (the last four lock-free).
+ * Names: functions are iso_actuators_* (the emulator's iso_actuators_emu_*),
+ * types iso_act_* and constants ISO_ACT_*. */
 #ifndef ISO_ACTUATORS_H
 #define ISO_ACTUATORS_H
 
@@ -388,12 +390,6 @@ typedef struct iso_act_emu_info {
     char line[768]; /* which emulation runs and why, one line */
 } iso_act_emu_info;
 
-/* The firmware's fixed channel configuration (firmware-bridge/firmware/
- * main.c): 4 channels, limits [-1000, 1000] except channel 1 [-1500, 1500]
- * and channel 3 [0, 2000], rate 2000/s except channel 2 at 500/s, safe
- * position 0. The native emulation runs with this, so both behave alike. */
-ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
-
 /* Starts an emulated MCU and opens a link to it. AUTO tries QEMU (found as
  * $ISO_FB_QEMU, "" meaning none, then on PATH; the ELF as $ISO_FB_FIRMWARE,
  * then next to the running program (where a build puts it, beside the
@@ -414,7 +410,7 @@ ISO_API void iso_act_emu_firmware_config(iso_fb_mcu_config *cfg);
  * read that finds the line empty waits for the kernel's buffer work at
  * normal priority, which busy processes hold up (a real MCU on a UART or
  * a USB serial adapter has that wait; see controller/iso_loop.h). */
-ISO_API ISO_NODISCARD int iso_act_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
-                                           iso_err *err);
+ISO_API ISO_NODISCARD int iso_actuators_emu_open(int mode, iso_link **out, iso_act_emu_info *info,
+                                                 iso_err *err);
 
 #endif

@@ -21,15 +21,20 @@ static const scene_key box_keys[] = {
     {.key = NULL},
 };
 
+/* A selection whose key `field` is read but wrong: the error names it. */
+static int sel_fail(scene_ctx *c, scene_map *m, const char *field, const char *why)
+{
+    char key[ISO_SCENE_KEY_MAX];
+    return iso_scene__fail(c, iso_scene__get(m->node, field), ISO_EINVAL,
+                           iso_scene__join(key, sizeof key, m->key, field), "%s", why);
+}
+
 static int box_end(scene_ctx *c, scene_map *m)
 {
     const iso_scene_sel *sel = m->obj;
-    char key[ISO_SCENE_KEY_MAX];
     for (int i = 0; i < 3; i++)
         if (sel->a[i] > sel->b[i])
-            return iso_scene__fail(c, iso_scene__get(m->node, "max"), ISO_EINVAL,
-                                   iso_scene__join(key, sizeof key, m->key, "max"),
-                                   "expected max >= min on every axis");
+            return sel_fail(c, m, "max", "expected max >= min on every axis");
     return ISO_OK;
 }
 
@@ -59,11 +64,8 @@ static const scene_key beyond_keys[] = {
 static int beyond_end(scene_ctx *c, scene_map *m)
 {
     const iso_scene_sel *sel = m->obj;
-    char key[ISO_SCENE_KEY_MAX];
     if (sel->b[0] == 0 && sel->b[1] == 0 && sel->b[2] == 0)
-        return iso_scene__fail(c, iso_scene__get(m->node, "normal"), ISO_EINVAL,
-                               iso_scene__join(key, sizeof key, m->key, "normal"),
-                               "expected a non-zero normal");
+        return sel_fail(c, m, "normal", "expected a non-zero normal");
     return ISO_OK;
 }
 

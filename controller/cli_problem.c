@@ -42,6 +42,11 @@ const iso_cli__opt iso_cli__shape_options[] = {
      .help = "the built-in shape's resolution (0: its default)"},
     {0}};
 
+const iso_cli__opt iso_cli__shape_or_mesh_options[] = {
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__shape_options},
+    {NULL, ISO_CLI_OPT_TABLE, 0, .table = iso_cli__mesh_options},
+    {0}};
+
 const iso_cli__opt iso_cli__benchmark_dir_options[] = {
     {"benchmark-dir", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, bench_dir), "DIR",
      .help = "where the benchmark problems are (default: $ISOSHAPE_BENCHMARK_DIR, else "

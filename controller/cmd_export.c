@@ -31,9 +31,7 @@ static const iso_cli__opt export_options[] = {
     {"scene", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(export_args, scene), "SCENE",
      .help = "a scene file (config/scenes)", .nonempty = 1},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(export_args, src, iso_cli__source),
-     .table = iso_cli__shape_options},
-    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(export_args, src, iso_cli__source),
-     .table = iso_cli__mesh_options},
+     .table = iso_cli__shape_or_mesh_options},
     {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(export_args, steps), "N",
      .help = "ABM steps per tick with --shape or --mesh, %R (default 1)", ISO_CLI_GE(1)},
     {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Mapping (with --shape or --mesh):"},
@@ -131,10 +129,7 @@ static int export_main(int argc, char **argv)
         status = 1;
     }
     iso_loop_destroy(l);
-    if (sc && sc->mesh)
-        iso_scene_destroy(sc);
-    else
-        free(sc);
+    iso_cli__replay_scene_free(sc);
     return rc == ISO_OK ? 0 : 1;
 }
 

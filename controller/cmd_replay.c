@@ -125,6 +125,14 @@ int iso_cli__replay_scene(const char *path, const iso_cli__source *src, const is
     return rc == ISO_OK ? build_scene(&a, out, err) : rc;
 }
 
+void iso_cli__replay_scene_free(iso_scene *sc)
+{
+    if (sc && sc->mesh)
+        iso_scene_destroy(sc);
+    else
+        free(sc);
+}
+
 typedef struct print_ctx {
     int64_t first;
 } print_ctx;
@@ -194,9 +202,7 @@ static const iso_cli__opt replay_options[] = {
      .help = "A scene moved by the replayed commands, as `isoshape run` moves it, with a\n"
              "checksum of its vertices:"},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
-     .table = iso_cli__shape_options},
-    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, src, iso_cli__source),
-     .table = iso_cli__mesh_options},
+     .table = iso_cli__shape_or_mesh_options},
     {"steps", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(replay_args, steps), "N",
      .help = "ABM steps per tick, %R (default 1)", .solver = "steps_per_tick"},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, out), "FILE",
@@ -299,10 +305,7 @@ static int replay_main(int argc, char **argv)
         }
     }
     iso_loop_destroy(l);
-    if (sc && sc->mesh)
-        iso_scene_destroy(sc);
-    else
-        free(sc);
+    iso_cli__replay_scene_free(sc);
     return status;
 }
 

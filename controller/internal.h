@@ -253,9 +253,11 @@ typedef struct iso_cli__source {
 
 /* Where a problem comes from, as table fragments whose rows' values go
  * into an iso_cli__source (include them at its offset): --mesh and --sel;
- * --shape and --resolution; --benchmark-dir. */
+ * --shape and --resolution; both, the shape's first (for the commands that
+ * take a mesh but no benchmark problem); --benchmark-dir. */
 extern const iso_cli__opt iso_cli__mesh_options[];
 extern const iso_cli__opt iso_cli__shape_options[];
+extern const iso_cli__opt iso_cli__shape_or_mesh_options[];
 extern const iso_cli__opt iso_cli__benchmark_dir_options[];
 
 typedef struct iso_cli__problem {
@@ -357,5 +359,8 @@ struct iso_scene *iso_cli__device_scene(const char *name, double hz, const iso_d
  * recorded loop's period; without a mesh, the device side alone. */
 int iso_cli__replay_scene(const char *path, const iso_cli__source *src, const iso_dev_map_opts *mo,
                           int steps, struct iso_scene **out, iso_err *err);
+/* Frees a scene from iso_cli__replay_scene (NULL too): with a mesh the
+ * whole scene, without one the device side alone. */
+void iso_cli__replay_scene_free(struct iso_scene *sc);
 
 #endif

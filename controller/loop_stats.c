@@ -367,6 +367,13 @@ static void json_spread(iso_json *j, const char *key, double med, double p99, do
     iso_json_close(j);
 }
 
+/* n counters, keys[i] holding v[i], in that order. */
+static void json_counts(iso_json *j, const char *const *keys, const long long *v, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        iso_json_int(j, keys[i], v[i]);
+}
+
 static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene *sc)
 {
     iso_json_string(j, "scene", sc->name);
@@ -424,20 +431,19 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_close(j);
     iso_json_int(j, "frames_sent", s->frames_sent);
     if (s->view_device) { /* the page's commands, as the view's server took them */
+        static const char *const keys[] = {"accepted", "refused", "malformed",
+                                           "dropped",  "grants",  "stops"};
+        const long long v[] = {s->view_accepted, s->view_refused, s->view_malformed,
+                               s->view_dropped,  s->view_grants,  s->view_stops};
         iso_json_object(j, "view");
-        iso_json_int(j, "accepted", s->view_accepted);
-        iso_json_int(j, "refused", s->view_refused);
-        iso_json_int(j, "malformed", s->view_malformed);
-        iso_json_int(j, "dropped", s->view_dropped);
-        iso_json_int(j, "grants", s->view_grants);
-        iso_json_int(j, "stops", s->view_stops);
+        json_counts(j, keys, v, 6);
         iso_json_close(j);
     }
-    iso_json_int(j, "ply_frames", s->ply_frames);
-    iso_json_int(j, "snapshots", s->snapshots);
-    iso_json_int(j, "pc2_frames", s->pc2_frames);
-    iso_json_int(j, "mcap_messages", s->mcap_messages);
-    iso_json_int(j, "frames_dropped", s->frames_dropped);
+    static const char *const files[] = {"ply_frames", "snapshots", "pc2_frames", "mcap_messages",
+                                        "frames_dropped"};
+    const long long nf[] = {s->ply_frames, s->snapshots, s->pc2_frames, s->mcap_messages,
+                            s->frames_dropped};
+    json_counts(j, files, nf, 5);
     iso_json_bool(j, "realtime", s->rt_active);
     iso_json_bool(j, "memory_locked", s->mem_locked);
     json_actuators(j, s);

@@ -30,24 +30,9 @@ static int16_t le16(const uint8_t *p)
     return (int16_t)(uint16_t)(p[0] | (uint16_t)p[1] << 8);
 }
 
-static iso_dev_event *emit(iso_dev_decoder *d, int64_t t, int kind, iso_dev_event *ev, size_t cap,
-                           size_t *n)
-{
-    if (*n >= cap) {
-        d->n.garbage++;
-        return NULL;
-    }
-    iso_dev_event *e = &ev[(*n)++];
-    memset(e, 0, sizeof *e);
-    e->t_ns = t;
-    e->kind = (uint8_t)kind;
-    e->source = d->source;
-    return e;
-}
-
 static void emit_axes(iso_dev_decoder *d, int64_t t, iso_dev_event *ev, size_t cap, size_t *n)
 {
-    iso_dev_event *e = emit(d, t, ISO_DEV_EV_AXES, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_AXES, ev, cap, n);
     if (e)
         memcpy(e->axes, d->axes, sizeof e->axes);
 }
@@ -58,7 +43,7 @@ static void emit_buttons(iso_dev_decoder *d, int64_t t, uint32_t b, iso_dev_even
     if (b == d->buttons)
         return;
     d->buttons = b;
-    iso_dev_event *e = emit(d, t, ISO_DEV_EV_BUTTONS, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_BUTTONS, ev, cap, n);
     if (e)
         e->buttons = b;
 }
@@ -218,7 +203,7 @@ static size_t serial_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
         }
         d->n.reports++;
         /* The bridge sends micrometres and microradians (per second for twists). */
-        iso_dev_event *e = emit(
+        iso_dev_event *e = iso_dev__emit(
             d, t, s.kind == ISO_FB_SAMPLE_POSE ? ISO_DEV_EV_POSE : ISO_DEV_EV_TWIST, ev, cap, &n);
         if (e)
             for (int k = 0; k < 6; k++)
@@ -258,7 +243,7 @@ static void gpio_accept(iso_dev_decoder *d, int role, int64_t t, iso_dev_event *
     iso_dev_gpio_line *l = &d->gpio[role];
     l->accepted = l->raw;
     l->t_accept = t;
-    iso_dev_event *e = emit(d, t, ISO_DEV_EV_GPIO, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_GPIO, ev, cap, n);
     if (e) {
         e->line = (uint8_t)role;
         e->level = l->accepted;
@@ -386,9 +371,9 @@ size_t iso_dev_decode(iso_dev_decoder *d, const iso_dev_chunk *c, iso_dev_event 
             d->n.garbage += d->fb_pending; /* a frame the device never finished */
             d->fb_pending = 0;
         }
-        emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
+        iso_dev__emit(d, c->t_ns, ISO_DEV_EV_GONE, ev, cap, &n);
         return n;
-    case ISO_DEV_CHUNK_BACK: emit(d, c->t_ns, ISO_DEV_EV_BACK, ev, cap, &n); return n;
+    case ISO_DEV_CHUNK_BACK: iso_dev__emit(d, c->t_ns, ISO_DEV_EV_BACK, ev, cap, &n); return n;
     case ISO_DEV_CHUNK_DATA: break;
     default: return 0;
     }

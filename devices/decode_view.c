@@ -8,6 +8,7 @@
  * sequence number, and counts everything it refuses. A replay therefore
  * applies exactly what the live run applied, and a hand-edited recording
  * cannot do more than a page could. */
+#include "internal.h"
 #include "iso_dev.h"
 
 #include <math.h>
@@ -130,28 +131,13 @@ int iso_dev_view_encode(const iso_dev_view_msg *m, uint8_t *dst, size_t cap)
 
 /* ---- the decoder ---------------------------------------------------------- */
 
-static iso_dev_event *view_emit(iso_dev_decoder *d, int64_t t, int kind, iso_dev_event *ev,
-                                size_t cap, size_t *n)
-{
-    if (*n >= cap) {
-        d->n.garbage++;
-        return NULL;
-    }
-    iso_dev_event *e = &ev[(*n)++];
-    memset(e, 0, sizeof *e);
-    e->t_ns = t;
-    e->kind = (uint8_t)kind;
-    e->source = d->source;
-    return e;
-}
-
 static void release(iso_dev_decoder *d, int64_t t, int reason, iso_dev_event *ev, size_t cap,
                     size_t *n)
 {
     d->view.holder = 0;
     d->view.last_seq = 0;
     d->n.releases++;
-    iso_dev_event *e = view_emit(d, t, ISO_DEV_EV_RELEASE, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_RELEASE, ev, cap, n);
     if (e)
         e->level = (uint8_t)reason;
 }
@@ -163,7 +149,7 @@ static void set_estop(iso_dev_decoder *d, int64_t t, int on, uint32_t conn, iso_
         return;
     d->view.estop = (uint8_t)on;
     d->view.estop_conn = on ? conn : 0;
-    iso_dev_event *e = view_emit(d, t, ISO_DEV_EV_GPIO, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_GPIO, ev, cap, n);
     if (e) {
         e->line = ISO_DEV_GPIO_ESTOP;
         e->level = (uint8_t)on;
@@ -204,7 +190,7 @@ static void apply(iso_dev_decoder *d, int64_t t, uint32_t conn, const uint8_t *p
     d->view.applied_seq = m.seq;
     d->view.applied_ms = m.page_ms;
     d->n.reports++;
-    iso_dev_event *e = view_emit(d, t, ISO_DEV_EV_TARGET, ev, cap, n);
+    iso_dev_event *e = iso_dev__emit(d, t, ISO_DEV_EV_TARGET, ev, cap, n);
     if (e) {
         e->line = m.handle;
         memcpy(e->v, m.pose, sizeof e->v);

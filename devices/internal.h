@@ -6,6 +6,8 @@
 
 #include "iso_dev.h"
 
+#include <string.h>
+
 /* A read of n bytes into out->data: n > 0 stamps the chunk with the time
  * base of every live chunk (iso_clock_ns) and returns 1; n <= 0 returns 0,
  * leaving the caller to tell "nothing yet" from an error. */
@@ -26,6 +28,24 @@ static inline void iso_dev__serial_info(iso_dev_info *info, uint32_t baud)
     info->data_bits = 8;
     info->parity = 'N';
     info->stop_bits = 1;
+}
+
+/* The next event slot of a decoder's output, zeroed and stamped with time
+ * t, kind and the decoder's source; NULL, counted as garbage, when the
+ * caller's cap is reached (the event is then lost, never written past). */
+static inline iso_dev_event *iso_dev__emit(iso_dev_decoder *d, int64_t t, int kind,
+                                           iso_dev_event *ev, size_t cap, size_t *n)
+{
+    if (*n >= cap) {
+        d->n.garbage++;
+        return NULL;
+    }
+    iso_dev_event *e = &ev[(*n)++];
+    memset(e, 0, sizeof *e);
+    e->t_ns = t;
+    e->kind = (uint8_t)kind;
+    e->source = d->source;
+    return e;
 }
 
 /* The view's decoder (decode_view.c): one envelope of len bytes. */

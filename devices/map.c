@@ -204,6 +204,28 @@ void iso_dev_map_axes(const iso_dev_map_opts *o, const int16_t axes[6], const is
     twist_about(v, w, g->p, out);
 }
 
+/* The screw xi from g to a target pose over one unit of time: the target's
+ * rotation is the exponential of its rotation vector tgt[3..5], its
+ * position tgt[0..2] times scale. Fails on a half-turn error, which has no
+ * unique screw. */
+static int screw_to(const double tgt[6], double scale, const iso_pose *g, iso_twist *xi)
+{
+    iso_twist rv = {{tgt[3], tgt[4], tgt[5]}, {0, 0, 0}};
+    iso_pose T;
+    iso_twist_exp(&rv, 1.0, &T);
+    for (int i = 0; i < 3; i++)
+        T.p[i] = tgt[i] * scale;
+    return iso_twist_between(g, &T, xi, NULL);
+}
+
+static void twist_scaled(const iso_twist *xi, double k, iso_twist *out)
+{
+    for (int i = 0; i < 3; i++) {
+        out->w[i] = k * xi->w[i];
+        out->v[i] = k * xi->v[i];
+    }
+}
+
 /* The twist that carries g toward the target pose T in one tick of dt:
  * M = T g⁻¹, ξ = gain · log(M) / dt. A half-turn error has no unique screw:
  * the handle then holds still this tick (the next sample decides). */
@@ -211,22 +233,10 @@ static void twist_toward(const iso_dev_map_opts *o, const double tgt[6], const i
                          double dt, iso_twist *out)
 {
     memset(out, 0, sizeof *out);
-    if (!(dt > 0))
-        return;
-    /* the target: its rotation vector's exponential, its scaled position */
-    iso_twist rv = {{tgt[3], tgt[4], tgt[5]}, {0, 0, 0}};
-    iso_pose T;
-    iso_twist_exp(&rv, 1.0, &T);
-    for (int i = 0; i < 3; i++)
-        T.p[i] = tgt[i] * o->pose_scale;
     iso_twist xi;
-    if (iso_twist_between(g, &T, &xi, NULL) != ISO_OK)
+    if (!(dt > 0) || screw_to(tgt, o->pose_scale, g, &xi) != ISO_OK)
         return;
-    double k = o->pose_gain / dt;
-    for (int i = 0; i < 3; i++) {
-        out->w[i] = k * xi.w[i];
-        out->v[i] = k * xi.v[i];
-    }
+    twist_scaled(&xi, o->pose_gain / dt, out);
 }
 
 /* A view's target: the twist that reaches it in this tick, along the same
@@ -238,14 +248,8 @@ static void twist_to_target(const double tgt[6], const iso_pose *g, const double
                             double speed, double turn, iso_twist *out)
 {
     memset(out, 0, sizeof *out);
-    if (!(dt > 0))
-        return;
-    iso_twist rv = {{tgt[3], tgt[4], tgt[5]}, {0, 0, 0}};
-    iso_pose T;
-    iso_twist_exp(&rv, 1.0, &T);
-    memcpy(T.p, tgt, sizeof T.p);
     iso_twist xi;
-    if (iso_twist_between(g, &T, &xi, NULL) != ISO_OK)
+    if (!(dt > 0) || screw_to(tgt, 1.0, g, &xi) != ISO_OK)
         return;
     double vel[3];
     iso_twist_velocity(&xi, c, vel); /* the centre's travel over the whole step */
@@ -256,10 +260,7 @@ static void twist_to_target(const double tgt[6], const iso_pose *g, const double
         k = fmin(k, speed / d);
     if (turn > 0 && a > turn * dt)
         k = fmin(k, turn / a);
-    for (int i = 0; i < 3; i++) {
-        out->w[i] = k * xi.w[i];
-        out->v[i] = k * xi.v[i];
-    }
+    twist_scaled(&xi, k, out);
 }
 
 static void press(iso_dev_map *m, uint32_t before, uint32_t after, iso_dev_tick *out)

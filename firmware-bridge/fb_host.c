@@ -330,10 +330,10 @@ int iso_fb_host_can_safe(const iso_fb_host *h)
 
 int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap)
 {
-    return iso_fb_host_stats_format(&h->stats, buf, cap);
+    return iso_fb_host_format_stats_copy(&h->stats, buf, cap);
 }
 
-int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap)
+int iso_fb_host_format_stats_copy(const iso_fb_host_stats *s, char *buf, size_t cap)
 {
     double avg = s->rtt_count ? (double)s->rtt_sum_us / s->rtt_count / 1000.0 : 0.0;
     double mn = s->rtt_count ? s->rtt_min_us / 1000.0 : 0.0;

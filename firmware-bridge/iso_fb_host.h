@@ -99,9 +99,10 @@ ISO_API int iso_fb_host_can_safe(const iso_fb_host *h);
 ISO_API void iso_fb_host_rehello(iso_fb_host *h);
 
 /* One line of counters, e.g. for `isoshape` to print. Returns snprintf's
- * result. The _stats_ form takes a copy of the counters (a caller whose
- * host lives on another thread). */
+ * result. The _copy form takes a copy of the counters (a caller whose host
+ * lives on another thread). Every part names this pair alike:
+ * <module>_format_stats for the object, _copy for a copy of its counters. */
 ISO_API int iso_fb_host_format_stats(const iso_fb_host *h, char *buf, size_t cap);
-ISO_API int iso_fb_host_stats_format(const iso_fb_host_stats *s, char *buf, size_t cap);
+ISO_API int iso_fb_host_format_stats_copy(const iso_fb_host_stats *s, char *buf, size_t cap);
 
 #endif

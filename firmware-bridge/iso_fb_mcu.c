@@ -18,6 +18,17 @@ void iso_fb_mcu_config_default(iso_fb_mcu_config *cfg, uint8_t n_channels)
     cfg->sample_ms = 20;
 }
 
+void iso_fb_mcu_config_board(iso_fb_mcu_config *cfg)
+{
+    iso_fb_mcu_config_default(cfg, 4);
+    cfg->ch[1].min = -1500;
+    cfg->ch[1].max = 1500;
+    cfg->ch[2].max_rate = 500;
+    cfg->ch[3].min = 0;
+    cfg->ch[3].max = 2000;
+    cfg->ch[3].safe = 0;
+}
+
 static void send(iso_fb_mcu *m, uint8_t type, const uint8_t *payload, int len)
 {
     uint8_t wire[ISO_FB_FRAME_MAX];

@@ -12,6 +12,10 @@
 
 #define ISO_FB_MCU_FW_VERSION 0x0101u /* 1.1: obeys SAFE */
 
+/* The bridge board's serial line: the firmware's UART runs at this rate,
+ * and a host link to it opens at it unless told otherwise. */
+#define ISO_FB_BOARD_BAUD 115200u
+
 /* Sends bytes towards the host; must take them all (the firmware queues
  * them in its UART ring). */
 typedef void (*iso_fb_mcu_write_fn)(void *ctx, const uint8_t *bytes, size_t n);
@@ -42,6 +46,12 @@ typedef struct iso_fb_mcu {
 /* Fills a config with n channels of limits [-1000, 1000], rate 2000/s,
  * safe position 0, and the default periods. */
 ISO_API void iso_fb_mcu_config_default(iso_fb_mcu_config *cfg, uint8_t n_channels);
+
+/* The bridge board's configuration, the one the firmware runs
+ * (firmware/main.c) and the native emulation runs in its place, so that both
+ * answer HELLO alike: 4 channels with the defaults above, except channel 1
+ * at [-1500, 1500], channel 2 at 500/s and channel 3 at [0, 2000]. */
+ISO_API void iso_fb_mcu_config_board(iso_fb_mcu_config *cfg);
 
 /* Starts the node in the IDLE state (every channel at its safe position) and
  * announces it with an unasked HELLO carrying ISO_FB_HELLO_BOOT. Returns 0 or

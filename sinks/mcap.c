@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "iso_bytes.h"
 #include "iso_pc2.h" /* iso_pc2_temp_path: one rule for temporary names */
 
 enum {
@@ -25,54 +26,22 @@ enum {
 
 static const unsigned char MAGIC[8] = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
 
-/* ---- growable byte buffers (the writer's thread, never the tick) -------- */
+/* ---- byte buffers (the writer's thread, never the tick) ----------------- */
 
-typedef struct buf {
-    unsigned char *p;
-    size_t n, cap;
-    int oom;
-} buf;
-
-static unsigned char *grow(buf *b, size_t more)
-{
-    if (b->oom)
-        return NULL;
-    if (b->n + more > b->cap) {
-        size_t cap = b->cap ? b->cap : 4096;
-        while (cap < b->n + more)
-            cap *= 2;
-        unsigned char *p = realloc(b->p, cap);
-        if (!p) {
-            b->oom = 1;
-            return NULL;
-        }
-        b->p = p;
-        b->cap = cap;
-    }
-    unsigned char *d = b->p + b->n;
-    b->n += more;
-    return d;
-}
+typedef iso_bytes buf;
 
 static void put_le(buf *b, uint64_t v, int bytes)
 {
-    unsigned char *d = grow(b, (size_t)bytes);
+    unsigned char *d = iso_bytes_grow(b, (size_t)bytes);
     for (int i = 0; d && i < bytes; i++)
         d[i] = (unsigned char)(v >> (8 * i));
-}
-
-static void put_bytes(buf *b, const void *p, size_t n)
-{
-    unsigned char *d = grow(b, n);
-    if (d && n)
-        memcpy(d, p, n);
 }
 
 static void put_str(buf *b, const char *s)
 {
     size_t n = strlen(s);
     put_le(b, n, 4);
-    put_bytes(b, s, n);
+    iso_bytes_put(b, s, n);
 }
 
 /* Starts a record: its opcode and a length patched by rec_end. */
@@ -173,7 +142,7 @@ int iso_mcap_create(const char *path, const char *profile, const char *library, 
         return iso_err_set(err, ISO_EIO, -1, "MCAP %s: cannot write it: %s", path, strerror(e));
     }
     buf h = {0};
-    put_bytes(&h, MAGIC, 8);
+    iso_bytes_put(&h, MAGIC, 8);
     size_t at = rec_begin(&h, OP_HEADER);
     put_str(&h, profile ? profile : "");
     put_str(&h, library ? library : "");
@@ -272,7 +241,7 @@ static void close_chunk(iso_mcap *m)
         size_t a2 = rec_begin(&h, OP_MESSAGE_INDEX);
         put_le(&h, (uint64_t)c, 2);
         put_le(&h, x->pairs.n, 4);
-        put_bytes(&h, x->pairs.p, x->pairs.n);
+        iso_bytes_put(&h, x->pairs.p, x->pairs.n);
         rec_end(&h, a2);
         emit_buf(m, &h);
         x->pairs.n = 0;
@@ -284,7 +253,7 @@ static void close_chunk(iso_mcap *m)
     put_le(ci, chunk_start, 8);
     put_le(ci, chunk_len, 8);
     put_le(ci, offsets.n, 4);
-    put_bytes(ci, offsets.p, offsets.n);
+    iso_bytes_put(ci, offsets.p, offsets.n);
     put_le(ci, m->off - idx_start, 8);
     put_str(ci, "");
     put_le(ci, m->chunk.n, 8); /* compressed size: the same, uncompressed */
@@ -318,7 +287,7 @@ int iso_mcap_write(iso_mcap *m, uint16_t ch, uint64_t log_time, const void *data
     put_le(&m->chunk, m->seq[ch]++, 4);
     put_le(&m->chunk, log_time, 8);
     put_le(&m->chunk, log_time, 8);
-    put_bytes(&m->chunk, data, len);
+    iso_bytes_put(&m->chunk, data, len);
     rec_end(&m->chunk, at);
     if (m->chunk.oom || m->idx[ch].pairs.oom)
         m->err_io = ENOMEM;

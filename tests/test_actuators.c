@@ -475,7 +475,7 @@ static int end_to_end(int mode, const char *label)
     iso_fb_hello h;
     assert_int_equal(iso_actuators_mcu_hello(a, &h), 1);
     iso_fb_mcu_config cfg;
-    iso_act_emu_firmware_config(&cfg);
+    iso_fb_mcu_config_board(&cfg);
     assert_int_equal(h.n_channels, 4);
     for (int c = 0; c < 4; c++) {
         assert_int_equal(h.ch[c].min, cfg.ch[c].min);
@@ -790,13 +790,13 @@ static void auto_falls_back_to_native_and_says_why(void **state)
     iso_act_emu_info info;
     iso_err err;
     iso_err_clear(&err);
-    assert_int_equal(iso_act_emu_open(ISO_ACT_EMU_AUTO, &l, &info, &err), ISO_OK);
+    assert_int_equal(iso_actuators_emu_open(ISO_ACT_EMU_AUTO, &l, &info, &err), ISO_OK);
     printf("  %s\n", info.line);
     assert_int_equal(info.used, ISO_ACT_EMU_NATIVE);
     assert_non_null(strstr(info.line, "native"));
     assert_non_null(strstr(info.line, "ISO_FB_QEMU='' is empty"));
     iso_link_close(l);
-    assert_int_equal(iso_act_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err), ISO_ENOTSUP);
+    assert_int_equal(iso_actuators_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err), ISO_ENOTSUP);
     assert_null(l);
     assert_non_null(strstr(err.msg, "QEMU asked for"));
     if (old)
@@ -834,7 +834,7 @@ static void slow_qemu_still_connects(void **state)
     iso_act_emu_info info;
     iso_err err;
     iso_err_clear(&err);
-    int rc = iso_act_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err);
+    int rc = iso_actuators_emu_open(ISO_ACT_EMU_QEMU, &l, &info, &err);
     if (old)
         setenv("ISO_FB_QEMU", qemu, 1);
     else

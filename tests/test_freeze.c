@@ -220,7 +220,7 @@ static void frozen_run_rearms_only_with_fresh_ticks(void **state)
     assert_int_equal(openpty(&g.master, &slave, name, &raw, NULL), 0);
     assert_int_equal(fcntl(g.master, F_SETFL, fcntl(g.master, F_GETFL) | O_NONBLOCK), 0);
     iso_fb_mcu_config cfg;
-    iso_act_emu_firmware_config(&cfg);
+    iso_fb_mcu_config_board(&cfg);
     iso_fb_parser_init(&g.log_parser);
     assert_int_equal(iso_fb_mcu_init(&g.mcu, &cfg, mcu_write, NULL, 0), 0);
     pthread_t th;

@@ -23,41 +23,18 @@
 #include <string.h>
 #include <strings.h>
 
+#include "iso_bytes.h"
 #include "iso_foxglove.h"
 
 #define FOX_SUBPROTOCOL "foxglove.websocket.v1"
 
 /* ---- growable output ------------------------------------------------------ */
 
-typedef struct obuf {
-    unsigned char *p;
-    size_t n, cap;
-    int oom;
-} obuf;
-
-static void put(obuf *b, const void *p, size_t n)
-{
-    if (b->oom)
-        return;
-    if (b->n + n > b->cap) {
-        size_t cap = b->cap ? b->cap : 4096;
-        while (cap < b->n + n)
-            cap *= 2;
-        unsigned char *q = realloc(b->p, cap);
-        if (!q) {
-            b->oom = 1;
-            return;
-        }
-        b->p = q;
-        b->cap = cap;
-    }
-    memcpy(b->p + b->n, p, n);
-    b->n += n;
-}
+typedef iso_bytes obuf;
 
 static void puts_(obuf *b, const char *s)
 {
-    put(b, s, strlen(s));
+    iso_bytes_put(b, s, strlen(s));
 }
 
 /* A JSON string's contents, escaped. */
@@ -68,12 +45,12 @@ static void put_escaped(obuf *b, const char *s)
         if (*s == '"' || *s == '\\') {
             e[0] = '\\';
             e[1] = *s;
-            put(b, e, 2);
+            iso_bytes_put(b, e, 2);
         } else if ((unsigned char)*s < 0x20) {
             snprintf(e, sizeof e, "\\u%04x", (unsigned)(unsigned char)*s);
-            put(b, e, 6);
+            iso_bytes_put(b, e, 6);
         } else {
-            put(b, s, 1);
+            iso_bytes_put(b, s, 1);
         }
     }
 }
@@ -81,7 +58,7 @@ static void put_escaped(obuf *b, const char *s)
 static void put_ws_header(obuf *b, int opcode, size_t len)
 {
     unsigned char h[10];
-    put(b, h, iso_display__ws_header(h, opcode, len));
+    iso_bytes_put(b, h, iso_display__ws_header(h, opcode, len));
 }
 
 /* ---- what all clients share ------------------------------------------------ */
@@ -135,7 +112,7 @@ static void build_hello(iso_display__fox_shared *s, const iso_display *d)
              d->port);
     puts_(&j, tmp);
     put_ws_header(&s->hello, 1, j.n);
-    put(&s->hello, j.p, j.n);
+    iso_bytes_put(&s->hello, j.p, j.n);
     j.n = 0;
     puts_(&j, "{\"op\":\"advertise\",\"channels\":[");
     for (int c = 0; c < s->n_ch; c++) {
@@ -150,7 +127,7 @@ static void build_hello(iso_display__fox_shared *s, const iso_display *d)
     }
     puts_(&j, "]}");
     put_ws_header(&s->hello, 1, j.n);
-    put(&s->hello, j.p, j.n);
+    iso_bytes_put(&s->hello, j.p, j.n);
     if (j.oom)
         s->hello.oom = 1;
     free(j.p);
@@ -236,7 +213,7 @@ static int refresh_cache(iso_display *d, iso_display__fox_shared *s)
         size_t len;
         s->payload[c].n = 0;
         if (iso_fox_encode(s->enc, &s->ch[c], &s->frame, &data, &len, NULL) == ISO_OK)
-            put(&s->payload[c], data, len);
+            iso_bytes_put(&s->payload[c], data, len);
     }
     s->cached_seq = seq;
     return 1;
@@ -301,8 +278,8 @@ static int fox_next(iso_display *d, iso_display__conn *c, long long now)
         for (int i = 0; i < 8; i++)
             m[5 + i] = (unsigned char)(s->cached_t >> (8 * i));
         put_ws_header(&f->out, 2, sizeof m + s->payload[ch].n);
-        put(&f->out, m, sizeof m);
-        put(&f->out, s->payload[ch].p, s->payload[ch].n);
+        iso_bytes_put(&f->out, m, sizeof m);
+        iso_bytes_put(&f->out, s->payload[ch].p, s->payload[ch].n);
     }
     if (f->out.oom)
         return 0; /* out of memory: this tick is skipped, the next may fit */

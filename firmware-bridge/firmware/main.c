@@ -83,7 +83,7 @@ void NMI_Handler(void)
 /* ---- drivers ------------------------------------------------------------- */
 static void uart_init(void)
 {
-    UART_BAUDDIV(UART0_BASE) = BOARD_SYSCLK_HZ / 115200u;
+    UART_BAUDDIV(UART0_BASE) = BOARD_SYSCLK_HZ / ISO_FB_BOARD_BAUD;
     UART_CTRL(UART0_BASE) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_TXINT | UART_CTRL_RXINT;
     NVIC_ISER0 = (1u << UART0_RX_IRQ) | (1u << UART0_TX_IRQ);
 }
@@ -147,13 +147,7 @@ int main(void)
     wdog_init();
 
     iso_fb_mcu_config cfg;
-    iso_fb_mcu_config_default(&cfg, 4);
-    cfg.ch[1].min = -1500;
-    cfg.ch[1].max = 1500;
-    cfg.ch[2].max_rate = 500;
-    cfg.ch[3].min = 0;
-    cfg.ch[3].max = 2000;
-    cfg.ch[3].safe = 0;
+    iso_fb_mcu_config_board(&cfg);
     if (iso_fb_mcu_init(&fw.node, &cfg, uart_write, 0, fw.ms) != 0)
         hang();
 

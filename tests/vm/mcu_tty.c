@@ -93,7 +93,7 @@ int main(int argc, char **argv)
     signal(SIGTERM, on_signal);
     signal(SIGINT, on_signal);
     iso_fb_mcu_config cfg;
-    iso_act_emu_firmware_config(&cfg);
+    iso_fb_mcu_config_board(&cfg);
     static iso_fb_mcu m;
     if (iso_fb_mcu_init(&m, &cfg, mcu_write, NULL, now_ms()) != 0) {
         fprintf(stderr, "vm_mcu: the firmware configuration is invalid\n");
