@@ -342,8 +342,8 @@ int iso_fb_host_format_stats_copy(const iso_fb_host_stats *s, char *buf, size_t 
                     " (%" PRIu64 " B); dropped %" PRIu32 " (crc %" PRIu32 ", cobs %" PRIu32
                     ", too long %" PRIu32 ", short %" PRIu32 ", seq dup %" PRIu32
                     ", seq order %" PRIu32 "), %" PRIu32 " lost in gaps; acks %" PRIu32
-                    ", naks %" PRIu32 ", faults %" PRIu32 ", samples %" PRIu32
-                    "; link losses %" PRIu32 ", reopens %" PRIu32 ", handshakes %" PRIu32
+                    ", naks %" PRIu32 ", MCU safe states %" PRIu32 ", samples %" PRIu32
+                    "; link losses %" PRIu32 ", reopens %" PRIu32 ", armed %" PRIu32 " times"
                     "; rtt avg %.2f ms (min %.2f, max %.2f)",
                     s->tx_frames, s->tx_bytes, s->rx_frames, s->rx_bytes, s->rx.resyncs,
                     s->rx.bad_crc, s->rx.bad_cobs, s->rx.too_long, s->rx.too_short, s->rx.duplicate,

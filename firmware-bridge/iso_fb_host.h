@@ -41,6 +41,10 @@ enum {
 
 typedef struct iso_fb_host_stats {
     uint64_t tx_frames, rx_frames, tx_bytes, rx_bytes;
+    /* faults: FAULT reports, each the MCU entering its safe state (a
+     * requested SAFE at a run's end counts, so a clean run has one);
+     * handshakes: times the link was armed (a HELLO answered), the first
+     * and each re-arm after a hold. The summary line words them so. */
     uint32_t acks, naks, faults, samples, hellos, heartbeats;
     uint32_t bad_payloads; /* valid frames whose payload did not unpack */
     uint32_t link_losses, reopens, handshakes;
