@@ -3,10 +3,11 @@
  * solver's own sources and white-box tests include it.
  *
  * Assembly backends (the C path in assemble_cpu.c, the OpenCL path in
- * assemble_cl.c) fill s->A's values (upper triangle of A_ff) and s->B (the
- * right-hand side −A_fc v_c, plus the restoration term's linear part) from
- * the current positions. They must agree to rounding, and each must be
- * bit-identical from run to run (replays depend on it). */
+ * assemble_cl.c with its plan in assemble_plan.c) fill s->A's values
+ * (upper triangle of A_ff) and s->B (the right-hand side −A_fc v_c, plus
+ * the restoration term's linear part) from the current positions. They
+ * must agree to rounding, and each must be bit-identical from run to run
+ * (replays depend on it). */
 #ifndef ISO_SOLVER_INTERNAL_H
 #define ISO_SOLVER_INTERNAL_H
 
@@ -128,6 +129,19 @@ static inline void iso_solver__progress(const struct iso_solver *s)
     if (s->progress)
         s->progress(s->progress_ctx);
 }
+
+/* Creation's checks (constraints.c): the regions fit the mesh, and every
+ * part of the mesh with free vertices is pinned (iso_solver.h). ISO_OK, or
+ * ISO_EINVAL / ISO_ECONSTRAINT with a message naming the vertex. */
+int iso_solver__check_regions(const iso_mesh *m, const iso_regions *r, iso_err *err);
+int iso_solver__check_constraints(const iso_mesh *m, const iso_regions *r, iso_err *err);
+
+/* The system's structure (pattern.c), once free_of and vert_of exist: the
+ * element list (s->el, s->nel; with restoration the rest lengths and edge
+ * weights), A's pattern (s->A, values undefined), the slot map, the
+ * ordering and CHOLMOD's analysis (s->L, s->B, the triangular solves'
+ * workspace, nnz and flops in the stats). */
+int iso_solver__build_system(iso_solver *s, iso_err *err);
 
 /* Applies opts.threads at creation (after the analysis, which knows the
  * factorization's flops) and undoes its process-wide part at destroy. */
