@@ -232,6 +232,7 @@ static void print_json(const deform_args *a, const report *r)
     iso_json_string(&j, "refactor", iso_names_get(iso_refactor_names, a->so.refactor));
     iso_json_int(&j, "factorizations", sst->factorizations);
     iso_json_int(&j, "cg_iterations", sst->cg_iterations);
+    iso_json_int(&j, "factor_solves", sst->factor_solves);
     iso_json_int(&j, "refactors", sst->refactors);
     iso_json_number(&j, "seconds", r->run.seconds);
     iso_json_number(&j, "assembly_seconds", sst->t_assembly);
@@ -283,8 +284,10 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
     printf("\n");
     printf("steps          %d (RK4 start %d, rejected %d)\n", ist->steps, ist->rk4_steps,
            ist->rejected);
-    printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations\n",
-           ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations);
+    printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations, "
+           "%ld solves with a factor\n",
+           ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations,
+           sst->factor_solves);
     iso_metrics_print(stdout, "", &r->ours);
     printf("time           %.3f s: assembly %.3f, factorization %.3f, solve %.3f, other %.3f\n",
            r->run.seconds, sst->t_assembly, sst->t_factor, sst->t_solve, r->run.other);

@@ -299,7 +299,7 @@ double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 typedef struct iso_cli__rt_row {
     char scene[32];
     int builtin, vertices, max_step_evaluations;
-    long ticks, evaluations, cg_iterations, factorizations, handovers;
+    long ticks, evaluations, cg_iterations, factor_solves, factorizations, handovers;
     double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
     double bare_solve_ms;                  /* one solve of the same system, median */
 } iso_cli__rt_row;

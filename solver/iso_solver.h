@@ -280,6 +280,12 @@ typedef struct iso_solver_stats {
      * factorizations and t_factor count the evaluating thread's only. */
     long handovers;
     double t_wait, t_worker;
+    /* Solves with a factor on the evaluating thread: one per direct solve,
+     * and per PCG solve one for its start and one per iteration that did
+     * not end on the residual alone. At 40k vertices each streams the
+     * whole factor (246 MB), several times what an assembly costs, so it is
+     * the unit a tick's cost is counted in. */
+    long factor_solves;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 
