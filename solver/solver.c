@@ -170,6 +170,8 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
     else
         iso_solver_opts_default(&s->o);
     cholmod_start(&s->c);
+    s->cpu_split_edges = ISO_SOLVER__CPU_SPLIT_EDGES;
+    s->cpu_helper = 1;
     int rc = check_opts(&s->o, err);
     if (rc == ISO_OK)
         rc = iso_solver__check_regions(m, r, err);
