@@ -35,7 +35,7 @@ const iso_cli__opt iso_cli__mesh_options[] = {
 /* The resolution's range is the shape's own (iso_shape_init names it). */
 const iso_cli__opt iso_cli__shape_options[] = {
     {"shape", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, shape), "NAME",
-     .help = "a built-in shape and its labels: bar, cylinder, bumpplane, cactus"},
+     .help = "a built-in shape and its labels: bar, cylinder, bumpplane, cactus, tentacle"},
     {"resolution", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_cli__source, resolution), "N",
      .help = "the built-in shape's resolution (0: its default)"},
     {0}};
