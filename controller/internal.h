@@ -13,6 +13,7 @@
 #include "iso_integrate.h"
 #include "iso_json.h"
 #include "iso_mesh.h"
+#include "iso_metrics.h"
 #include "iso_names.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -273,14 +274,19 @@ void iso_cli__problem_deinit(iso_cli__problem *p);
 typedef struct iso_cli__run {
     iso_integrate_stats ist;
     iso_solver_stats sst;
-    double seconds;      /* solver creation and integration, wall clock */
-    double other;        /* seconds outside assembly, factorization and solve */
-    double factor_flops; /* of one numeric factorization; NAN if unknown */
-    char notice[256];    /* iso_solver_notice(), "" if none */
+    double seconds;            /* solver creation and integration, wall clock */
+    double other;              /* seconds outside assembly, factorization and solve */
+    double factor_flops;       /* of one numeric factorization; NAN if unknown */
+    char notice[256];          /* iso_solver_notice(), "" if none */
+    int proxy_vertices;        /* so->proxy's proxy, 0 if none */
+    iso_metrics proxy_metrics; /* the proxy's own result against its rest pose */
+    double proxy_s;            /* seconds it took to build (in seconds too) */
 } iso_cli__run;
 
 /* Integrates p from its rest pose (copied into x, 3*nv) to its final pose
- * with a fresh solver; x holds the result. Fills *out even on failure. */
+ * with a fresh solver; x holds the result. With so->proxy the method runs
+ * on the proxy (auto: the budget of a 60 Hz tick) and x follows it. Fills
+ * *out even on failure. */
 int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
                          const iso_integrate_opts *io, double *x, iso_cli__run *out, iso_err *err);
 

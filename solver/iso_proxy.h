@@ -12,15 +12,17 @@
  * A subset rather than resampled points, so that each proxy vertex is a
  * mesh vertex at rest and the proxy carries the mesh's regions exactly.
  *
- * The full mesh follows by a smooth blend of the proxy vertices' rigid
- * motions (linear blend skinning on the proxy): each full vertex i lies,
- * at rest, over a proxy triangle (a, b, c) with barycentric weights β, and
- *     x_i = Σ_k β_k (y_k + R_k (X_i − Y_k)),   k = a, b, c,
- * with X, Y the rest positions of the mesh and the proxy, y the proxy's
- * current ones, and R_k the rotation of proxy vertex k's ring since rest
- * (a handle vertex's is its handle's, a fixed vertex's the identity). So
- * the rest pose and every rigid motion are reproduced exactly, the mesh's
- * detail turns with its neighbourhood, and the blend is continuous across
+ * The full mesh follows by a detail-preserving reconstruction: each full
+ * vertex i lies, at rest, over a point P_i = Σ_k β_k Y_k of a proxy
+ * triangle (a, b, c) (barycentric weights β), at an offset X_i − P_i, and
+ *     x_i = Σ_k β_k y_k + R̄_i (X_i − P_i),   k = a, b, c,
+ * with X, Y the rest positions of the mesh and the proxy and y the proxy's
+ * current ones: the point goes where the deformed triangle takes it, and
+ * the offset (the mesh's detail over the proxy) turns with R̄_i, the
+ * rotations R_k of the corners' rings since rest blended (quaternions
+ * weighted by β in one hemisphere, normalised; a handle vertex's R is its
+ * handle's, a fixed vertex's the identity). So the rest pose and every
+ * rigid motion are reproduced exactly, and the result is continuous across
  * proxy edges. Handle and fixed vertices of the full mesh are then placed
  * exactly: at their handle's pose, and at rest.
  *

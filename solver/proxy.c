@@ -37,6 +37,7 @@ struct iso_proxy {
     double *m_rest;         /* 3 np: the scaled rest normals */
     double *n_now;          /* 3 np: scratch, the current normals */
     double *rot;            /* 9 np: this prolongation's rotations */
+    double *quat;           /* 4 np: the same as quaternions */
     iso_solver__team *team;
     const double *y_now; /* the prolongation's input, for the team */
     double *x_out;
@@ -224,6 +225,30 @@ static void ring_moment(const iso_proxy *p, int k, const double *y, const double
     add_outer(S, n, p->m_rest + 3 * k);
 }
 
+/* The unit quaternion (w, x, y, z) of rotation R (Shepperd's method: from
+ * the largest of the four squares, so no division is by a small number). */
+static void to_quaternion(const double *R, double *q)
+{
+    double t = R[0] + R[4] + R[8];
+    if (t >= R[0] && t >= R[4] && t >= R[8]) {
+        double r = sqrt(1 + t), s = 0.5 / r;
+        q[0] = 0.5 * r, q[1] = (R[7] - R[5]) * s, q[2] = (R[2] - R[6]) * s,
+        q[3] = (R[3] - R[1]) * s;
+    } else if (R[0] >= R[4] && R[0] >= R[8]) {
+        double r = sqrt(1 + R[0] - R[4] - R[8]), s = 0.5 / r;
+        q[0] = (R[7] - R[5]) * s, q[1] = 0.5 * r, q[2] = (R[1] + R[3]) * s,
+        q[3] = (R[2] + R[6]) * s;
+    } else if (R[4] >= R[8]) {
+        double r = sqrt(1 - R[0] + R[4] - R[8]), s = 0.5 / r;
+        q[0] = (R[2] - R[6]) * s, q[1] = (R[1] + R[3]) * s, q[2] = 0.5 * r,
+        q[3] = (R[5] + R[7]) * s;
+    } else {
+        double r = sqrt(1 - R[0] - R[4] + R[8]), s = 0.5 / r;
+        q[0] = (R[3] - R[1]) * s, q[1] = (R[2] + R[6]) * s, q[2] = (R[5] + R[7]) * s,
+        q[3] = 0.5 * r;
+    }
+}
+
 static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
 {
     const double *Y = iso_mesh_positions(p->pm);
@@ -250,11 +275,17 @@ static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
         if (!newton_schulz(R))
             horn(S, R);
     }
+    for (int k = 0; k < p->np; k++)
+        to_quaternion(p->rot + 9 * k, p->quat + 4 * k);
 }
 
 /* ===== prolongation ====================================================== */
 
-/* x_i = Σ β_k (y_k + R_k (X_i − Y_k)) for full vertices [begin, end). */
+/* Full vertices [begin, end): where their rest point on the proxy went
+ * (barycentric on the deformed triangle), plus their offset from it
+ * turned by the corners' rotations blended (quaternions weighted by β,
+ * each turned to the hemisphere of the heaviest corner's, so that the
+ * blend is continuous across proxy edges; normalised). */
 static void prolong_range(iso_proxy *p, int begin, int end)
 {
     const double *X = iso_mesh_positions(p->m), *Y = iso_mesh_positions(p->pm), *y = p->y_now;
@@ -267,16 +298,31 @@ static void prolong_range(iso_proxy *p, int begin, int end)
             memcpy(xi, Xi, 3 * sizeof *xi);
             continue;
         }
-        double s[3] = {0, 0, 0};
-        for (int q = 0; q < 3; q++) {
-            const double *R = p->rot + 9 * c[q], *Yk = Y + 3 * c[q], *yk = y + 3 * c[q];
-            double d[3];
-            sub3(Xi, Yk, d);
-            for (int a = 0; a < 3; a++)
-                s[a] +=
-                    b[q] * (yk[a] + R[3 * a] * d[0] + R[3 * a + 1] * d[1] + R[3 * a + 2] * d[2]);
+        int ref = b[1] > b[0] ? 1 : 0;
+        ref = b[2] > b[ref] ? 2 : ref;
+        const double *qr = p->quat + 4 * c[ref];
+        double pos[3] = {0, 0, 0}, off[3], q[4] = {0, 0, 0, 0};
+        for (int a = 0; a < 3; a++)
+            off[a] = Xi[a];
+        for (int k = 0; k < 3; k++) {
+            const double *Yk = Y + 3 * c[k], *yk = y + 3 * c[k], *qk = p->quat + 4 * c[k];
+            double w =
+                qk[0] * qr[0] + qk[1] * qr[1] + qk[2] * qr[2] + qk[3] * qr[3] < 0 ? -b[k] : b[k];
+            for (int a = 0; a < 3; a++) {
+                pos[a] += b[k] * yk[a];
+                off[a] -= b[k] * Yk[a];
+            }
+            for (int a = 0; a < 4; a++)
+                q[a] += w * qk[a];
         }
-        memcpy(xi, s, sizeof s);
+        double n = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        double qw = q[0] * n, qx = q[1] * n, qy = q[2] * n, qz = q[3] * n;
+        double R[9] = {
+            1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz),     2 * (qx * qz + qw * qy),
+            2 * (qx * qy + qw * qz),     1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx),
+            2 * (qx * qz - qw * qy),     2 * (qy * qz + qw * qx),     1 - 2 * (qx * qx + qy * qy)};
+        for (int a = 0; a < 3; a++)
+            xi[a] = pos[a] + R[3 * a] * off[0] + R[3 * a + 1] * off[1] + R[3 * a + 2] * off[2];
     }
 }
 
@@ -465,9 +511,10 @@ static int build(iso_proxy *p, const iso_proxy__decimated *d, iso_err *err)
     p->m_rest = malloc(3 * np * sizeof *p->m_rest);
     p->n_now = malloc(3 * np * sizeof *p->n_now);
     p->rot = malloc(9 * np * sizeof *p->rot);
+    p->quat = malloc(4 * np * sizeof *p->quat);
     p->full_of = malloc(np * sizeof *p->full_of);
-    if (!p->corner || !p->beta || !p->pinv || !p->m_rest || !p->n_now || !p->rot || !p->full_of ||
-        adjacency(p) != 0)
+    if (!p->corner || !p->beta || !p->pinv || !p->m_rest || !p->n_now || !p->rot || !p->quat ||
+        !p->full_of || adjacency(p) != 0)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the proxy's map");
     memcpy(p->full_of, d->full_of, (size_t)d->np * sizeof *p->full_of);
     for (int i = 0; i < p->nv; i++) {
@@ -536,6 +583,7 @@ void iso_proxy_destroy(iso_proxy *p)
     free(p->m_rest);
     free(p->n_now);
     free(p->rot);
+    free(p->quat);
     free(p);
 }
 

@@ -12,6 +12,7 @@
 
 #include "iso_clock.h"
 #include "iso_names.h"
+#include "iso_proxy.h"
 #include "solver_internal.h"
 
 const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
@@ -32,6 +33,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->preconditioner = ISO_PRECOND_ROTATED;
     o->worker_lag = 0;
     o->worker_ahead = 1;
+    o->proxy = 0;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
@@ -62,6 +64,10 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
                            "worker_lag = %d asks for a factorization worker, which only the "
                            "adaptive scheme uses (refactor is %s)",
                            o->worker_lag, iso_names_get(iso_refactor_names, (int)o->refactor));
+    if (o->proxy != 0 && o->proxy != ISO_SOLVER_PROXY_AUTO && o->proxy < ISO_PROXY_MIN_BUDGET)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "proxy = %d is below the least budget, %d vertices (0: off, -1: auto)",
+                           o->proxy, ISO_PROXY_MIN_BUDGET);
     if (o->threads.omp != ISO_SOLVER_OMP_CALLER && o->threads.omp != ISO_SOLVER_OMP_LEAVE)
         return iso_err_set(err, ISO_EINVAL, -1, "unknown OpenMP thread policy %d",
                            (int)o->threads.omp);
