@@ -1,10 +1,12 @@
 /* tests/tools/write_shape.c -- a built-in shape to a mesh file and its
  * labels to a .sel file, for measuring what large files cost to load:
  *
- *   write_shape NAME RESOLUTION OUT.{off,obj,ply} [OUT.sel]
+ *   write_shape NAME RESOLUTION OUT.{off,obj,ply} [OUT.sel [OUT.def]]
  *   write_shape --load FILE
  *
- * e.g. `write_shape tentacle 317 /tmp/t1m.ply` writes 1,004,892 vertices;
+ * e.g. `write_shape tentacle 317 /tmp/t1m.ply` writes 1,004,892 vertices
+ * (with .sel and .def, the problem as the benchmark's files hold one, for
+ * tests/tools/arap_reference);
  * --load reads a mesh file back (iso_mesh_load: parse, checks, edges) and
  * prints the wall and CPU seconds it took and the process's peak memory. */
 #include <stdio.h>
@@ -49,8 +51,8 @@ int main(int argc, char **argv)
 {
     if (argc == 3 && strcmp(argv[1], "--load") == 0)
         return load(argv[2]);
-    if (argc < 4 || argc > 5) {
-        fprintf(stderr, "usage: write_shape NAME RESOLUTION OUT.{off,obj,ply} [OUT.sel]\n"
+    if (argc < 4 || argc > 6) {
+        fprintf(stderr, "usage: write_shape NAME RESOLUTION OUT.{off,obj,ply} [OUT.sel [OUT.def]]\n"
                         "       write_shape --load FILE\n");
         return 2;
     }
@@ -63,7 +65,16 @@ int main(int argc, char **argv)
         rc = iso_mesh_create(s.nv, s.x, s.nt, s.tri, argv[1], &m, &err);
     if (rc == ISO_OK)
         rc = iso_mesh_save(m, NULL, argv[3], ISO_MESH_FMT_AUTO, &err);
-    if (rc == ISO_OK && argc == 5) {
+    if (rc == ISO_OK && argc == 6) {
+        FILE *f = fopen(argv[5], "w");
+        for (int i = 0; f && i < 16; i++)
+            fprintf(f, "%.17g%c", s.M[i], i % 4 == 3 ? '\n' : ' ');
+        if (!f || fclose(f) != 0) {
+            fprintf(stderr, "write_shape: could not write %s\n", argv[5]);
+            rc = ISO_EIO;
+        }
+    }
+    if (rc == ISO_OK && argc >= 5) {
         FILE *f = fopen(argv[4], "w");
         for (int i = 0; f && i < s.nv; i++)
             fprintf(f, "%d\n", s.kind[i] == ISO_FIXED ? 0 : s.kind[i] == ISO_HANDLE ? 2 : 1);
