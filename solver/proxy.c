@@ -602,18 +602,20 @@ int iso_proxy_full_vertex(const iso_proxy *p, int k)
     return k >= 0 && k < p->np ? p->full_of[k] : -1;
 }
 
-/* What `auto` chooses, in vertices times ticks per second: the full
- * method up to AUTO_FULL / tick_hz vertices, a proxy of AUTO_BUDGET /
- * tick_hz above (measured on two cores; iso_proxy.h). */
-#define AUTO_FULL (8000.0 * 60.0)
-#define AUTO_BUDGET (4000.0 * 60.0)
+/* What `auto` chooses: the method on the whole mesh up to AUTO_FULL
+ * vertices at 60 Hz, else a proxy of AUTO_BUDGET; at a slower tick both in
+ * proportion to the period, at a faster one the 60 Hz figures (a tick that
+ * takes longer than its period is caught up by the loop, and a smaller
+ * proxy would lose more than it gains). Measured on two cores
+ * (iso_proxy.h). */
+#define AUTO_FULL 8000.0
+#define AUTO_BUDGET 4000.0
 
 int iso_proxy_auto_budget(int nv, double tick_hz)
 {
-    double hz = tick_hz > 0 ? tick_hz : 60.0;
-    double full = AUTO_FULL / hz, budget = AUTO_BUDGET / hz;
-    if (nv <= full)
+    double scale = tick_hz > 0 && tick_hz < 60.0 ? 60.0 / tick_hz : 1.0;
+    if (nv <= AUTO_FULL * scale)
         return 0;
-    int b = (int)budget;
-    return b < ISO_PROXY_MIN_BUDGET ? ISO_PROXY_MIN_BUDGET : b;
+    double b = AUTO_BUDGET * scale;
+    return b > 1e8 ? 100000000 : (int)b;
 }
