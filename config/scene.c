@@ -151,6 +151,17 @@ static iso_scene *new_scene(const char *path)
     const char *base = slash ? slash + 1 : path;
     snprintf(s->name, sizeof s->name, "%.*s", (int)strcspn(base, "."), base);
     iso_solver_opts_default(&s->solver);
+    /* A scene that names no solver settings gets the fast path for its
+     * size, not the library's paper-faithful always-refactor scheme: the
+     * cached factor as PCG's preconditioner, factored on a worker four
+     * ticks ahead, OpenCL where a GPU is, and the reduced model where the
+     * mesh is too large for the tick (solver.proxy auto). On the built-in
+     * plane of 2,601 vertices the library's defaults ticked at 13.8-18.6
+     * ms, these at 7.7-9.7 ms (same run). */
+    s->solver.refactor = ISO_REFACTOR_ADAPTIVE;
+    s->solver.worker_lag = 4;
+    s->solver.assembly = ISO_ASSEMBLY_AUTO;
+    s->solver.proxy = ISO_SOLVER_PROXY_AUTO;
     iso_integrate_opts_default(&s->integrate);
     s->integrate.restore_kappa = -1; /* the ABM mode's own */
     s->steps_per_tick = 1;

@@ -36,7 +36,7 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
              "    - name: top\n"
              "      driver: {screw: {def: builtin, duration: 2.0}}\n"
              "solver: {omega: 0.333, weighting: param, restore: off, assembly: %s,\n"
-             "         refactor: adaptive, cg_tol: %.17g, worker_lag: %d}\n"
+             "         refactor: adaptive, cg_tol: %.17g, worker_lag: %d, proxy: off}\n"
              "integrator: {steps_per_tick: 1, abm: pec}\n"
              "tick_hz: 60\n",
              name, name, name, res, iso_names_get(iso_assembly_names, so->assembly), so->cg_tol,
