@@ -324,6 +324,41 @@ void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n);
 void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n);
 
 /* ------------------------------------------------------------------------ */
+/* bench's scale table (bench_scale.c)                                        */
+/* ------------------------------------------------------------------------ */
+
+#define ISO_CLI_SCALE_MESHES 3
+typedef struct iso_cli__scale_mesh {
+    const char *shape;
+    int resolution;
+    int budget; /* the reduced rows' solver.proxy: 0 auto, else at most this many vertices */
+} iso_cli__scale_mesh;
+/* The issue-sized meshes (40k plane, 160k and 1M tentacle), and small ones
+ * for --quick whose reduced rows name a budget (auto keeps them whole). */
+extern const iso_cli__scale_mesh iso_cli__scale_meshes[ISO_CLI_SCALE_MESHES];
+extern const iso_cli__scale_mesh iso_cli__scale_meshes_quick[ISO_CLI_SCALE_MESHES];
+
+typedef struct iso_cli__scale_row {
+    char mesh[48];
+    int vertices, reduced, proxy; /* proxy: the reduced model's vertices, 0 on the whole mesh */
+    long ticks;
+    double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
+    double peak_mb;                        /* the run's process, at its largest */
+    double product_ms;                     /* one product with the whole system's pattern */
+    double build_s;                        /* the proxy's construction */
+    double metric_err;                     /* the whole mesh at the end */
+    char why[256];                         /* "" or why the row did not run */
+} iso_cli__scale_row;
+
+/* Each of the ISO_CLI_SCALE_MESHES meshes on the whole mesh (up to
+ * full_max vertices) and reduced, each in a child process; two rows a mesh
+ * into rows. */
+int iso_cli__bench_scale(const iso_cli__scale_mesh *meshes, int full_max, int tty,
+                         iso_cli__scale_row *rows, int *n, iso_err *err);
+void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n);
+void iso_cli__bench_scale_json(iso_json *j, const iso_cli__scale_row *rows, int n);
+
+/* ------------------------------------------------------------------------ */
 /* Scenes (cli_scene.c)                                                       */
 /* ------------------------------------------------------------------------ */
 
