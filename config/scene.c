@@ -151,6 +151,19 @@ static iso_scene *new_scene(const char *path)
     const char *base = slash ? slash + 1 : path;
     snprintf(s->name, sizeof s->name, "%.*s", (int)strcspn(base, "."), base);
     iso_solver_opts_default(&s->solver);
+    /* A scene that names no solver settings gets the fast path for its
+     * size, not the library's paper-faithful always-refactor scheme: the
+     * cached factor as PCG's preconditioner, factored on a worker four
+     * ticks ahead, OpenCL where a GPU is. On the built-in plane of 2,601
+     * vertices the library's defaults ticked at 13.8-18.6 ms, these at
+     * 7.7-9.7 ms (same run). The reduced model stays opt-in (proxy off):
+     * measured against the whole mesh's integral its metricErr is 2.3-3.5
+     * times as large at 40k vertices and 7-13 times at 160k, too far from
+     * the method to be what a scene gets without asking. */
+    s->solver.refactor = ISO_REFACTOR_ADAPTIVE;
+    s->solver.worker_lag = 4;
+    s->solver.assembly = ISO_ASSEMBLY_AUTO;
+    s->solver.proxy = 0;
     iso_integrate_opts_default(&s->integrate);
     s->integrate.restore_kappa = -1; /* the ABM mode's own */
     s->steps_per_tick = 1;

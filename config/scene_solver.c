@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "iso_names.h"
+#include "iso_proxy.h"
 
 _Static_assert(sizeof(iso_weighting) == sizeof(int) && sizeof(iso_assembly) == sizeof(int) &&
                    sizeof(iso_refactor) == sizeof(int),
@@ -47,6 +48,22 @@ static const scene_section restore = {.name = "solver.restore",
                                       .scalar = restore_off,
                                       .end = restore_end};
 
+/* `proxy: off | auto | N` (iso_solver_opts.proxy, iso_proxy.h). */
+static int store_proxy(scene_ctx *c, const scene_key *k, fnode *v, const char *key, void *obj)
+{
+    int *at = (int *)((char *)obj + k->off);
+    const char *t = iso_scene__scalar(c, v);
+    if (t && (strcmp(t, "off") == 0 || strcmp(t, "auto") == 0)) {
+        *at = t[0] == 'o' ? 0 : ISO_SOLVER_PROXY_AUTO;
+        return ISO_OK;
+    }
+    double n; /* an integer of the row's range, refused in its words */
+    int rc = iso_scene__number(c, k, v, key, &n);
+    if (rc == ISO_OK)
+        *at = (int)n;
+    return rc;
+}
+
 static const scene_key solver_keys[] = {
     {"omega", SK_NUMBER, FIELD(iso_solver_opts, omega), SOLVER_RANGE("omega"),
      .help = "the distortion term's weight against the isometry term", .dflt = "1/3"},
@@ -58,9 +75,9 @@ static const scene_key solver_keys[] = {
     {"assembly", SK_ENUM, FIELD(iso_solver_opts, assembly), .names = iso_assembly_names,
      .help = "who assembles the system: cpu, opencl, or auto (OpenCL on a GPU, else cpu); "
              "without a usable device cpu runs, with a notice",
-     .dflt = "cpu"},
+     .dflt = "auto"},
     {"refactor", SK_ENUM, FIELD(iso_solver_opts, refactor), .names = iso_refactor_names,
-     .help = "always factor, or reuse the factor as PCG's preconditioner", .dflt = "always"},
+     .help = "always factor, or reuse the factor as PCG's preconditioner", .dflt = "adaptive"},
     {"cg_tol", SK_NUMBER, FIELD(iso_solver_opts, cg_tol), SOLVER_RANGE("cg_tol"),
      .help = "PCG's relative residual (a floor beside integrator.cg_share's target)",
      .dflt = "1e-10"},
@@ -74,7 +91,12 @@ static const scene_key solver_keys[] = {
     {"worker_lag", SK_INT, FIELD(iso_solver_opts, worker_lag), SOLVER_RANGE("worker_lag"),
      .help = "adaptive: 0 factors on the tick's thread; N factors on a worker thread, each factor "
              "used from N evaluations after its matrix's",
-     .dflt = "0"},
+     .dflt = "4"},
+    {"proxy", SK_INT, FIELD(iso_solver_opts, proxy), IN(ISO_PROXY_MIN_BUDGET, 100000000),
+     .store = store_proxy, .type = "off, auto or integer",
+     .help = "the reduced model: the method on a proxy of at most this many vertices, the mesh "
+             "following it; auto: none where the method fits the tick, else the proxy that does",
+     .dflt = "off"},
     {"worker_ahead", SK_BOOL, FIELD(iso_solver_opts, worker_ahead),
      .help = "with the worker: factor the matrix at the positions extrapolated to the middle of "
              "the factor's use, instead of the giving evaluation's",
@@ -82,8 +104,22 @@ static const scene_key solver_keys[] = {
     {.key = NULL},
 };
 
-const scene_section iso_scene__solver = {
-    .name = "solver", .what = "a mapping of solver settings", .keys = solver_keys};
+/* The factorization worker is a default of the adaptive scheme only: a
+ * scene that asks for `refactor: always` without naming worker_lag gets
+ * none, rather than a refusal of a default it did not write. */
+static int solver_end(scene_ctx *c, scene_map *m)
+{
+    (void)c;
+    iso_solver_opts *o = m->obj;
+    if (o->refactor != ISO_REFACTOR_ADAPTIVE && !iso_scene__get(m->node, "worker_lag"))
+        o->worker_lag = 0;
+    return ISO_OK;
+}
+
+const scene_section iso_scene__solver = {.name = "solver",
+                                         .what = "a mapping of solver settings",
+                                         .keys = solver_keys,
+                                         .end = solver_end};
 
 static const scene_key integrator_keys[] = {
     {"steps_per_tick", SK_INT, FIELD(iso_scene, steps_per_tick), SOLVER_RANGE("steps_per_tick"),

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "iso_clock.h"
+#include "iso_proxy.h"
 
 void iso_cli__problem_deinit(iso_cli__problem *p)
 {
@@ -37,7 +38,7 @@ const iso_cli__opt iso_cli__mesh_options[] = {
 /* The resolution's range is the shape's own (iso_shape_init names it). */
 const iso_cli__opt iso_cli__shape_options[] = {
     {"shape", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(iso_cli__source, shape), "NAME",
-     .help = "a built-in shape and its labels: bar, cylinder, bumpplane, cactus"},
+     .help = "a built-in shape and its labels: bar, cylinder, bumpplane, cactus, tentacle"},
     {"resolution", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(iso_cli__source, resolution), "N",
      .help = "the built-in shape's resolution (0: its default)"},
     {0}};
@@ -216,6 +217,49 @@ int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const cha
 /* Running                                                                    */
 /* ------------------------------------------------------------------------ */
 
+/* The reduced model's proxy and its positions, when so->proxy asks for
+ * one and the mesh is larger than the budget. */
+static int with_proxy(const iso_cli__problem *p, const iso_solver_opts *so, iso_proxy **px,
+                      double **y, iso_cli__run *out, iso_err *err)
+{
+    int nv = iso_mesh_vertex_count(p->mesh);
+    int budget = so->proxy == ISO_SOLVER_PROXY_AUTO ? iso_proxy_auto_budget(nv, 60.0) : so->proxy;
+    if (budget <= 0 || nv - iso_mesh_unreferenced_count(p->mesh) <= budget)
+        return ISO_OK;
+    double t0 = iso_clock_now();
+    int rc = iso_proxy_create(p->mesh, &p->reg, budget, px, err);
+    if (rc != ISO_OK)
+        return rc;
+    out->proxy_s = iso_clock_now() - t0;
+    const iso_mesh *pm = iso_proxy_mesh(*px);
+    out->proxy_vertices = iso_mesh_vertex_count(pm);
+    if (!(*y = malloc((size_t)out->proxy_vertices * 3 * sizeof **y)))
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the proxy's positions.");
+    memcpy(*y, iso_mesh_positions(pm), (size_t)out->proxy_vertices * 3 * sizeof **y);
+    return ISO_OK;
+}
+
+/* The full mesh x from the proxy's y at the path's end t1. */
+static int follow_proxy(const iso_cli__problem *p, iso_proxy *px, const iso_path *path, double t1,
+                        const double *y, double *x, iso_err *err)
+{
+    iso_pose *poses = malloc((size_t)p->reg.n_handles * sizeof *poses);
+    if (!poses)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d handle poses.",
+                           p->reg.n_handles);
+    int rc = ISO_OK;
+    for (int h = 0; h < p->reg.n_handles && rc == ISO_OK; h++) {
+        iso_twist tw;
+        if (path->eval(path->ctx, h, t1, &poses[h], &tw) != ISO_OK)
+            rc = iso_err_set(err, ISO_EINVAL, -1, "the path of handle %d has no pose at t = %g.", h,
+                             t1);
+    }
+    if (rc == ISO_OK)
+        iso_proxy_prolong(px, y, poses, x);
+    free(poses);
+    return rc;
+}
+
 int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
                          const iso_integrate_opts *io, double *x, iso_cli__run *out, iso_err *err)
 {
@@ -241,11 +285,21 @@ int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
     memcpy(x, iso_mesh_positions(p->mesh), (size_t)nv * 3 * sizeof *x);
     iso_solver *s = NULL;
     double start = iso_clock_now();
-    rc = iso_solver_create(p->mesh, &p->reg, so, &s, err);
+    iso_proxy *px = NULL;
+    double *y = NULL;
+    rc = with_proxy(p, so, &px, &y, out, err);
+    const iso_mesh *mesh = px ? iso_proxy_mesh(px) : p->mesh;
+    const iso_regions *reg = px ? iso_proxy_regions(px) : &p->reg;
+    if (rc == ISO_OK)
+        rc = iso_solver_create(mesh, reg, so, &s, err);
     if (rc == ISO_OK) {
         snprintf(out->notice, sizeof out->notice, "%s", iso_solver_notice(s));
         out->factor_flops = iso_cli__factor_flops(s);
-        rc = iso_integrate(s, p->mesh, &p->reg, &path, io, x, &out->ist, err);
+        rc = iso_integrate(s, mesh, reg, &path, io, px ? y : x, &out->ist, err);
+    }
+    if (rc == ISO_OK && px) {
+        iso_metrics_compute(mesh, iso_mesh_positions(mesh), y, &out->proxy_metrics);
+        rc = follow_proxy(p, px, &path, io->t1, y, x, err);
     }
     out->seconds = iso_clock_now() - start;
     if (s)
@@ -253,6 +307,8 @@ int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
     out->other =
         fmax(0.0, out->seconds - out->sst.t_assembly - out->sst.t_factor - out->sst.t_solve);
     iso_solver_destroy(s);
+    iso_proxy_destroy(px);
+    free(y);
     free(tw);
     return rc;
 }

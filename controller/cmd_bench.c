@@ -53,6 +53,8 @@ typedef struct bench_args {
     int scheme_on[N_SCHEMES]; /* indexed by iso_refactor */
     iso_solver_opts so;
     int rt_worker_lag; /* the real-time table's solver.worker_lag */
+    int scale;         /* --scale: the scale table alone */
+    int scale_full_max;
 } bench_args;
 
 /* One problem under one scheme: the run with the median time. */
@@ -153,6 +155,15 @@ static const iso_cli__opt bench_options[] = {
      .table = iso_cli__assembly_options},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(bench_args, so, iso_solver_opts),
      .table = iso_cli__pcg_options},
+    {"scale", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(bench_args, scale), NULL,
+     .help = "only the scale table: built-in meshes of 40k to 1M vertices in real time, the "
+             "method on the whole mesh beside the reduced model (minutes; with --quick, meshes "
+             "of 1k to 2.5k vertices in seconds)",
+     .flag = 1},
+    {"scale-full-max", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, scale_full_max), "N",
+     .help = "the scale table runs the method on the whole mesh up to N vertices, %R (default "
+             "200000; 2000 with --quick)",
+     ISO_CLI_GE(1)},
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
      .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
              "each shipped scene's: " ISO_CLI_STR(RT_WORKER_LAG),
@@ -603,6 +614,31 @@ static void print_json(const bench_args *a, const bench_result *res)
 /* The command                                                                */
 /* ------------------------------------------------------------------------ */
 
+/* bench --scale: the scale table alone. */
+static int scale_table(const bench_args *a, iso_err *err)
+{
+    iso_cli__scale_row rows[2 * ISO_CLI_SCALE_MESHES];
+    int n = 0;
+    const iso_cli__scale_mesh *meshes =
+        a->quick ? iso_cli__scale_meshes_quick : iso_cli__scale_meshes;
+    int full_max = a->scale_full_max > 0 ? a->scale_full_max : a->quick ? 2000 : 200000;
+    if (iso_cli__bench_scale(meshes, full_max, a->tty, rows, &n, err) != ISO_OK) {
+        iso_cli__fail("bench", "%s", err->msg);
+        return 1;
+    }
+    if (a->json) {
+        iso_json j;
+        iso_json_begin(&j, stdout);
+        iso_json_array(&j, "scale");
+        iso_cli__bench_scale_json(&j, rows, n);
+        iso_json_close(&j);
+        iso_json_end(&j);
+    } else {
+        iso_cli__bench_scale_print(rows, n);
+    }
+    return 0;
+}
+
 static int bench_main(int argc, char **argv)
 {
     bench_args a;
@@ -618,6 +654,11 @@ static int bench_main(int argc, char **argv)
     iso_err err;
     iso_err_clear(&err);
     status = 1;
+    if (a.scale) {
+        status = scale_table(&a, &err);
+        free(res);
+        return status;
+    }
     /* The problems come first, so that each peak RSS is the problem's and
      * not dgemm's 3 n^2 doubles. */
     for (int k = 0; k < N_PROBLEMS; k++) {

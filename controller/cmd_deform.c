@@ -17,6 +17,7 @@
 #include "iso_metrics.h"
 #include "iso_motion.h"
 #include "iso_pc2.h"
+#include "iso_proxy.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
 #include "iso_solver.h"
@@ -30,7 +31,7 @@
 
 typedef struct deform_args {
     iso_cli__source src;
-    const char *out, *pc2, *write_problem;
+    const char *out, *pc2, *write_problem, *against;
     int json, steps, start;
     double tol;
     iso_solver_opts so;
@@ -80,6 +81,26 @@ static int set_restore(const iso_cli__opt *o, void *dst, const char *val, char *
     return 0;
 }
 
+/* --proxy off|auto|N (N >= ISO_PROXY_MIN_BUDGET): the reduced model. */
+static int set_proxy(const iso_cli__opt *o, void *dst, const char *val, char *why, size_t cap)
+{
+    iso_solver_opts *so = dst;
+    (void)o;
+    if (strcmp(val, "off") == 0 || strcmp(val, "auto") == 0) {
+        so->proxy = val[0] == 'o' ? 0 : ISO_SOLVER_PROXY_AUTO;
+        return 0;
+    }
+    char *end;
+    long n = strtol(val, &end, 10);
+    if (*val == '\0' || *end != '\0' || n < ISO_PROXY_MIN_BUDGET || n > 100000000L) {
+        snprintf(why, cap, "expected off, auto or a vertex budget of at least %d",
+                 ISO_PROXY_MIN_BUDGET);
+        return -1;
+    }
+    so->proxy = (int)n;
+    return 0;
+}
+
 static const iso_cli__opt deform_options[] = {
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(deform_args, src, iso_cli__source),
      .table = iso_cli__mesh_options},
@@ -112,6 +133,14 @@ static const iso_cli__opt deform_options[] = {
          "matches TAU/D here), weight MU; default " RESTORE_DEFAULT_TEXT
          "; off: the paper's method exactly (use for paper reproductions)",
      .set = set_restore},
+    {"proxy", ISO_CLI_OPT_CALL, ISO_CLI_AT(deform_args, so, iso_solver_opts), "N|auto|off",
+     .help = "the reduced model: integrate a proxy of the mesh of at most N vertices and let the "
+             "whole mesh follow it (auto: the size a 60 Hz tick allows, none for a mesh the "
+             "method steps in full); default off",
+     .set = set_proxy},
+    {"against", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, against), "MESH",
+     .help = "also report each vertex's distance to MESH (the same mesh deformed otherwise, "
+             "e.g. without --proxy), as a share of the bounding-box diagonal"},
     {"out", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, out), "OUT",
      .help = "write the deformed mesh (format from the extension)"},
     {"pc2", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, pc2), "FILE",
@@ -231,7 +260,37 @@ typedef struct report {
     iso_metrics ours, ref;
     int has_ref;
     iso_cli__run run;
+    int has_against;
+    double against_max, against_rms; /* distance to --against, over the rest diagonal */
 } report;
+
+/* Each vertex's distance from x to the --against mesh's, over the rest
+ * bounding-box diagonal: largest and root mean square. */
+static int measure_against(const char *path, const iso_mesh *m, const double *x, report *r,
+                           iso_err *err)
+{
+    iso_mesh *o = NULL;
+    int rc = iso_mesh_load(path, &o, err);
+    int nv = iso_mesh_vertex_count(m);
+    if (rc == ISO_OK && iso_mesh_vertex_count(o) != nv)
+        rc = iso_err_set(err, ISO_EINVAL, -1, "%s has %d vertices, the problem %d.", path,
+                         iso_mesh_vertex_count(o), nv);
+    if (rc == ISO_OK) {
+        const double *y = iso_mesh_positions(o);
+        double diag = iso_mesh_bbox_diagonal(m), mx = 0, sum = 0;
+        for (int i = 0; i < nv; i++) {
+            double d0 = x[3 * i] - y[3 * i], d1 = x[3 * i + 1] - y[3 * i + 1],
+                   d2 = x[3 * i + 2] - y[3 * i + 2], d2s = d0 * d0 + d1 * d1 + d2 * d2;
+            mx = fmax(mx, sqrt(d2s));
+            sum += d2s;
+        }
+        r->has_against = 1;
+        r->against_max = mx / diag;
+        r->against_rms = sqrt(sum / nv) / diag;
+    }
+    iso_mesh_destroy(o);
+    return rc;
+}
 
 static double ratio(double ref, double ours)
 {
@@ -265,6 +324,7 @@ static void print_json(const deform_args *a, const report *r)
     iso_json_string(&j, "refactor", iso_names_get(iso_refactor_names, a->so.refactor));
     iso_json_int(&j, "factorizations", sst->factorizations);
     iso_json_int(&j, "cg_iterations", sst->cg_iterations);
+    iso_json_int(&j, "factor_solves", sst->factor_solves);
     iso_json_int(&j, "refactors", sst->refactors);
     iso_json_number(&j, "seconds", r->run.seconds);
     iso_json_number(&j, "assembly_seconds", sst->t_assembly);
@@ -277,6 +337,14 @@ static void print_json(const deform_args *a, const report *r)
     iso_json_number(&j, "solve_ms_per_evaluation",
                     iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations));
     iso_json_number(&j, "other_seconds", r->run.other);
+    iso_json_int(&j, "proxy_vertices", r->run.proxy_vertices);
+    iso_json_number(&j, "proxy_seconds", r->run.proxy_s);
+    if (r->run.proxy_vertices > 0)
+        json_measures(&j, "proxy_", &r->run.proxy_metrics);
+    if (r->has_against) {
+        iso_json_number(&j, "against_max_distance", r->against_max);
+        iso_json_number(&j, "against_rms_distance", r->against_rms);
+    }
     if (r->has_ref) {
         json_measures(&j, "reference_", &r->ref);
         size_t n;
@@ -316,9 +384,22 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
     printf("\n");
     printf("steps          %d (RK4 start %d, rejected %d)\n", ist->steps, ist->rk4_steps,
            ist->rejected);
-    printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations\n",
-           ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations);
+    printf("evaluations    %ld: %ld factorizations (%ld forced by slow CG), %ld CG iterations, "
+           "%ld solves with a factor\n",
+           ist->evaluations, sst->factorizations, sst->refactors, sst->cg_iterations,
+           sst->factor_solves);
+    if (r->run.proxy_vertices > 0)
+        printf("reduced model  the method on a proxy of %d vertices (built in %.3f s), the %d of "
+               "the mesh following it\n",
+               r->run.proxy_vertices, r->run.proxy_s, iso_mesh_vertex_count(p->mesh));
+    if (r->run.proxy_vertices > 0)
+        printf("               the proxy's own: metricErr %.6e, maxEdgeStrain %.4g\n",
+               r->run.proxy_metrics.metric_err, r->run.proxy_metrics.max_edge_strain);
     iso_metrics_print(stdout, "", &r->ours);
+    if (r->has_against)
+        printf("against        %s: vertex distance largest %.4g, rms %.4g of the bounding-box "
+               "diagonal\n",
+               a->against, r->against_max, r->against_rms);
     printf("time           %.3f s: assembly %.3f, factorization %.3f, solve %.3f, other %.3f\n",
            r->run.seconds, sst->t_assembly, sst->t_factor, sst->t_solve, r->run.other);
     printf("per evaluation %.3f ms: assembly %.3f, factorization %.3f, solve %.3f\n",
@@ -435,6 +516,8 @@ static int deform_main(int argc, char **argv)
     if (a.out && iso_mesh_save(p.mesh, x, a.out, ISO_MESH_FMT_AUTO, &err) != ISO_OK)
         goto fail;
     iso_metrics_compute(p.mesh, iso_mesh_positions(p.mesh), x, &rep.ours);
+    if (a.against && measure_against(a.against, p.mesh, x, &rep, &err) != ISO_OK)
+        goto fail;
     if (p.ref) {
         rep.has_ref = 1;
         iso_metrics_compute(p.mesh, iso_mesh_positions(p.mesh), iso_mesh_positions(p.ref),

@@ -13,6 +13,7 @@
 #include "iso_integrate.h"
 #include "iso_json.h"
 #include "iso_mesh.h"
+#include "iso_metrics.h"
 #include "iso_names.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -290,14 +291,19 @@ int iso_cli__problem_write(const iso_cli__problem *p, const char *dir, const cha
 typedef struct iso_cli__run {
     iso_integrate_stats ist;
     iso_solver_stats sst;
-    double seconds;      /* solver creation and integration, wall clock */
-    double other;        /* seconds outside assembly, factorization and solve */
-    double factor_flops; /* of one numeric factorization; NAN if unknown */
-    char notice[256];    /* iso_solver_notice(), "" if none */
+    double seconds;            /* solver creation and integration, wall clock */
+    double other;              /* seconds outside assembly, factorization and solve */
+    double factor_flops;       /* of one numeric factorization; NAN if unknown */
+    char notice[256];          /* iso_solver_notice(), "" if none */
+    int proxy_vertices;        /* so->proxy's proxy, 0 if none */
+    iso_metrics proxy_metrics; /* the proxy's own result against its rest pose */
+    double proxy_s;            /* seconds it took to build (in seconds too) */
 } iso_cli__run;
 
 /* Integrates p from its rest pose (copied into x, 3*nv) to its final pose
- * with a fresh solver; x holds the result. Fills *out even on failure. */
+ * with a fresh solver; x holds the result. With so->proxy the method runs
+ * on the proxy (auto: the budget of a 60 Hz tick) and x follows it. Fills
+ * *out even on failure. */
 int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
                          const iso_integrate_opts *io, double *x, iso_cli__run *out, iso_err *err);
 
@@ -316,7 +322,7 @@ double iso_cli__per_evaluation_ms(double seconds, long evaluations);
 typedef struct iso_cli__rt_row {
     char scene[32];
     int builtin, vertices, max_step_evaluations;
-    long ticks, evaluations, cg_iterations, factorizations, handovers;
+    long ticks, evaluations, cg_iterations, factor_solves, factorizations, handovers;
     double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
     double bare_solve_ms;                  /* one solve of the same system, median */
 } iso_cli__rt_row;
@@ -333,6 +339,41 @@ int iso_cli__bench_realtime(const char *name, const char *bench_dir, int resolut
  * open. */
 void iso_cli__bench_realtime_print(const iso_cli__rt_row *rows, int n);
 void iso_cli__bench_realtime_json(iso_json *j, const iso_cli__rt_row *rows, int n);
+
+/* ------------------------------------------------------------------------ */
+/* bench's scale table (bench_scale.c)                                        */
+/* ------------------------------------------------------------------------ */
+
+#define ISO_CLI_SCALE_MESHES 3
+typedef struct iso_cli__scale_mesh {
+    const char *shape;
+    int resolution;
+    int budget; /* the reduced rows' solver.proxy: 0 auto, else at most this many vertices */
+} iso_cli__scale_mesh;
+/* The issue-sized meshes (40k plane, 160k and 1M tentacle), and small ones
+ * for --quick whose reduced rows name a budget (auto keeps them whole). */
+extern const iso_cli__scale_mesh iso_cli__scale_meshes[ISO_CLI_SCALE_MESHES];
+extern const iso_cli__scale_mesh iso_cli__scale_meshes_quick[ISO_CLI_SCALE_MESHES];
+
+typedef struct iso_cli__scale_row {
+    char mesh[48];
+    int vertices, reduced, proxy; /* proxy: the reduced model's vertices, 0 on the whole mesh */
+    long ticks;
+    double ticks_per_s, median_ms, p99_ms; /* ticks timed wake to published */
+    double peak_mb;                        /* the run's process, at its largest */
+    double product_ms;                     /* one product with the whole system's pattern */
+    double build_s;                        /* the proxy's construction */
+    double metric_err;                     /* the whole mesh at the end */
+    char why[256];                         /* "" or why the row did not run */
+} iso_cli__scale_row;
+
+/* Each of the ISO_CLI_SCALE_MESHES meshes on the whole mesh (up to
+ * full_max vertices) and reduced, each in a child process; two rows a mesh
+ * into rows. */
+int iso_cli__bench_scale(const iso_cli__scale_mesh *meshes, int full_max, int tty,
+                         iso_cli__scale_row *rows, int *n, iso_err *err);
+void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n);
+void iso_cli__bench_scale_json(iso_json *j, const iso_cli__scale_row *rows, int n);
 
 /* ------------------------------------------------------------------------ */
 /* Scenes (cli_scene.c)                                                       */

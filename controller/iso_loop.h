@@ -206,9 +206,11 @@ typedef struct iso_loop_summary {
     long coarse;                /* late ticks that hit ISO_LOOP_MAX_SUBSTEPS */
     uint64_t commands_checksum; /* FNV-1a of every device tick's command */
     iso_integrate_stats integ;
-    iso_solver_stats solver;
-    iso_metrics metrics; /* final positions against the rest pose */
-    uint64_t checksum;   /* FNV-1a of the final positions' bytes (0 without a mesh) */
+    iso_solver_stats solver; /* of the proxy's system when there is one */
+    int proxy_vertices;      /* the reduced model's proxy (solver.proxy); 0: none */
+    double proxy_build_s;    /* seconds it took to build */
+    iso_metrics metrics;     /* final positions against the rest pose */
+    uint64_t checksum;       /* FNV-1a of the final positions' bytes (0 without a mesh) */
     double handle_p[ISO_SCENE_MAX_HANDLES][3]; /* final handle centroids (without a mesh:
                                                   the commanded poses' translations) */
     double handle_R[ISO_SCENE_MAX_HANDLES][9];

@@ -58,6 +58,35 @@ static void solver_progress(void *ctx)
     iso_loop__sinks_alive(ctx);
 }
 
+/* The reduced model, when the scene asks for one (or `auto` chooses one
+ * for the mesh's size and the tick rate): the method then steps the
+ * proxy's positions l->y, and l->x follows them (loop_tick.c). */
+static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **reg, double **pos,
+                       iso_err *err)
+{
+    const iso_scene *sc = l->sc;
+    int budget = sc->solver.proxy == ISO_SOLVER_PROXY_AUTO
+                     ? iso_proxy_auto_budget(l->nv, sc->tick_hz)
+                     : sc->solver.proxy;
+    if (budget <= 0 || l->nv - iso_mesh_unreferenced_count(sc->mesh) <= budget)
+        return ISO_OK;
+    double t0 = iso_clock_now();
+    int rc = iso_proxy_create(sc->mesh, &sc->regions, budget, &l->proxy, err);
+    if (rc != ISO_OK)
+        return rc;
+    l->proxy_s = iso_clock_now() - t0;
+    *mesh = iso_proxy_mesh(l->proxy);
+    *reg = iso_proxy_regions(l->proxy);
+    int np = iso_mesh_vertex_count(*mesh);
+    if (!(l->y = malloc((size_t)np * 3 * sizeof *l->y)))
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", np);
+    memcpy(l->y, iso_mesh_positions(*mesh), (size_t)np * 3 * sizeof *l->y);
+    *pos = l->y;
+    fprintf(l->log, "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s)\n",
+            l->cmd, np, l->nv, l->proxy_s);
+    return ISO_OK;
+}
+
 static int build_solver(iso_loop *l, iso_err *err)
 {
     const iso_scene *sc = l->sc;
@@ -66,18 +95,23 @@ static int build_solver(iso_loop *l, iso_err *err)
         so.assembly = (iso_assembly)l->o.assembly;
     so.cl_device = l->o.cl_device;
     so.threads = l->o.threads;
-    int rc = iso_solver_create(sc->mesh, &sc->regions, &so, &l->solver, err);
+    l->x = malloc((size_t)l->nv * 3 * sizeof *l->x);
+    if (!l->x)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", l->nv);
+    memcpy(l->x, iso_mesh_positions(sc->mesh), (size_t)l->nv * 3 * sizeof *l->x);
+    const iso_mesh *mesh = sc->mesh;
+    const iso_regions *reg = &sc->regions;
+    double *pos = l->x;
+    int rc = build_proxy(l, &mesh, &reg, &pos, err);
+    if (rc == ISO_OK)
+        rc = iso_solver_create(mesh, reg, &so, &l->solver, err);
     if (rc != ISO_OK)
         return rc;
     iso_solver_set_progress(l->solver, solver_progress, l);
     const char *notice = iso_solver_notice(l->solver);
     if (notice && notice[0])
         fprintf(l->log, "isoshape %s: %s\n", l->cmd, notice);
-    l->x = malloc((size_t)l->nv * 3 * sizeof *l->x);
-    if (!l->x)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", l->nv);
-    memcpy(l->x, iso_mesh_positions(sc->mesh), (size_t)l->nv * 3 * sizeof *l->x);
-    rc = iso_stepper_create(l->solver, sc->mesh, &sc->regions, l->x, &l->st, err);
+    rc = iso_stepper_create(l->solver, mesh, reg, pos, &l->st, err);
     if (rc == ISO_OK)
         rc = iso_stepper_configure(l->st, (iso_abm_mode)sc->abm_mode, sc->integrate.restore_kappa,
                                    err);
@@ -86,7 +120,7 @@ static int build_solver(iso_loop *l, iso_err *err)
     /* The first factorization before the clock starts, not in the first
      * tick (in --fast too, so that both runs give the same bits). */
     if (rc == ISO_OK)
-        rc = iso_solver_factor_at(l->solver, l->x, err);
+        rc = iso_solver_factor_at(l->solver, pos, err);
     return rc;
 }
 
@@ -235,6 +269,8 @@ void iso_loop_destroy(iso_loop *l)
     iso_loop__stats_deinit(&l->stats);
     free(l->sinks);
     free(l->x);
+    free(l->y);
+    iso_proxy_destroy(l->proxy);
     free(l);
 }
 
@@ -286,6 +322,10 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
         return;
     iso_stepper_stats(l->st, &s->integ);
     iso_solver_get_stats(l->solver, &s->solver);
+    if (l->proxy) {
+        s->proxy_vertices = iso_mesh_vertex_count(iso_proxy_mesh(l->proxy));
+        s->proxy_build_s = l->proxy_s;
+    }
     iso_metrics_compute(l->sc->mesh, iso_mesh_positions(l->sc->mesh), l->x, &s->metrics);
     s->checksum = iso_loop__fnv1a(0xcbf29ce484222325ULL, l->x, (size_t)l->nv * 3 * sizeof *l->x);
     iso_loop__sinks_summary(l, s);

@@ -8,6 +8,7 @@
 #include "iso_dev.h"
 #include "iso_display.h"
 #include "iso_integrate.h"
+#include "iso_proxy.h"
 #include "iso_snapshot.h"
 
 /* ---- statistics (controller/loop_stats.c) --------------------------------- */
@@ -61,6 +62,11 @@ struct iso_loop {
     iso_solver *solver;
     iso_stepper *st;
     double *x; /* current positions, 3*nv */
+    /* The reduced model (solver.proxy), else NULL: the method steps the
+     * proxy's positions y (3 np) and x follows them each tick. */
+    iso_proxy *proxy;
+    double *y;
+    double proxy_s; /* seconds it took to build */
     int nv;
     double diag;                               /* the rest mesh's bounding-box diagonal */
     double centroid[ISO_SCENE_MAX_HANDLES][3]; /* handles' rest centroids */

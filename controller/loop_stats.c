@@ -220,6 +220,11 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
         1e3 * s->solver.t_assembly / ev, 1e3 * s->solver.t_factor / ev,
         1e3 * s->solver.t_solve / ev, s->solver.factorizations, s->solver.cg_iterations,
         s->integ.max_step_cg_iterations, s->solver.cg_capped);
+    if (s->proxy_vertices > 0)
+        fprintf(f,
+                "              reduced model: the method on a proxy of %d vertices (built in "
+                "%.2f s), the %d of the mesh following it\n",
+                s->proxy_vertices, s->proxy_build_s, iso_mesh_vertex_count(sc->mesh));
     if (sc->solver.worker_lag > 0)
         fprintf(f,
                 "              worker lag %d: %ld factors handed over, %.1f s factoring, "
@@ -396,6 +401,9 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_object(j, "solver");
     iso_json_int(j, "factorizations", s->solver.factorizations);
     iso_json_int(j, "cg_iterations", s->solver.cg_iterations);
+    iso_json_int(j, "factor_solves", s->solver.factor_solves);
+    iso_json_int(j, "proxy_vertices", s->proxy_vertices);
+    iso_json_number(j, "proxy_build_s", s->proxy_build_s);
     iso_json_int(j, "cg_capped", s->solver.cg_capped);
     iso_json_number(j, "assembly_s", s->solver.t_assembly);
     iso_json_number(j, "factor_s", s->solver.t_factor);

@@ -85,6 +85,12 @@ static int mesh_step(iso_loop *l, double H, int merged, int covered, const iso_t
         iso_loop__sinks_alive(l); /* progress for the actuators' loop watchdog */
         rc = iso_stepper_step(l->st, H / *steps, tw, i == 0 && restart, err);
     }
+    if (rc == ISO_OK && l->proxy) { /* the full mesh follows the proxy */
+        iso_pose poses[ISO_SCENE_MAX_HANDLES];
+        for (int k = 0; k < l->nh; k++)
+            poses[k] = *iso_stepper_pose(l->st, k);
+        iso_proxy_prolong(l->proxy, l->y, poses, l->x);
+    }
     return rc;
 }
 

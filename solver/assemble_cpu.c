@@ -15,242 +15,28 @@
  *           the restoration edges, one element at a time through the slot
  *           map.
  * Every triangle element's Q1 rides on one of its interior edges (its
- * blocks are all among the edge's), chosen as the OpenCL path chooses. */
+ * blocks are all among the edge's), chosen as the OpenCL path chooses.
+ *
+ * On a large mesh (ISO_SOLVER__CPU_SPLIT_EDGES interior edges or more) the
+ * fits and the edges run in two fixed halves of the plan's order, on the
+ * evaluating thread and on a helper (iso_solver__team): the 40k bumpplane
+ * assembly is 30 ms on one core. The halves add into A's values directly,
+ * except where both add to the same column: there the second half adds
+ * into a side buffer of its own, which is added to A after both end, as is
+ * its right-hand side. So each value is (first half's sum) + (second
+ * half's sum), in an order fixed by the plan, and the bits are the same on
+ * one thread or two. Smaller meshes keep one half and the element-list
+ * sums of before. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "element_internal.h"
-#include "solver_internal.h"
+#include "assemble_cpu_internal.h"
 
 typedef iso_solver__element element;
 #define local_count iso_solver__local_count
 #define LANES ISO_ELEM__LANES
 #define FIT_STRIDE ISO_ELEM__FIT_STRIDE
-
-/* ===== plans ============================================================== */
-
-/* One interior edge, its two ordered pairs, in the edge layout (a, b, p, q)
- * of iso_solver__edge_layout. */
-enum {
-    EDGE_CARRY_I = ISO_ELEM__EDGE_CARRY_I, /* adds Ti's Q1 */
-    EDGE_CARRY_J = ISO_ELEM__EDGE_CARRY_J, /* adds Tj's Q1 */
-    EDGE_RHS = 1 << 8                      /* a free vertex with a handle vertex */
-};
-typedef struct edge_item {
-    int v[4];      /* global vertices a, b, p, q */
-    int ti, tj;    /* the triangles */
-    int flags;     /* bits 0-5: off-diagonal block 01 02 03 12 13 23 goes to A transposed */
-    int stride[4]; /* per vertex: 3 (blocks in its column − 1), or −1 if not free */
-    int pos[10];   /* per block (l <= m, row order): its first value in A, or −1 */
-} edge_item;
-
-struct iso_solver__cpu_plan {
-    int nfit;
-    int *fit_tri;     /* the elements' triangles, ascending */
-    double *fits;     /* FIT_STRIDE per triangle (element_internal.h), 64-byte aligned */
-    double *x4;       /* the positions, 4 doubles a vertex, 32-byte aligned */
-    int ne;           /* interior edges */
-    edge_item *edges; /* in Z-order (sort_edges_z) */
-    int nother;
-    int *other; /* elements outside the edges: lone Q1, restoration */
-};
-
-void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p)
-{
-    if (!p)
-        return;
-    free(p->fit_tri);
-    free(p->fits);
-    free(p->x4);
-    free(p->edges);
-    free(p->other);
-    free(p);
-}
-
-/* The element after pair element i if it is i's mirror, else NULL. */
-static const element *mirror_of(const iso_solver *s, int i)
-{
-    return i + 1 < s->nel && iso_solver__is_mirror(&s->el[i], &s->el[i + 1]) ? &s->el[i + 1] : NULL;
-}
-
-/* Where block (l, m) of edge e goes: pos and the column strides, and the
- * transpose flag; the slot map says where each column of it starts.
- * −1: an internal inconsistency (the slot map is not what build_pattern
- * makes). */
-static int plan_blocks(const iso_solver *s, const element *e, const int map[4], edge_item *it)
-{
-    const int *sl = s->slots + e->slot, nl = 4;
-    int f[4], b = 0, n_off = 0;
-    for (int l = 0; l < 4; l++) {
-        f[l] = s->free_of[it->v[l]];
-        it->stride[l] = -1;
-    }
-    for (int l = 0; l < 4; l++)
-        for (int m = l; m < 4; m++, b++) {
-            int off = l != m ? n_off++ : -1;
-            it->pos[b] = -1;
-            if (f[l] < 0 || f[m] < 0) {
-                if (f[l] >= 0 || f[m] >= 0) {
-                    int c = f[l] < 0 ? l : m;
-                    it->flags |= s->r->kind[it->v[c]] == ISO_HANDLE ? EDGE_RHS : 0;
-                }
-                continue;
-            }
-            int tr = f[l] > f[m], lo = tr ? m : l, hi = tr ? l : m;
-            const int *col = sl + 3 * (nl * map[lo] + map[hi]);
-            int st = col[1] - col[0] - 1;
-            if (col[0] < 0 || col[2] != col[0] + 2 * st + 3 ||
-                (it->stride[hi] >= 0 && it->stride[hi] != st))
-                return -1;
-            it->stride[hi] = st;
-            it->pos[b] = col[0];
-            if (tr)
-                it->flags |= 1 << off;
-        }
-    return 0;
-}
-
-/* Which pair element carries each triangle element's Q1: the first whose
- * Ti or Tj it is, as in the OpenCL path. q1_el[t]: the triangle element of
- * t, −1 once carried. */
-static void plan_carry(int ti, int tj, int *q1_el, edge_item *it)
-{
-    if (q1_el[ti] >= 0) {
-        it->flags |= EDGE_CARRY_I;
-        q1_el[ti] = -1;
-    }
-    if (q1_el[tj] >= 0) {
-        it->flags |= EDGE_CARRY_J;
-        q1_el[tj] = -1;
-    }
-}
-
-/* The edges in Z-order (order.c): cachegrind's simulated 2 MiB cache
- * misses 2.9x less often in the scatter than in element-list order, and
- * the cactus assembly takes 1.18 ms instead of 1.29 (median of 9
- * alternating runs). The order is fixed at the plan, so the sums are still
- * in one order from run to run. */
-static int sort_edges_z(const iso_solver *s, iso_solver__cpu_plan *p)
-{
-    int *a = malloc(((size_t)p->ne + 1) * sizeof *a), *b = malloc(((size_t)p->ne + 1) * sizeof *b);
-    int *order = malloc(((size_t)p->ne + 1) * sizeof *order);
-    edge_item *sorted = malloc(((size_t)p->ne + 1) * sizeof *sorted);
-    int rc = !a || !b || !order || !sorted ? -1 : 0;
-    for (int e = 0; e < p->ne && rc == 0; e++) {
-        a[e] = p->edges[e].v[0];
-        b[e] = p->edges[e].v[1];
-    }
-    if (rc == 0)
-        rc = iso_solver__z_order(s->m, p->ne, a, b, order);
-    if (rc == 0) {
-        for (int e = 0; e < p->ne; e++)
-            sorted[e] = p->edges[order[e]];
-        free(p->edges);
-        p->edges = sorted;
-        sorted = NULL;
-    }
-    free(a);
-    free(b);
-    free(order);
-    free(sorted);
-    return rc;
-}
-
-static int plan_edges(iso_solver *s, iso_solver__cpu_plan *p, int *q1_el, iso_err *err)
-{
-    p->edges = malloc(((size_t)s->nel + 1) * sizeof *p->edges);
-    if (!p->edges)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the C assembly");
-    for (int i = 0; i < s->nel; i++) {
-        const element *e = &s->el[i];
-        if (e->kind != 2)
-            continue;
-        const element *mirror = mirror_of(s, i);
-        if (!mirror) /* build_elements makes both or neither: same four vertices */
-            return iso_err_set(err, ISO_EINVAL, -1, "internal error: pair element %d has no mirror",
-                               i);
-        edge_item *it = &p->edges[p->ne++];
-        int map[4];
-        iso_solver__edge_layout(e, map);
-        for (int l = 0; l < 4; l++)
-            it->v[l] = e->v[map[l]];
-        it->ti = e->tri;
-        it->tj = mirror->tri;
-        it->flags = 0;
-        plan_carry(it->ti, it->tj, q1_el, it);
-        if (plan_blocks(s, e, map, it) != 0)
-            return iso_err_set(err, ISO_EINVAL, -1,
-                               "internal error: the slot map of element %d is not in A's layout",
-                               i);
-        i++;
-    }
-    if (sort_edges_z(s, p) != 0)
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the C assembly");
-    return ISO_OK;
-}
-
-/* The triangles whose fits an evaluation needs: every element's. */
-static int plan_fits(iso_solver *s, iso_solver__cpu_plan *p, iso_err *err)
-{
-    int nt = iso_mesh_triangle_count(s->m);
-    size_t nv4 = ((size_t)s->nv + 2) / 2 * 2; /* whole 64-byte lines */
-    char *used = calloc((size_t)nt + 1, 1);
-    p->fit_tri = malloc(((size_t)nt + 1) * sizeof *p->fit_tri);
-    p->fits = aligned_alloc(64, ((size_t)nt + 1) * FIT_STRIDE * sizeof *p->fits);
-    p->x4 = aligned_alloc(64, nv4 * 4 * sizeof *p->x4);
-    if (!used || !p->fit_tri || !p->fits || !p->x4) {
-        free(used);
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the rigid-fit records");
-    }
-    for (int i = 0; i < s->nel; i++)
-        if (s->el[i].kind == 1 || s->el[i].kind == 2)
-            used[s->el[i].tri] = 1;
-    for (int t = 0; t < nt; t++)
-        if (used[t])
-            p->fit_tri[p->nfit++] = t;
-    free(used);
-    memset(p->x4, 0, nv4 * 4 * sizeof *p->x4);
-    return ISO_OK;
-}
-
-static int make_plan(iso_solver *s, iso_err *err)
-{
-    iso_solver__cpu_plan *p = calloc(1, sizeof *p);
-    int nt = iso_mesh_triangle_count(s->m);
-    int *q1_el = malloc(((size_t)nt + 1) * sizeof *q1_el);
-    if (p)
-        p->other = malloc(((size_t)s->nel + 1) * sizeof *p->other);
-    if (!p || !q1_el || !p->other) {
-        free(q1_el);
-        iso_solver__cpu_plan_destroy(p);
-        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory planning the C assembly");
-    }
-    for (int t = 0; t < nt; t++)
-        q1_el[t] = -1;
-    for (int i = 0; i < s->nel; i++)
-        if (s->el[i].kind == 1)
-            q1_el[s->el[i].tri] = i;
-    int rc = plan_fits(s, p, err);
-    if (rc == ISO_OK)
-        rc = plan_edges(s, p, q1_el, err);
-    if (rc == ISO_OK) {
-        /* A triangle element with no interior edge keeps its own Q1
-         * (iso_solver_create only lets one through with all three vertices
-         * constrained, when it is no element at all, but this costs nothing
-         * to allow); restoration edges follow, in list order. */
-        for (int i = 0; i < s->nel; i++)
-            if ((s->el[i].kind == 1 && q1_el[s->el[i].tri] == i) || s->el[i].kind == 3)
-                p->other[p->nother++] = i;
-    }
-    free(q1_el);
-    if (rc != ISO_OK) {
-        iso_solver__cpu_plan_destroy(p);
-        return rc;
-    }
-    s->cpu = p;
-    return ISO_OK;
-}
 
 /* ===== fits =============================================================== */
 
@@ -276,19 +62,17 @@ static int report_first_degenerate(iso_solver *s, iso_err *err)
     return iso_err_set(err, ISO_ENUMERIC, -1, "%s: a rigid fit is singular", iso_mesh_origin(s->m));
 }
 
-/* Every planned triangle's fit record at positions x (copied into x4
- * first); nonzero if one of them is singular. A short batch repeats its
- * first triangle. */
-static int compute_fits(iso_solver *s, const double *x)
+/* The fit records of planned triangles [begin, end) at the positions in
+ * x4; nonzero if one of them is singular. A short batch repeats its first
+ * triangle. */
+static int compute_fits(iso_solver *s, int begin, int end)
 {
     iso_solver__cpu_plan *p = s->cpu;
     const int *tri = iso_mesh_triangles(s->m);
-    for (int i = 0; i < s->nv; i++)
-        memcpy(p->x4 + 4 * (size_t)i, x + 3 * (size_t)i, 3 * sizeof *x);
     iso_elem__fit_batch b = {.x4 = p->x4, .fits = p->fits};
     int bad = 0;
-    for (int i0 = 0; i0 < p->nfit; i0 += LANES) {
-        int n = p->nfit - i0 < LANES ? p->nfit - i0 : LANES;
+    for (int i0 = begin; i0 < end; i0 += LANES) {
+        int n = end - i0 < LANES ? end - i0 : LANES;
         for (int k = 0; k < LANES; k++) {
             int t = p->fit_tri[i0 + (k < n ? k : 0)];
             for (int c = 0; c < 3; c++)
@@ -331,17 +115,19 @@ static inline void add_off(double *Ax, int pos, int st, const iso_elem__vd *v, i
     c2[2] += v[8][k];
 }
 
-/* Adds lane k's blocks of edge `it` into A's values; a block of a
- * constrained vertex has no position. Written out block by block, so that
- * every offset into q is a constant. */
-static void add_edge(const edge_item *it, const iso_elem__vd *q, int k, double *Ax)
+/* Adds lane k's blocks of edge `it` into A's values, or the side buffer
+ * for the blocks the plan sends there; a block of a constrained vertex has
+ * no position. Written out block by block, so that every offset into q is
+ * a constant. */
+static void add_edge(const edge_item *it, const iso_elem__vd *q, int k, double *Ax, double *side)
 {
+#define BASE(b) (it->side >> (b)&1 ? side : Ax)
 #define DIAG(b, l)                                                                                 \
     if (it->pos[b] >= 0)                                                                           \
-    add_diag(Ax, it->pos[b], it->stride[l], q + iso_elem__edge_block(l, l), k)
+    add_diag(BASE(b), it->pos[b], it->stride[l], q + iso_elem__edge_block(l, l), k)
 #define OFF(b, o, l, m)                                                                            \
     if (it->pos[b] >= 0)                                                                           \
-    add_off(Ax, it->pos[b], it->stride[it->flags >> (o)&1 ? (l) : (m)],                            \
+    add_off(BASE(b), it->pos[b], it->stride[it->flags >> (o)&1 ? (l) : (m)],                       \
             q + iso_elem__edge_block(l, m), k)
     DIAG(0, 0);
     OFF(1, 0, 0, 1);
@@ -353,6 +139,7 @@ static void add_edge(const edge_item *it, const iso_elem__vd *q, int k, double *
     DIAG(7, 2);
     OFF(8, 5, 2, 3);
     DIAG(9, 3);
+#undef BASE
 #undef DIAG
 #undef OFF
 }
@@ -385,12 +172,14 @@ static void add_edge_rhs(const iso_solver *s, const edge_item *it, const iso_ele
         }
 }
 
-static void assemble_edges(iso_solver *s, const double *vc, double *Ax, double *rhs)
+/* Edges [begin, end) of the plan into Ax (and side) and rhs. */
+static void assemble_edges(iso_solver *s, int begin, int end, const double *vc, double *Ax,
+                           double *side, double *rhs)
 {
     const iso_solver__cpu_plan *p = s->cpu;
     iso_elem__edge_batch b = {.x4 = p->x4, .fits = p->fits, .omega = s->o.omega};
-    for (int e0 = 0; e0 < p->ne; e0 += LANES) {
-        int n = p->ne - e0 < LANES ? p->ne - e0 : LANES;
+    for (int e0 = begin; e0 < end; e0 += LANES) {
+        int n = end - e0 < LANES ? end - e0 : LANES;
         for (int k = 0; k < LANES; k++) { /* a short batch repeats its first */
             const edge_item *it = &p->edges[e0 + (k < n ? k : 0)];
             for (int l = 0; l < 4; l++)
@@ -402,7 +191,7 @@ static void assemble_edges(iso_solver *s, const double *vc, double *Ax, double *
         iso_elem__edges(&b);
         for (int k = 0; k < n; k++) {
             const edge_item *it = &p->edges[e0 + k];
-            add_edge(it, b.q, k, Ax);
+            add_edge(it, b.q, k, Ax, side);
             if (it->flags & EDGE_RHS)
                 add_edge_rhs(s, it, b.q, k, vc, rhs);
         }
@@ -559,22 +348,84 @@ static int assemble_others(iso_solver *s, const double *x, const double *vc, int
     return 0;
 }
 
+/* ===== two halves ========================================================= */
+
+typedef struct halves_job {
+    iso_solver *s;
+    const double *vc;
+    int phase; /* 0: fits, 1: edges */
+} halves_job;
+
+/* One half of a phase (iso_solver__team_run): the first half into A and
+ * the right-hand side, the second into them, its side buffer and its own
+ * right-hand side. */
+static void run_half(void *ctx, int half)
+{
+    const halves_job *j = ctx;
+    iso_solver *s = j->s;
+    iso_solver__cpu_plan *p = s->cpu;
+    if (j->phase == 0) {
+        p->bad[half] =
+            half == 0 ? compute_fits(s, 0, p->fit_split) : compute_fits(s, p->fit_split, p->nfit);
+        return;
+    }
+    if (half == 0) {
+        assemble_edges(s, 0, p->edge_split, j->vc, s->A->x, NULL, s->B->x);
+        return;
+    }
+    memset(p->side, 0, p->nside * sizeof *p->side);
+    memset(p->rhs1, 0, 3 * (size_t)s->nf * sizeof *p->rhs1);
+    assemble_edges(s, p->edge_split, p->ne, j->vc, s->A->x, p->side, p->rhs1);
+}
+
+/* The second half's sums into A's shared columns and the right-hand side. */
+static void merge_halves(iso_solver *s, double *Ax, double *rhs)
+{
+    const iso_solver__cpu_plan *p = s->cpu;
+    const int *Ap = s->A->p;
+    for (int k = 0; k < p->nshared; k++) {
+        int f = p->shared[k], len = Ap[3 * f + 3] - Ap[3 * f];
+        double *a = Ax + Ap[3 * f];
+        const double *b = p->side + p->side_off[f];
+        for (int i = 0; i < len; i++)
+            a[i] += b[i];
+    }
+    for (int i = 0; i < 3 * s->nf; i++)
+        rhs[i] += p->rhs1[i];
+}
+
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err)
 {
     if (!s->cpu) {
-        int rc = make_plan(s, err);
+        int rc = iso_solver__cpu_plan_make(s, err);
         if (rc != ISO_OK)
             return rc;
     }
-    if (compute_fits(s, x) != 0)
-        return report_first_degenerate(s, err);
+    iso_solver__cpu_plan *p = s->cpu;
+    for (int i = 0; i < s->nv; i++)
+        memcpy(p->x4 + 4 * (size_t)i, x + 3 * (size_t)i, 3 * sizeof *x);
     double *Ax = s->A->x, *rhs = s->B->x;
     int n3 = 3 * s->nf;
+    if (p->halves == 1) {
+        if (compute_fits(s, 0, p->nfit) != 0)
+            return report_first_degenerate(s, err);
+    } else {
+        halves_job job = {s, vc, 0};
+        iso_solver__team_run(p->team, run_half, &job);
+        if (p->bad[0] || p->bad[1])
+            return report_first_degenerate(s, err);
+    }
     memset(Ax, 0, (size_t)((int *)s->A->p)[n3] * sizeof(double));
     memset(rhs, 0, (size_t)n3 * sizeof(double));
     if (assemble_others(s, x, vc, 0, Ax, rhs) != 0) /* triangles precede pairs */
         return report_first_degenerate(s, err);
-    assemble_edges(s, vc, Ax, rhs);
+    if (p->halves == 1) {
+        assemble_edges(s, 0, p->ne, vc, Ax, NULL, rhs);
+    } else {
+        halves_job job = {s, vc, 1};
+        iso_solver__team_run(p->team, run_half, &job);
+        merge_halves(s, Ax, rhs);
+    }
     assemble_others(s, x, vc, 1, Ax, rhs); /* restoration edges follow them */
     return ISO_OK;
 }

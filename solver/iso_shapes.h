@@ -14,6 +14,11 @@
  *   cactus     a trunk with two L-shaped arms, a closed genus-0 surface
  *              (the boundary of a union of boxes, smoothed); 70° bend about
  *              −x through the middle of the trunk.
+ *   tentacle   a tapered capsule with eight spiral ridges, closed (a
+ *              geodesic sphere mapped onto it: triangles of nearly equal
+ *              area at any size, 2k to 1M vertices); 60° turn of the top
+ *              cap about (1, 0, 1) through the middle, a bend and a twist
+ *              at once. The shape to test large meshes on.
  *
  * An iso_shape is a caller-owned struct (init/deinit). Its arrays go
  * straight to iso_mesh_create(), and iso_shape_regions() turns its labels
@@ -47,6 +52,8 @@ ISO_API const char *const *iso_shape_names(void);
  *   cylinder   vertices around the circumference (default 40, 8..256)
  *   bumpplane  vertices along each side          (default 61, 5..401)
  *   cactus     cells per design unit              (default 2, 1..8)
+ *   tentacle   geodesic frequency n: 10 n² + 2 vertices (default 24, 4..320;
+ *              100: 100,002 vertices, 128: 163,842, 317: 1,004,892)
  * On failure returns a negative ISO_E* code (ISO_EINVAL names the unknown
  * shape or the out-of-range resolution), leaves *out empty and fills err.
  * The caller releases *out with iso_shape_deinit(). */

@@ -175,7 +175,17 @@ typedef struct iso_solver_opts {
      * 10.7, bar 11.4 against 21.2 (solver/linsolve.c). 0: the matrix of the
      * evaluation that gives the job. */
     int worker_ahead;
+    /* The reduced model (iso_proxy.h), for the program that builds the
+     * solver: 0 (default) the method on the whole mesh; N ≥
+     * ISO_PROXY_MIN_BUDGET (200) the method on a proxy of at most N
+     * vertices that the whole mesh follows; ISO_SOLVER_PROXY_AUTO the
+     * budget iso_proxy_auto_budget chooses for the mesh's size and the
+     * tick rate (none where the method fits the tick). The solver steps the
+     * mesh it is given and reads no further than the range check. */
+    int proxy;
 } iso_solver_opts;
+
+#define ISO_SOLVER_PROXY_AUTO (-1)
 
 #define ISO_SOLVER_WORKER_LAG_MAX 100
 
@@ -303,6 +313,12 @@ typedef struct iso_solver_stats {
      * factorizations and t_factor count the evaluating thread's only. */
     long handovers;
     double t_wait, t_worker;
+    /* Solves with a factor on the evaluating thread: one per direct solve,
+     * and per PCG solve one for its start and one per iteration that did
+     * not end on the residual alone. At 40k vertices each streams the
+     * whole factor (246 MB), several times what an assembly costs, so it is
+     * the unit a tick's cost is counted in. */
+    long factor_solves;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 

@@ -153,6 +153,7 @@ static int factorize(iso_solver *s, iso_err *err)
  * (supersolve_internal.h says why), else CHOLMOD's, reusing its workspace. */
 static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_err *err)
 {
+    s->st.factor_solves++;
     if (s->super_work) {
         if (!*Z && !(*Z = cholmod_zeros(s->L->n, 1, CHOLMOD_REAL, &s->c)))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the solution");

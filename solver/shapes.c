@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "iso_geom.h"
+#include "shapes_internal.h"
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -94,7 +95,7 @@ static void builder_free(builder *b)
 /* ------------------------------------------------------------------------ */
 
 /* M = rotation by `deg` about the unit axis u through point c. */
-static void rotation_about(double M[16], const double u[3], double deg, const double c[3])
+void iso_shape__rotation_about(double M[16], const double u[3], double deg, const double c[3])
 {
     double a = deg * M_PI / 180.0, cs = cos(a), sn = sin(a), k = 1.0 - cs;
     double R[9] = {
@@ -397,7 +398,7 @@ static int build_bar(int res, builder *b, iso_shape *out)
         return ISO_ENOMEM;
     label_by_z(b, 0.06 * length + 1e-9, 0.945 * length - 1e-9, out->kind);
     const double axis[3] = {0, 0, 1}, centre[3] = {0, 0, 0};
-    rotation_about(out->M, axis, 135.0, centre);
+    iso_shape__rotation_about(out->M, axis, 135.0, centre);
     return ISO_OK;
 }
 
@@ -501,7 +502,7 @@ static int build_cylinder(int res, builder *b, iso_shape *out)
         return ISO_ENOMEM;
     label_by_z(b, 0.042 * height, (1.0 - 0.042) * height, out->kind);
     const double axis[3] = {0, -1, 0}, centre[3] = {0, 0, 0.5 * height};
-    rotation_about(out->M, axis, 120.0, centre);
+    iso_shape__rotation_about(out->M, axis, 120.0, centre);
     return ISO_OK;
 }
 
@@ -595,8 +596,22 @@ static int build_cactus(int res, builder *b, iso_shape *out)
         return ISO_ENOMEM;
     label_by_z(b, z0 + 0.10 * 0.82, z0 + 0.88 * 0.82, out->kind);
     const double axis[3] = {-1, 0, 0}, centre[3] = {0.5, 0.5, z0 + 0.5 * 0.82};
-    rotation_about(out->M, axis, 70.0, centre);
+    iso_shape__rotation_about(out->M, axis, 70.0, centre);
     return ISO_OK;
+}
+
+/* The tentacle builds its arrays itself (shapes_tentacle.c); the builder
+ * takes them, so that a failure frees them as any shape's. */
+static int build_tentacle(int res, builder *b, iso_shape *out)
+{
+    int rc = iso_shape__tentacle(res, out);
+    b->x = out->x;
+    b->tri = out->tri;
+    b->nv = b->cap_v = out->nv;
+    b->nt = b->cap_t = out->nt;
+    out->x = NULL;
+    out->tri = NULL;
+    return rc;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -615,12 +630,14 @@ static const shape_def shapes[] = {
     {"cylinder", 40, 8, 256, "vertices around the circumference", build_cylinder},
     {"bumpplane", 61, 5, 401, "vertices along each side", build_bumpplane},
     {"cactus", 2, 1, 8, "cells per design unit", build_cactus},
+    {"tentacle", 24, 4, 320, "geodesic frequency: 10 n^2 + 2 vertices", build_tentacle},
 };
 #define N_SHAPES ((int)(sizeof shapes / sizeof shapes[0]))
 
 const char *const *iso_shape_names(void)
 {
-    static const char *const names[N_SHAPES + 1] = {"bar", "cylinder", "bumpplane", "cactus", NULL};
+    static const char *const names[N_SHAPES + 1] = {"bar",    "cylinder", "bumpplane",
+                                                    "cactus", "tentacle", NULL};
     return names;
 }
 
@@ -636,7 +653,8 @@ int iso_shape_init(iso_shape *out, const char *name, int resolution, iso_err *er
     if (!d)
         return iso_err_set(
             err, ISO_EINVAL, -1,
-            "Unknown shape '%s': the built-in shapes are bar, cylinder, bumpplane and cactus.",
+            "Unknown shape '%s': the built-in shapes are bar, cylinder, bumpplane, cactus and "
+            "tentacle.",
             name ? name : "(null)");
     int res = resolution ? resolution : d->def_res;
     if (res < d->min_res || res > d->max_res)

@@ -3,10 +3,11 @@
  * solver's own sources and white-box tests include it.
  *
  * Assembly backends (the C path in assemble_cpu.c, the OpenCL path in
- * assemble_cl.c) fill s->A's values (upper triangle of A_ff) and s->B (the
- * right-hand side −A_fc v_c, plus the restoration term's linear part) from
- * the current positions. They must agree to rounding, and each must be
- * bit-identical from run to run (replays depend on it). */
+ * assemble_cl.c with its plan in assemble_plan.c) fill s->A's values
+ * (upper triangle of A_ff) and s->B (the right-hand side −A_fc v_c, plus
+ * the restoration term's linear part) from the current positions. They
+ * must agree to rounding, and each must be bit-identical from run to run
+ * (replays depend on it). */
 #ifndef ISO_SOLVER_INTERNAL_H
 #define ISO_SOLVER_INTERNAL_H
 
@@ -88,15 +89,17 @@ struct iso_solver {
     int have_factor;                       /* L holds a numeric factor of some earlier A */
     double factor_flops;                   /* CHOLMOD's Common->fl after analysis */
     struct iso_solver__cpu_plan *cpu;      /* C path's plans (assemble_cpu.c), made at first use */
-    int last_cg_iters; /* iterations of the previous PCG solve, −1 after a direct one */
-    int cg_failures;   /* consecutive PCG attempts at factor age 1 that failed */
-    int cg_skip;       /* evaluations left before PCG is tried again */
-    int factor_age;    /* evaluations since L was computed (this one included) */
-    int reuse_horizon; /* oldest factor age PCG is tried at; 0: not learned yet */
-    int horizon_probe; /* factorizations left until the horizon is probed */
-    double cg_target;  /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
-    int budget_on;     /* a shared iteration budget is open */
-    int budget_used;   /* its iterations spent since it opened or since a factorization */
+    int cpu_split_edges; /* interior edges from which the C path runs in two halves */
+    int cpu_helper;      /* the two halves may run on a helper thread (else both here) */
+    int last_cg_iters;   /* iterations of the previous PCG solve, −1 after a direct one */
+    int cg_failures;     /* consecutive PCG attempts at factor age 1 that failed */
+    int cg_skip;         /* evaluations left before PCG is tried again */
+    int factor_age;      /* evaluations since L was computed (this one included) */
+    int reuse_horizon;   /* oldest factor age PCG is tried at; 0: not learned yet */
+    int horizon_probe;   /* factorizations left until the horizon is probed */
+    double cg_target;    /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
+    int budget_on;       /* a shared iteration budget is open */
+    int budget_used;     /* its iterations spent since it opened or since a factorization */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
     /* The rotated preconditioner (rotate.c), adaptive with
      * ISO_PRECOND_ROTATED only, else NULL: the rings, L's frame, this
@@ -128,6 +131,19 @@ static inline void iso_solver__progress(const struct iso_solver *s)
     if (s->progress)
         s->progress(s->progress_ctx);
 }
+
+/* Creation's checks (constraints.c): the regions fit the mesh, and every
+ * part of the mesh with free vertices is pinned (iso_solver.h). ISO_OK, or
+ * ISO_EINVAL / ISO_ECONSTRAINT with a message naming the vertex. */
+int iso_solver__check_regions(const iso_mesh *m, const iso_regions *r, iso_err *err);
+int iso_solver__check_constraints(const iso_mesh *m, const iso_regions *r, iso_err *err);
+
+/* The system's structure (pattern.c), once free_of and vert_of exist: the
+ * element list (s->el, s->nel; with restoration the rest lengths and edge
+ * weights), A's pattern (s->A, values undefined), the slot map, the
+ * ordering and CHOLMOD's analysis (s->L, s->B, the triangular solves'
+ * workspace, nnz and flops in the stats). */
+int iso_solver__build_system(iso_solver *s, iso_err *err);
 
 /* Applies opts.threads at creation (after the analysis, which knows the
  * factorization's flops) and undoes its process-wide part at destroy. */
@@ -190,8 +206,22 @@ int iso_solver__worker_finish(iso_solver__worker *w, cholmod_factor **L, iso_sol
  * when out of memory. */
 int iso_solver__z_order(const iso_mesh *m, int n, const int *a, const int *b, int *order);
 
+/* Two halves of a job on two threads (team.c): run calls fn(ctx, 0) on the
+ * calling thread and fn(ctx, 1) on the team's helper, and returns when both
+ * have returned; without a helper (create could not start one) it calls
+ * both on the caller, in that order. create: NULL when out of memory. The
+ * helper blocks all signals and runs under the default scheduling policy. */
+typedef struct iso_solver__team iso_solver__team;
+iso_solver__team *iso_solver__team_create(void);
+void iso_solver__team_destroy(iso_solver__team *t); /* NULL is a no-op */
+void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), void *ctx);
+int iso_solver__team_threads(const iso_solver__team *t); /* 2 with a helper, else 1 */
+
 /* The C assembly path. Its plans are made at the first call and freed by
- * iso_solver__cpu_plan_destroy (NULL is a no-op). */
+ * iso_solver__cpu_plan_destroy (NULL is a no-op). From this many interior
+ * edges on (a mesh of about 20k vertices), it runs in two halves on two
+ * threads (assemble_cpu.c says how the bits stay one thread's). */
+#define ISO_SOLVER__CPU_SPLIT_EDGES 60000
 typedef struct iso_solver__cpu_plan iso_solver__cpu_plan;
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
 void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p);

@@ -13,6 +13,9 @@
  *   handles at the `fast` replay's poses to 1e-9 of the diagonal, with the
  *   mesh's largest edge strain within 1.5× of the `fast` run's.
  *
+ * - The reduced model (solver.proxy): handles exact on the whole mesh, fixed
+ *   vertices at rest bit for bit, the same bits run to run.
+ *
  * - CG's tolerance follows the integrator (iso_integrate.h, cg_share): on
  *   the cactus scene (config/scenes/cactus.yaml: the benchmark cactus when
  *   this test finds it, else the scene's own fallback, the built-in cactus),
@@ -299,6 +302,69 @@ static void worker_gives_the_same_bits_in_real_time(void **state)
     iso_scene_destroy(sc);
 }
 
+/* ---- the reduced model in the loop -------------------------------------------- */
+
+/* solver.proxy N: the loop steps a proxy of at most N vertices and the whole
+ * mesh follows it; the handles are still placed exactly on the whole mesh
+ * (at the .def pose, as without a proxy), fixed vertices stay at rest bit
+ * for bit, the free ones move, and a second run gives the same bits (a
+ * replay builds the same proxy). */
+static void the_reduced_model_follows_exactly_where_it_must(void **state)
+{
+    (void)state;
+    iso_scene *sc = scene_text("name: t\n"
+                               "mesh: {shape: cactus, resolution: 1}\n"
+                               "regions:\n  sel: builtin\n  handles:\n    - name: top\n"
+                               "      driver: {screw: {def: builtin, duration: 1.0}}\n"
+                               "solver: {assembly: cpu, refactor: adaptive, worker_lag: 2, "
+                               "proxy: 250}\n"
+                               "integrator: {abm: pec}\n"
+                               "tick_hz: 60\n");
+    iso_loop_opts o = fast_opts();
+    run_out a, b;
+    iso_loop *l = NULL;
+    iso_err e;
+    iso_err_clear(&e);
+    if (iso_loop_create(sc, &o, &l, &e) != ISO_OK)
+        fail_msg("loop: %s", e.msg);
+    iso_loop_summary s;
+    iso_loop_get_summary(l, &s);
+    iso_loop_destroy(l);
+    int nv = iso_mesh_vertex_count(sc->mesh);
+    assert_true(s.proxy_vertices >= 200 && s.proxy_vertices <= 250 && s.proxy_vertices < nv);
+    run(sc, &o, &a);
+    run(sc, &o, &b);
+    assert_int_equal(a.ticks, 60);
+    const double *X = iso_mesh_positions(sc->mesh), *M = sc->shape_M;
+    double handle = 0, fixed = 0, moved = 0, diag = iso_mesh_bbox_diagonal(sc->mesh);
+    for (int v = 0; v < nv; v++)
+        for (int i = 0; i < 3; i++) {
+            double d = fabs(a.x[3 * v + i] - X[3 * v + i]);
+            if (sc->regions.kind[v] == ISO_FIXED) {
+                fixed = fmax(fixed, d);
+            } else if (sc->regions.kind[v] == ISO_HANDLE) {
+                double y = M[4 * i + 3];
+                for (int j = 0; j < 3; j++)
+                    y += M[4 * i + j] * X[3 * v + j];
+                handle = fmax(handle, fabs(y - a.x[3 * v + i]));
+            } else {
+                moved = fmax(moved, d);
+            }
+        }
+    printf("reduced model: a proxy of %d vertices for %d; handles at the .def pose to %.3g of "
+           "the diagonal, fixed vertices moved %.3g, free ones up to %.3g\n",
+           s.proxy_vertices, nv, handle / diag, fixed, moved / diag);
+    assert_true(handle <= 1e-12 * diag);
+    assert_true(fixed == 0);
+    assert_true(moved > 1e-3 * diag);
+    size_t n = 3 * (size_t)nv;
+    if (memcmp(a.x, b.x, n * sizeof *a.x) != 0)
+        fail_msg("a second run differs by %g", max_diff3(a.x, b.x, n));
+    free(a.x);
+    free(b.x);
+    iso_scene_destroy(sc);
+}
+
 /* ---- restoration in the loop -------------------------------------------------- */
 
 /* The built-in bar's twist at 60 Hz under PEC, the shipped scenes' mode:
@@ -527,6 +593,7 @@ int main(void)
         cmocka_unit_test(restoration_in_the_loop_is_no_worse),
         cmocka_unit_test(cg_tolerance_follows_the_integrator),
         cmocka_unit_test(worker_gives_the_same_bits_in_real_time),
+        cmocka_unit_test(the_reduced_model_follows_exactly_where_it_must),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -644,6 +644,11 @@ static void factor_reuse_matches_refactoring(void **state)
                          run == 3 ? "rotated" : "plain", diff, ref);
         }
     assert_int_equal(st[0].factorizations, evals);
+    assert_int_equal(st[0].factor_solves, evals); /* one direct solve each */
+    /* A PCG solve uses the factor for its start and each iteration at most,
+     * a direct one once. */
+    assert_true(st[1].factor_solves > st[1].factorizations);
+    assert_true(st[1].factor_solves <= evals + st[1].cg_iterations + st[1].factorizations);
     assert_true(st[1].factorizations < evals);
     assert_true(st[1].factorizations > 1);
     assert_true(st[1].cg_iterations > 0);

@@ -3,10 +3,13 @@
  * C path and the OpenCL path alternating so that both see the same load on
  * a shared machine: the assembly figures of docs/performance.md.
  *
- *   assembly_bench PREFIX [REPS [cpu|opencl|both [cold]]]
+ *   assembly_bench PREFIX [REPS [cpu|opencl|both|halves [cold]]]
  *
  * PREFIX names the problem without extension (PREFIX.off and PREFIX.sel),
- * e.g. ../shared/data/benchmark/03-cactus-bend/cactus. REPS defaults to 31.
+ * e.g. ../shared/data/benchmark/03-cactus-bend/cactus, or a built-in shape
+ * as shape:NAME:RESOLUTION. REPS defaults to 31. `halves` times the C path
+ * on one thread (never split) against the C path as the solver runs it (in
+ * two halves on two threads from ISO_SOLVER__CPU_SPLIT_EDGES edges on).
  * Positions are the rest pose (the assembly's cost does not depend on
  * them), the handle moves with a fixed twist. Prints one line per path:
  * the median and the least wall time of one assembly, and the median CPU
@@ -25,6 +28,7 @@
 #include "iso_clock.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
+#include "iso_shapes.h"
 #include "iso_solver.h"
 
 #include "../../solver/solver_internal.h"
@@ -54,7 +58,7 @@ static int assemble(iso_solver *s, const double *x, const double *vc, iso_err *e
 int main(int argc, char **argv)
 {
     if (argc < 2 || argc > 5) {
-        fprintf(stderr, "usage: assembly_bench PREFIX [REPS [cpu|opencl|both [cold]]]\n");
+        fprintf(stderr, "usage: assembly_bench PREFIX [REPS [cpu|opencl|both|halves [cold]]]\n");
         return 2;
     }
     int reps = argc > 2 ? atoi(argv[2]) : 31;
@@ -63,6 +67,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "assembly_bench: REPS must be in 1..%d\n", MAX_REPS);
         return 2;
     }
+    int halves = strcmp(which, "halves") == 0;
     int want[2] = {strcmp(which, "opencl") != 0, strcmp(which, "cpu") != 0};
     int cold = argc > 4 && strcmp(argv[4], "cold") == 0;
     size_t flush_n = cold ? (64u << 20) / sizeof(double) : 0;
@@ -77,13 +82,27 @@ int main(int argc, char **argv)
     double *vc = NULL, *t[2] = {NULL, NULL}, *c[2] = {NULL, NULL};
     int status = 1;
 
-    snprintf(path, sizeof path, "%s.off", argv[1]);
-    if (iso_mesh_load(path, &m, &err) != ISO_OK)
-        goto fail;
+    char name[64];
+    int res = 0;
+    if (sscanf(argv[1], "shape:%63[^:]:%d", name, &res) == 2) {
+        iso_shape sh;
+        if (iso_shape_init(&sh, name, res, &err) != ISO_OK)
+            goto fail;
+        int rc = iso_mesh_create(sh.nv, sh.x, sh.nt, sh.tri, name, &m, &err);
+        if (rc == ISO_OK)
+            rc = iso_shape_regions(&sh, &r, &err);
+        iso_shape_deinit(&sh);
+        if (rc != ISO_OK)
+            goto fail;
+    } else {
+        snprintf(path, sizeof path, "%s.off", argv[1]);
+        if (iso_mesh_load(path, &m, &err) != ISO_OK)
+            goto fail;
+        snprintf(path, sizeof path, "%s.sel", argv[1]);
+        if (iso_sel_load(path, iso_mesh_vertex_count(m), &r, &err) != ISO_OK)
+            goto fail;
+    }
     int nv = iso_mesh_vertex_count(m);
-    snprintf(path, sizeof path, "%s.sel", argv[1]);
-    if (iso_sel_load(path, nv, &r, &err) != ISO_OK)
-        goto fail;
     const double *x = iso_mesh_positions(m);
     vc = calloc(3 * (size_t)nv, sizeof *vc);
     t[0] = malloc(MAX_REPS * sizeof(double));
@@ -106,10 +125,12 @@ int main(int argc, char **argv)
             continue;
         iso_solver_opts o;
         iso_solver_opts_default(&o);
-        o.assembly = k ? ISO_ASSEMBLY_OPENCL : ISO_ASSEMBLY_CPU;
+        o.assembly = k && !halves ? ISO_ASSEMBLY_OPENCL : ISO_ASSEMBLY_CPU;
         if (iso_solver_create(m, &r, &o, &s[k], &err) != ISO_OK)
             goto fail;
-        if (k && !s[k]->cl) {
+        if (halves && k == 0)
+            s[k]->cpu_split_edges = 1 << 30; /* never: one thread */
+        if (k && !halves && !s[k]->cl) {
             fprintf(stderr, "assembly_bench: %s\n", iso_solver_notice(s[k]));
             goto done;
         }
@@ -138,7 +159,10 @@ int main(int argc, char **argv)
         qsort(t[k], (size_t)reps, sizeof(double), cmp_double);
         qsort(c[k], (size_t)reps, sizeof(double), cmp_double);
         printf("%-6s median %.3f ms  min %.3f ms  cpu %.3f ms  (%d reps, %d vertices, %d free)\n",
-               k ? "opencl" : "cpu", t[k][reps / 2], t[k][0], c[k][reps / 2], reps, nv, s[k]->nf);
+               halves ? (k ? "cpu/2" : "cpu/1")
+               : k    ? "opencl"
+                      : "cpu",
+               t[k][reps / 2], t[k][0], c[k][reps / 2], reps, nv, s[k]->nf);
     }
     status = 0;
     goto done;

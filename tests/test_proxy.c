@@ -1,0 +1,313 @@
+/* tests/test_proxy.c -- the reduced model (solver/iso_proxy.h):
+ *   (a) the proxy of a closed shape and of a plate: at most the budget and
+ *       near it, a valid mesh of the same topology (Euler characteristic,
+ *       boundary kept), its vertices mesh vertices in the same regions,
+ *       every region present, and a problem the solver accepts;
+ *   (b) the prolongation reproduces the rest pose and any rigid motion of
+ *       the proxy (to rounding), and places handle and fixed vertices of
+ *       the full mesh exactly (the motion test makes the fixed region a
+ *       handle, since a fixed vertex does not move);
+ *   (c) it converges: under a smooth bend of the proxy the full mesh's
+ *       distance from the same bend of itself shrinks as the budget grows;
+ *   (d) the same mesh and budget give the same proxy and the same positions,
+ *       bit for bit;
+ *   (e) bad budgets are refused with a reason. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "iso_geom.h"
+#include "iso_mesh.h"
+#include "iso_proxy.h"
+#include "iso_regions.h"
+#include "iso_shapes.h"
+#include "iso_solver.h"
+#include "testutil.h"
+
+typedef struct problem {
+    iso_shape s;
+    iso_mesh *m;
+    iso_regions r;
+} problem;
+
+static void problem_init(problem *p, const char *name, int res)
+{
+    iso_err err;
+    assert_int_equal(iso_shape_init(&p->s, name, res, &err), ISO_OK);
+    assert_int_equal(iso_mesh_create(p->s.nv, p->s.x, p->s.nt, p->s.tri, name, &p->m, &err),
+                     ISO_OK);
+    assert_int_equal(iso_shape_regions(&p->s, &p->r, &err), ISO_OK);
+}
+
+static void problem_deinit(problem *p)
+{
+    iso_regions_deinit(&p->r);
+    iso_mesh_destroy(p->m);
+    iso_shape_deinit(&p->s);
+}
+
+static int boundary_edges(const iso_mesh *m)
+{
+    int n = 0, ne = iso_mesh_edge_count(m);
+    const int *et = iso_mesh_edge_triangles(m);
+    for (int e = 0; e < ne; e++)
+        n += et[2 * e + 1] < 0;
+    return n;
+}
+
+/* (a) for one problem and budget; returns the proxy. */
+static iso_proxy *check_proxy(const problem *p, int budget)
+{
+    iso_proxy *px;
+    iso_err err;
+    if (iso_proxy_create(p->m, &p->r, budget, &px, &err) != ISO_OK)
+        fail_msg("proxy of %s at %d: %s", p->s.name, budget, err.msg);
+    const iso_mesh *pm = iso_proxy_mesh(px);
+    const iso_regions *pr = iso_proxy_regions(px);
+    int np = iso_mesh_vertex_count(pm), nt = iso_mesh_triangle_count(pm),
+        ne = iso_mesh_edge_count(pm);
+    printf("%s (%d vertices): proxy of %d vertices, %d triangles for a budget of %d\n", p->s.name,
+           p->s.nv, np, nt, budget);
+    assert_true(np <= budget && np >= budget * 9 / 10);
+    int chi =
+        iso_mesh_vertex_count(p->m) - iso_mesh_edge_count(p->m) + iso_mesh_triangle_count(p->m);
+    assert_int_equal(np - ne + nt, chi);
+    assert_int_equal(boundary_edges(pm) > 0, boundary_edges(p->m) > 0);
+    const double *X = iso_mesh_positions(p->m), *Y = iso_mesh_positions(pm);
+    int count[3] = {0, 0, 0};
+    for (int k = 0; k < np; k++) {
+        int i = iso_proxy_full_vertex(px, k);
+        assert_true(i >= 0 && i < p->s.nv);
+        assert_memory_equal(Y + 3 * k, X + 3 * i, 3 * sizeof *Y);
+        assert_int_equal(pr->kind[k], p->r.kind[i]);
+        assert_int_equal(pr->handle[k], p->r.handle[i]);
+        count[pr->kind[k]]++;
+    }
+    assert_true(count[ISO_FIXED] > 0 && count[ISO_FREE] > 0 && count[ISO_HANDLE] > 0);
+    iso_solver *s;
+    if (iso_solver_create(pm, pr, NULL, &s, &err) != ISO_OK)
+        fail_msg("the solver refused the proxy: %s", err.msg);
+    iso_solver_destroy(s);
+    return px;
+}
+
+static void proxies_are_valid_meshes_of_the_same_shape(void **state)
+{
+    (void)state;
+    problem t, b;
+    problem_init(&t, "tentacle", 32); /* 10,242 vertices */
+    iso_proxy_destroy(check_proxy(&t, 1000));
+    iso_proxy_destroy(check_proxy(&t, 3000));
+    problem_deinit(&t);
+    problem_init(&b, "bumpplane", 101); /* 10,201 vertices, a disk */
+    iso_proxy_destroy(check_proxy(&b, 1500));
+    problem_deinit(&b);
+}
+
+/* y: the proxy's rest positions under pose g (NULL: rest). */
+static double *proxy_under(const iso_proxy *px, const iso_pose *g)
+{
+    const iso_mesh *pm = iso_proxy_mesh(px);
+    int np = iso_mesh_vertex_count(pm);
+    const double *Y = iso_mesh_positions(pm);
+    double *y = malloc(3 * (size_t)np * sizeof *y);
+    assert_non_null(y);
+    for (int k = 0; k < np; k++)
+        if (g)
+            iso_pose_apply(g, Y + 3 * k, y + 3 * k);
+        else
+            memcpy(y + 3 * k, Y + 3 * k, 3 * sizeof *y);
+    return y;
+}
+
+/* The regions with every vertex of kind `from` made `to` (handle 0). */
+static void relabel(problem *p, int from, int to)
+{
+    for (int i = 0; i < p->r.nv; i++)
+        if (p->r.kind[i] == from) {
+            p->r.kind[i] = (unsigned char)to;
+            p->r.handle[i] = to == ISO_HANDLE ? 0 : -1;
+        }
+}
+
+static void rest_and_rigid_motions_are_exact(void **state)
+{
+    (void)state;
+    problem t;
+    problem_init(&t, "tentacle", 32);
+    iso_proxy *px = check_proxy(&t, 2000);
+    problem u; /* the same with the fixed cap a handle: all of it may move */
+    problem_init(&u, "tentacle", 32);
+    relabel(&u, ISO_FIXED, ISO_HANDLE);
+    iso_proxy *pu;
+    iso_err err;
+    assert_int_equal(iso_proxy_create(u.m, &u.r, 2000, &pu, &err), ISO_OK);
+    int nv = t.s.nv;
+    const double *X = iso_mesh_positions(t.m);
+    double diag = iso_mesh_bbox_diagonal(t.m), *x = malloc(3 * (size_t)nv * sizeof *x);
+    assert_non_null(x);
+    iso_pose id, g;
+    iso_pose_identity(&id);
+    double *y = proxy_under(px, NULL);
+    iso_proxy_prolong(px, y, &id, x);
+    double d = iso_test_vertex_max_diff(x, X, nv);
+    printf("rest: %.3g of the diagonal\n", d / diag);
+    assert_true(d <= 1e-14 * diag);
+    free(y);
+    /* a turn of 140° about a skew axis and a move: every vertex, the
+     * handle's exactly as its pose puts it */
+    iso_twist xi = {{0.6, -1.1, 1.9}, {0.3, 2.0, -0.7}};
+    iso_twist_exp(&xi, 1.0, &g);
+    y = proxy_under(px, &g); /* constrained vertices: exactly where they belong */
+    iso_proxy_prolong(px, y, &g, x);
+    for (int i = 0; i < nv; i++) {
+        double want[3];
+        iso_pose_apply(&g, X + 3 * i, want);
+        if (t.r.kind[i] == ISO_HANDLE)
+            assert_memory_equal(x + 3 * i, want, sizeof want);
+        else if (t.r.kind[i] == ISO_FIXED)
+            assert_memory_equal(x + 3 * i, X + 3 * i, 3 * sizeof *x);
+    }
+    free(y);
+    y = proxy_under(pu, &g); /* everything follows the motion */
+    iso_proxy_prolong(pu, y, &g, x);
+    double worst = 0;
+    for (int i = 0; i < nv; i++) {
+        double want[3];
+        iso_pose_apply(&g, X + 3 * i, want);
+        for (int a = 0; a < 3; a++)
+            worst = fmax(worst, fabs(x[3 * i + a] - want[a]));
+    }
+    printf("rigid motion: %.3g of the diagonal off\n", worst / diag);
+    assert_true(worst <= 1e-12 * diag);
+    free(y);
+    free(x);
+    iso_proxy_destroy(px);
+    iso_proxy_destroy(pu);
+    problem_deinit(&t);
+    problem_deinit(&u);
+}
+
+/* A smooth bend: the plane z = 0 rolled about the line y = ρ, x free. */
+static void bend(const double *p, double *q)
+{
+    const double rho = 80.0;
+    double a = p[1] / rho;
+    q[0] = p[0];
+    q[1] = (rho - p[2]) * sin(a);
+    q[2] = rho - (rho - p[2]) * cos(a);
+}
+
+/* The largest distance of the prolonged bend from the bend itself, on the
+ * free vertices (over the diagonal). */
+static double bend_error(const problem *p, int budget)
+{
+    iso_proxy *px;
+    iso_err err;
+    assert_int_equal(iso_proxy_create(p->m, &p->r, budget, &px, &err), ISO_OK);
+    const iso_mesh *pm = iso_proxy_mesh(px);
+    int np = iso_mesh_vertex_count(pm), nv = p->s.nv;
+    const double *Y = iso_mesh_positions(pm), *X = iso_mesh_positions(p->m);
+    double *y = malloc(3 * (size_t)np * sizeof *y), *x = malloc(3 * (size_t)nv * sizeof *x);
+    assert_true(y && x);
+    for (int k = 0; k < np; k++)
+        bend(Y + 3 * k, y + 3 * k);
+    iso_pose id;
+    iso_pose_identity(&id); /* only free vertices are compared */
+    iso_proxy_prolong(px, y, &id, x);
+    double worst = 0;
+    for (int i = 0; i < nv; i++) {
+        double want[3];
+        bend(X + 3 * i, want);
+        if (p->r.kind[i] == ISO_FREE)
+            for (int a = 0; a < 3; a++)
+                worst = fmax(worst, fabs(x[3 * i + a] - want[a]));
+    }
+    free(x);
+    free(y);
+    iso_proxy_destroy(px);
+    return worst / iso_mesh_bbox_diagonal(p->m);
+}
+
+static void the_prolongation_converges(void **state)
+{
+    (void)state;
+    problem b; /* all free, so that the whole proxy may bend */
+    problem_init(&b, "bumpplane", 101);
+    relabel(&b, ISO_FIXED, ISO_FREE);
+    relabel(&b, ISO_HANDLE, ISO_FREE);
+    double e1 = bend_error(&b, 600), e2 = bend_error(&b, 2400);
+    printf("bend: %.3g of the diagonal at 600 proxy vertices, %.3g at 2400 (ratio %.2f)\n", e1, e2,
+           e1 / e2);
+    assert_true(e1 < 1e-2);
+    assert_true(e2 < e1 / 2); /* edges half as long: second order would give 4 */
+    problem_deinit(&b);
+}
+
+static void the_same_input_gives_the_same_bits(void **state)
+{
+    (void)state;
+    problem t;
+    problem_init(&t, "tentacle", 60); /* 36,002 vertices: the prolongation runs in halves */
+    iso_proxy *a = check_proxy(&t, 3000), *b = check_proxy(&t, 3000);
+    const iso_mesh *ma = iso_proxy_mesh(a), *mb = iso_proxy_mesh(b);
+    int np = iso_mesh_vertex_count(ma), nt = iso_mesh_triangle_count(ma), nv = t.s.nv;
+    assert_int_equal(np, iso_mesh_vertex_count(mb));
+    assert_int_equal(nt, iso_mesh_triangle_count(mb));
+    assert_memory_equal(iso_mesh_triangles(ma), iso_mesh_triangles(mb),
+                        3 * (size_t)nt * sizeof(int));
+    iso_twist xi = {{0.2, 0.1, 0.4}, {0.0, 0.3, 0.0}};
+    iso_pose g;
+    iso_twist_exp(&xi, 1.0, &g);
+    double *y = proxy_under(a, NULL);
+    const double *Y = iso_mesh_positions(ma);
+    for (int k = 0; k < np; k++) /* a non-rigid change: a twist growing with height */
+        bend(Y + 3 * k, y + 3 * k);
+    double *xa = malloc(3 * (size_t)nv * sizeof *xa), *xb = malloc(3 * (size_t)nv * sizeof *xb);
+    assert_true(xa && xb);
+    iso_proxy_prolong(a, y, &g, xa);
+    iso_proxy_prolong(b, y, &g, xb);
+    assert_memory_equal(xa, xb, 3 * (size_t)nv * sizeof *xa);
+    iso_proxy_prolong(a, y, &g, xb); /* again */
+    assert_memory_equal(xa, xb, 3 * (size_t)nv * sizeof *xa);
+    free(xa);
+    free(xb);
+    free(y);
+    iso_proxy_destroy(a);
+    iso_proxy_destroy(b);
+    problem_deinit(&t);
+}
+
+static void bad_budgets_are_refused(void **state)
+{
+    (void)state;
+    problem t;
+    problem_init(&t, "tentacle", 10); /* 1,002 vertices */
+    iso_proxy *px = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_proxy_create(t.m, &t.r, 50, &px, &err), ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "50"));
+    assert_null(px);
+    iso_err_clear(&err);
+    assert_int_equal(iso_proxy_create(t.m, &t.r, 1002, &px, &err), ISO_EINVAL);
+    assert_non_null(strstr(err.msg, "in full"));
+    assert_null(px);
+    iso_proxy_destroy(NULL);
+    assert_int_equal(iso_proxy_auto_budget(5261, 60), 0); /* the shipped 5k scenes: in full */
+    assert_true(iso_proxy_auto_budget(160801, 60) >= ISO_PROXY_MIN_BUDGET);
+    problem_deinit(&t);
+}
+
+int main(void)
+{
+    const struct CMUnitTest t[] = {
+        cmocka_unit_test(proxies_are_valid_meshes_of_the_same_shape),
+        cmocka_unit_test(rest_and_rigid_motions_are_exact),
+        cmocka_unit_test(the_prolongation_converges),
+        cmocka_unit_test(the_same_input_gives_the_same_bits),
+        cmocka_unit_test(bad_budgets_are_refused),
+    };
+    return cmocka_run_group_tests_name("proxy", t, NULL, NULL);
+}
