@@ -479,7 +479,10 @@ static void stalled_browser_never_blocks_publish(void **state)
             sleep_ms(5);
     }
     print_message("stalled browser: slowest publish %.3f ms\n", worst);
-    assert_true(worst < 50);
+    /* A publish that waited on the stalled peer would wait until the server
+     * drops it (ISO_DISPLAY_STALL_MS); a loaded machine's preemption of this
+     * thread stays far below half of that. */
+    assert_true(worst < ISO_DISPLAY_STALL_MS / 2);
     clock_gettime(CLOCK_MONOTONIC, &t0);
     iso_display_destroy(d);
     clock_gettime(CLOCK_MONOTONIC, &t1);
@@ -609,8 +612,9 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
     assert_true(dropped_ms >= ISO_DISPLAY_STALL_MS - 50); /* not before its time */
     assert_true(dropped_ms < ISO_DISPLAY_STALL_MS + 6000);
     assert_int_equal(clients_left, 1); /* the reading one stays */
-    assert_true(worst_publish < 50);
-    assert_true(worst_clients < 50);
+    /* waiting on the slow viewer would take until its drop (as above) */
+    assert_true(worst_publish < ISO_DISPLAY_STALL_MS / 2);
+    assert_true(worst_clients < ISO_DISPLAY_STALL_MS / 2);
     assert_false(good.failed);             /* ticks only ever increase */
     assert_true(good.frames >= ticks / 3); /* about the tick rate, on a loaded machine */
     assert_true(good.last_tick >= (double)(ticks - 10));
