@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mat3.h"
 #include "proxy_internal.h"
 #include "solver_internal.h"
 
@@ -43,54 +44,6 @@ struct iso_proxy {
     double *x_out;
     char origin[160];
 };
-
-/* ===== small 3×3 helpers (row-major) ===================================== */
-
-static void sub3(const double *a, const double *b, double *c)
-{
-    c[0] = a[0] - b[0], c[1] = a[1] - b[1], c[2] = a[2] - b[2];
-}
-
-static double dot3(const double *a, const double *b)
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-static void cross3(const double *a, const double *b, double *c)
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
-
-static void add_outer(double *M, const double *u, const double *w)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            M[3 * r + c] += u[r] * w[c];
-}
-
-static void mul3(const double *A, const double *B, double *C)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            C[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
-}
-
-static int inverse3(const double *X, double *Y)
-{
-    double C[9];
-    cross3(X + 3, X + 6, C);
-    cross3(X + 6, X, C + 3);
-    cross3(X, X + 3, C + 6);
-    double det = dot3(X, C), scale = fabs(X[0]) + fabs(X[4]) + fabs(X[8]);
-    if (!(fabs(det) > 1e-12 * scale * scale * scale) || !isfinite(det))
-        return 0;
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            Y[3 * r + c] = C[3 * c + r] / det;
-    return 1;
-}
 
 /* ===== rotations ========================================================= */
 
@@ -159,21 +112,14 @@ static void horn(const double *M, double *R)
 static int newton_schulz(double *F)
 {
     for (int it = 0; it < 8; it++) {
-        double G[9], d = 0;
-        for (int r = 0; r < 3; r++)
-            for (int c = 0; c < 3; c++) {
-                double g = F[r] * F[c] + F[3 + r] * F[3 + c] + F[6 + r] * F[6 + c];
-                double dev = g - (r == c);
-                d += dev * dev;
-                G[3 * r + c] = 0.5 * ((r == c ? 3.0 : 0.0) - g);
-            }
+        double G[9], T[9], d = iso_m3_gram_defect(F, G);
         if (d < 1e-24)
             return 1;
         if (!(d < 0.64))
             return 0;
-        double T[9];
-        mul3(F, G, T);
-        memcpy(F, T, sizeof T);
+        iso_m3_mul(F, G, T);
+        for (int q = 0; q < 9; q++)
+            F[q] = 0.5 * T[q]; /* exact: the halving of the step's G */
     }
     return 0;
 }
@@ -187,9 +133,9 @@ static void normals_now(iso_proxy *p, const double *y)
     for (int t = 0; t < nt; t++) {
         const int *c = tri + 3 * t;
         double e1[3], e2[3], n[3];
-        sub3(y + 3 * c[1], y + 3 * c[0], e1);
-        sub3(y + 3 * c[2], y + 3 * c[0], e2);
-        cross3(e1, e2, n);
+        iso_m3_sub(y + 3 * c[1], y + 3 * c[0], e1);
+        iso_m3_sub(y + 3 * c[2], y + 3 * c[0], e2);
+        iso_m3_cross(e1, e2, n);
         for (int k = 0; k < 3; k++)
             for (int a = 0; a < 3; a++)
                 p->n_now[3 * c[k] + a] += n[a];
@@ -199,7 +145,7 @@ static void normals_now(iso_proxy *p, const double *y)
 /* Scales n to length s (left as is when zero). */
 static void scale_to(double *n, double s)
 {
-    double l = sqrt(dot3(n, n));
+    double l = sqrt(iso_m3_dot(n, n));
     if (l > 0)
         for (int a = 0; a < 3; a++)
             n[a] *= s / l;
@@ -213,16 +159,16 @@ static void ring_moment(const iso_proxy *p, int k, const double *y, const double
     for (int q = p->ring_start[k]; q < p->ring_start[k + 1]; q++) {
         int j = p->ring[q];
         double e[3], f[3];
-        sub3(y + 3 * j, y + 3 * k, e);
-        sub3(Y + 3 * j, Y + 3 * k, f);
-        add_outer(S, e, f);
-        len += sqrt(dot3(f, f));
+        iso_m3_sub(y + 3 * j, y + 3 * k, e);
+        iso_m3_sub(Y + 3 * j, Y + 3 * k, f);
+        iso_m3_add_outer(S, e, f);
+        len += sqrt(iso_m3_dot(f, f));
     }
     int deg = p->ring_start[k + 1] - p->ring_start[k];
     double n[3];
     memcpy(n, p->n_now + 3 * k, sizeof n);
     scale_to(n, deg > 0 ? len / deg : 0);
-    add_outer(S, n, p->m_rest + 3 * k);
+    iso_m3_add_outer(S, n, p->m_rest + 3 * k);
 }
 
 /* The unit quaternion (w, x, y, z) of rotation R (Shepperd's method: from
@@ -271,7 +217,7 @@ static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
             memcpy(R, I3, sizeof I3);
             continue;
         }
-        mul3(S, Pi, R);
+        iso_m3_mul(S, Pi, R);
         if (!newton_schulz(R))
             horn(S, R);
     }
@@ -359,15 +305,15 @@ static double closest_on_triangle(const double *q, const double *a, const double
                                   const double *c, double *w)
 {
     double ab[3], ac[3], ap[3], bp[3], cp[3];
-    sub3(b, a, ab), sub3(c, a, ac), sub3(q, a, ap);
-    double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+    iso_m3_sub(b, a, ab), iso_m3_sub(c, a, ac), iso_m3_sub(q, a, ap);
+    double d1 = iso_m3_dot(ab, ap), d2 = iso_m3_dot(ac, ap);
     if (d1 <= 0 && d2 <= 0) {
         w[0] = 1, w[1] = w[2] = 0;
     } else {
-        sub3(q, b, bp);
-        double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
-        sub3(q, c, cp);
-        double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+        iso_m3_sub(q, b, bp);
+        double d3 = iso_m3_dot(ab, bp), d4 = iso_m3_dot(ac, bp);
+        iso_m3_sub(q, c, cp);
+        double d5 = iso_m3_dot(ab, cp), d6 = iso_m3_dot(ac, cp);
         double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
         if (d3 >= 0 && d4 <= d3) {
             w[1] = 1, w[0] = w[2] = 0;
@@ -469,16 +415,16 @@ static void rest_frames(iso_proxy *p)
         double P[9] = {0}, len = 0;
         for (int q = p->ring_start[k]; q < p->ring_start[k + 1]; q++) {
             double f[3];
-            sub3(Y + 3 * p->ring[q], Y + 3 * k, f);
-            add_outer(P, f, f);
-            len += sqrt(dot3(f, f));
+            iso_m3_sub(Y + 3 * p->ring[q], Y + 3 * k, f);
+            iso_m3_add_outer(P, f, f);
+            len += sqrt(iso_m3_dot(f, f));
         }
         int deg = p->ring_start[k + 1] - p->ring_start[k];
         double *m = p->m_rest + 3 * k;
         memcpy(m, p->n_now + 3 * k, 3 * sizeof *m);
         scale_to(m, deg > 0 ? len / deg : 0);
-        add_outer(P, m, m);
-        if (!inverse3(P, p->pinv + 9 * k))
+        iso_m3_add_outer(P, m, m);
+        if (!iso_m3_inverse(P, p->pinv + 9 * k))
             memset(p->pinv + 9 * k, 0, 9 * sizeof(double));
     }
 }

@@ -24,6 +24,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mat3.h"
 #include "solver_internal.h"
 
 struct iso_solver__rings {
@@ -48,62 +49,9 @@ struct iso_solver__frame {
 
 static const double identity3[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
 
-static void cross(const double *a, const double *b, double *c)
-{
-    c[0] = a[1] * b[2] - a[2] * b[1];
-    c[1] = a[2] * b[0] - a[0] * b[2];
-    c[2] = a[0] * b[1] - a[1] * b[0];
-}
-
 static double norm3(const double *a)
 {
     return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
-}
-
-/* M += u wᵀ */
-static inline void add_outer(double *M, const double *u, const double *w)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            M[3 * r + c] += u[r] * w[c];
-}
-
-static void mul3(const double *A, const double *B, double *C)
-{
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            C[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
-}
-
-/* Y = X⁻¹ by cofactors; 0 where X is singular or not finite. */
-static int inverse3(const double *X, double *Y)
-{
-    double C[9]; /* rows: the cofactor matrix's, det(X) X⁻ᵀ */
-    cross(X + 3, X + 6, C);
-    cross(X + 6, X, C + 3);
-    cross(X, X + 3, C + 6);
-    double det = X[0] * C[0] + X[1] * C[1] + X[2] * C[2];
-    double scale = fabs(X[0]) + fabs(X[4]) + fabs(X[8]);
-    if (!(fabs(det) > 1e-12 * scale * scale * scale) || !isfinite(det))
-        return 0;
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            Y[3 * r + c] = C[3 * c + r] / det;
-    return 1;
-}
-
-/* G = 3I − FᵀF; returns ‖FᵀF − I‖² (Frobenius). */
-static double gram_defect(const double *F, double *G)
-{
-    double d = 0;
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++) {
-            double g = F[r] * F[c] + F[3 + r] * F[3 + c] + F[6 + r] * F[6 + c];
-            double dev = g - (r == c);
-            d += dev * dev;
-            G[3 * r + c] = (r == c ? 3.0 : 0.0) - g;
-        }
-    return d;
 }
 
 /* F made orthogonal in place by Newton-Schulz steps F ← F (3I − FᵀF) / 2,
@@ -115,12 +63,12 @@ static double gram_defect(const double *F, double *G)
 static void orthogonalize(double *F)
 {
     for (int it = 0;; it++) {
-        double G[9], H[9], d = gram_defect(F, G);
+        double G[9], H[9], d = iso_m3_gram_defect(F, G);
         if (d < 1e-6)
             return;
         if (it == 4 || !(d < 0.64))
             break;
-        mul3(F, G, H);
+        iso_m3_mul(F, G, H);
         for (int q = 0; q < 9; q++)
             F[q] = 0.5 * H[q];
     }
@@ -213,7 +161,7 @@ static void ring_normal(const iso_solver__rings *g, int i, const double *x, doub
         const double *a = x + 3 * g->tr[2 * k], *b = x + 3 * g->tr[2 * k + 1];
         double u[3] = {a[0] - p[0], a[1] - p[1], a[2] - p[2]};
         double w[3] = {b[0] - p[0], b[1] - p[1], b[2] - p[2]}, c[3];
-        cross(u, w, c);
+        iso_m3_cross(u, w, c);
         for (int q = 0; q < 3; q++)
             n[q] += c[q];
     }
@@ -271,12 +219,12 @@ void iso_solver__frame_prepare(iso_solver__frame *fr)
             double *f = fr->f + 3 * k;
             for (int a = 0; a < 3; a++)
                 f[a] = q[a] - p[a];
-            add_outer(P, f, f);
+            iso_m3_add_outer(P, f, f);
         }
         /* |m|² = half the ring's trace: the normal weighs like one in-plane axis */
         ring_normal(g, i, y, sqrt(0.5 * (P[0] + P[4] + P[8])), m);
-        add_outer(P, m, m);
-        if (!inverse3(P, Y))
+        iso_m3_add_outer(P, m, m);
+        if (!iso_m3_inverse(P, Y))
             memset(Y, 0, 9 * sizeof(double));
     }
 }
@@ -298,11 +246,11 @@ void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double 
         for (int k = g->nb_start[i]; k < g->nb_start[i + 1]; k++) {
             const double *q = x + 3 * g->nb[k];
             double e[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
-            add_outer(S, e, fr->f + 3 * k);
+            iso_m3_add_outer(S, e, fr->f + 3 * k);
         }
         ring_normal(g, i, x, norm3(m), n);
-        add_outer(S, n, m);
-        mul3(S, Y, Ri);
+        iso_m3_add_outer(S, n, m);
+        iso_m3_mul(S, Y, Ri);
         orthogonalize(Ri);
     }
 }

@@ -12,6 +12,7 @@
 #define ISO_SOLVER_INTERNAL_H
 
 #include <cholmod.h>
+#include <pthread.h>
 
 #include "iso_solver.h"
 
@@ -211,6 +212,11 @@ int iso_solver__z_order(const iso_mesh *m, int n, const int *a, const int *b, in
  * have returned; without a helper (create could not start one) it calls
  * both on the caller, in that order. create: NULL when out of memory. The
  * helper blocks all signals and runs under the default scheduling policy. */
+/* Starts a thread running fn(arg) with a full signal mask (signals stay
+ * the caller's business) and explicit default scheduling, whatever the
+ * creator runs at; the creator's own mask is put back. 0, or -1. */
+int iso_solver__start_thread(pthread_t *th, void *(*fn)(void *), void *arg);
+
 typedef struct iso_solver__team iso_solver__team;
 iso_solver__team *iso_solver__team_create(void);
 void iso_solver__team_destroy(iso_solver__team *t); /* NULL is a no-op */

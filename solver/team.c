@@ -54,7 +54,7 @@ static void *team_main(void *arg)
     return NULL;
 }
 
-static int start_thread(iso_solver__team *t)
+int iso_solver__start_thread(pthread_t *th, void *(*fn)(void *), void *arg)
 {
     pthread_attr_t attr;
     if (pthread_attr_init(&attr) != 0)
@@ -67,7 +67,7 @@ static int start_thread(iso_solver__team *t)
     if (rc == 0)
         rc = pthread_sigmask(SIG_SETMASK, &all, &old);
     if (rc == 0) {
-        rc = pthread_create(&t->thread, &attr, team_main, t);
+        rc = pthread_create(th, &attr, fn, arg);
         pthread_sigmask(SIG_SETMASK, &old, NULL);
     }
     pthread_attr_destroy(&attr);
@@ -88,7 +88,7 @@ iso_solver__team *iso_solver__team_create(void)
         free(t);
         return NULL;
     }
-    t->started = start_thread(t) == 0;
+    t->started = iso_solver__start_thread(&t->thread, team_main, t) == 0;
     return t;
 }
 

@@ -75,28 +75,6 @@ static void *worker_main(void *arg)
     return NULL;
 }
 
-/* Starts the thread with a full signal mask and explicit default
- * scheduling; the creator's own mask is put back. */
-static int start_thread(iso_solver__worker *w)
-{
-    pthread_attr_t attr;
-    if (pthread_attr_init(&attr) != 0)
-        return -1;
-    int rc = pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
-    if (rc == 0)
-        rc = pthread_attr_setschedpolicy(&attr, SCHED_OTHER);
-    sigset_t all, old;
-    sigfillset(&all);
-    if (rc == 0)
-        rc = pthread_sigmask(SIG_SETMASK, &all, &old);
-    if (rc == 0) {
-        rc = pthread_create(&w->thread, &attr, worker_main, w);
-        pthread_sigmask(SIG_SETMASK, &old, NULL);
-    }
-    pthread_attr_destroy(&attr);
-    return rc == 0 ? 0 : -1;
-}
-
 int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso_err *err)
 {
     *out = NULL;
@@ -121,7 +99,7 @@ int iso_solver__worker_create(const iso_solver *s, iso_solver__worker **out, iso
         pthread_mutex_destroy(&w->mu);
         ok = 0;
     }
-    if (ok && start_thread(w) != 0) {
+    if (ok && iso_solver__start_thread(&w->thread, worker_main, w) != 0) {
         pthread_cond_destroy(&w->cv);
         pthread_mutex_destroy(&w->mu);
         ok = 0;
