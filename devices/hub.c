@@ -473,11 +473,13 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         iso_dev_chunk c;
         iso_err e;
         iso_err_clear(&e);
-        int got = x->threaded ? iso_dev__reader_pop(h->reader, i, &c)
-                              : iso_dev_source_read(x->s, now, &c, &e);
+        c.type = ISO_DEV_CHUNK_DATA; /* a source's read fills the bytes, never the type */
+        int threaded = x->threaded;
+        int got = threaded ? iso_dev__reader_pop(h->reader, i, &c)
+                           : iso_dev_source_read(x->s, now, &c, &e);
         if (got == 0)
             return ISO_OK;
-        if (got > 0 && c.type == ISO_DEV_CHUNK_GONE) { /* the reader's read failed */
+        if (got > 0 && threaded && c.type == ISO_DEV_CHUNK_GONE) { /* the reader's read failed */
             iso_err_set(&e, ISO_EIO, -1, "%.*s", (int)c.len, (const char *)c.data);
             got = ISO_EIO;
         }

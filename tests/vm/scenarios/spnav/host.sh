@@ -9,3 +9,6 @@ done
 check_sequence rel spacemouse.seq
 check_sequence abs spacemouse_kill.seq
 gone_within abs
+# Nothing went away in the run nobody unplugged: a GONE there would be the
+# hub's own doing, not the device's.
+! grep -q "went away" out/rel.log || hfail "rel: the run said a source went away, and nothing was killed"
