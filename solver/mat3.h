@@ -31,6 +31,13 @@ static inline void iso_m3_add_outer(double *M, const double *u, const double *w)
             M[3 * r + c] += u[r] * w[c];
 }
 
+/* y = A v */
+static inline void iso_m3_mul_vec(const double *A, const double *v, double *y)
+{
+    for (int r = 0; r < 3; r++)
+        y[r] = A[3 * r] * v[0] + A[3 * r + 1] * v[1] + A[3 * r + 2] * v[2];
+}
+
 /* C = A B */
 static inline void iso_m3_mul(const double *A, const double *B, double *C)
 {

@@ -40,8 +40,12 @@ struct iso_proxy {
     double *rot;            /* 9 np: this prolongation's rotations */
     double *quat;           /* 4 np: the same as quaternions */
     iso_solver__team *team;
+    iso_proxy__fit *fit; /* the second stage (proxy_fit.c) */
+    double *rot_full;    /* 9 nv: every full vertex's rotation, for the fit */
     const double *y_now; /* the prolongation's input, for the team */
     double *x_out;
+    long fit_failures; /* fits CHOLMOD failed (the prolongation stood) */
+    int fit_off;       /* white-box tests: the prolongation alone */
     char origin[160];
 };
 
@@ -195,10 +199,11 @@ static void to_quaternion(const double *R, double *q)
     }
 }
 
+static const double I3[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+
 static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
 {
     const double *Y = iso_mesh_positions(p->pm);
-    static const double I3[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     normals_now(p, y);
     for (int k = 0; k < p->np; k++) {
         double *R = p->rot + 9 * k;
@@ -242,6 +247,7 @@ static void prolong_range(iso_proxy *p, int begin, int end)
         double *xi = x + 3 * i;
         if (c[0] < 0) { /* in no triangle: stays */
             memcpy(xi, Xi, 3 * sizeof *xi);
+            memcpy(p->rot_full + 9 * i, I3, sizeof I3);
             continue;
         }
         int ref = b[1] > b[0] ? 1 : 0;
@@ -263,10 +269,12 @@ static void prolong_range(iso_proxy *p, int begin, int end)
         }
         double n = 1.0 / sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
         double qw = q[0] * n, qx = q[1] * n, qy = q[2] * n, qz = q[3] * n;
-        double R[9] = {
-            1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz),     2 * (qx * qz + qw * qy),
-            2 * (qx * qy + qw * qz),     1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx),
-            2 * (qx * qz - qw * qy),     2 * (qy * qz + qw * qx),     1 - 2 * (qx * qx + qy * qy)};
+        double *R = p->rot_full + 9 * i;
+        R[0] = 1 - 2 * (qy * qy + qz * qz), R[1] = 2 * (qx * qy - qw * qz);
+        R[2] = 2 * (qx * qz + qw * qy), R[3] = 2 * (qx * qy + qw * qz);
+        R[4] = 1 - 2 * (qx * qx + qz * qz), R[5] = 2 * (qy * qz - qw * qx);
+        R[6] = 2 * (qx * qz - qw * qy), R[7] = 2 * (qy * qz + qw * qx);
+        R[8] = 1 - 2 * (qx * qx + qy * qy);
         for (int a = 0; a < 3; a++)
             xi[a] = pos[a] + R[3 * a] * off[0] + R[3 * a + 1] * off[1] + R[3 * a + 2] * off[2];
     }
@@ -290,10 +298,15 @@ void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, dou
     iso_solver__team_run(p->team, prolong_half, p);
     const double *X = iso_mesh_positions(p->m);
     for (int i = 0; i < p->nv; i++) /* the constrained vertices exactly */
-        if (p->r->kind[i] == ISO_HANDLE)
+        if (p->r->kind[i] == ISO_HANDLE) {
             iso_pose_apply(&poses[p->r->handle[i]], X + 3 * i, x + 3 * i);
-        else if (p->r->kind[i] == ISO_FIXED)
+            memcpy(p->rot_full + 9 * i, poses[p->r->handle[i]].R, 9 * sizeof(double));
+        } else if (p->r->kind[i] == ISO_FIXED) {
             memcpy(x + 3 * i, X + 3 * i, 3 * sizeof *x);
+            memcpy(p->rot_full + 9 * i, I3, sizeof I3);
+        }
+    if (!p->fit_off && iso_proxy__fit_run(p->fit, X, p->rot_full, x) != 0)
+        p->fit_failures++;
 }
 
 /* ===== set-up ============================================================ */
@@ -472,6 +485,29 @@ static int build(iso_proxy *p, const iso_proxy__decimated *d, iso_err *err)
     return ISO_OK;
 }
 
+/* The fit holds what the prolongation places exactly (handles, fixed and
+ * unreferenced vertices, and any vertex over no proxy triangle), and
+ * interpolates its correction from the proxy's free vertices. */
+static int start_fit(iso_proxy *p, iso_err *err)
+{
+    unsigned char *held = malloc((size_t)p->nv + 1), *pfree = malloc((size_t)p->np + 1);
+    p->rot_full = malloc((9 * (size_t)p->nv + 1) * sizeof *p->rot_full);
+    if (held && pfree && p->rot_full) {
+        for (int i = 0; i < p->nv; i++)
+            held[i] = p->r->kind[i] != ISO_FREE || p->corner[3 * i] < 0;
+        for (int k = 0; k < p->np; k++)
+            pfree[k] = p->pr.kind[k] == ISO_FREE;
+        p->fit = iso_proxy__fit_create(p->m, held, p->np, pfree, p->corner, p->beta, p->team);
+    }
+    free(held);
+    free(pfree);
+    if (!p->fit)
+        return iso_err_set(err, ISO_ENOMEM, -1,
+                           "out of memory for the proxy's fit (or its Galerkin matrix is not "
+                           "positive definite)");
+    return ISO_OK;
+}
+
 int iso_proxy_create(const iso_mesh *m, const iso_regions *r, int budget, iso_proxy **out,
                      iso_err *err)
 {
@@ -503,6 +539,8 @@ int iso_proxy_create(const iso_mesh *m, const iso_regions *r, int budget, iso_pr
     iso_proxy__decimated_free(&d);
     if (rc == ISO_OK && nv >= ISO_SOLVER__CPU_SPLIT_EDGES / 3)
         p->team = iso_solver__team_create(); /* NULL: the prolongation on one thread */
+    if (rc == ISO_OK)
+        rc = start_fit(p, err);
     if (rc != ISO_OK) {
         iso_proxy_destroy(p);
         return rc;
@@ -515,6 +553,8 @@ void iso_proxy_destroy(iso_proxy *p)
 {
     if (!p)
         return;
+    iso_proxy__fit_destroy(p->fit);
+    free(p->rot_full);
     iso_solver__team_destroy(p->team);
     iso_mesh_destroy(p->pm);
     iso_regions_deinit(&p->pr);
@@ -531,6 +571,18 @@ void iso_proxy_destroy(iso_proxy *p)
     free(p->rot);
     free(p->quat);
     free(p);
+}
+
+void iso_proxy__set_fit(iso_proxy *p, int on)
+{
+    p->fit_off = !on;
+}
+
+void iso_proxy__one_thread(iso_proxy *p)
+{
+    iso_proxy__fit_set_team(p->fit, NULL);
+    iso_solver__team_destroy(p->team);
+    p->team = NULL;
 }
 
 const iso_mesh *iso_proxy_mesh(const iso_proxy *p)

@@ -8,17 +8,26 @@
  *       the full mesh exactly (the motion test makes the fixed region a
  *       handle, since a fixed vertex does not move);
  *   (c) it converges: under a smooth bend of the proxy the full mesh's
- *       distance from the same bend of itself shrinks as the budget grows;
- *   (d) the same mesh and budget give the same proxy and the same positions,
- *       bit for bit;
- *   (e) bad budgets are refused with a reason. */
+ *       distance from the same bend of itself shrinks as the budget grows,
+ *       and the fit (proxy_fit.c) lands closer to it than the prolongation
+ *       alone at every budget;
+ *   (d) the fit lowers the full mesh's distortion under the method's own
+ *       motion (the tentacle's bend and twist integrated on its proxy):
+ *       metricErr, the largest and the rms edge strain all drop;
+ *   (e) the same mesh and budget give the same proxy and the same positions,
+ *       bit for bit, on two threads as on one;
+ *   (f) bad budgets are refused with a reason. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "../solver/proxy_internal.h"
 #include "iso_geom.h"
+#include "iso_integrate.h"
 #include "iso_mesh.h"
+#include "iso_metrics.h"
+#include "iso_motion.h"
 #include "iso_proxy.h"
 #include "iso_regions.h"
 #include "iso_shapes.h"
@@ -199,16 +208,17 @@ static void bend(const double *p, double *q)
     q[2] = rho - (rho - p[2]) * cos(a);
 }
 
-/* The largest distance of the prolonged bend from the bend itself, on the
- * free vertices (over the diagonal). */
-static double bend_error(const problem *p, int budget)
+/* The proxy of p for budget under the bend, prolonged with the fit on or
+ * off: the full positions (3 nv, the caller frees). */
+static double *bent_full(const problem *p, int budget, int fit)
 {
     iso_proxy *px;
     iso_err err;
     assert_int_equal(iso_proxy_create(p->m, &p->r, budget, &px, &err), ISO_OK);
+    iso_proxy__set_fit(px, fit);
     const iso_mesh *pm = iso_proxy_mesh(px);
     int np = iso_mesh_vertex_count(pm), nv = p->s.nv;
-    const double *Y = iso_mesh_positions(pm), *X = iso_mesh_positions(p->m);
+    const double *Y = iso_mesh_positions(pm);
     double *y = malloc(3 * (size_t)np * sizeof *y), *x = malloc(3 * (size_t)nv * sizeof *x);
     assert_true(y && x);
     for (int k = 0; k < np; k++)
@@ -216,8 +226,18 @@ static double bend_error(const problem *p, int budget)
     iso_pose id;
     iso_pose_identity(&id); /* only free vertices are compared */
     iso_proxy_prolong(px, y, &id, x);
-    double worst = 0;
-    for (int i = 0; i < nv; i++) {
+    free(y);
+    iso_proxy_destroy(px);
+    return x;
+}
+
+/* The largest distance of the prolonged bend from the bend itself, on the
+ * free vertices (over the diagonal). */
+static double bend_error(const problem *p, int budget, int fit)
+{
+    double *x = bent_full(p, budget, fit), worst = 0;
+    const double *X = iso_mesh_positions(p->m);
+    for (int i = 0; i < p->s.nv; i++) {
         double want[3];
         bend(X + 3 * i, want);
         if (p->r.kind[i] == ISO_FREE)
@@ -225,8 +245,6 @@ static double bend_error(const problem *p, int budget)
                 worst = fmax(worst, fabs(x[3 * i + a] - want[a]));
     }
     free(x);
-    free(y);
-    iso_proxy_destroy(px);
     return worst / iso_mesh_bbox_diagonal(p->m);
 }
 
@@ -237,12 +255,65 @@ static void the_prolongation_converges(void **state)
     problem_init(&b, "bumpplane", 101);
     relabel(&b, ISO_FIXED, ISO_FREE);
     relabel(&b, ISO_HANDLE, ISO_FREE);
-    double e1 = bend_error(&b, 600), e2 = bend_error(&b, 2400);
-    printf("bend: %.3g of the diagonal at 600 proxy vertices, %.3g at 2400 (ratio %.2f)\n", e1, e2,
-           e1 / e2);
+    double e1 = bend_error(&b, 600, 1), e2 = bend_error(&b, 2400, 1);
+    double d1 = bend_error(&b, 600, 0), d2 = bend_error(&b, 2400, 0);
+    printf("bend: %.3g of the diagonal at 600 proxy vertices, %.3g at 2400 (ratio %.2f); "
+           "without the fit %.3g and %.3g (ratio %.2f)\n",
+           e1, e2, e1 / e2, d1, d2, d1 / d2);
     assert_true(e1 < 1e-2);
     assert_true(e2 < e1 / 2); /* edges half as long: second order would give 4 */
+    assert_true(d2 < d1 / 2);
+    assert_true(e1 < d1 && e2 < d2);
     problem_deinit(&b);
+}
+
+/* (d) the method's own motion: the tentacle's bend and twist integrated on
+ * its proxy, the full mesh prolonged with the fit and without. */
+static void the_fit_lowers_the_distortion(void **state)
+{
+    (void)state;
+    problem t;
+    problem_init(&t, "tentacle", 40); /* 16,002 vertices */
+    iso_proxy *px = check_proxy(&t, 1500);
+    const iso_mesh *pm = iso_proxy_mesh(px);
+    const iso_regions *pr = iso_proxy_regions(px);
+    int np = iso_mesh_vertex_count(pm), nv = t.s.nv;
+    iso_err err;
+    iso_twist xi;
+    assert_int_equal(iso_twist_from_matrix(t.s.M, &xi, &err), ISO_OK);
+    iso_screw_path sp = {&xi, 1};
+    iso_path path = iso_screw_path_make(&sp);
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(pm, pr, NULL, &s, &err), ISO_OK);
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    iso_integrate_stats st;
+    double *y = proxy_under(px, NULL), *x = malloc(3 * (size_t)nv * sizeof *x);
+    assert_non_null(x);
+    assert_int_equal(iso_integrate(s, pm, pr, &path, &io, y, &st, &err), ISO_OK);
+    iso_pose g;
+    iso_twist tw;
+    assert_int_equal(path.eval(path.ctx, 0, 1.0, &g, &tw), ISO_OK);
+    const double *X = iso_mesh_positions(t.m);
+    iso_metrics m[2], mp;
+    iso_metrics_compute(pm, iso_mesh_positions(pm), y, &mp);
+    for (int fit = 0; fit < 2; fit++) {
+        iso_proxy__set_fit(px, fit);
+        iso_proxy_prolong(px, y, &g, x);
+        iso_metrics_compute(t.m, X, x, &m[fit]);
+    }
+    printf("tentacle through %d proxy vertices: metricErr %.4g with the fit, %.4g without (the "
+           "proxy's own %.4g); largest edge strain %.3g%% and %.3g%%; rms %.3g%% and %.3g%%\n",
+           np, m[1].metric_err, m[0].metric_err, mp.metric_err, 100 * m[1].max_edge_strain,
+           100 * m[0].max_edge_strain, 100 * m[1].rms_edge_strain, 100 * m[0].rms_edge_strain);
+    assert_true(m[1].metric_err < m[0].metric_err);
+    assert_true(m[1].max_edge_strain < m[0].max_edge_strain);
+    assert_true(m[1].rms_edge_strain < m[0].rms_edge_strain);
+    free(x);
+    free(y);
+    iso_solver_destroy(s);
+    iso_proxy_destroy(px);
+    problem_deinit(&t);
 }
 
 static void the_same_input_gives_the_same_bits(void **state)
@@ -270,6 +341,10 @@ static void the_same_input_gives_the_same_bits(void **state)
     iso_proxy_prolong(b, y, &g, xb);
     assert_memory_equal(xa, xb, 3 * (size_t)nv * sizeof *xa);
     iso_proxy_prolong(a, y, &g, xb); /* again */
+    assert_memory_equal(xa, xb, 3 * (size_t)nv * sizeof *xa);
+    iso_proxy__one_thread(b); /* the same on the calling thread alone */
+    memset(xb, 0, 3 * (size_t)nv * sizeof *xb);
+    iso_proxy_prolong(b, y, &g, xb);
     assert_memory_equal(xa, xb, 3 * (size_t)nv * sizeof *xa);
     free(xa);
     free(xb);
@@ -306,6 +381,7 @@ int main(void)
         cmocka_unit_test(proxies_are_valid_meshes_of_the_same_shape),
         cmocka_unit_test(rest_and_rigid_motions_are_exact),
         cmocka_unit_test(the_prolongation_converges),
+        cmocka_unit_test(the_fit_lowers_the_distortion),
         cmocka_unit_test(the_same_input_gives_the_same_bits),
         cmocka_unit_test(bad_budgets_are_refused),
     };
