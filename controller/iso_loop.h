@@ -59,7 +59,12 @@
  *     the tick (+1): it is the tick's watchdog and must run when the tick
  *     does not; its work is a few microseconds every 2 ms;
  *   - an emulated MCU (its native thread, or every thread of QEMU) above
- *     that (+2): the hardware it stands for has a CPU of its own.
+ *     that (+2): the hardware it stands for has a CPU of its own;
+ *   - the solver's two-thread teams (the C assembly of a large mesh, the
+ *     reduced model's prolongation and fit), which do half of the tick's
+ *     work while it waits: at the tick's own priority, since each job
+ *     runs at its caller's (solver/team.c); below it, the worker would
+ *     keep them off the second core for the rest of a factorization.
  * The tick reads no tty itself: a read that finds the line empty waits for
  * the kernel's buffer work, at normal priority (a flooded pty took the p99
  * tick from 4 to 31-44 ms that way). The device hub's byte streams are

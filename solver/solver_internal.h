@@ -211,7 +211,8 @@ int iso_solver__z_order(const iso_mesh *m, int n, const int *a, const int *b, in
  * calling thread and fn(ctx, 1) on the team's helper, and returns when both
  * have returned; without a helper (create could not start one) it calls
  * both on the caller, in that order. create: NULL when out of memory. The
- * helper blocks all signals and runs under the default scheduling policy. */
+ * helper blocks all signals and runs each job at the caller's scheduling
+ * (policy and priority), since the caller waits for it. */
 /* Starts a thread running fn(arg) with a full signal mask (signals stay
  * the caller's business) and explicit default scheduling, whatever the
  * creator runs at; the creator's own mask is put back. 0, or -1. */

@@ -10,11 +10,17 @@
  * caller, one after the other).
  *
  * The helper is started like the factorization worker (worker.c): all
- * signals blocked, the default scheduling policy whatever the creator's,
- * so a real-time tick thread is never preempted by it and signals stay
- * with the program's threads. It waits on a condition variable between
- * jobs. */
+ * signals blocked (signals stay with the program's threads) and the
+ * default scheduling policy whatever the creator's. It waits on a
+ * condition variable between jobs. Each job then runs at the scheduling
+ * of the thread that hands it over: the helper does half of that
+ * thread's work while that thread waits for it, so it must not run below
+ * it. A real-time tick's halves run at the tick's priority, above the
+ * factorization worker just below it, which would otherwise keep the
+ * second core and hold the tick up for the rest of a factorization; and a
+ * normal caller's halves run at normal priority. */
 #include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdlib.h>
 
@@ -27,6 +33,7 @@ struct iso_solver__team {
     int started; /* the helper runs; else both halves run on the caller */
     int quit;
     unsigned long given, done; /* jobs handed to the helper, and finished by it */
+    int policy, priority;      /* the helper's scheduling, as last set */
     void (*fn)(void *ctx, int half);
     void *ctx;
 };
@@ -89,6 +96,7 @@ iso_solver__team *iso_solver__team_create(void)
         return NULL;
     }
     t->started = iso_solver__start_thread(&t->thread, team_main, t) == 0;
+    t->policy = SCHED_OTHER;
     return t;
 }
 
@@ -113,6 +121,24 @@ int iso_solver__team_threads(const iso_solver__team *t)
     return t && t->started ? 2 : 1;
 }
 
+/* The helper to the caller's scheduling, when it changed (the calling
+ * thread's, read from the kernel: a thread may have changed its own with
+ * sched_setscheduler, which pthread's cached view does not see). If the
+ * change is refused the helper stays as it was. */
+static void follow_caller(iso_solver__team *t)
+{
+    struct sched_param sp;
+    int policy = sched_getscheduler(0);
+    if (policy < 0 || sched_getparam(0, &sp) != 0)
+        return;
+    if (policy == t->policy && sp.sched_priority == t->priority)
+        return;
+    if (pthread_setschedparam(t->thread, policy, &sp) == 0) {
+        t->policy = policy;
+        t->priority = sp.sched_priority;
+    }
+}
+
 void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), void *ctx)
 {
     if (!t || !t->started) {
@@ -120,6 +146,7 @@ void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), 
         fn(ctx, 1);
         return;
     }
+    follow_caller(t);
     pthread_mutex_lock(&t->mu);
     t->fn = fn;
     t->ctx = ctx;
