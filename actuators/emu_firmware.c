@@ -160,8 +160,12 @@ static int qemu_reopen(emu_link *e, iso_err *err);
 static int native_reopen(emu_link *e, iso_err *err);
 
 /* While the emulation lives the stream never breaks, so a "loss" (no frame
- * for link_timeout_ms: QEMU stopped or descheduled) is answered by
- * handshaking again on the same stream. When it died, reopen restarts it. */
+ * for link_timeout_ms: QEMU descheduled) is answered by handshaking again on
+ * the same stream. An emulation that is stopped (QEMU under SIGSTOP, the
+ * native thread's drill) cannot answer: taking the link up again then would
+ * be said as a reopen while the MCU is still frozen, so the reopen fails,
+ * its reason saying why, until the emulation runs again. When it died,
+ * reopen restarts it. */
 static int emu_reopen(iso_link *l, iso_err *err)
 {
     emu_link *e = (emu_link *)l;
@@ -349,6 +353,11 @@ static int native_open(emu_link *e, iso_err *err)
  * state (IDLE at the safe positions, HELLO(BOOT)). */
 static int native_reopen(emu_link *e, iso_err *err)
 {
+    if (!atomic_load(&e->killed) && atomic_load(&e->paused))
+        return iso_err_set(err, ISO_EIO, -1,
+                           "%s: the MCU thread is stopped (SIGSTOP drill): the MCU is frozen, and "
+                           "the link is taken up again once it runs",
+                           e->what);
     if (!atomic_load(&e->killed))
         return ISO_OK;
     native_end(e);
@@ -540,17 +549,44 @@ static int qemu_open(emu_link *e, const char *qemu, const char *elf, iso_err *er
     return rc;
 }
 
+/* Whether process pid is stopped (SIGSTOP, or held by a debugger): the
+ * state in /proc/PID/stat, after the command's closing parenthesis, is T or
+ * t. Read without stdio, as the sender asks every reopen_ms while the link
+ * is down. */
+static int process_stopped(int pid)
+{
+    char path[64], buf[512];
+    snprintf(path, sizeof path, "/proc/%d/stat", pid);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        return 0;
+    ssize_t n = read(fd, buf, sizeof buf - 1);
+    close(fd);
+    if (n <= 0)
+        return 0;
+    buf[n] = 0;
+    const char *p = strrchr(buf, ')');
+    return p && p[1] == ' ' && (p[2] == 'T' || p[2] == 't');
+}
+
 /* A QEMU that died (its stream ended, or it exited) is relaunched without
  * waiting: this reopen starts it, the next ones (every reopen_ms) take its
- * UART once it connects. A stopped QEMU is alive: same stream. */
+ * UART once it connects. A QEMU that lives keeps its stream; a stopped one
+ * is not reopened until it runs (emu_reopen says why). */
 static int qemu_reopen(emu_link *e, iso_err *err)
 {
     int pid = atomic_load(&e->qemu);
     int alive = pid > 0 && waitpid(pid, NULL, WNOHANG) == 0;
     if (pid > 0 && !alive)
         atomic_store(&e->qemu, -1); /* reaped: never signal that pid again */
-    if (e->lfd < 0 && e->sock >= 0 && !e->sock_dead && alive)
+    if (e->lfd < 0 && e->sock >= 0 && !e->sock_dead && alive) {
+        if (process_stopped(pid))
+            return iso_err_set(err, ISO_EIO, -1,
+                               "%s: pid %d is stopped (SIGSTOP): the MCU is frozen, and the link "
+                               "is taken up again once it runs",
+                               e->what, pid);
         return ISO_OK;
+    }
     if (e->lfd < 0) {
         qemu_reap(e);
         int rc = qemu_launch(e, err);

@@ -267,7 +267,10 @@ static void watch_link(iso_actuators *a)
         snprintf(line, sizeof line,
                  "actuators: the MCU has been silent for %u ms (no heartbeat, no ack)%s; the link "
                  "counts as lost after %d ms",
-                 SILENT_US / 1000u, a->hold ? "" : "; setpoints continue",
+                 SILENT_US / 1000u,
+                 a->hold                       ? ""
+                 : hs == ISO_FB_HOST_STREAMING ? "; setpoints continue"
+                                               : "; no setpoints until it answers HELLO",
                  a->host.opts.link_timeout_ms);
         iso_act__say(a, line);
     } else if (a->silent && a->host.last_rx_us > a->silent_from_us) {

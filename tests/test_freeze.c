@@ -16,8 +16,11 @@
  *   is stopped (its watchdog brakes it), and with the native MCU thread,
  *   which stops with it: the run says STALLED, counts the stall in its
  *   summary, and re-arms afterwards.
- * - QEMU itself stopped for 1 s under a run: the MCU's silence is said and
- *   its return, and the loop, which never stopped, counts no stall.
+ * - QEMU itself stopped under a run, for 1 s: the MCU's silence is said and
+ *   its return; then for 4 s, past the emulated link's 3 s timeout: the loss
+ *   is said, and nothing says the link is back (reopened, answering, armed)
+ *   while QEMU is still stopped; it re-arms once QEMU runs. The loop, which
+ *   never stopped, counts no stall.
  * Skips (77) without the isoshape binary, and the QEMU part without QEMU or
  * the firmware ELF. */
 #define _DEFAULT_SOURCE /* openpty */
@@ -324,8 +327,66 @@ static int qemu_child(pid_t pid)
     return -1;
 }
 
+/* The run's output so far (stdout and stderr, unbuffered notices) into buf;
+ * returns its length. */
+static size_t output_now(const char *out_path, char *buf, size_t cap)
+{
+    buf[0] = 0;
+    FILE *f = fopen(out_path, "r");
+    if (!f)
+        return 0;
+    size_t n = fread(buf, 1, cap - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return n;
+}
+
+/* Waits until the run's output after byte `from` holds `what`; fails,
+ * saying so, after `secs` (a bound for a loaded machine, not a timing). */
+static void await_output(pid_t pid, const char *out_path, size_t from, const char *what,
+                         double secs)
+{
+    static char buf[1 << 17];
+    double end = iso_clock_now() + secs;
+    for (;;) {
+        size_t n = output_now(out_path, buf, sizeof buf);
+        if (n > from && strstr(buf + from, what))
+            return;
+        if (iso_clock_now() > end)
+            break;
+        usleep(20000);
+    }
+    kill(pid, SIGKILL);
+    waitpid(pid, NULL, 0);
+    fail_msg("no '%s' within %.0f s; the run said:\n%s", what, secs, buf);
+}
+
+/* QEMU stopped for 4 s, past the link's timeout for an emulation (3 s):
+ * the loss is said while it is stopped, and nothing says the link or the
+ * MCU is back until it runs; then the link is taken up again and re-arms. */
+static void qemu_stopped_past_the_link_timeout(pid_t pid, pid_t qemu, const char *out_path)
+{
+    static char buf[1 << 17];
+    size_t before = output_now(out_path, buf, sizeof buf);
+    assert_int_equal(kill(qemu, SIGSTOP), 0);
+    usleep(4000000);
+    size_t frozen = output_now(out_path, buf, sizeof buf); /* all it said while QEMU was stopped */
+    assert_int_equal(kill(qemu, SIGCONT), 0);
+    char said[1 << 14];
+    snprintf(said, sizeof said, "%.*s", (int)(frozen - before), buf + before);
+    printf("---- while QEMU was stopped for 4 s ----\n%s----\n", said);
+    assert_non_null(strstr(said, "LINK LOST"));
+    assert_null(strstr(said, "link reopened"));
+    assert_null(strstr(said, "answers again"));
+    assert_null(strstr(said, "armed again"));
+    await_output(pid, out_path, frozen, "MCU armed again", 20);
+    output_now(out_path, buf, sizeof buf);
+    assert_non_null(strstr(buf + frozen, "link reopened"));
+    usleep(1000000); /* streaming again: the run's end then finds fresh setpoints */
+}
+
 /* An emulated MCU (`link`): isoshape stopped for 1 s (stop_qemu = 0), or
- * QEMU itself (1). */
+ * QEMU itself (1: for 1 s, then for 4 s). */
 static void frozen_with_emulation(const char *link, int stop_qemu, const char *label)
 {
     char scene[1024], out_path[1024], name[64];
@@ -345,7 +406,13 @@ static void frozen_with_emulation(const char *link, int stop_qemu, const char *l
     assert_int_equal(kill(target, SIGSTOP), 0);
     usleep(1000000);
     assert_int_equal(kill(target, SIGCONT), 0);
-    usleep(3000000);
+    if (stop_qemu) {
+        await_output(pid, out_path, 0, "the MCU answers again", 20);
+        usleep(1000000); /* re-armed after its clock's jump, so the long stop finds it streaming */
+        qemu_stopped_past_the_link_timeout(pid, target, out_path);
+    } else {
+        usleep(3000000);
+    }
     char *out = end_run(pid, out_path);
     if (stop_qemu) {
         /* the MCU froze, this process did not: silence said, then answers
@@ -355,6 +422,11 @@ static void frozen_with_emulation(const char *link, int stop_qemu, const char *l
         assert_non_null(strstr(out, "the MCU answers again"));
         assert_null(strstr(out, "STALLED"));
         assert_int_equal(loop_stalls(out), 0);
+        /* setpoints flowed after the re-arm: the last ones came well after
+         * the 4 s stop began */
+        const char *last = strstr(out, "safe state reported ");
+        assert_non_null(last);
+        assert_true(strtod(last + strlen("safe state reported "), NULL) < 3000);
         return;
     }
     const char *stall = strstr(out, "STALLED: this process did not run for");

@@ -46,8 +46,11 @@
  *      a response being written or a viewer.
  * Every connection the server drops (a stalled viewer, an evicted or timed
  * out request) is closed at once with a reset, so what it had not yet sent
- * does not stay in the kernel's memory; a connection it closes after a
- * protocol error gets its close frame and then the close.
+ * does not stay in the kernel's memory (tests/tools/view_tcp_memory: with a
+ * viewer that never reads arriving every 100 ms for 45 s, the kernel's TCP
+ * memory stays flat at 6-9 MiB, no orphans, where a close without the reset
+ * let it grow by 143 MB); a connection it closes after a protocol error gets
+ * its close frame and then the close.
  *
  * WebSocket (RFC 6455): a frame with reserved bits, a reserved opcode, no
  * mask, a long or fragmented control frame, a continuation without a start
