@@ -17,10 +17,19 @@
 #include <sys/stat.h>
 
 #include "iso_loop.h"
+#include "iso_mcap.h"
+
+const iso_cli__opt iso_cli__mcap_compression_options[] = {
+    {"mcap-compression", ISO_CLI_OPT_ENUM, 0, NULL,
+     .help = "how the MCAP file's chunks are written: zstd (the default; Foxglove Studio and the "
+             "mcap tools read it) or none, for a reader without zstd",
+     .names = iso_mcap_compression_names},
+    {0}};
 
 typedef struct export_args {
     const char *path, *mcap, *scene;
     int steps;
+    int compression; /* iso_mcap_compression */
     iso_cli__source src;
     iso_dev_map_opts mo;
 } export_args;
@@ -28,6 +37,8 @@ typedef struct export_args {
 static const iso_cli__opt export_options[] = {
     {"mcap", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(export_args, mcap), "OUT",
      .help = "the MCAP file to write", .nonempty = 1},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_INT_AT(export_args, compression),
+     .table = iso_cli__mcap_compression_options},
     {NULL, ISO_CLI_OPT_HEADING, 0, NULL,
      .help = "The scene the recording moves: a scene file (its one device becomes the\n"
              "recording), or a mesh as `isoshape replay` takes it:"},
@@ -105,6 +116,7 @@ static int export_main(int argc, char **argv)
     lo.rt = 0;
     lo.display = 0;
     lo.mcap = a.mcap;
+    lo.mcap_compression = a.compression;
     iso_loop *l = NULL;
     if (rc == ISO_OK)
         rc = iso_loop_create(sc, &lo, &l, &err);

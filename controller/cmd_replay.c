@@ -36,6 +36,7 @@ typedef struct replay_args {
     const char *path, *out, *pc2, *mcap;
     double speed, tick_ms;
     int fast, print, steps;
+    int mcap_compression; /* iso_mcap_compression */
     iso_cli__source src;
     iso_dev_map_opts mo;
 } replay_args;
@@ -213,6 +214,8 @@ static const iso_cli__opt replay_options[] = {
      .nonempty = 1},
     {"mcap", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(replay_args, mcap), "FILE",
      .help = "write the session into an MCAP file (see isoshape export)", .nonempty = 1},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_INT_AT(replay_args, mcap_compression),
+     .table = iso_cli__mcap_compression_options},
     {NULL, ISO_CLI_OPT_HEADING, 0, NULL, .help = "Mapping:"},
     {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_AT(replay_args, mo, iso_dev_map_opts),
      .table = iso_cli__dev_map_options},
@@ -285,6 +288,7 @@ static int replay_main(int argc, char **argv)
     lo.display = 0;
     lo.pc2 = a.pc2;
     lo.mcap = a.mcap;
+    lo.mcap_compression = a.mcap_compression;
     print_ctx pc = {INT64_MIN};
     if (a.print) {
         lo.on_command = print_command;

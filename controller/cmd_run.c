@@ -77,6 +77,8 @@ static const iso_cli__opt run_options[] = {
      .help = "write the session into an MCAP file for Foxglove: the mesh, the handles' poses, "
              "the devices, the ticks and the actuators",
      .nonempty = 1},
+    {NULL, ISO_CLI_OPT_TABLE, ISO_CLI_INT_AT(run_args, lo.mcap_compression),
+     .table = iso_cli__mcap_compression_options},
     {"quiet", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, quiet), NULL,
      .help = "no status line and no summary", .flag = 1},
     {"exit-at-end", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(run_args, exit_at_end), NULL,

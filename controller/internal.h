@@ -146,6 +146,11 @@ int iso_cli__parse(const iso_cli__cmd *c, int argc, char **argv, void *args, con
  * replay: a table fragment whose rows' values go into an iso_dev_map_opts. */
 extern const iso_cli__opt iso_cli__dev_map_options[];
 
+/* --mcap-compression (cmd_export.c), for every command that takes --mcap:
+ * a table fragment whose one row's value is an int, an
+ * iso_mcap_compression (include it at that int's offset). */
+extern const iso_cli__opt iso_cli__mcap_compression_options[];
+
 /* The subcommands (controller/cmd_*.c, cli_version.c), each at the end of
  * its file after its main, which is static: main() reaches it through the
  * table alone. A main's argv[0] is the subcommand's name; it returns the

@@ -192,6 +192,7 @@ typedef struct iso_loop_opts {
      * under a temporary name and renamed when the loop shuts down. */
     const char *pc2;
     const char *mcap;
+    int mcap_compression; /* iso_mcap_compression (sinks/iso_mcap.h): 0, the default, is zstd */
 } iso_loop_opts;
 
 ISO_API void iso_loop_opts_default(iso_loop_opts *o);

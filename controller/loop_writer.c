@@ -190,6 +190,8 @@ static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
     int rc = iso_fox_encoder_create(&s, &w->enc, err);
     if (rc == ISO_OK)
         rc = iso_mcap_create(l->o.mcap, "", "isoshape", &w->mcap, err);
+    if (rc == ISO_OK)
+        rc = iso_mcap_set_compression(w->mcap, l->o.mcap_compression, err);
     w->n_ch = iso_fox_channels(&s, w->ch, ISO_FOX_MAX_CHANNELS);
     uint16_t schema[ISO_FOX_MAX_CHANNELS];
     for (int c = 0; c < w->n_ch && rc == ISO_OK; c++) {
@@ -206,9 +208,10 @@ static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
     }
     if (rc == ISO_OK) {
         char t[ISO_SCENE_PATH_MAX + 64];
-        fprintf(l->log, "isoshape %s: MCAP into %s (as %s until the run ends), %d channels\n",
+        fprintf(l->log,
+                "isoshape %s: MCAP into %s (as %s until the run ends), %d channels, chunks %s\n",
                 l->cmd, l->o.mcap, iso_pc2_temp_path(l->o.mcap, (long)getpid(), t, sizeof t),
-                w->n_ch);
+                w->n_ch, l->o.mcap_compression == ISO_MCAP_NONE ? "uncompressed" : "in zstd");
     }
     return rc;
 }

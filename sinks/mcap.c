@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#include <zstd.h>
 
 #include "iso_bytes.h"
 #include "iso_pc2.h" /* iso_pc2_temp_path: one rule for temporary names */
@@ -25,6 +26,8 @@ enum {
 };
 
 static const unsigned char MAGIC[8] = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
+
+const char *const iso_mcap_compression_names[] = {"zstd", "none", NULL};
 
 /* ---- byte buffers (the writer's thread, never the tick) ----------------- */
 
@@ -74,6 +77,9 @@ struct iso_mcap {
     uint32_t crc_table[256];
     uint32_t data_crc; /* running, over every byte so far (until Data End) */
     buf chunk;         /* the open chunk's records */
+    int compression;   /* iso_mcap_compression */
+    ZSTD_CCtx *zstd;   /* made at the first zstd chunk, kept for the next */
+    buf packed;        /* a chunk's records compressed */
     uint64_t chunk_t0, chunk_t1;
     int chunk_msgs;
     msg_index idx[ISO_MCAP_MAX_CHANNELS];
@@ -83,6 +89,7 @@ struct iso_mcap {
     uint32_t seq[ISO_MCAP_MAX_CHANNELS];
     uint64_t messages, t_first, t_last;
     int err_io;
+    const char *codec_err; /* zstd's name for why it failed (static), or NULL */
     char path[4096], tmp[4200];
 };
 
@@ -114,6 +121,9 @@ static void emit_buf(iso_mcap *m, const buf *b)
 
 static int io_error(iso_mcap *m, iso_err *err)
 {
+    if (m->codec_err)
+        return iso_err_set(err, ISO_EIO, -1, "MCAP %s: zstd could not compress a chunk: %s", m->tmp,
+                           m->codec_err);
     return iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->tmp,
                        m->err_io == ENOMEM ? "out of memory" : strerror(m->err_io));
 }
@@ -204,6 +214,51 @@ int iso_mcap_add_channel(iso_mcap *m, uint16_t schema, const char *topic,
     return m->err_io ? io_error(m, err) : ISO_OK;
 }
 
+int iso_mcap_set_compression(iso_mcap *m, int compression, iso_err *err)
+{
+    if (compression != ISO_MCAP_ZSTD && compression != ISO_MCAP_NONE)
+        return iso_err_set(err, ISO_EINVAL, -1, "MCAP: no compression %d", compression);
+    if (m->messages > 0)
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "MCAP: the compression set after the first message");
+    m->compression = compression;
+    return ISO_OK;
+}
+
+/* The open chunk's records as the file holds them: compressed into
+ * m->packed, or m->chunk itself. The MCAP name of the compression goes into
+ * *name. On a failure err_io (and codec_err) are set, and from then on
+ * nothing more is written: the call that closed the chunk says why. */
+static const buf *chunk_records(iso_mcap *m, const char **name)
+{
+    *name = "";
+    if (m->compression != ISO_MCAP_ZSTD)
+        return &m->chunk;
+    if (!m->zstd && !(m->zstd = ZSTD_createCCtx())) {
+        m->err_io = m->err_io ? m->err_io : ENOMEM;
+        return &m->chunk;
+    }
+    size_t bound = ZSTD_compressBound(m->chunk.n);
+    m->packed.n = 0;
+    if (!iso_bytes_grow(&m->packed, bound)) {
+        m->err_io = m->err_io ? m->err_io : ENOMEM;
+        return &m->chunk;
+    }
+    /* one call, one thread, a fixed level: the same records give the same
+     * frame (ZSTD_compressCCtx resets the context's parameters to the
+     * level's each time, whatever the chunk before set) */
+    size_t z =
+        ZSTD_compressCCtx(m->zstd, m->packed.p, bound, m->chunk.p, m->chunk.n, ISO_MCAP_ZSTD_LEVEL);
+    if (ZSTD_isError(z)) {
+        m->codec_err = m->codec_err ? m->codec_err : ZSTD_getErrorName(z);
+        m->err_io = m->err_io ? m->err_io : EIO;
+        return &m->chunk;
+    }
+    m->packed.n = z;
+    *name = "zstd";
+    return &m->packed;
+}
+
 /* Writes the open chunk, its message indexes, and its chunk index into the
  * summary's buffer. */
 static void close_chunk(iso_mcap *m)
@@ -211,23 +266,27 @@ static void close_chunk(iso_mcap *m)
     if (m->chunk_msgs == 0)
         return;
     uint64_t chunk_start = m->off;
+    const char *compression;
+    const buf *records = chunk_records(m, &compression);
     buf h = {0};
     size_t at = rec_begin(&h, OP_CHUNK);
     put_le(&h, m->chunk_t0, 8);
     put_le(&h, m->chunk_t1, 8);
     put_le(&h, m->chunk.n, 8); /* uncompressed size */
+    /* the spec's uncompressed_crc: of the records before compression, so a
+     * reader checks what it decompressed */
     put_le(&h, crc_update(m, 0, m->chunk.p, m->chunk.n), 4);
-    put_str(&h, ""); /* no compression */
-    put_le(&h, m->chunk.n, 8);
+    put_str(&h, compression);
+    put_le(&h, records->n, 8);
     /* the record's length covers the records that follow the header bytes */
     rec_end(&h, at);
     if (!h.oom) {
-        uint64_t len = h.n - at - 8 + m->chunk.n;
+        uint64_t len = h.n - at - 8 + records->n;
         for (int i = 0; i < 8; i++)
             h.p[at + i] = (unsigned char)(len >> (8 * i));
     }
     emit_buf(m, &h);
-    emit_buf(m, &m->chunk);
+    emit_buf(m, records);
     uint64_t chunk_len = m->off - chunk_start;
     buf offsets = {0};
     uint64_t idx_start = m->off;
@@ -255,8 +314,8 @@ static void close_chunk(iso_mcap *m)
     put_le(ci, offsets.n, 4);
     iso_bytes_put(ci, offsets.p, offsets.n);
     put_le(ci, m->off - idx_start, 8);
-    put_str(ci, "");
-    put_le(ci, m->chunk.n, 8); /* compressed size: the same, uncompressed */
+    put_str(ci, compression);
+    put_le(ci, records->n, 8); /* as the file holds them */
     put_le(ci, m->chunk.n, 8);
     rec_end(ci, a3);
     if (h.oom || offsets.oom || ci->oom || m->chunk.oom)
@@ -354,6 +413,8 @@ static void summary(iso_mcap *m, uint64_t *sum_start, uint64_t *off_start)
 static void free_bufs(iso_mcap *m)
 {
     free(m->chunk.p);
+    free(m->packed.p);
+    ZSTD_freeCCtx(m->zstd); /* NULL is a no-op */
     free(m->schemas.p);
     free(m->channels.p);
     free(m->chunk_indexes.p);
