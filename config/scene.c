@@ -156,14 +156,17 @@ static iso_scene *new_scene(const char *path)
      * cached factor as PCG's preconditioner, factored on a worker four
      * ticks ahead, OpenCL where a GPU is. On the built-in plane of 2,601
      * vertices the library's defaults ticked at 13.8-18.6 ms, these at
-     * 7.7-9.7 ms (same run). The reduced model stays opt-in (proxy off):
-     * measured against the whole mesh's integral its metricErr is 2.3-3.5
-     * times as large at 40k vertices and 7-13 times at 160k, too far from
-     * the method to be what a scene gets without asking. */
+     * 7.7-9.7 ms (same run). And a mesh too large for the method to step
+     * within the tick runs on the reduced model (proxy auto): the whole
+     * 40k plane ticks 2-4 times a second and a 160k mesh takes gigabytes
+     * and seconds a tick, where the reduced model ticks at 60 Hz. It is the
+     * method at the proxy's resolution, not at the mesh's (docs/method.md
+     * says what that costs in distortion); the run says so when it starts,
+     * and `proxy: off` asks for the whole mesh. */
     s->solver.refactor = ISO_REFACTOR_ADAPTIVE;
     s->solver.worker_lag = 4;
     s->solver.assembly = ISO_ASSEMBLY_AUTO;
-    s->solver.proxy = 0;
+    s->solver.proxy = ISO_SOLVER_PROXY_AUTO;
     iso_integrate_opts_default(&s->integrate);
     s->integrate.restore_kappa = -1; /* the ABM mode's own */
     s->steps_per_tick = 1;

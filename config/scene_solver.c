@@ -96,7 +96,7 @@ static const scene_key solver_keys[] = {
      .store = store_proxy, .type = "off, auto or integer",
      .help = "the reduced model: the method on a proxy of at most this many vertices, the mesh "
              "following it; auto: none where the method fits the tick, else the proxy that does",
-     .dflt = "off"},
+     .dflt = "auto"},
     {"worker_ahead", SK_BOOL, FIELD(iso_solver_opts, worker_ahead),
      .help = "with the worker: factor the matrix at the positions extrapolated to the middle of "
              "the factor's use, instead of the giving evaluation's",

@@ -82,8 +82,15 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", np);
     memcpy(l->y, iso_mesh_positions(*mesh), (size_t)np * 3 * sizeof *l->y);
     *pos = l->y;
-    fprintf(l->log, "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s)\n",
-            l->cmd, np, l->nv, l->proxy_s);
+    if (sc->solver.proxy == ISO_SOLVER_PROXY_AUTO)
+        fprintf(l->log,
+                "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s): the "
+                "whole mesh does not fit a %g Hz tick (solver.proxy: off runs it whole)\n",
+                l->cmd, np, l->nv, l->proxy_s, sc->tick_hz);
+    else
+        fprintf(l->log,
+                "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s)\n",
+                l->cmd, np, l->nv, l->proxy_s);
     return ISO_OK;
 }
 

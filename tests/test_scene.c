@@ -199,7 +199,7 @@ static void test_round_trip(void **state)
     assert_int_equal(s->solver.refactor, ISO_REFACTOR_ALWAYS);
     /* the worker is the adaptive default's: always without worker_lag has none */
     assert_int_equal(s->solver.worker_lag, 0);
-    assert_int_equal(s->solver.proxy, 0); /* the reduced model is opt-in */
+    assert_int_equal(s->solver.proxy, ISO_SOLVER_PROXY_AUTO); /* the size decides */
     assert_int_equal(s->steps_per_tick, 2);
     assert_true(s->integrate.restore_kappa == 0.7);
     assert_true(s->integrate.cg_share == 0.25);
