@@ -125,6 +125,7 @@
 #include "iso_dev.h"
 #include "iso_err.h"
 #include "iso_metrics.h"
+#include "iso_proxy.h"
 #include "iso_scene.h"
 
 typedef struct iso_loop iso_loop; /* opaque */
@@ -215,6 +216,7 @@ typedef struct iso_loop_summary {
     iso_solver_stats solver; /* of the proxy's system when there is one */
     int proxy_vertices;      /* the reduced model's proxy (solver.proxy); 0: none */
     double proxy_build_s;    /* seconds it took to build */
+    iso_proxy_stats proxy;   /* what following it cost (zero without one) */
     iso_metrics metrics;     /* final positions against the rest pose */
     uint64_t checksum;       /* FNV-1a of the final positions' bytes (0 without a mesh) */
     double handle_p[ISO_SCENE_MAX_HANDLES][3]; /* final handle centroids (without a mesh:

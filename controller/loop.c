@@ -332,6 +332,7 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
     if (l->proxy) {
         s->proxy_vertices = iso_mesh_vertex_count(iso_proxy_mesh(l->proxy));
         s->proxy_build_s = l->proxy_s;
+        iso_proxy_get_stats(l->proxy, &s->proxy);
     }
     iso_metrics_compute(l->sc->mesh, iso_mesh_positions(l->sc->mesh), l->x, &s->metrics);
     s->checksum = iso_loop__fnv1a(0xcbf29ce484222325ULL, l->x, (size_t)l->nv * 3 * sizeof *l->x);

@@ -223,8 +223,13 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     if (s->proxy_vertices > 0)
         fprintf(f,
                 "              reduced model: the method on a proxy of %d vertices (built in "
-                "%.2f s), the %d of the mesh following it\n",
-                s->proxy_vertices, s->proxy_build_s, iso_mesh_vertex_count(sc->mesh));
+                "%.2f s), the %d of the mesh following it; its fit %.1f CG iterations a "
+                "tick, at most %ld%s\n",
+                s->proxy_vertices, s->proxy_build_s, iso_mesh_vertex_count(sc->mesh),
+                s->proxy.prolongations ? (double)s->proxy.fit_iterations / s->proxy.prolongations
+                                       : 0.0,
+                s->proxy.fit_max_iterations,
+                s->proxy.fit_failures ? ", FAILED (the prolongation stood) in some" : "");
     if (sc->solver.worker_lag > 0)
         fprintf(f,
                 "              worker lag %d: %ld factors handed over, %.1f s factoring, "
@@ -404,6 +409,9 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_int(j, "factor_solves", s->solver.factor_solves);
     iso_json_int(j, "proxy_vertices", s->proxy_vertices);
     iso_json_number(j, "proxy_build_s", s->proxy_build_s);
+    iso_json_int(j, "proxy_fit_iterations", s->proxy.fit_iterations);
+    iso_json_int(j, "proxy_fit_max_iterations", s->proxy.fit_max_iterations);
+    iso_json_int(j, "proxy_fit_failures", s->proxy.fit_failures);
     iso_json_int(j, "cg_capped", s->solver.cg_capped);
     iso_json_number(j, "assembly_s", s->solver.t_assembly);
     iso_json_number(j, "factor_s", s->solver.t_factor);

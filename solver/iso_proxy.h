@@ -66,6 +66,17 @@ ISO_API int iso_proxy_full_vertex(const iso_proxy *p, int k);
  * own for large meshes; the same bits either way. */
 ISO_API void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, double *x);
 
+/* What the prolongations so far cost their fit (solver/proxy_fit.c): the
+ * calls, the conjugate-gradient iterations in all and the most in one,
+ * and the fits that failed (CHOLMOD could not solve the proxy's small
+ * system; the prolongation then stood as it was). */
+typedef struct iso_proxy_stats {
+    long prolongations;
+    long fit_iterations, fit_max_iterations;
+    long fit_failures;
+} iso_proxy_stats;
+ISO_API void iso_proxy_get_stats(const iso_proxy *p, iso_proxy_stats *out);
+
 /* The budget `auto` chooses for a mesh of nv vertices stepped at tick_hz:
  * 0 (no proxy) where the full method fits the tick on two cores (8,000
  * vertices at 60 Hz), else the proxy size that does (4,000 at 60 Hz); both

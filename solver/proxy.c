@@ -44,8 +44,8 @@ struct iso_proxy {
     double *rot_full;    /* 9 nv: every full vertex's rotation, for the fit */
     const double *y_now; /* the prolongation's input, for the team */
     double *x_out;
-    long fit_failures; /* fits CHOLMOD failed (the prolongation stood) */
-    int fit_off;       /* white-box tests: the prolongation alone */
+    iso_proxy_stats st;
+    int fit_off; /* white-box tests: the prolongation alone */
     char origin[160];
 };
 
@@ -305,8 +305,15 @@ void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, dou
             memcpy(x + 3 * i, X + 3 * i, 3 * sizeof *x);
             memcpy(p->rot_full + 9 * i, I3, sizeof I3);
         }
-    if (!p->fit_off && iso_proxy__fit_run(p->fit, X, p->rot_full, x) != 0)
-        p->fit_failures++;
+    p->st.prolongations++;
+    if (p->fit_off)
+        return;
+    if (iso_proxy__fit_run(p->fit, X, p->rot_full, x) != 0)
+        p->st.fit_failures++;
+    long it = iso_proxy__fit_iterations(p->fit);
+    p->st.fit_iterations += it;
+    if (it > p->st.fit_max_iterations)
+        p->st.fit_max_iterations = it;
 }
 
 /* ===== set-up ============================================================ */
@@ -583,6 +590,11 @@ void iso_proxy__one_thread(iso_proxy *p)
     iso_proxy__fit_set_team(p->fit, NULL);
     iso_solver__team_destroy(p->team);
     p->team = NULL;
+}
+
+void iso_proxy_get_stats(const iso_proxy *p, iso_proxy_stats *out)
+{
+    *out = p->st;
 }
 
 const iso_mesh *iso_proxy_mesh(const iso_proxy *p)
