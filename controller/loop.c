@@ -70,6 +70,11 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
                      : sc->solver.proxy;
     if (budget <= 0 || l->nv - iso_mesh_unreferenced_count(sc->mesh) <= budget)
         return ISO_OK;
+    if (l->nv >= 100000) /* seconds of work: say what is happening */
+        fprintf(l->log,
+                "isoshape %s: reduced model: simplifying %d vertices to a proxy of at most %d "
+                "(about a second per 100,000 vertices)...\n",
+                l->cmd, l->nv, budget);
     double t0 = iso_clock_now();
     int rc = iso_proxy_create(sc->mesh, &sc->regions, budget, &l->proxy, err);
     if (rc != ISO_OK)
