@@ -200,53 +200,6 @@ static int coarse_map(iso_proxy__fit *f, int np, const unsigned char *proxy_free
     return 0;
 }
 
-/* The Galerkin product PᵀLP, its upper triangle as a triplet list that
- * CHOLMOD sums, then factored (simplicial: a small matrix, no
- * BLAS and no OpenMP). Row k of LP is deg_k P_k − Σ_free j P_j; each of
- * its entries meets row k of P. */
-static int coarse_factor(iso_proxy__fit *f)
-{
-    size_t cap = 0;
-    for (int k = 0; k < f->nf; k++)
-        cap += 9 * (size_t)(1 + f->fstart[k + 1] - f->fstart[k]);
-    cholmod_triplet *T =
-        cholmod_allocate_triplet((size_t)f->nc, (size_t)f->nc, cap, 1, CHOLMOD_REAL, &f->c);
-    if (!T)
-        return -1;
-    int *ti = T->i, *tj = T->j;
-    double *tx = T->x;
-    size_t n = 0;
-    for (int k = 0; k < f->nf; k++) {
-        double deg = 1.0 / f->inv_deg[k];
-        for (int q = f->fstart[k] - 1; q < f->fstart[k + 1]; q++) {
-            int j = q < f->fstart[k] ? k : f->fnb[q];
-            double w = q < f->fstart[k] ? deg : -1.0;
-            for (int a = 0; a < 3; a++) {
-                int u = f->pc[3 * k + a];
-                if (u < 0)
-                    continue;
-                for (int b = 0; b < 3; b++) {
-                    int v = f->pc[3 * j + b];
-                    if (v < 0 || v < u) /* upper triangle (stype 1) */
-                        continue;
-                    ti[n] = u, tj[n] = v, tx[n] = f->pw[3 * k + a] * w * f->pw[3 * j + b];
-                    n++;
-                }
-            }
-        }
-    }
-    T->nnz = n;
-    cholmod_sparse *A = cholmod_triplet_to_sparse(T, n, &f->c);
-    cholmod_free_triplet(&T, &f->c);
-    if (!A)
-        return -1;
-    f->c.supernodal = CHOLMOD_SIMPLICIAL;
-    f->Lc = cholmod_analyze(A, &f->c);
-    int ok = f->Lc && cholmod_factorize(A, f->Lc, &f->c) && f->c.status == CHOLMOD_OK;
-    cholmod_free_sparse(&A, &f->c);
-    return ok ? 0 : -1;
-}
-
 /* The rows of L P, so that L z = L D⁻¹ r + (L P) e needs no pass of its
  * own: row k is deg_k P_k − Σ_free j P_j, its coarse unknowns merged (a
  * row has at most 3 (1 + degree) of them, usually four to six). */
@@ -283,6 +236,47 @@ static int lp_rows(iso_proxy__fit *f)
     return 0;
 }
 
+/* The Galerkin product PᵀLP = Σ_k P_kᵀ (LP)_k from the rows of LP, its
+ * upper triangle as a triplet list that CHOLMOD sums (about nine entries
+ * per free vertex), then factored (simplicial: a small matrix, no BLAS and
+ * no OpenMP). */
+static int coarse_factor(iso_proxy__fit *f)
+{
+    size_t cap = 0;
+    for (int k = 0; k < f->nf; k++)
+        cap += 3 * (size_t)(f->lp_start[k + 1] - f->lp_start[k]);
+    cholmod_triplet *T =
+        cholmod_allocate_triplet((size_t)f->nc, (size_t)f->nc, cap, 1, CHOLMOD_REAL, &f->c);
+    if (!T)
+        return -1;
+    int *ti = T->i, *tj = T->j;
+    double *tx = T->x;
+    size_t n = 0;
+    for (int k = 0; k < f->nf; k++)
+        for (int a = 0; a < 3; a++) {
+            int u = f->pc[3 * k + a];
+            if (u < 0)
+                continue;
+            for (int q = f->lp_start[k]; q < f->lp_start[k + 1]; q++) {
+                int v = f->lp_col[q];
+                if (v < u) /* the upper triangle (stype 1): the lower one mirrors it */
+                    continue;
+                ti[n] = u, tj[n] = v, tx[n] = f->pw[3 * k + a] * f->lp_val[q];
+                n++;
+            }
+        }
+    T->nnz = n;
+    cholmod_sparse *A = cholmod_triplet_to_sparse(T, n, &f->c);
+    cholmod_free_triplet(&T, &f->c);
+    if (!A)
+        return -1;
+    f->c.supernodal = CHOLMOD_SIMPLICIAL;
+    f->Lc = cholmod_analyze(A, &f->c);
+    int ok = f->Lc && cholmod_factorize(A, f->Lc, &f->c) && f->c.status == CHOLMOD_OK;
+    cholmod_free_sparse(&A, &f->c);
+    return ok ? 0 : -1;
+}
+
 iso_proxy__fit *iso_proxy__fit_create(const iso_mesh *m, const unsigned char *held, int np,
                                       const unsigned char *proxy_free, const int *corner,
                                       const double *beta, iso_solver__team *team)
@@ -316,7 +310,7 @@ iso_proxy__fit *iso_proxy__fit_create(const iso_mesh *m, const unsigned char *he
     if (coarse_map(f, np, proxy_free, corner, beta) != 0)
         goto fail;
     if (f->nc > 0) {
-        if (coarse_factor(f) != 0 || lp_rows(f) != 0)
+        if (lp_rows(f) != 0 || coarse_factor(f) != 0)
             goto fail;
         f->Bc = cholmod_zeros((size_t)f->nc, 3, CHOLMOD_REAL, &f->c);
         f->acc = malloc(6 * (size_t)f->nc * sizeof *f->acc);
