@@ -40,9 +40,10 @@ int iso_test_ws_viewer(int port, const char *extra);
  * it runs (a measuring tool's rates); the rest once it is stopped. */
 typedef struct iso_test_ws_reader {
     int fd;
-    atomic_long frames; /* binary frames received */
-    atomic_long bytes;  /* their payload bytes */
-    double last_tick;   /* the newest tick in them */
+    atomic_long frames;     /* binary frames received */
+    atomic_long bytes;      /* their payload bytes */
+    atomic_long text_bytes; /* the payload bytes of text frames (the topology...) */
+    double last_tick;       /* the newest tick in them */
     int failed;
     pthread_t th;
 } iso_test_ws_reader;
