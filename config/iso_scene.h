@@ -209,7 +209,7 @@ typedef struct iso_scene_actuators {
     char path[ISO_SCENE_PATH_MAX]; /* TTY device or serial port name */
     char host[ISO_SCENE_NAME_MAX];
     int port;
-    int baud;      /* default 115200 */
+    int baud;      /* default the bridge board's rate, ISO_FB_BOARD_BAUD (115200) */
     int emulation; /* EMULATED: iso_scene_emu_mode */
     iso_scene_channel ch[ISO_SCENE_MAX_CHANNELS];
     int n_ch;

@@ -6,6 +6,7 @@
 
 #include <string.h>
 
+#include "iso_fb_mcu.h" /* ISO_FB_BOARD_BAUD */
 #include "iso_names.h"
 
 #define STR_(x) #x
@@ -49,6 +50,7 @@ static const scene_key device_keys[] = {
      .type = "host:port", .help = "the bridge's host:port"},
     {"port", SK_STRING, FIELD(iso_scene_device, path), .with = "serialport", .need = "serialport",
      .help = "the serial port's name (libserialport), e.g. /dev/ttyUSB0"},
+    /* ISO_FB_BOARD_BAUD as SCENES.md spells it (test_scene holds it to what loads) */
     {"baud", SK_INT, FIELD(iso_scene_device, baud), IN(50, 12000000), .with = "tty serialport",
      .help = "the line's rate", .dflt = "115200"},
     {"vid", SK_INT, FIELD(iso_scene_device, vid), IN(0, 0xffff), .with = "hid",
@@ -95,8 +97,10 @@ static int device_kind(scene_ctx *c, scene_map *m)
             "only twist and target streams time out (kinds %s); a %s device reports a "
             "state and is not timed out",
             iso_scene__words_list(k->with, ", ", kinds, sizeof kinds), m->variant);
+    /* A serial device carries the firmware bridge's stream (devices/decode.c):
+     * its line runs at the bridge board's rate unless the scene says. */
     if (d->backend == ISO_SCENE_DEV_TTY || d->backend == ISO_SCENE_DEV_SERIALPORT)
-        d->baud = 115200;
+        d->baud = ISO_FB_BOARD_BAUD;
     if (d->backend == ISO_SCENE_DEV_GPIOD) {
         d->gpio.chip = d->chip;
         d->gpio.clutch_line = d->gpio.estop_line = d->gpio.pulse_line = -1;

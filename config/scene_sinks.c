@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "iso_actuators.h" /* iso_act_emu_names, ISO_ACT_MAX_CHANNELS */
+#include "iso_fb_mcu.h"    /* ISO_FB_BOARD_BAUD */
 #include "iso_fd.h"        /* iso_fd_listen_host */
 #include "iso_names.h"
 
@@ -122,6 +123,7 @@ static const scene_key link_keys[] = {
     {"emulated", SK_ENUM, FIELD(iso_scene_actuators, emulation), SK_ONE_OF,
      .names = iso_act_emu_names,
      .help = "the MCU emulated: in QEMU, natively, or auto (QEMU when it and the ELF are there)"},
+    /* ISO_FB_BOARD_BAUD as SCENES.md spells it (test_scene holds it to what loads) */
     {"baud", SK_INT, FIELD(iso_scene_actuators, baud), IN(50, 12000000), .with = "tty serial",
      .help = "the line's rate", .dflt = "115200"},
     {.key = NULL},
@@ -131,7 +133,7 @@ static int link_begin(scene_ctx *c, scene_map *m)
 {
     iso_scene_actuators *a = m->obj;
     (void)c;
-    a->baud = 115200;
+    a->baud = (int)ISO_FB_BOARD_BAUD; /* the link is to the bridge board's UART */
     a->emulation = ISO_SCENE_EMU_AUTO;
     return ISO_OK;
 }

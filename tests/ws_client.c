@@ -224,13 +224,16 @@ static void *reader_main(void *arg)
                 first[at++] = buf[i];
             left -= (uint64_t)k;
         }
+        if ((h[0] & 0x0f) == 1)
+            atomic_fetch_add(&r->text_bytes, (long)n);
         if ((h[0] & 0x0f) == 2 && at == sizeof first) {
             double t;
             memcpy(&t, first + 8, 8);
             if (t <= r->last_tick)
                 r->failed = 1;
             r->last_tick = t;
-            r->frames++;
+            atomic_fetch_add(&r->frames, 1);
+            atomic_fetch_add(&r->bytes, (long)n);
         }
     }
     return NULL;
@@ -239,7 +242,9 @@ static void *reader_main(void *arg)
 void iso_test_ws_reader_start(iso_test_ws_reader *r, int fd)
 {
     r->fd = fd;
-    r->frames = 0;
+    atomic_init(&r->frames, 0);
+    atomic_init(&r->bytes, 0);
+    atomic_init(&r->text_bytes, 0);
     r->last_tick = -1;
     r->failed = 0;
     assert_int_equal(pthread_create(&r->th, NULL, reader_main, r), 0);

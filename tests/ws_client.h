@@ -5,6 +5,7 @@
 #define ISO_TEST_WS_CLIENT_H
 
 #include <pthread.h>
+#include <stdatomic.h>
 
 /* Connects to the loopback of `family` (AF_INET or AF_INET6) with a 5 s
  * receive timeout and, when rcvbuf > 0, that receive buffer; -1 if not. */
@@ -35,11 +36,14 @@ int iso_test_ws_viewer(int port, const char *extra);
 
 /* Reads frames on its own thread until the socket ends. Binary frames carry
  * the tick (a double at byte 8); a tick that does not grow sets failed. No
- * cmocka asserts run off the main thread. */
+ * cmocka asserts run off the main thread. frames and bytes may be read while
+ * it runs (a measuring tool's rates); the rest once it is stopped. */
 typedef struct iso_test_ws_reader {
     int fd;
-    long frames;      /* binary frames received */
-    double last_tick; /* the newest tick in them */
+    atomic_long frames;     /* binary frames received */
+    atomic_long bytes;      /* their payload bytes */
+    atomic_long text_bytes; /* the payload bytes of text frames (the topology...) */
+    double last_tick;       /* the newest tick in them */
     int failed;
     pthread_t th;
 } iso_test_ws_reader;
