@@ -440,7 +440,7 @@ void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n)
                    r->why);
             continue;
         }
-        printf("%-14s %8d %-8s %6d %6ld %8.1f %9.2f %9.2f %8.0f %10.2f %13.1f %10.4g %8.2f %8.2f "
+        printf("%-14s %8d %-8s %6d %6ld %8.2f %9.2f %9.2f %8.0f %10.2f %13.1f %10.4g %8.2f %8.2f "
                "%8.2f %8.2f %5ld\n",
                r->mesh, r->vertices, r->reduced ? "reduced" : "whole", r->proxy, r->ticks,
                r->ticks_per_s, r->median_ms, r->p99_ms, r->peak_mb, r->product_ms,
