@@ -19,9 +19,22 @@
  * couple), stored as CHOLMOD's sdmult reads it (column-compressed, upper),
  * on one thread; values drawn at random, since the time depends on the
  * pattern only. Building the solver's own matrix would need its symbolic
- * factorization, which at 1M vertices alone outgrows the machine. */
+ * factorization, which at 1M vertices alone outgrows the machine.
+ *
+ * Beside it, the factorization table: what the full-resolution path's
+ * costs are at each size, measured without the tick engine. The plane at
+ * 40k, 90k and 160k vertices and the 160k tentacle (up to the same
+ * --scale-full-max), each in a child: the system's unknowns and stored
+ * entries, one numeric factor's memory as CHOLMOD holds it, the ordering
+ * and analysis, then the median of three evaluations under the paper's
+ * scheme (each one assembly, one factorization and one solve with the
+ * factor) on one BLAS thread, as the tick engine's worker factors, and the
+ * product on the same pattern: a tick of the whole mesh can go no faster
+ * than its solves with the factor and its assemblies on one core, nor than
+ * a factorization per worker_lag ticks on the other. */
 #include "internal.h"
 
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -192,8 +205,8 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* The median time of one product, over 21. */
-static double product_ms(const iso_mesh *m, const iso_regions *r)
+/* The median time of one product, over 21; *nnz: the matrix's entries. */
+static double product_ms(const iso_mesh *m, const iso_regions *r, long *nnz)
 {
     csc a = {0};
     double t[21], ms = NAN;
@@ -210,6 +223,7 @@ static double product_ms(const iso_mesh *m, const iso_regions *r)
         }
         qsort(t, 21, sizeof t[0], cmp_double);
         ms = t[10];
+        *nnz = a.p[a.n];
     }
     free(v);
     free(y);
@@ -251,8 +265,9 @@ static void child_run(const iso_cli__scale_mesh *mesh, int proxy, iso_cli__scale
     iso_err_clear(&err);
     int rc = load_scene(mesh, proxy > 0, &sc, &err);
     if (rc == ISO_OK && proxy < 0) {
+        long nnz = 0;
         row->vertices = iso_mesh_vertex_count(sc->mesh);
-        row->product_ms = product_ms(sc->mesh, &sc->regions);
+        row->product_ms = product_ms(sc->mesh, &sc->regions, &nnz);
         iso_scene_destroy(sc);
         return;
     }
@@ -279,6 +294,13 @@ static void child_run(const iso_cli__scale_mesh *mesh, int proxy, iso_cli__scale
         row->median_ms = s.tick_median;
         row->p99_ms = s.tick_p99;
         row->metric_err = s.metrics.metric_err;
+        const iso_solver_stats *st = &s.solver;
+        double ticks = s.ticks > 0 ? (double)s.ticks : NAN;
+        row->solves_per_tick = (double)st->factor_solves / ticks;
+        row->assembly_ms = 1e3 * st->t_assembly / ticks;
+        row->solve_ms = 1e3 * st->t_solve / ticks;
+        row->wait_ms = 1e3 * st->t_wait / ticks;
+        row->tick_factorizations = st->factorizations;
     } else {
         snprintf(row->why, sizeof row->why, "%.200s", err.msg);
     }
@@ -288,36 +310,49 @@ static void child_run(const iso_cli__scale_mesh *mesh, int proxy, iso_cli__scale
         fclose(quiet);
 }
 
-/* Runs child_run in a child process; the row comes back through a pipe,
- * the peak memory from wait4. */
-static int in_child(const iso_cli__scale_mesh *mesh, int proxy, iso_cli__scale_row *row,
-                    iso_err *err)
+/* What a child computes: fills out (size bytes), which a pipe brings back. */
+typedef void child_fn(const iso_cli__scale_mesh *mesh, int arg, void *out);
+
+static void child_row(const iso_cli__scale_mesh *mesh, int proxy, void *out)
 {
+    child_run(mesh, proxy, out);
+}
+
+/* Runs fn in a child process; out comes back through a pipe (it starts as
+ * the parent's copy), the child's peak memory from wait4. */
+static int in_child(child_fn *fn, const iso_cli__scale_mesh *mesh, int arg, void *out, size_t size,
+                    double *peak_mb, iso_err *err)
+{
+    char *back = malloc(size);
     int fd[2];
-    if (pipe(fd) != 0)
+    if (!back)
+        return iso_err_set(err, ISO_ENOMEM, -1, "bench --scale: out of memory for a row");
+    if (pipe(fd) != 0) {
+        free(back);
         return iso_err_set(err, ISO_EIO, -1, "bench --scale: no pipe for a child");
+    }
     fflush(NULL);
     pid_t pid = fork();
     if (pid < 0) {
         close(fd[0]);
         close(fd[1]);
+        free(back);
         return iso_err_set(err, ISO_EIO, -1, "bench --scale: could not start a child");
     }
     if (pid == 0) {
         close(fd[0]);
-        iso_cli__scale_row r = *row;
-        child_run(mesh, proxy, &r);
-        ssize_t w = write(fd[1], &r, sizeof r);
-        _exit(w == (ssize_t)sizeof r ? 0 : 1);
+        memcpy(back, out, size);
+        fn(mesh, arg, back);
+        ssize_t w = write(fd[1], back, size);
+        _exit(w == (ssize_t)size ? 0 : 1);
     }
     close(fd[1]);
-    iso_cli__scale_row r;
-    ssize_t got = 0;
-    while (got < (ssize_t)sizeof r) {
-        ssize_t n = read(fd[0], (char *)&r + got, sizeof r - (size_t)got);
+    size_t got = 0;
+    while (got < size) {
+        ssize_t n = read(fd[0], back + got, size - got);
         if (n <= 0)
             break;
-        got += n;
+        got += (size_t)n;
     }
     close(fd[0]);
     int status = 0;
@@ -325,12 +360,16 @@ static int in_child(const iso_cli__scale_mesh *mesh, int proxy, iso_cli__scale_r
     memset(&ru, 0, sizeof ru);
     while (wait4(pid, &status, 0, &ru) < 0)
         ;
-    if (got != (ssize_t)sizeof r || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "bench --scale: the run of %s %d died (status %d)",
-                           mesh->shape, mesh->resolution, status);
-    *row = r;
-    row->peak_mb = (double)ru.ru_maxrss / 1024.0;
-    return ISO_OK;
+    int rc = ISO_OK;
+    if (got != size || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        rc = iso_err_set(err, ISO_EIO, -1, "bench --scale: the run of %s %d died (status %d)",
+                         mesh->shape, mesh->resolution, status);
+    } else {
+        memcpy(out, back, size);
+        *peak_mb = (double)ru.ru_maxrss / 1024.0;
+    }
+    free(back);
+    return rc;
 }
 
 const iso_cli__scale_mesh iso_cli__scale_meshes[ISO_CLI_SCALE_MESHES] = {
@@ -356,7 +395,7 @@ int iso_cli__bench_scale(const iso_cli__scale_mesh *meshes, int full_max, int tt
         iso_cli__scale_row unit = {0};
         if (tty)
             fprintf(stderr, "isoshape bench: %s %d, one product ...\n", m->shape, m->resolution);
-        int rc = in_child(m, -1, &unit, err);
+        int rc = in_child(child_row, m, -1, &unit, sizeof unit, &unit.peak_mb, err);
         for (int proxy = 0; rc == ISO_OK && proxy < 2; proxy++) {
             iso_cli__scale_row *row = &rows[(*n)++];
             memset(row, 0, sizeof *row);
@@ -372,7 +411,7 @@ int iso_cli__bench_scale(const iso_cli__scale_mesh *meshes, int full_max, int tt
             if (tty)
                 fprintf(stderr, "isoshape bench: %s %d, %s ...\n", m->shape, m->resolution,
                         proxy ? "reduced" : "whole mesh");
-            rc = in_child(m, proxy, row, err);
+            rc = in_child(child_row, m, proxy, row, sizeof *row, &row->peak_mb, err);
         }
         if (rc != ISO_OK)
             return rc;
@@ -387,9 +426,13 @@ void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n)
            "on the whole mesh and the reduced model (solver.proxy auto, or the budget --quick "
            "names); product: one y = A v "
            "with a matrix of the whole mesh's system pattern, on one thread, in the same run\n");
-    printf("%-14s %8s %-8s %6s %6s %8s %9s %9s %8s %10s %13s %10s\n", "mesh", "vertices", "path",
-           "proxy", "ticks", "ticks/s", "median ms", "p99 ms", "peak MB", "product ms",
-           "median/prod", "metricErr");
+    printf("per tick, the run's sums over its ticks: solves with a factor, ms of assembly, of "
+           "solving (PCG included) and of waiting for the worker; facts: factorizations on the "
+           "ticks' thread\n");
+    printf("%-14s %8s %-8s %6s %6s %8s %9s %9s %8s %10s %13s %10s %8s %8s %8s %8s %5s\n", "mesh",
+           "vertices", "path", "proxy", "ticks", "ticks/s", "median ms", "p99 ms", "peak MB",
+           "product ms", "median/prod", "metricErr", "solves", "asm ms", "solve ms", "wait ms",
+           "facts");
     for (int i = 0; i < n; i++) {
         const iso_cli__scale_row *r = &rows[i];
         if (r->why[0]) {
@@ -397,10 +440,12 @@ void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n)
                    r->why);
             continue;
         }
-        printf("%-14s %8d %-8s %6d %6ld %8.1f %9.2f %9.2f %8.0f %10.2f %13.1f %10.4g\n", r->mesh,
-               r->vertices, r->reduced ? "reduced" : "whole", r->proxy, r->ticks, r->ticks_per_s,
-               r->median_ms, r->p99_ms, r->peak_mb, r->product_ms, r->median_ms / r->product_ms,
-               r->metric_err);
+        printf("%-14s %8d %-8s %6d %6ld %8.2f %9.2f %9.2f %8.0f %10.2f %13.1f %10.4g %8.2f %8.2f "
+               "%8.2f %8.2f %5ld\n",
+               r->mesh, r->vertices, r->reduced ? "reduced" : "whole", r->proxy, r->ticks,
+               r->ticks_per_s, r->median_ms, r->p99_ms, r->peak_mb, r->product_ms,
+               r->median_ms / r->product_ms, r->metric_err, r->solves_per_tick, r->assembly_ms,
+               r->solve_ms, r->wait_ms, r->tick_factorizations);
     }
 }
 
@@ -423,8 +468,212 @@ void iso_cli__bench_scale_json(iso_json *j, const iso_cli__scale_row *rows, int 
             iso_json_number(j, "tick_p99_ms", r->p99_ms);
             iso_json_number(j, "peak_mb", r->peak_mb);
             iso_json_number(j, "metric_err", r->metric_err);
+            iso_json_number(j, "solves_per_tick", r->solves_per_tick);
+            iso_json_number(j, "assembly_ms_per_tick", r->assembly_ms);
+            iso_json_number(j, "solve_ms_per_tick", r->solve_ms);
+            iso_json_number(j, "wait_ms_per_tick", r->wait_ms);
+            iso_json_int(j, "tick_factorizations", r->tick_factorizations);
         }
         iso_json_number(j, "product_ms", r->product_ms);
+        iso_json_close(j);
+    }
+}
+
+/* ===== the factorization table ========================================== */
+
+/* The plane at the three sizes the scale section of docs/performance.md
+ * has figures for, and the 160k tentacle that the scale table runs. */
+const iso_cli__scale_mesh iso_cli__scale_factor_meshes[ISO_CLI_SCALE_FACTOR_MESHES] = {
+    {"bumpplane", 201, 0},
+    {"bumpplane", 301, 0},
+    {"bumpplane", 401, 0},
+    {"tentacle", 128, 0},
+};
+
+/* 49, 961 and 1,002 vertices, and 2,601 above the quick --scale-full-max;
+ * the smallest so small that CHOLMOD chooses a simplicial factor, whose
+ * memory is counted otherwise. */
+const iso_cli__scale_mesh iso_cli__scale_factor_meshes_quick[ISO_CLI_SCALE_FACTOR_MESHES] = {
+    {"bumpplane", 7, 0},
+    {"bumpplane", 31, 0},
+    {"bumpplane", 51, 0},
+    {"tentacle", 10, 0},
+};
+
+/* OpenBLAS on one thread in this (child) process, as the tick engine's
+ * solver puts it when it has a worker (ISO_SOLVER_BLAS_SIZED), so that the
+ * factorization is timed as the worker runs it; unless the user set
+ * OPENBLAS_NUM_THREADS, which the engine leaves alone too. */
+static void blas_as_the_engine(void)
+{
+    void *set =
+        getenv("OPENBLAS_NUM_THREADS") ? NULL : dlsym(RTLD_DEFAULT, "openblas_set_num_threads");
+    void (*set_threads)(int) = NULL;
+    if (!set)
+        return;
+    memcpy(&set_threads, &set, sizeof set);
+    set_threads(1);
+}
+
+static double median3(double *v)
+{
+    qsort(v, ISO_CLI_SCALE_FACTOR_REPS, sizeof *v, cmp_double);
+    return v[ISO_CLI_SCALE_FACTOR_REPS / 2];
+}
+
+/* The whole mesh's system at its rest pose, the scene's handle moving:
+ * evaluations under the paper's scheme (refactor always, no worker, the C
+ * assembly), each exactly one assembly, one numeric factorization and one
+ * solve with the factor, whose times the solver's stats isolate. The first
+ * is not timed: it allocates the factor's values and warms the caches,
+ * which a tick engine pays once. Then the product, the unit, on the same
+ * pattern in the same process. */
+static int factor_figures(const iso_scene *sc, iso_cli__scale_factor_row *row, iso_err *err)
+{
+    iso_solver_opts so = sc->solver;
+    so.assembly = ISO_ASSEMBLY_CPU;
+    so.refactor = ISO_REFACTOR_ALWAYS;
+    so.worker_lag = 0;
+    so.proxy = 0;
+    iso_cli__solver_threads(&so.threads);
+    blas_as_the_engine();
+    int nv = iso_mesh_vertex_count(sc->mesh);
+    const double *x = iso_mesh_positions(sc->mesh);
+    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    double tf[ISO_CLI_SCALE_FACTOR_REPS], ts[ISO_CLI_SCALE_FACTOR_REPS],
+        ta[ISO_CLI_SCALE_FACTOR_REPS];
+    iso_solver *s = NULL;
+    int rc = vc && v ? iso_solver_create(sc->mesh, &sc->regions, &so, &s, err)
+                     : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
+    for (int i = 0; rc == ISO_OK && i < nv; i++)
+        if (sc->regions.kind[i] == ISO_HANDLE)
+            iso_twist_velocity(&sc->handles[0].driver.twist, x + 3 * i, vc + 3 * i);
+    if (rc == ISO_OK)
+        rc = iso_solver_field(s, x, vc, v, err);
+    for (int k = 0; rc == ISO_OK && k < ISO_CLI_SCALE_FACTOR_REPS; k++) {
+        iso_solver_stats a, b;
+        iso_solver_get_stats(s, &a);
+        rc = iso_solver_field(s, x, vc, v, err);
+        iso_solver_get_stats(s, &b);
+        tf[k] = 1e3 * (b.t_factor - a.t_factor);
+        ts[k] = 1e3 * (b.t_solve - a.t_solve);
+        ta[k] = 1e3 * (b.t_assembly - a.t_assembly);
+    }
+    if (rc == ISO_OK) {
+        iso_solver_stats st;
+        iso_solver_get_stats(s, &st);
+        row->unknowns = 3 * st.n_free;
+        row->supernodal = st.supernodal;
+        row->nnz_a = st.nnz_a;
+        row->nnz_l = st.nnz_l;
+        row->factor_mb = (double)st.factor_bytes / (1024.0 * 1024.0);
+        row->gflop = iso_cli__factor_flops(s) / 1e9;
+        row->analysis_s = st.t_analysis;
+        row->factor_ms = median3(tf);
+        row->solve_ms = median3(ts);
+        row->assembly_ms = median3(ta);
+    }
+    iso_solver_destroy(s);
+    free(vc);
+    free(v);
+    if (rc == ISO_OK)
+        row->product_ms = product_ms(sc->mesh, &sc->regions, &row->product_nnz);
+    return rc;
+}
+
+/* The child's part: the row, or only the vertex count above full_max. */
+static void child_factor(const iso_cli__scale_mesh *mesh, int full_max, void *out)
+{
+    iso_cli__scale_factor_row *row = out;
+    iso_scene *sc = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    int rc = load_scene(mesh, 0, &sc, &err);
+    if (rc == ISO_OK) {
+        row->vertices = iso_mesh_vertex_count(sc->mesh);
+        if (row->vertices > full_max)
+            snprintf(row->why, sizeof row->why, "skipped: above --scale-full-max %d vertices",
+                     full_max);
+        else
+            rc = factor_figures(sc, row, &err);
+    }
+    if (rc != ISO_OK)
+        snprintf(row->why, sizeof row->why, "%.200s", err.msg);
+    iso_scene_destroy(sc);
+}
+
+void iso_cli__bench_scale_factor(const iso_cli__scale_mesh *meshes, int full_max, int tty,
+                                 iso_cli__scale_factor_row *rows, int *n)
+{
+    *n = 0;
+    for (int k = 0; k < ISO_CLI_SCALE_FACTOR_MESHES; k++) {
+        const iso_cli__scale_mesh *m = &meshes[k];
+        iso_cli__scale_factor_row *row = &rows[(*n)++];
+        memset(row, 0, sizeof *row);
+        snprintf(row->mesh, sizeof row->mesh, "%s %d", m->shape, m->resolution);
+        if (tty)
+            fprintf(stderr, "isoshape bench: %s %d, factorization ...\n", m->shape, m->resolution);
+        /* A child that fails or dies (the kernel's OOM killer, on a mesh
+         * too large for the machine) says so in its row: the other rows,
+         * and the scale table before them, still stand. */
+        iso_err err;
+        iso_err_clear(&err);
+        if (in_child(child_factor, m, full_max, row, sizeof *row, &row->peak_mb, &err) != ISO_OK)
+            snprintf(row->why, sizeof row->why, "%.200s", err.msg);
+    }
+}
+
+void iso_cli__bench_scale_factor_print(const iso_cli__scale_factor_row *rows, int n)
+{
+    printf("\nfactorization: the whole mesh's system on its own (CHOLMOD, the solver's ordering), "
+           "at the rest pose: unknowns, stored entries of A (upper) and of L, L supernodal or "
+           "simplicial and one numeric factor's MiB (values and indices), the ordering and "
+           "analysis (once), the median of %d numeric factorizations and of the solves with "
+           "each factor, on one BLAS thread as the worker factors, the same evaluations' "
+           "assembly, and the product, the unit, in the same process\n",
+           ISO_CLI_SCALE_FACTOR_REPS);
+    printf("%-14s %8s %8s %10s %11s %-5s %9s %7s %10s %10s %9s %8s %10s %11s %8s\n", "mesh",
+           "vertices", "unknowns", "nnz(A)", "nnz(L)", "L", "factor MB", "GFLOP", "analysis s",
+           "factor ms", "solve ms", "asm ms", "product ms", "solve/prod", "peak MB");
+    for (int i = 0; i < n; i++) {
+        const iso_cli__scale_factor_row *r = &rows[i];
+        if (r->why[0]) {
+            printf("%-14s %8d %s\n", r->mesh, r->vertices, r->why);
+            continue;
+        }
+        printf("%-14s %8d %8d %10ld %11ld %-5s %9.1f %7.3g %10.3g %10.1f %9.2f %8.2f %10.2f %11.1f "
+               "%8.0f\n",
+               r->mesh, r->vertices, r->unknowns, r->nnz_a, r->nnz_l,
+               r->supernodal ? "super" : "simpl", r->factor_mb, r->gflop, r->analysis_s,
+               r->factor_ms, r->solve_ms, r->assembly_ms, r->product_ms,
+               r->solve_ms / r->product_ms, r->peak_mb);
+    }
+}
+
+void iso_cli__bench_scale_factor_json(iso_json *j, const iso_cli__scale_factor_row *rows, int n)
+{
+    for (int i = 0; i < n; i++) {
+        const iso_cli__scale_factor_row *r = &rows[i];
+        iso_json_object(j, NULL);
+        iso_json_string(j, "mesh", r->mesh);
+        iso_json_int(j, "vertices", r->vertices);
+        if (r->why[0]) {
+            iso_json_string(j, "skipped", r->why);
+        } else {
+            iso_json_int(j, "unknowns", r->unknowns);
+            iso_json_int(j, "nnz_a", r->nnz_a);
+            iso_json_int(j, "nnz_l", r->nnz_l);
+            iso_json_string(j, "factor_kind", r->supernodal ? "supernodal" : "simplicial");
+            iso_json_number(j, "factor_mb", r->factor_mb);
+            iso_json_number(j, "factor_gflop", r->gflop);
+            iso_json_number(j, "analysis_s", r->analysis_s);
+            iso_json_number(j, "factor_ms", r->factor_ms);
+            iso_json_number(j, "solve_ms", r->solve_ms);
+            iso_json_number(j, "assembly_ms", r->assembly_ms);
+            iso_json_number(j, "product_ms", r->product_ms);
+            iso_json_number(j, "solve_over_product", r->solve_ms / r->product_ms);
+            iso_json_number(j, "peak_mb", r->peak_mb);
+        }
         iso_json_close(j);
     }
 }

@@ -157,12 +157,13 @@ static const iso_cli__opt bench_options[] = {
      .table = iso_cli__pcg_options},
     {"scale", ISO_CLI_OPT_FLAG, ISO_CLI_INT_AT(bench_args, scale), NULL,
      .help = "only the scale table: built-in meshes of 40k to 1M vertices in real time, the "
-             "method on the whole mesh beside the reduced model (minutes; with --quick, meshes "
-             "of 1k to 2.5k vertices in seconds)",
+             "method on the whole mesh beside the reduced model, then the whole mesh's "
+             "factorization at 40k to 160k vertices, its memory and times (minutes; with "
+             "--quick, meshes of 49 to 2.6k vertices in seconds)",
      .flag = 1},
     {"scale-full-max", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, scale_full_max), "N",
-     .help = "the scale table runs the method on the whole mesh up to N vertices, %R (default "
-             "200000; 2000 with --quick)",
+     .help = "the scale table runs the method on the whole mesh, and the factorization table "
+             "factors it, up to N vertices, %R (default 200000; 2000 with --quick)",
      ISO_CLI_GE(1)},
     {"worker-lag", ISO_CLI_OPT_INT, ISO_CLI_INT_AT(bench_args, rt_worker_lag), "N",
      .help = "the real-time table's factorization worker (solver.worker_lag), %R; default "
@@ -614,27 +615,36 @@ static void print_json(const bench_args *a, const bench_result *res)
 /* The command                                                                */
 /* ------------------------------------------------------------------------ */
 
-/* bench --scale: the scale table alone. */
+/* bench --scale: the scale table and the factorization table beside it,
+ * both under one --scale-full-max. */
 static int scale_table(const bench_args *a, iso_err *err)
 {
     iso_cli__scale_row rows[2 * ISO_CLI_SCALE_MESHES];
-    int n = 0;
+    iso_cli__scale_factor_row frows[ISO_CLI_SCALE_FACTOR_MESHES];
+    int n = 0, nf = 0;
     const iso_cli__scale_mesh *meshes =
         a->quick ? iso_cli__scale_meshes_quick : iso_cli__scale_meshes;
+    const iso_cli__scale_mesh *fmeshes =
+        a->quick ? iso_cli__scale_factor_meshes_quick : iso_cli__scale_factor_meshes;
     int full_max = a->scale_full_max > 0 ? a->scale_full_max : a->quick ? 2000 : 200000;
     if (iso_cli__bench_scale(meshes, full_max, a->tty, rows, &n, err) != ISO_OK) {
         iso_cli__fail("bench", "%s", err->msg);
         return 1;
     }
+    iso_cli__bench_scale_factor(fmeshes, full_max, a->tty, frows, &nf);
     if (a->json) {
         iso_json j;
         iso_json_begin(&j, stdout);
         iso_json_array(&j, "scale");
         iso_cli__bench_scale_json(&j, rows, n);
         iso_json_close(&j);
+        iso_json_array(&j, "factorization");
+        iso_cli__bench_scale_factor_json(&j, frows, nf);
+        iso_json_close(&j);
         iso_json_end(&j);
     } else {
         iso_cli__bench_scale_print(rows, n);
+        iso_cli__bench_scale_factor_print(frows, nf);
     }
     return 0;
 }

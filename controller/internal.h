@@ -369,7 +369,14 @@ typedef struct iso_cli__scale_row {
     double product_ms;                     /* one product with the whole system's pattern */
     double build_s;                        /* the proxy's construction */
     double metric_err;                     /* the whole mesh at the end */
-    char why[256];                         /* "" or why the row did not run */
+    /* Where a tick's time went, the run's sums over its ticks (the
+     * solver's stats; the proxy's system on the reduced rows): solves with
+     * a factor, ms of assembly, of solving (PCG included) and of waiting
+     * for the worker's factor; and the factorizations the ticks' own
+     * thread made (the one before the clock starts, and PCG's fallbacks). */
+    double solves_per_tick, assembly_ms, solve_ms, wait_ms;
+    long tick_factorizations;
+    char why[256]; /* "" or why the row did not run */
 } iso_cli__scale_row;
 
 /* Each of the ISO_CLI_SCALE_MESHES meshes on the whole mesh (up to
@@ -379,6 +386,41 @@ int iso_cli__bench_scale(const iso_cli__scale_mesh *meshes, int full_max, int tt
                          iso_cli__scale_row *rows, int *n, iso_err *err);
 void iso_cli__bench_scale_print(const iso_cli__scale_row *rows, int n);
 void iso_cli__bench_scale_json(iso_json *j, const iso_cli__scale_row *rows, int n);
+
+/* The factorization table beside it: the whole mesh's system factored and
+ * solved on its own, without the tick engine, so that its memory and times
+ * say how far the full-resolution path alone can go. The plane at 40k, 90k
+ * and 160k vertices and the 160k tentacle, and small ones for --quick (the
+ * largest above the quick --scale-full-max, so that a skipped row is
+ * exercised too); the budget field is unused. */
+#define ISO_CLI_SCALE_FACTOR_MESHES 4
+#define ISO_CLI_SCALE_FACTOR_REPS 3 /* timed evaluations, after one that warms */
+extern const iso_cli__scale_mesh iso_cli__scale_factor_meshes[ISO_CLI_SCALE_FACTOR_MESHES];
+extern const iso_cli__scale_mesh iso_cli__scale_factor_meshes_quick[ISO_CLI_SCALE_FACTOR_MESHES];
+
+typedef struct iso_cli__scale_factor_row {
+    char mesh[48];
+    int vertices, unknowns;
+    int supernodal;             /* CHOLMOD's choice (iso_solver_stats) */
+    long nnz_a, nnz_l;          /* A_ff's upper triangle; L as the analysis counts it */
+    long product_nnz;           /* the product's matrix: nnz_a when it is A_ff's pattern */
+    double factor_mb;           /* one numeric factor (iso_solver_stats.factor_bytes), MiB */
+    double gflop;               /* one factorization, CHOLMOD's count */
+    double analysis_s;          /* the ordering and symbolic analysis, once */
+    double factor_ms, solve_ms; /* medians of ISO_CLI_SCALE_FACTOR_REPS, one BLAS thread */
+    double assembly_ms;         /* the same evaluations' C assembly, median */
+    double product_ms;          /* one product with the pattern, the unit, same run */
+    double peak_mb;             /* the row's process, at its largest */
+    char why[256];              /* "" or why the row did not run */
+} iso_cli__scale_factor_row;
+
+/* Each of the ISO_CLI_SCALE_FACTOR_MESHES meshes up to full_max vertices,
+ * each in a child process; a row a mesh. A row that did not run (above
+ * full_max, or its child failed or died) says why. */
+void iso_cli__bench_scale_factor(const iso_cli__scale_mesh *meshes, int full_max, int tty,
+                                 iso_cli__scale_factor_row *rows, int *n);
+void iso_cli__bench_scale_factor_print(const iso_cli__scale_factor_row *rows, int n);
+void iso_cli__bench_scale_factor_json(iso_json *j, const iso_cli__scale_factor_row *rows, int n);
 
 /* ------------------------------------------------------------------------ */
 /* Scenes (cli_scene.c)                                                       */

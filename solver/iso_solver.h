@@ -319,6 +319,20 @@ typedef struct iso_solver_stats {
      * whole factor (246 MB), several times what an assembly costs, so it is
      * the unit a tick's cost is counted in. */
     long factor_solves;
+    /* The factor as CHOLMOD's analysis chose it, made once at creation:
+     * supernodal (1) or simplicial (0, CHOLMOD's choice where the flops per
+     * entry of L are few); the seconds the fill-reducing ordering and the
+     * symbolic analysis took; and the bytes of one numeric factor as
+     * CHOLMOD holds it: supernodal, its xsize values and ssize row indices
+     * with three integers a supernode; simplicial, its nzmax values and row
+     * indices with four integers a column (nnz_l stands for nzmax before
+     * the first factorization allocates it); both, the permutation and the
+     * column counts. Each solve with the factor streams its values twice
+     * (forward and back), so on a large mesh these bytes set a solve's
+     * time. With a worker the solver holds two factors of this size. */
+    int supernodal;
+    double t_analysis;
+    long factor_bytes;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 

@@ -17,6 +17,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_clock.h"
 #include "solver_internal.h"
 #include "supersolve_internal.h"
 
@@ -353,6 +354,7 @@ static int analyse(iso_solver *s, const buckets *bp, iso_err *err)
     int n3 = 3 * s->nf;
     if (n3 == 0)
         return ISO_OK;
+    double t0 = iso_clock_now();
     /* Unit values so the analysis sees the true pattern. */
     double *Ax = s->A->x;
     int *Ap = s->A->p;
@@ -375,6 +377,8 @@ static int analyse(iso_solver *s, const buckets *bp, iso_err *err)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the triangular solves");
     s->st.nnz_a = Ap[n3];
     s->st.nnz_l = (long)s->c.lnz;
+    s->st.supernodal = s->L->is_super != 0;
+    s->st.t_analysis = iso_clock_now() - t0;
     s->factor_flops = s->c.fl;
     return ISO_OK;
 }

@@ -249,9 +249,32 @@ void iso_solver_set_progress(iso_solver *s, iso_solver_progress_fn fn, void *ctx
     s->progress_ctx = ctx;
 }
 
+/* One numeric factor's bytes as CHOLMOD holds it (iso_solver_stats), read
+ * from L itself: a supernodal factor's sizes are fixed by the analysis, a
+ * simplicial one's nzmax is what the factorization allocated (nnz_l on the
+ * solver's path, which factors from scratch and never updates). */
+static long factor_bytes(const cholmod_factor *L, long nnz_l)
+{
+    if (!L)
+        return 0;
+    size_t idx = L->itype == CHOLMOD_LONG ? sizeof(SuiteSparse_long) : sizeof(int);
+    size_t ptr = L->itype == CHOLMOD_INT ? sizeof(int) : sizeof(SuiteSparse_long);
+    size_t n = L->n, bytes = 2 * n * idx; /* Perm, ColCount */
+    if (L->is_super) {
+        bytes += L->xsize * sizeof(double) + L->ssize * idx;
+        bytes += (L->nsuper + 1) * (idx + 2 * ptr); /* super; pi, px */
+    } else {
+        size_t nz = L->xtype == CHOLMOD_PATTERN ? (size_t)nnz_l : L->nzmax;
+        bytes += nz * (sizeof(double) + idx);
+        bytes += (n + 1) * ptr + n * idx + 2 * (n + 2) * idx; /* p; nz; next, prev */
+    }
+    return (long)bytes;
+}
+
 void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st)
 {
     *st = s->st;
+    st->factor_bytes = factor_bytes(s->L, s->st.nnz_l);
 }
 
 /* ===== evaluation ======================================================= */

@@ -1,9 +1,12 @@
 /* tests/test_bench_scale.c -- bench's scale table (controller/bench_scale.c)
  * on its small meshes (--quick): in-process, every row's figures hold
  * together (sizes of the closed forms, tick statistics that agree with the
- * rate, the proxy within its budget, a product and a peak memory measured);
- * through the built binary, `bench --scale --quick --json` prints one
- * object a row with snake_case keys. No figure is compared with a time.
+ * rate, the proxy within its budget, a product and a peak memory measured,
+ * a tick's split that is a split), and so do the factorization table's
+ * (the factor holds at least A's entries and its values take 8 bytes each,
+ * the product is of A's own pattern, every time measured); through the
+ * built binary, `bench --scale --quick --json` prints one object a row of
+ * each table with snake_case keys. No figure is compared with a time.
  * Links the command's static library (isoshape_cmd), so it reaches
  * controller/internal.h. */
 #include "testutil.h"
@@ -39,6 +42,13 @@ static void check_ran(const iso_cli__scale_row *r, const iso_cli__scale_mesh *m)
     assert_true(r->ticks_per_s > 0 && r->ticks_per_s <= 2000.0 / r->median_ms);
     assert_true(isfinite(r->peak_mb) && r->peak_mb > 0);
     assert_true(isfinite(r->metric_err) && r->metric_err >= 0);
+    /* the split: every tick assembles; solves and waits may be none; the
+     * ticks' thread factors at least once, before the clock starts */
+    assert_true(isfinite(r->solves_per_tick) && r->solves_per_tick >= 0);
+    assert_true(isfinite(r->assembly_ms) && r->assembly_ms > 0);
+    assert_true(isfinite(r->solve_ms) && r->solve_ms >= 0);
+    assert_true(isfinite(r->wait_ms) && r->wait_ms >= 0);
+    assert_true(r->tick_factorizations >= 1);
     if (r->reduced) {
         assert_true(r->proxy >= ISO_PROXY_MIN_BUDGET && r->proxy <= m->budget);
         assert_true(r->proxy < r->vertices && r->build_s > 0);
@@ -81,6 +91,51 @@ static void quick_rows_hold_together(void **state)
     assert_int_equal(skipped, 1);
 }
 
+static void check_factor(const iso_cli__scale_factor_row *r)
+{
+    if (r->why[0])
+        fail_msg("factorization of %s did not run: %s", r->mesh, r->why);
+    /* three unknowns a free vertex */
+    assert_true(r->unknowns > 0 && r->unknowns % 3 == 0 && r->unknowns <= 3 * r->vertices);
+    /* A's upper triangle holds its diagonal; L holds A's pattern, permuted,
+     * and its fill; the product is with A's own pattern */
+    assert_true(r->nnz_a >= r->unknowns);
+    assert_true(r->nnz_l >= r->nnz_a);
+    assert_true(r->product_nnz == r->nnz_a);
+    assert_true(r->supernodal == 0 || r->supernodal == 1);
+    /* a value of 8 bytes for each of L's entries at least, and the factor
+     * lives in the row's process */
+    assert_true(r->factor_mb * 1024.0 * 1024.0 >= 8.0 * (double)r->nnz_l);
+    assert_true(isfinite(r->peak_mb) && r->peak_mb >= r->factor_mb);
+    assert_true(isfinite(r->gflop) && r->gflop > 0);
+    assert_true(isfinite(r->analysis_s) && r->analysis_s > 0);
+    assert_true(isfinite(r->factor_ms) && r->factor_ms > 0);
+    assert_true(isfinite(r->solve_ms) && r->solve_ms > 0);
+    assert_true(isfinite(r->assembly_ms) && r->assembly_ms > 0);
+    assert_true(isfinite(r->product_ms) && r->product_ms > 0);
+}
+
+static void quick_factor_rows_hold_together(void **state)
+{
+    (void)state;
+    iso_cli__scale_factor_row rows[ISO_CLI_SCALE_FACTOR_MESHES];
+    int n = -1, skipped = 0;
+    iso_cli__bench_scale_factor(iso_cli__scale_factor_meshes_quick, FULL_MAX, 0, rows, &n);
+    iso_cli__bench_scale_factor_print(rows, n);
+    assert_int_equal(n, ISO_CLI_SCALE_FACTOR_MESHES);
+    for (int k = 0; k < n; k++) {
+        const iso_cli__scale_mesh *m = &iso_cli__scale_factor_meshes_quick[k];
+        assert_int_equal(rows[k].vertices, vertices_of(m));
+        if (rows[k].vertices > FULL_MAX) {
+            assert_non_null(strstr(rows[k].why, "--scale-full-max"));
+            skipped++;
+        } else {
+            check_factor(&rows[k]);
+        }
+    }
+    assert_int_equal(skipped, 1);
+}
+
 static int count_of(const char *text, const char *needle)
 {
     int n = 0;
@@ -106,18 +161,32 @@ static void quick_json_has_a_row_each(void **state)
     if (!iso_test_json_keys_snake_case(out, bad, sizeof bad))
         fail_msg("key '%s' is not snake_case in %s", bad, out);
     assert_non_null(strstr(out, "{\"scale\": ["));
+    char *factor = strstr(out, "\"factorization\": [");
+    assert_non_null(factor);
+    assert_int_equal(count_of(factor, "\"path\":"), 0); /* the scale table's rows come first */
+    assert_true(iso_test_json_num(out, "vertices") == 961);
+    /* the factorization table: a row a mesh, one of them skipped */
+    int ran = ISO_CLI_SCALE_FACTOR_MESHES - 1;
+    assert_int_equal(count_of(factor, "\"mesh\":"), ISO_CLI_SCALE_FACTOR_MESHES);
+    assert_int_equal(count_of(factor, "\"skipped\":"), 1);
+    assert_int_equal(count_of(factor, "\"nnz_l\":"), ran);
+    assert_int_equal(count_of(factor, "\"factor_mb\":"), ran);
+    assert_int_equal(count_of(factor, "\"solve_over_product\":"), ran);
+    assert_true(iso_test_json_num(factor, "vertices") == 49);
+    *factor = '\0';
     assert_int_equal(count_of(out, "\"path\": \"whole\""), ISO_CLI_SCALE_MESHES);
     assert_int_equal(count_of(out, "\"path\": \"reduced\""), ISO_CLI_SCALE_MESHES);
     assert_int_equal(count_of(out, "\"skipped\":"), 1);
     assert_int_equal(count_of(out, "\"product_ms\":"), 2 * ISO_CLI_SCALE_MESHES);
     assert_int_equal(count_of(out, "\"peak_mb\":"), 2 * ISO_CLI_SCALE_MESHES - 1);
-    assert_true(iso_test_json_num(out, "vertices") == 961);
+    assert_int_equal(count_of(out, "\"solves_per_tick\":"), 2 * ISO_CLI_SCALE_MESHES - 1);
 }
 
 int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(quick_rows_hold_together),
+        cmocka_unit_test(quick_factor_rows_hold_together),
         cmocka_unit_test(quick_json_has_a_row_each),
     };
     return cmocka_run_group_tests_name("bench_scale", t, NULL, NULL);

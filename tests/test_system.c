@@ -645,6 +645,10 @@ static void factor_reuse_matches_refactoring(void **state)
         }
     assert_int_equal(st[0].factorizations, evals);
     assert_int_equal(st[0].factor_solves, evals); /* one direct solve each */
+    /* The factor's own counts: L holds A's pattern and its fill, a double
+     * for each entry at least, and the analysis took some time. */
+    assert_true(st[0].nnz_l >= st[0].nnz_a && st[0].factor_bytes >= 8 * st[0].nnz_l);
+    assert_true(st[0].t_analysis > 0 && (st[0].supernodal == 0 || st[0].supernodal == 1));
     /* A PCG solve uses the factor for its start and each iteration at most,
      * a direct one once. */
     assert_true(st[1].factor_solves > st[1].factorizations);
