@@ -193,12 +193,13 @@ function tick() {
 // ---- frames from the server -------------------------------------------------
 function fmt(v) { return v.toFixed(2); }
 var lat = [];
+// Returns the frame's tick number (null: not a frame), for the "took".
 function onFrame(buf) {
   var arrived = performance.now(), dv = new DataView(buf);
-  if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC || !topo) return;
-  var nv = dv.getUint32(4, true), nh = dv.getUint32(36, true);
-  if (nv !== topo.nv || buf.byteLength !== HEADER + POSE * nh + 12 * nv) return;
+  if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC) return null;
   var tick = dv.getFloat64(8, true), poses = [];
+  var nv = dv.getUint32(4, true), nh = dv.getUint32(36, true);
+  if (!topo || nv !== topo.nv || buf.byteLength !== HEADER + POSE * nh + 12 * nv) return tick;
   for (var h = 0; h < nh; h++) {
     var o = HEADER + POSE * h, p = [];
     for (var k = 0; k < 7; k++) p.push(dv.getFloat64(o + 8 * k, true));
@@ -214,6 +215,7 @@ function onFrame(buf) {
   document.body.setAttribute('data-frames', String(frames));
   document.body.setAttribute('data-tick', String(tick));
   lastTick = tick;
+  return tick;
 }
 
 // ---- the control surface -----------------------------------------------------
@@ -434,7 +436,13 @@ function connect() {
     $('conn').textContent = 'disconnected, retrying'; surface.closed(); setTimeout(connect, 1000);
   };
   ws.onmessage = function (e) {
-    if (typeof e.data !== 'string') { onFrame(e.data); return; }
+    // Each frame taken is said at once: the server sends the next only then
+    // (iso_display.h), so frames never queue up for a page busy drawing.
+    if (typeof e.data !== 'string') {
+      var t = onFrame(e.data);
+      if (t !== null && ws.readyState === 1) ws.send('{"type":"took","tick":' + t + '}');
+      return;
+    }
     var m = JSON.parse(e.data);
     if (m.type === 'topology') onTopology(m);
     else if (m.type === 'control') surface.control(m);
