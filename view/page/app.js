@@ -129,6 +129,11 @@ function onTopology(t) {
   surface.setup(t.control);
   update(topo.rest0);
 }
+function samePositions(a, b) {
+  if (!b || a.length !== b.length) return false;
+  for (var i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
+  return true;
+}
 var rgb = [0, 0, 0];
 function update(x) {
   var t = topo, tri = t.tri, kind = t.kind;
@@ -183,8 +188,13 @@ function tick() {
   // skipped, so a slow page never falls behind the stream (and the server
   // never finds it too slow to read)
   if (latest && topo) {
-    update(new Float32Array(latest.buf, latest.at, 3 * topo.nv)); latest = null; shown++;
+    var x = new Float32Array(latest.buf, latest.at, 3 * topo.nv);
+    if (!samePositions(x, lastX)) update(x); // the loop publishes a mesh at rest too
+    latest = null; shown++;
     if (shown === 1 && /[?&]glb=1/.test(location.search)) saveGlb();
+  }
+  if (statsText !== statsShown && performance.now() - statsAt >= STATS_MS) {
+    $('stats').textContent = statsShown = statsText; statsAt = performance.now();
   }
   if (dirty) { renderer.render(scene, camera); drawn++; dirty = false; }
   window.requestAnimationFrame(tick);
@@ -192,6 +202,8 @@ function tick() {
 
 // ---- frames from the server -------------------------------------------------
 function fmt(v) { return v.toFixed(2); }
+// The stats line is text: rewritten at most every STATS_MS, not per frame.
+var STATS_MS = 250, statsText = '', statsShown = '', statsAt = -1e9;
 var lat = [];
 // Returns the frame's tick number (null: not a frame), for the "took".
 function onFrame(buf) {
@@ -209,7 +221,7 @@ function onFrame(buf) {
   frames++;
   surface.frame({poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
-  $('stats').textContent = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
+  statsText = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
     ' p99 ' + fmt(dv.getFloat32(20, true)) + ' max ' + fmt(dv.getFloat32(24, true)) +
     ' | misses ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
   document.body.setAttribute('data-frames', String(frames));
@@ -244,8 +256,11 @@ var surface = (function () {
   }
   function syncTarget() {
     var a = actualPose(picked);
-    handleObj.position.copy(a.pos); handleObj.quaternion.copy(a.quat);
-    handleObj.updateMatrixWorld(); synced = true; dirty = true;
+    if (!synced || !handleObj.position.equals(a.pos) || !handleObj.quaternion.equals(a.quat)) {
+      handleObj.position.copy(a.pos); handleObj.quaternion.copy(a.quat);
+      handleObj.updateMatrixWorld(); dirty = true;
+    }
+    synced = true;
   }
   function send(type, fill, len) {
     if (!ws || ws.readyState !== 1) return 0;
@@ -280,7 +295,13 @@ var surface = (function () {
   }
   var lastSent = null;
   function mine() { return holder === me && me !== 0; }
+  // The panel as the state says; a frame that changes none of it writes
+  // nothing (a DOM write costs the browser a layout and a paint, each frame).
+  var shownKey = null;
   function show() {
+    var key = [holder, me, may, stopped, ended, flags & (FLAG_STALE | FLAG_TARGETING), !!gizmo].join();
+    if (key === shownKey) return;
+    shownKey = key;
     $('who').textContent = holder === 0 ? 'nobody' : holder === me ? 'you (viewer ' + me + ')' :
       'viewer ' + holder;
     var st = stopped ? 'STOPPED' : ended ? 'run ended' : holder === 0 ? 'released' :
