@@ -263,19 +263,35 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
     ux /= px;
     uy /= px;
     assert_int_equal(iso_cdp_eval(c, "String(isoView.clearLatencies())", 10000) != NULL, 1);
+    /* Press and release on whole pixels (a mouse event's clientX is one), and
+     * what 60 px there should move the target: the points of the x axis
+     * that those two pixels' rays pass, perspective and all. */
+    double from[2] = {round(at[0]), round(at[1])};
+    double to[2] = {round(at[0] + 60 * ux), round(at[1] + 60 * uy)};
+    char expr[200];
+    double on_axis[2];
+    for (int k = 0; k < 2; k++) {
+        const double *pt = k ? to : from;
+        snprintf(expr, sizeof expr, "String(isoView.axisAt('X', %.1f, %.1f))", pt[0], pt[1]);
+        char *v = iso_cdp_eval(c, expr, 10000);
+        assert_non_null(v);
+        on_axis[k] = strtod(v, NULL);
+        free(v);
+    }
     /* hover (the gizmo picks its axis), press, 40 moves of 1.5 px, release */
-    assert_int_equal(iso_cdp_mouse(c, "mouseMoved", at[0], at[1], 0), 0);
+    assert_int_equal(iso_cdp_mouse(c, "mouseMoved", from[0], from[1], 0), 0);
     if (!iso_cdp_wait(c, "isoView.state().axis === 'X'", 10000)) {
         char *st = iso_cdp_eval(c, "JSON.stringify(isoView.state())", 10000);
         fail_msg("the gizmo's x arrow at %.1f %.1f is not under the mouse: %s", at[0], at[1], st);
     }
-    assert_int_equal(iso_cdp_mouse(c, "mousePressed", at[0], at[1], 1), 0);
+    assert_int_equal(iso_cdp_mouse(c, "mousePressed", from[0], from[1], 1), 0);
     for (int k = 1; k <= 40; k++) {
-        assert_int_equal(
-            iso_cdp_mouse(c, "mouseMoved", at[0] + 1.5 * k * ux, at[1] + 1.5 * k * uy, 1), 0);
+        double x = k < 40 ? from[0] + 1.5 * k * ux : to[0],
+               y = k < 40 ? from[1] + 1.5 * k * uy : to[1];
+        assert_int_equal(iso_cdp_mouse(c, "mouseMoved", x, y, 1), 0);
         nap_ms(15);
     }
-    assert_int_equal(iso_cdp_mouse(c, "mouseReleased", at[0] + 60 * ux, at[1] + 60 * uy, 1), 0);
+    assert_int_equal(iso_cdp_mouse(c, "mouseReleased", to[0], to[1], 1), 0);
     /* the ticks after the drag: the loop's handle is where the page sent it */
     if (!iso_cdp_wait(c,
                       "(function(s){return s.gap !== null && s.gap < 1e-9 * s.diag && "
@@ -293,12 +309,17 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
     out->lat_p99 = iso_cdp_num(s1, "p99");
     free(s1);
     out->dx_world = out->sent[0] - before[0];
-    double expect = 60.0 / px * world; /* 60 px at the arrow's scale */
-    print_message("drag: 60 px along x moved the target %.6g along x (about %.6g expected from "
-                  "the arrow's %.1f px per %.4g units), %.3g along y, %.3g along z\n",
-                  out->dx_world, expect, px, world, out->sent[1] - before[1],
+    double expect = on_axis[1] - on_axis[0];
+    double secant = 60.0 / px * world; /* the arrow's mean scale, centre to picker */
+    print_message("drag: %.1f px along x moved the target %.6g along x, %.6g expected from the "
+                  "pixels' rays (%+.2g; the arrow's mean scale, %.1f px per %.4g units, would say "
+                  "%.6g), %.3g along y, %.3g along z\n",
+                  hypot(to[0] - from[0], to[1] - from[1]), out->dx_world, expect,
+                  out->dx_world / expect - 1, px, world, secant, out->sent[1] - before[1],
                   out->sent[2] - before[2]);
-    assert_true(out->dx_world > 0.5 * expect && out->dx_world < 2 * expect);
+    /* the gizmo puts the target where the ray of the release meets the axis:
+     * 2% allows a pixel's rounding at either end, and no lost motion */
+    assert_true(fabs(out->dx_world - expect) <= 0.02 * fabs(expect));
     assert_true(fabs(out->sent[1] - before[1]) < 1e-12 * out->diag);
     assert_true(fabs(out->sent[2] - before[2]) < 1e-12 * out->diag);
     for (int k = 3; k < 6; k++)

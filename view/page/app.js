@@ -505,6 +505,19 @@ window.isoView = {
     return {at: screenOf(mid), centre: screenOf(c), world: mid.distanceTo(c)};
   },
   screenOf: function (x, y, z) { return screenOf(new THREE.Vector3(x, y, z)); },
+  // Where on the world axis ('X', 'Y' or 'Z') through the target the ray of
+  // viewport point (x, y) passes closest: that axis's coordinate. A drag of
+  // the gizmo's arrow from one point to another moves the target by the
+  // difference (perspective included), so tests can say what it should.
+  axisAt: function (axis, x, y) {
+    var r = renderer.domElement.getBoundingClientRect(), ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2((x - r.left) / r.width * 2 - 1, 1 - (y - r.top) / r.height * 2), camera);
+    var k = 'XYZ'.indexOf(axis), u = new THREE.Vector3(), o = surface.handleObj.getWorldPosition(new THREE.Vector3());
+    u.setComponent(k, 1);
+    var p = ray.ray.origin, d = ray.ray.direction, w = o.clone().sub(p);
+    var b = u.dot(d), c = d.dot(d), e = d.dot(w), t = (b * e - c * u.dot(w)) / (c - b * b);
+    return o.getComponent(k) + t;
+  },
   spin: function (on) { spin = !!on; },
   latencies: function () { return lat.slice(); },
   clearLatencies: function () { lat.length = 0; }
