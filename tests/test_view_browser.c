@@ -47,6 +47,14 @@ typedef struct run {
     FILE *log;
 } run;
 
+/* What a failed check leaves running (cmocka's failure jumps out of the
+ * test): the teardown stops Chromium and the loop, which at real-time
+ * priority would otherwise keep the cores from everything else. */
+static struct {
+    run *live;
+    iso_cdp *cdp;
+} g;
+
 static double now_ms(void)
 {
     struct timespec ts;
@@ -121,6 +129,7 @@ static void run_start(run *r, const char *scene, const char *record, const char 
         fail_msg("%s", r->err.msg);
     assert_int_equal(pthread_create(&r->th, NULL, run_main, r), 0);
     r->started = 1;
+    g.live = r;
 }
 
 static void run_stop(run *r)
@@ -136,6 +145,7 @@ static void run_stop(run *r)
 
 static void run_free(run *r)
 {
+    g.live = NULL;
     iso_loop_destroy(r->l);
     iso_scene_destroy(r->sc);
     fclose(r->log);
@@ -191,6 +201,29 @@ static void launch(iso_cdp *c, const char *name)
     }
     if (rc != 0)
         fail_msg("chromium: %s", c->why);
+    g.cdp = c;
+}
+
+static void browser_stop(iso_cdp *c)
+{
+    iso_cdp_stop(c);
+    g.cdp = NULL;
+}
+
+static int stop_what_is_left(void **state)
+{
+    (void)state;
+    if (g.cdp)
+        browser_stop(g.cdp);
+    if (g.live) {
+        if (g.live->started) {
+            g.live->stop = 1;
+            pthread_join(g.live->th, NULL);
+            g.live->started = 0;
+        }
+        run_free(g.live);
+    }
+    return 0;
 }
 
 /* Opens the loop's view; *load_ms: until its first frame was drawn. */
@@ -245,7 +278,8 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
         fail_msg("no control state: %s", c->why);
     assert_int_equal(iso_cdp_key(c, "Enter", "Enter", 13, 0), 0);
     if (!iso_cdp_wait(c,
-                      "(function(s){return s.holder === s.you && s.synced && s.gizmo_ok})"
+                      "(function(s){return s.you > 0 && s.holder === s.you && s.synced && "
+                      "s.gizmo_ok})"
                       "(isoView.state())",
                       30000))
         fail_msg("taking control: %s", c->why);
@@ -446,9 +480,9 @@ static void drag_stop_and_replay_the_cactus(void **state)
     char rec[512];
     iso_test_tmp(rec, sizeof rec, "view_browser.isorec");
     unlink(rec);
-    iso_cdp c;
+    static iso_cdp c; /* static: the teardown reaches them after a failed check */
     launch(&c, "view-browser");
-    run r;
+    static run r;
     run_start(&r, SCENES "view_cactus.yaml", rec, "view_browser.log", 0);
     double load_ms;
     open_page(&c, &r, &load_ms);
@@ -466,7 +500,7 @@ static void drag_stop_and_replay_the_cactus(void **state)
     double sent[6];
     assert_true(json_array(s2, "sent", sent, 6));
     free(s2);
-    iso_cdp_stop(&c);
+    browser_stop(&c);
     run_stop(&r);
     iso_err err;
     iso_err_clear(&err);
@@ -578,9 +612,9 @@ static void the_page_keeps_drawing_the_bumpplane(void **state)
                   "not a check; the optimised build prints it)\n");
     skip();
 #endif
-    iso_cdp c;
+    static iso_cdp c;
     launch(&c, "view-bumpplane");
-    run r;
+    static run r;
     run_start(&r, SCENES "bumpplane.yaml", NULL, "view_bumpplane.log", 120);
     double load_ms;
     open_page(&c, &r, &load_ms);
@@ -595,7 +629,7 @@ static void the_page_keeps_drawing_the_bumpplane(void **state)
     double frames = (iso_cdp_num(b, "frames") - iso_cdp_num(a, "frames")) / dt;
     free(a);
     free(b);
-    iso_cdp_stop(&c);
+    browser_stop(&c);
     run_stop(&r);
     iso_loop_summary s;
     iso_loop_get_summary(r.l, &s);
@@ -612,8 +646,8 @@ int main(void)
 {
     signal(SIGPIPE, SIG_IGN);
     const struct CMUnitTest t[] = {
-        cmocka_unit_test(drag_stop_and_replay_the_cactus),
-        cmocka_unit_test(the_page_keeps_drawing_the_bumpplane),
+        cmocka_unit_test_teardown(drag_stop_and_replay_the_cactus, stop_what_is_left),
+        cmocka_unit_test_teardown(the_page_keeps_drawing_the_bumpplane, stop_what_is_left),
     };
     return cmocka_run_group_tests_name("view_browser", t, NULL, NULL);
 }
