@@ -10,6 +10,9 @@
 // the page through window.isoView and the body's data-frames/data-tick.
 (function () {
 'use strict';
+// For tests: when the page got where, on its clock (0: navigation start).
+var timing = {script: performance.now()};
+function mark(k) { if (!(k in timing)) timing[k] = performance.now(); }
 var MAGIC = 0x464f5349, HEADER = 64, POSE = 56;
 var VERSION = 1, TAKE = 1, RELEASE = 2, TARGET = 3, STOP = 4, UNSTOP = 5;
 var FLAG_ESTOP = 1, FLAG_TARGETING = 2, FLAG_STALE = 4, FLAG_HOLDER = 8;
@@ -25,7 +28,10 @@ function softwareGL() {
     return /swiftshader|llvmpipe|software/i.test(info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : '');
   } catch (e) { return false; }
 }
-var renderer = new THREE.WebGLRenderer({antialias: !softwareGL()});
+var soft = softwareGL();
+mark('gl_probed');
+var renderer = new THREE.WebGLRenderer({antialias: !soft});
+mark('renderer');
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 renderer.setClearColor(0x181a1f);
 view.appendChild(renderer.domElement);
@@ -84,6 +90,7 @@ function len(x, i, j) {
   return Math.sqrt(dx * dx + dy * dy + dz * dz);
 }
 function onTopology(t) {
+  mark('topology_parsed');
   topo = t; full = t.strain_full || 0.1;
   $('full').textContent = Math.round(full * 100) + '%+';
   topo.rest0 = new Float64Array(t.rest);
@@ -128,6 +135,7 @@ function onTopology(t) {
   if (controls !== 'own') { controls.target.copy(target); controls.update(); }
   surface.setup(t.control);
   update(topo.rest0);
+  mark('topology_done');
 }
 function samePositions(a, b) {
   if (!b || a.length !== b.length) return false;
@@ -196,7 +204,11 @@ function tick() {
   if (statsText !== statsShown && performance.now() - statsAt >= STATS_MS) {
     $('stats').textContent = statsShown = statsText; statsAt = performance.now();
   }
-  if (dirty) { renderer.render(scene, camera); drawn++; dirty = false; }
+  if (dirty) {
+    renderer.render(scene, camera); drawn++; dirty = false;
+    if (shown) mark('first_frame_drawn');
+    if (undrawn.length) { var at = performance.now(); undrawn.forEach(function (e) { e[4] = at; }); undrawn = []; }
+  }
   window.requestAnimationFrame(tick);
 }
 
@@ -204,10 +216,16 @@ function tick() {
 function fmt(v) { return v.toFixed(2); }
 // The stats line is text: rewritten at most every STATS_MS, not per frame.
 var STATS_MS = 250, statsText = '', statsShown = '', statsAt = -1e9;
-var lat = [];
+// For tests: each target change the ticks applied, sent -> its frame's
+// arrival (lat), and as [seq, sent, arrived, the frame's tick, drawn] with
+// the page's clock (latLog; drawn: when a render with that frame or a later
+// one returned). The last LOG_MAX only: a page may drive for hours.
+var LOG_MAX = 4096, lat = [], latLog = [], undrawn = [];
+function logPush(a, v) { a.push(v); if (a.length > LOG_MAX) a.shift(); }
 // Returns the frame's tick number (null: not a frame), for the "took".
 function onFrame(buf) {
   var arrived = performance.now(), dv = new DataView(buf);
+  mark('first_frame');
   if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC) return null;
   var tick = dv.getFloat64(8, true), poses = [];
   var nv = dv.getUint32(4, true), nh = dv.getUint32(36, true);
@@ -219,7 +237,7 @@ function onFrame(buf) {
   }
   latest = {buf: buf, at: HEADER + POSE * nh};
   frames++;
-  surface.frame({poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
+  surface.frame({tick: tick, poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
   statsText = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
     ' p99 ' + fmt(dv.getFloat32(20, true)) + ' max ' + fmt(dv.getFloat32(24, true)) +
@@ -415,7 +433,10 @@ var surface = (function () {
   function frame(f) {
     actual = f.poses; flags = f.flags; echo = [f.conn, f.seq];
     if (f.conn === me && me) // each target change the tick applied: sent -> frame arrived
-      while (pending.length && pending[0][0] <= f.seq) { lat.push(f.arrived - pending[0][1]); pending.shift(); }
+      while (pending.length && pending[0][0] <= f.seq) {
+        var e = [pending[0][0], pending[0][1], f.arrived, f.tick, null];
+        logPush(lat, f.arrived - pending[0][1]); logPush(latLog, e); undrawn.push(e); pending.shift();
+      }
     if (info && (!mine() || stopped || !synced)) syncTarget(); // the gizmo shows the handle
     show();
   }
@@ -452,7 +473,7 @@ function connect() {
   var ws = new WebSocket((location.protocol === 'https:' ? 'wss://' : 'ws://') + location.host + '/ws' +
     (tok ? '?token=' + encodeURIComponent(tok) : ''));
   ws.binaryType = 'arraybuffer';
-  ws.onopen = function () { $('conn').textContent = 'live'; surface.connected(ws); };
+  ws.onopen = function () { mark('ws_open'); $('conn').textContent = 'live'; surface.connected(ws); };
   ws.onclose = function () {
     $('conn').textContent = 'disconnected, retrying'; surface.closed(); setTimeout(connect, 1000);
   };
@@ -464,6 +485,7 @@ function connect() {
       if (t !== null && ws.readyState === 1) ws.send('{"type":"took","tick":' + t + '}');
       return;
     }
+    if (!topo) mark('topology');
     var m = JSON.parse(e.data);
     if (m.type === 'topology') onTopology(m);
     else if (m.type === 'control') surface.control(m);
@@ -520,7 +542,19 @@ window.isoView = {
   },
   spin: function (on) { spin = !!on; },
   latencies: function () { return lat.slice(); },
-  clearLatencies: function () { lat.length = 0; }
+  latencyLog: function () { return latLog.slice(); },
+  // The marks, and the navigation's and the scripts' own timing entries.
+  marks: function () {
+    var m = {}, nav = performance.getEntriesByType('navigation')[0];
+    for (var k in timing) m[k] = timing[k];
+    if (nav) { m.html_end = nav.responseEnd; m.dom_loaded = nav.domContentLoadedEventStart; }
+    performance.getEntriesByType('resource').forEach(function (r) {
+      var n = r.name.replace(/^.*\//, '').replace(/\.js.*$/, '');
+      m[n + '_start'] = r.startTime; m[n + '_end'] = r.responseEnd;
+    });
+    return m;
+  },
+  clearLatencies: function () { lat.length = 0; latLog.length = 0; undrawn = []; }
 };
 
 resize();
