@@ -134,7 +134,9 @@ function onTopology(t) {
   } else if (!controls) { controls = 'own'; ownOrbit(); }
   if (controls !== 'own') { controls.target.copy(target); controls.update(); }
   surface.setup(t.control);
-  update(topo.rest0);
+  // the rest pose until a frame comes: drawn at the next animation frame
+  // unless a frame is there by then (it usually is: it follows the topology)
+  latest = {x: topo.rest0, frame: false}; lastX = null;
   mark('topology_done');
 }
 function samePositions(a, b) {
@@ -142,7 +144,7 @@ function samePositions(a, b) {
   for (var i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
   return true;
 }
-var rgb = [0, 0, 0];
+var rgb = [0, 0, 0], HANDLE_RGB = [0.9, 0.25, 0.9], FIXED_RGB = [0.45, 0.47, 0.52];
 function update(x) {
   var t = topo, tri = t.tri, kind = t.kind;
   lastX = x;
@@ -156,8 +158,8 @@ function update(x) {
       h = h || kind[i] === 2; fx = fx || kind[i] === 0;
     }
     strainColor(s, rgb);
-    if (h) for (var c = 0; c < 3; c++) rgb[c] = rgb[c] * 0.5 + [0.9, 0.25, 0.9][c] * 0.5;
-    else if (fx) for (var c2 = 0; c2 < 3; c2++) rgb[c2] = rgb[c2] * 0.45 + [0.45, 0.47, 0.52][c2] * 0.55;
+    if (h) for (var c = 0; c < 3; c++) rgb[c] = rgb[c] * 0.5 + HANDLE_RGB[c] * 0.5;
+    else if (fx) for (var c2 = 0; c2 < 3; c2++) rgb[c2] = rgb[c2] * 0.45 + FIXED_RGB[c2] * 0.55;
     for (var q = 0; q < 3; q++) col.set(rgb, 9 * f + 3 * q);
   }
   for (var m = 0; m < t.marked.length; m++) {
@@ -195,19 +197,22 @@ function tick() {
   // the newest frame only: frames that came faster than the page draws are
   // skipped, so a slow page never falls behind the stream (and the server
   // never finds it too slow to read)
+  var fresh = latest && latest.frame;
   if (latest && topo) {
-    var x = new Float32Array(latest.buf, latest.at, 3 * topo.nv);
-    if (!samePositions(x, lastX)) update(x); // the loop publishes a mesh at rest too
-    latest = null; shown++;
-    if (shown === 1 && /[?&]glb=1/.test(location.search)) saveGlb();
+    if (!samePositions(latest.x, lastX)) update(latest.x); // the loop publishes a mesh at rest too
+    latest = null;
   }
   if (statsText !== statsShown && performance.now() - statsAt >= STATS_MS) {
     $('stats').textContent = statsShown = statsText; statsAt = performance.now();
   }
   if (dirty) {
     renderer.render(scene, camera); drawn++; dirty = false;
-    if (shown) mark('first_frame_drawn');
+    if (topo) mark('mesh_rendered'); // the first: its shaders compiled
     if (undrawn.length) { var at = performance.now(); undrawn.forEach(function (e) { e[4] = at; }); undrawn = []; }
+  }
+  if (fresh && topo) { // a frame from the loop is on the screen
+    shown++; mark('first_frame_drawn');
+    if (shown === 1 && /[?&]glb=1/.test(location.search)) saveGlb();
   }
   window.requestAnimationFrame(tick);
 }
@@ -235,7 +240,7 @@ function onFrame(buf) {
     for (var k = 0; k < 7; k++) p.push(dv.getFloat64(o + 8 * k, true));
     poses.push(p);
   }
-  latest = {buf: buf, at: HEADER + POSE * nh};
+  latest = {x: new Float32Array(buf, HEADER + POSE * nh, 3 * nv), frame: true};
   frames++;
   surface.frame({tick: tick, poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
@@ -506,7 +511,7 @@ function screenOf(v) {
 window.isoView = {
   state: function () {
     var s = surface.state();
-    s.frames = frames; s.rafs = rafs; s.drawn = drawn; s.now = performance.now();
+    s.frames = frames; s.rafs = rafs; s.drawn = drawn; s.frames_drawn = shown; s.now = performance.now();
     s.latency = {n: lat.length, median: quantile(lat, 0.5), p99: quantile(lat, 0.99)};
     s.gizmo_ok = !!gizmo;
     s.axis = gizmo ? gizmo.axis : null; s.dragging = gizmo ? !!gizmo.dragging : false;
