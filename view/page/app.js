@@ -363,8 +363,9 @@ var surface = (function () {
     $('take').onclick = function () { send(TAKE); };
     $('release').onclick = function () { send(RELEASE); };
     $('mode').onclick = function () { setMode(mode === 'translate' ? 'rotate' : 'translate'); };
-    // an e-stop acts when it is pressed, not when the button is let go
-    $('stop').addEventListener('mousedown', function (e) { if (e.button === 0) send(STOP); });
+    // an e-stop acts when it is pressed, not when the button is let go; a
+    // handler, not a listener added: setup runs again on each reconnect
+    $('stop').onmousedown = function (e) { if (e.button === 0) send(STOP); };
     $('unstop').onclick = function () { // a deliberate second click within 3 s
       var now = performance.now();
       if (now - armUnstop < 3000) { send(UNSTOP); armUnstop = 0; $('unstop').textContent = 'Release the stop...'; }
