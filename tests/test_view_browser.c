@@ -310,7 +310,11 @@ static void open_page(iso_cdp *c, run *r, double *load_ms, char *why, size_t cap
     if (iso_cdp_open(c, url, 60000) != 0)
         fail_msg("chromium: %s", c->why);
     if (!iso_cdp_wait(c, "window.isoView && isoView.state().frames_drawn >= 1", 60000)) {
-        char *st = iso_cdp_eval(c, "JSON.stringify(window.isoView && isoView.state())", 10000);
+        char *st = iso_cdp_eval(c,
+                                "JSON.stringify({href: location.href, ready: document.readyState, "
+                                "text: document.body ? document.body.innerText.slice(0, 300) : '', "
+                                "state: window.isoView ? isoView.state() : null})",
+                                10000);
         fail_msg("chromium: %s; the page: %s", c->why, st ? st : "?");
     }
     double half, off = page_clock_offset(c, 10, &half);
