@@ -7,6 +7,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -623,6 +624,100 @@ static void slow_viewer_is_dropped_and_others_keep_up(void **state)
     scene_deinit(&s);
 }
 
+/* Sends the page's "took" for tick t (iso_display.h). */
+static void send_took(int fd, double t)
+{
+    char m[64];
+    int n = snprintf(m, sizeof m, ISO_DISPLAY_TOOK_PREFIX "%.0f}", t);
+    iso_test_ws_send(fd, 1, 1, m, (size_t)n);
+}
+
+/* Reads the next binary message (control messages may come between) and
+ * returns its tick. */
+static double next_frame_tick(int fd)
+{
+    for (;;) {
+        unsigned char *p = NULL;
+        size_t n = 0;
+        int op = iso_test_ws_recv(fd, &p, &n);
+        if (op < 0)
+            fail_msg("no frame came (the connection ended or 5 s passed)");
+        double t = -1;
+        if (op == 2 && n >= 16)
+            memcpy(&t, p + 8, 8);
+        free(p);
+        if (op == 2)
+            return t;
+    }
+}
+
+/* 1 when a message is there to read within ms: a check that something is
+ * NOT sent can only pass late on a loaded machine, never fail early. */
+static int something_within(int fd, int ms)
+{
+    struct pollfd p = {fd, POLLIN, 0};
+    return poll(&p, 1, ms) > 0;
+}
+
+/* A ping, read up to its pong: the server takes a connection's messages in
+ * order, so everything sent before it has been acted on. Returns the frames
+ * that came on the way. */
+static int frames_until_pong(int fd)
+{
+    iso_test_ws_send(fd, 1, 9, "sync", 4);
+    for (int frames = 0;;) {
+        unsigned char *p = NULL;
+        size_t n = 0;
+        int op = iso_test_ws_recv(fd, &p, &n);
+        free(p);
+        if (op < 0)
+            fail_msg("no pong came (the connection ended or 5 s passed)");
+        if (op == 10)
+            return frames;
+        frames += op == 2;
+    }
+}
+
+/* A page that says "took" is paced: the newest frame once it took the one
+ * before, never a queue of older ones; what is not a took changes nothing. */
+static void a_paced_viewer_gets_the_newest_frame_once_it_took_the_last(void **state)
+{
+    (void)state;
+    scene s;
+    iso_display *d;
+    char host[64];
+    int port = open_view(&s, "bar", 4, &d, host);
+    int fd = iso_test_ws_viewer(port, "");
+    assert_true(fd >= 0);
+    assert_int_equal(wait_clients(d, 1), 1);
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_display_publish(d, 0, s.shape.x, NULL, &err), ISO_OK);
+    assert_true(next_frame_tick(fd) == 0);
+    send_took(fd, 0); /* from here on paced */
+    assert_int_equal(frames_until_pong(fd), 0);
+    assert_int_equal(iso_display_publish(d, 1, s.shape.x, NULL, &err), ISO_OK);
+    assert_true(next_frame_tick(fd) == 1);
+    /* not taken yet: however many ticks come, nothing more is sent */
+    for (long t = 2; t <= 10; t++)
+        assert_int_equal(iso_display_publish(d, t, s.shape.x, NULL, &err), ISO_OK);
+    assert_false(something_within(fd, 300));
+    send_took(fd, 0);                      /* an older frame's: still one on its way */
+    iso_test_ws_send(fd, 1, 1, "took", 4); /* not a took */
+    static const char bad[] = "{\"type\":\"took\",\"tick\":x}";
+    iso_test_ws_send(fd, 1, 1, bad, sizeof bad - 1);
+    assert_int_equal(frames_until_pong(fd), 0);
+    send_took(fd, 1);
+    assert_true(next_frame_tick(fd) == 10); /* the newest, not tick 2 */
+    assert_int_equal(iso_display_publish(d, 11, s.shape.x, NULL, &err), ISO_OK);
+    assert_false(something_within(fd, 300));
+    send_took(fd, 10);
+    assert_true(next_frame_tick(fd) == 11);
+    close(fd);
+    iso_display_destroy(d);
+    scene_deinit(&s);
+}
+
 /* (b) Only the view's own page may open the stream; only its own names may
  * be asked for (DNS rebinding sends the attacker's). */
 static void foreign_origin_and_host_are_refused(void **state)
@@ -1157,6 +1252,7 @@ int main(void)
         cmocka_unit_test(server_serves_page_and_streams_frames),
         cmocka_unit_test(stalled_browser_never_blocks_publish),
         cmocka_unit_test(slow_viewer_is_dropped_and_others_keep_up),
+        cmocka_unit_test(a_paced_viewer_gets_the_newest_frame_once_it_took_the_last),
         cmocka_unit_test(foreign_origin_and_host_are_refused),
         cmocka_unit_test(only_get_and_head_are_served),
         cmocka_unit_test(huge_client_frame_closes_without_allocating),

@@ -187,11 +187,13 @@ typedef struct iso_display__viewer {
     unsigned char *frame; /* its own copy of the frame being written */
     unsigned long frame_seq;
     int writing_frame;
-    int may_command;      /* passed the checks, and the token when one is needed */
-    unsigned control_ver; /* the control state last sent to it */
-    unsigned note_ver;    /* the note last sent to it */
-    char why[96];         /* why its last command was refused */
-    char text[512];       /* the control message being written */
+    int paced;                   /* it has said "took" once: a frame at a time from then on */
+    double sent_tick, took_tick; /* of the last frame queued to it, of its last "took" */
+    int may_command;             /* passed the checks, and the token when one is needed */
+    unsigned control_ver;        /* the control state last sent to it */
+    unsigned note_ver;           /* the note last sent to it */
+    char why[96];                /* why its last command was refused */
+    char text[512];              /* the control message being written */
 } iso_display__viewer;
 
 struct iso_display__conn {

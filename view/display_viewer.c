@@ -11,6 +11,7 @@
  * told to the page that sent it. */
 #include "display_internal.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,6 +48,8 @@ static int viewer_open(iso_display *d, iso_display__conn *c, const iso_display__
     v->may_command = d->dev && token_ok(d, r);
     v->control_ver = d->control_ver - 1; /* its first control message is due */
     v->note_ver = 0;
+    v->paced = 0;
+    v->sent_tick = v->took_tick = -1;
     return 0;
 }
 
@@ -67,16 +70,21 @@ static void control_message(iso_display *d, iso_display__conn *c)
     v->control_ver = d->control_ver;
 }
 
-/* The newest frame the viewer has not had, copied out under the lock. */
+/* The newest frame the viewer has not had, copied out under the lock. A
+ * paced viewer gets it only once it took the last one sent (TCP keeps the
+ * order, so then nothing else is on the way): the sockets' buffers would
+ * otherwise fill with frames a busy page has not read, each older than the
+ * next, and what it shows would lag by all of them. */
 static int frame_message(iso_display *d, iso_display__conn *c)
 {
     iso_display__viewer *v = &c->v;
-    if (atomic_load(&d->published) == v->frame_seq)
+    if (atomic_load(&d->published) == v->frame_seq || (v->paced && v->took_tick < v->sent_tick))
         return 0;
     pthread_mutex_lock(&d->frame_lock);
     memcpy(v->frame, d->latest, d->frame_len);
     v->frame_seq = d->latest_seq;
     pthread_mutex_unlock(&d->frame_lock);
+    memcpy(&v->sent_tick, v->frame + 8, sizeof v->sent_tick); /* the frame's tick number */
     iso_display__queue_message(c, 2, v->frame, d->frame_len);
     v->writing_frame = 1;
     return 1;
@@ -197,12 +205,38 @@ static int command(iso_display *d, iso_display__conn *c, const iso_dev_view_msg 
     return 0;
 }
 
-/* A binary message is a command; text carries nothing in this protocol (it
- * was checked as UTF-8 already) and is ignored. Refusals keep the
+/* A "took" message (iso_display.h): the tick it names, or NAN when the
+ * text is not one. */
+static double took_tick(const unsigned char *p, size_t n)
+{
+    static const char pre[] = ISO_DISPLAY_TOOK_PREFIX;
+    char num[32];
+    size_t k = sizeof pre - 1;
+    if (n <= k + 1 || n - k - 1 >= sizeof num || memcmp(p, pre, k) != 0 || p[n - 1] != '}')
+        return NAN;
+    memcpy(num, p + k, n - k - 1);
+    num[n - k - 1] = 0;
+    char *end;
+    double t = strtod(num, &end);
+    return end != num && *end == 0 && isfinite(t) ? t : NAN;
+}
+
+/* A binary message is a command; a text message is a "took" or nothing,
+ * and is ignored (it was checked as UTF-8 already). A took paces the
+ * viewer's own frames only, so it needs no token; the next frame goes out
+ * at once (socket_input pumps after each message). Refusals keep the
  * connection: a page with a stale idea of who controls is not an attack. */
 static int viewer_message(iso_display *d, iso_display__conn *c, int opcode, const unsigned char *p,
                           size_t n)
 {
+    if (opcode == 1) {
+        double t = took_tick(p, n);
+        if (!isnan(t)) {
+            c->v.paced = 1;
+            c->v.took_tick = t;
+        }
+        return 0;
+    }
     if (opcode != 2)
         return 0;
     iso_dev_view_msg m;

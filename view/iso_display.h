@@ -123,7 +123,18 @@
  *            60  u32  reserved, 0
  *            64  7H f64  each handle's pose rest -> current: position, then
  *                    the rotation's unit quaternion x y z w
- *        64+56H  f32  positions, 3N */
+ *        64+56H  f32  positions, 3N
+ *
+ * Browser to server on /ws: the commands (binary, iso_dev.h), and, as the
+ * page takes each frame in (its onmessage), the text message
+ * {"type":"took","tick":T} with that frame's tick number T. A viewer that
+ * has sent one is paced from then on: it is sent the newest frame only
+ * once it took the last frame it was sent, so at most one frame is on its
+ * way to it (in the sockets' buffers or the browser's queue) and what it
+ * shows is at most that one behind the loop. A viewer that never sends one
+ * is sent the newest frame whenever the last is written, and one that
+ * reads slowly lags by what the kernel's buffers hold (a few frames).
+ * Either way the loop never waits. */
 #ifndef ISO_DISPLAY_H
 #define ISO_DISPLAY_H
 
@@ -139,6 +150,7 @@
 #define ISO_DISPLAY_FRAME_HEADER 64
 #define ISO_DISPLAY_FRAME_POSE 56 /* bytes per handle pose: 7 f64 */
 #define ISO_DISPLAY_MAX_HANDLES 8
+#define ISO_DISPLAY_TOOK_PREFIX "{\"type\":\"took\",\"tick\":" /* then T, then } */
 #define ISO_DISPLAY_DEFAULT_HOST "127.0.0.1"
 #define ISO_DISPLAY_DEFAULT_THREE "/usr/share/javascript/three/three.min.js"
 

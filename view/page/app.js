@@ -10,6 +10,9 @@
 // the page through window.isoView and the body's data-frames/data-tick.
 (function () {
 'use strict';
+// For tests: when the page got where, on its clock (0: navigation start).
+var timing = {script: performance.now()};
+function mark(k) { if (!(k in timing)) timing[k] = performance.now(); }
 var MAGIC = 0x464f5349, HEADER = 64, POSE = 56;
 var VERSION = 1, TAKE = 1, RELEASE = 2, TARGET = 3, STOP = 4, UNSTOP = 5;
 var FLAG_ESTOP = 1, FLAG_TARGETING = 2, FLAG_STALE = 4, FLAG_HOLDER = 8;
@@ -25,7 +28,10 @@ function softwareGL() {
     return /swiftshader|llvmpipe|software/i.test(info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : '');
   } catch (e) { return false; }
 }
-var renderer = new THREE.WebGLRenderer({antialias: !softwareGL()});
+var soft = softwareGL();
+mark('gl_probed');
+var renderer = new THREE.WebGLRenderer({antialias: !soft});
+mark('renderer');
 renderer.setPixelRatio(window.devicePixelRatio || 1);
 renderer.setClearColor(0x181a1f);
 view.appendChild(renderer.domElement);
@@ -84,6 +90,7 @@ function len(x, i, j) {
   return Math.sqrt(dx * dx + dy * dy + dz * dz);
 }
 function onTopology(t) {
+  mark('topology_parsed');
   topo = t; full = t.strain_full || 0.1;
   $('full').textContent = Math.round(full * 100) + '%+';
   topo.rest0 = new Float64Array(t.rest);
@@ -127,9 +134,17 @@ function onTopology(t) {
   } else if (!controls) { controls = 'own'; ownOrbit(); }
   if (controls !== 'own') { controls.target.copy(target); controls.update(); }
   surface.setup(t.control);
-  update(topo.rest0);
+  // the rest pose until a frame comes: drawn at the next animation frame
+  // unless a frame is there by then (it usually is: it follows the topology)
+  latest = {x: topo.rest0, frame: false}; lastX = null;
+  mark('topology_done');
 }
-var rgb = [0, 0, 0];
+function samePositions(a, b) {
+  if (!b || a.length !== b.length) return false;
+  for (var i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
+  return true;
+}
+var rgb = [0, 0, 0], HANDLE_RGB = [0.9, 0.25, 0.9], FIXED_RGB = [0.45, 0.47, 0.52];
 function update(x) {
   var t = topo, tri = t.tri, kind = t.kind;
   lastX = x;
@@ -143,8 +158,8 @@ function update(x) {
       h = h || kind[i] === 2; fx = fx || kind[i] === 0;
     }
     strainColor(s, rgb);
-    if (h) for (var c = 0; c < 3; c++) rgb[c] = rgb[c] * 0.5 + [0.9, 0.25, 0.9][c] * 0.5;
-    else if (fx) for (var c2 = 0; c2 < 3; c2++) rgb[c2] = rgb[c2] * 0.45 + [0.45, 0.47, 0.52][c2] * 0.55;
+    if (h) for (var c = 0; c < 3; c++) rgb[c] = rgb[c] * 0.5 + HANDLE_RGB[c] * 0.5;
+    else if (fx) for (var c2 = 0; c2 < 3; c2++) rgb[c2] = rgb[c2] * 0.45 + FIXED_RGB[c2] * 0.55;
     for (var q = 0; q < 3; q++) col.set(rgb, 9 * f + 3 * q);
   }
   for (var m = 0; m < t.marked.length; m++) {
@@ -182,38 +197,60 @@ function tick() {
   // the newest frame only: frames that came faster than the page draws are
   // skipped, so a slow page never falls behind the stream (and the server
   // never finds it too slow to read)
+  var fresh = latest && latest.frame;
   if (latest && topo) {
-    update(new Float32Array(latest.buf, latest.at, 3 * topo.nv)); latest = null; shown++;
+    if (!samePositions(latest.x, lastX)) update(latest.x); // the loop publishes a mesh at rest too
+    latest = null;
+  }
+  if (statsText !== statsShown && performance.now() - statsAt >= STATS_MS) {
+    $('stats').textContent = statsShown = statsText; statsAt = performance.now();
+  }
+  if (dirty) {
+    renderer.render(scene, camera); drawn++; dirty = false;
+    if (topo) mark('mesh_rendered'); // the first: its shaders compiled
+    if (undrawn.length) { var at = performance.now(); undrawn.forEach(function (e) { e[4] = at; }); undrawn = []; }
+  }
+  if (fresh && topo) { // a frame from the loop is on the screen
+    shown++; mark('first_frame_drawn');
     if (shown === 1 && /[?&]glb=1/.test(location.search)) saveGlb();
   }
-  if (dirty) { renderer.render(scene, camera); drawn++; dirty = false; }
   window.requestAnimationFrame(tick);
 }
 
 // ---- frames from the server -------------------------------------------------
 function fmt(v) { return v.toFixed(2); }
-var lat = [];
+// The stats line is text: rewritten at most every STATS_MS, not per frame.
+var STATS_MS = 250, statsText = '', statsShown = '', statsAt = -1e9;
+// For tests: each target change the ticks applied, sent -> its frame's
+// arrival (lat), and as [seq, sent, arrived, the frame's tick, drawn] with
+// the page's clock (latLog; drawn: when a render with that frame or a later
+// one returned). The last LOG_MAX only: a page may drive for hours.
+var LOG_MAX = 4096, lat = [], latLog = [], undrawn = [];
+function logPush(a, v) { a.push(v); if (a.length > LOG_MAX) a.shift(); }
+// Returns the frame's tick number (null: not a frame), for the "took".
 function onFrame(buf) {
   var arrived = performance.now(), dv = new DataView(buf);
-  if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC || !topo) return;
-  var nv = dv.getUint32(4, true), nh = dv.getUint32(36, true);
-  if (nv !== topo.nv || buf.byteLength !== HEADER + POSE * nh + 12 * nv) return;
+  mark('first_frame');
+  if (buf.byteLength < HEADER || dv.getUint32(0, true) !== MAGIC) return null;
   var tick = dv.getFloat64(8, true), poses = [];
+  var nv = dv.getUint32(4, true), nh = dv.getUint32(36, true);
+  if (!topo || nv !== topo.nv || buf.byteLength !== HEADER + POSE * nh + 12 * nv) return tick;
   for (var h = 0; h < nh; h++) {
     var o = HEADER + POSE * h, p = [];
     for (var k = 0; k < 7; k++) p.push(dv.getFloat64(o + 8 * k, true));
     poses.push(p);
   }
-  latest = {buf: buf, at: HEADER + POSE * nh};
+  latest = {x: new Float32Array(buf, HEADER + POSE * nh, 3 * nv), frame: true};
   frames++;
-  surface.frame({poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
+  surface.frame({tick: tick, poses: poses, conn: dv.getUint32(40, true), seq: dv.getUint32(44, true),
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
-  $('stats').textContent = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
+  statsText = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
     ' p99 ' + fmt(dv.getFloat32(20, true)) + ' max ' + fmt(dv.getFloat32(24, true)) +
     ' | misses ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
   document.body.setAttribute('data-frames', String(frames));
   document.body.setAttribute('data-tick', String(tick));
   lastTick = tick;
+  return tick;
 }
 
 // ---- the control surface -----------------------------------------------------
@@ -242,8 +279,11 @@ var surface = (function () {
   }
   function syncTarget() {
     var a = actualPose(picked);
-    handleObj.position.copy(a.pos); handleObj.quaternion.copy(a.quat);
-    handleObj.updateMatrixWorld(); synced = true; dirty = true;
+    if (!synced || !handleObj.position.equals(a.pos) || !handleObj.quaternion.equals(a.quat)) {
+      handleObj.position.copy(a.pos); handleObj.quaternion.copy(a.quat);
+      handleObj.updateMatrixWorld(); dirty = true;
+    }
+    synced = true;
   }
   function send(type, fill, len) {
     if (!ws || ws.readyState !== 1) return 0;
@@ -278,7 +318,13 @@ var surface = (function () {
   }
   var lastSent = null;
   function mine() { return holder === me && me !== 0; }
+  // The panel as the state says; a frame that changes none of it writes
+  // nothing (a DOM write costs the browser a layout and a paint, each frame).
+  var shownKey = null;
   function show() {
+    var key = [holder, me, may, stopped, ended, flags & (FLAG_STALE | FLAG_TARGETING), !!gizmo].join();
+    if (key === shownKey) return;
+    shownKey = key;
     $('who').textContent = holder === 0 ? 'nobody' : holder === me ? 'you (viewer ' + me + ')' :
       'viewer ' + holder;
     var st = stopped ? 'STOPPED' : ended ? 'run ended' : holder === 0 ? 'released' :
@@ -317,8 +363,9 @@ var surface = (function () {
     $('take').onclick = function () { send(TAKE); };
     $('release').onclick = function () { send(RELEASE); };
     $('mode').onclick = function () { setMode(mode === 'translate' ? 'rotate' : 'translate'); };
-    // an e-stop acts when it is pressed, not when the button is let go
-    $('stop').addEventListener('mousedown', function (e) { if (e.button === 0) send(STOP); });
+    // an e-stop acts when it is pressed, not when the button is let go; a
+    // handler, not a listener added: setup runs again on each reconnect
+    $('stop').onmousedown = function (e) { if (e.button === 0) send(STOP); };
     $('unstop').onclick = function () { // a deliberate second click within 3 s
       var now = performance.now();
       if (now - armUnstop < 3000) { send(UNSTOP); armUnstop = 0; $('unstop').textContent = 'Release the stop...'; }
@@ -392,7 +439,10 @@ var surface = (function () {
   function frame(f) {
     actual = f.poses; flags = f.flags; echo = [f.conn, f.seq];
     if (f.conn === me && me) // each target change the tick applied: sent -> frame arrived
-      while (pending.length && pending[0][0] <= f.seq) { lat.push(f.arrived - pending[0][1]); pending.shift(); }
+      while (pending.length && pending[0][0] <= f.seq) {
+        var e = [pending[0][0], pending[0][1], f.arrived, f.tick, null];
+        logPush(lat, f.arrived - pending[0][1]); logPush(latLog, e); undrawn.push(e); pending.shift();
+      }
     if (info && (!mine() || stopped || !synced)) syncTarget(); // the gizmo shows the handle
     show();
   }
@@ -429,12 +479,19 @@ function connect() {
   var ws = new WebSocket((location.protocol === 'https:' ? 'wss://' : 'ws://') + location.host + '/ws' +
     (tok ? '?token=' + encodeURIComponent(tok) : ''));
   ws.binaryType = 'arraybuffer';
-  ws.onopen = function () { $('conn').textContent = 'live'; surface.connected(ws); };
+  ws.onopen = function () { mark('ws_open'); $('conn').textContent = 'live'; surface.connected(ws); };
   ws.onclose = function () {
     $('conn').textContent = 'disconnected, retrying'; surface.closed(); setTimeout(connect, 1000);
   };
   ws.onmessage = function (e) {
-    if (typeof e.data !== 'string') { onFrame(e.data); return; }
+    // Each frame taken is said at once: the server sends the next only then
+    // (iso_display.h), so frames never queue up for a page busy drawing.
+    if (typeof e.data !== 'string') {
+      var t = onFrame(e.data);
+      if (t !== null && ws.readyState === 1) ws.send('{"type":"took","tick":' + t + '}');
+      return;
+    }
+    if (!topo) mark('topology');
     var m = JSON.parse(e.data);
     if (m.type === 'topology') onTopology(m);
     else if (m.type === 'control') surface.control(m);
@@ -455,7 +512,7 @@ function screenOf(v) {
 window.isoView = {
   state: function () {
     var s = surface.state();
-    s.frames = frames; s.rafs = rafs; s.drawn = drawn; s.now = performance.now();
+    s.frames = frames; s.rafs = rafs; s.drawn = drawn; s.frames_drawn = shown; s.now = performance.now();
     s.latency = {n: lat.length, median: quantile(lat, 0.5), p99: quantile(lat, 0.99)};
     s.gizmo_ok = !!gizmo;
     s.axis = gizmo ? gizmo.axis : null; s.dragging = gizmo ? !!gizmo.dragging : false;
@@ -476,9 +533,34 @@ window.isoView = {
     return {at: screenOf(mid), centre: screenOf(c), world: mid.distanceTo(c)};
   },
   screenOf: function (x, y, z) { return screenOf(new THREE.Vector3(x, y, z)); },
+  // Where on the world axis ('X', 'Y' or 'Z') through the target the ray of
+  // viewport point (x, y) passes closest: that axis's coordinate. A drag of
+  // the gizmo's arrow from one point to another moves the target by the
+  // difference (perspective included), so tests can say what it should.
+  axisAt: function (axis, x, y) {
+    var r = renderer.domElement.getBoundingClientRect(), ray = new THREE.Raycaster();
+    ray.setFromCamera(new THREE.Vector2((x - r.left) / r.width * 2 - 1, 1 - (y - r.top) / r.height * 2), camera);
+    var k = 'XYZ'.indexOf(axis), u = new THREE.Vector3(), o = surface.handleObj.getWorldPosition(new THREE.Vector3());
+    u.setComponent(k, 1);
+    var p = ray.ray.origin, d = ray.ray.direction, w = o.clone().sub(p);
+    var b = u.dot(d), c = d.dot(d), e = d.dot(w), t = (b * e - c * u.dot(w)) / (c - b * b);
+    return o.getComponent(k) + t;
+  },
   spin: function (on) { spin = !!on; },
   latencies: function () { return lat.slice(); },
-  clearLatencies: function () { lat.length = 0; }
+  latencyLog: function () { return latLog.slice(); },
+  // The marks, and the navigation's and the scripts' own timing entries.
+  marks: function () {
+    var m = {}, nav = performance.getEntriesByType('navigation')[0];
+    for (var k in timing) m[k] = timing[k];
+    if (nav) { m.html_end = nav.responseEnd; m.dom_loaded = nav.domContentLoadedEventStart; }
+    performance.getEntriesByType('resource').forEach(function (r) {
+      var n = r.name.replace(/^.*\//, '').replace(/\.js.*$/, '');
+      m[n + '_start'] = r.startTime; m[n + '_end'] = r.responseEnd;
+    });
+    return m;
+  },
+  clearLatencies: function () { lat.length = 0; latLog.length = 0; undrawn = []; }
 };
 
 resize();
