@@ -74,7 +74,14 @@ int iso_dev_view_open(const char *name, iso_dev_source **out, iso_err *err)
         free(v);
         return iso_err_set(err, ISO_ENOMEM, -1, "view device: out of memory");
     }
-    pthread_mutex_init(&v->mu, NULL);
+    /* The view's server thread pushes under it and the tick reads under
+     * it: a server thread holding it runs at the tick's priority until it
+     * lets go, so a busy machine cannot hold the tick up through it. */
+    pthread_mutexattr_t ma;
+    pthread_mutexattr_init(&ma);
+    pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&v->mu, &ma);
+    pthread_mutexattr_destroy(&ma);
     atomic_init(&v->dropped, 0);
     atomic_init(&v->estop, 0);
     s->ops = &view_ops;

@@ -200,8 +200,8 @@ static void init_state(iso_display *d, const iso_display_opts *o, int nv)
     pthread_mutexattr_init(&ma);
     pthread_mutexattr_setprotocol(&ma, PTHREAD_PRIO_INHERIT);
     pthread_mutex_init(&d->frame_lock, &ma);
+    pthread_mutex_init(&d->note_lock, &ma); /* the loop's notes, for the same reason */
     pthread_mutexattr_destroy(&ma);
-    pthread_mutex_init(&d->note_lock, NULL);
     atomic_init(&d->published, 0);
     atomic_init(&d->wake_pending, 0);
     atomic_init(&d->stopping, 0);
