@@ -333,8 +333,20 @@ typedef struct iso_solver_stats {
     int supernodal;
     double t_analysis;
     long factor_bytes;
+    /* Worker jobs not given because the matrix would have been the
+     * factor's own: its positions within ISO_SOLVER_SAME_MATRIX of the
+     * factor's (a mesh at rest), so the worker idles instead of factoring
+     * the same matrix again. */
+    long worker_idle;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
+
+/* The largest move of any vertex, over the bounding-box diagonal, below
+ * which the worker treats a matrix as the cached factor's own. A factor is
+ * PCG's preconditioner, so a matrix that far from its own changes nothing a
+ * preconditioner notices; a mesh at rest moves by CG's round-off, 1e-12 of
+ * the diagonal or less, each evaluation. */
+#define ISO_SOLVER_SAME_MATRIX 1e-9
 
 /* Floating-point operations of one numeric factorization, as CHOLMOD's
  * analysis counts them (Common->fl); 0 when there are no free vertices. For

@@ -444,6 +444,10 @@ static void learn_from_attempt(iso_solver *s, int converged)
  * factorization, so that it can grow again when the steps shrink. */
 static void after_factorization(iso_solver *s)
 {
+    if (s->x_factor && s->x_now) {
+        memcpy(s->x_factor, s->x_now, (size_t)s->nv * 3 * sizeof(double));
+        s->have_x_factor = 1;
+    }
     s->factor_age = 0;
     s->budget_used = 0; /* the fresh factor starts the count again (iso_solver.h) */
     if (s->reuse_horizon > 0 && s->horizon_probe > 0 && --s->horizon_probe == 0) {
@@ -486,6 +490,10 @@ static int worker_take(iso_solver *s, iso_err *err)
     s->have_factor = 1;
     s->factor_age = lag;
     s->st.handovers++;
+    double *t = s->x_factor; /* the job's positions are the factor's now */
+    s->x_factor = s->x_job;
+    s->x_job = t;
+    s->have_x_factor = 1;
     return ISO_OK;
 }
 
@@ -507,6 +515,17 @@ static const double *ahead(iso_solver *s, double k)
     return y;
 }
 
+/* Would a matrix at x be the factor's own (ISO_SOLVER_SAME_MATRIX)? */
+static int near_factor(const iso_solver *s, const double *x)
+{
+    if (!s->have_x_factor)
+        return 0;
+    for (int i = 0; i < 3 * s->nv; i++)
+        if (!(fabs(x[i] - s->x_factor[i]) <= s->same_move))
+            return 0;
+    return 1;
+}
+
 /* After this evaluation's solve: a new job if the worker is idle and the
  * factor is not of this matrix; with worker_ahead, its matrix assembled at
  * the extrapolated positions (this evaluation's A and B are spent). */
@@ -515,8 +534,13 @@ static int worker_give(iso_solver *s, iso_err *err)
     if (s->w_left != 0 || !s->have_factor || s->factor_age < 1)
         return ISO_OK;
     const double *x = s->x_now;
-    if (s->o.worker_ahead) {
+    if (s->o.worker_ahead)
         x = ahead(s, 1.5 * s->o.worker_lag - 0.5);
+    if (near_factor(s, x)) {
+        s->st.worker_idle++;
+        return ISO_OK;
+    }
+    if (s->o.worker_ahead) {
         double t0 = iso_clock_now();
         int rc = iso_solver__assemble(s, x, s->vc_now, err);
         s->st.t_assembly += iso_clock_now() - t0;
@@ -524,6 +548,7 @@ static int worker_give(iso_solver *s, iso_err *err)
             return rc;
     }
     iso_solver__worker_start(s->w, s->A, x);
+    memcpy(s->x_job, x, (size_t)s->nv * 3 * sizeof(double));
     s->w_left = s->o.worker_lag;
     return ISO_OK;
 }

@@ -151,6 +151,17 @@ static int start_ahead(iso_solver *s, iso_err *err)
     return ISO_OK;
 }
 
+/* The worker's record of which positions its factors are of. */
+static int start_worker_positions(iso_solver *s, iso_err *err)
+{
+    s->x_factor = malloc(((size_t)s->nv * 3 + 1) * sizeof(double));
+    s->x_job = malloc(((size_t)s->nv * 3 + 1) * sizeof(double));
+    if (!s->x_factor || !s->x_job)
+        return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the worker's positions");
+    s->same_move = ISO_SOLVER_SAME_MATRIX * iso_mesh_bbox_diagonal(s->m);
+    return ISO_OK;
+}
+
 double iso_solver_factor_flops(const iso_solver *s)
 {
     return s->factor_flops;
@@ -197,7 +208,7 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
     }
     iso_solver__threads_begin(s);
     if (s->o.worker_lag > 0 && s->nf > 0 &&
-        ((rc = start_ahead(s, err)) != ISO_OK ||
+        ((rc = start_ahead(s, err)) != ISO_OK || (rc = start_worker_positions(s, err)) != ISO_OK ||
          (rc = iso_solver__worker_create(s, &s->w, err)) != ISO_OK)) {
         iso_solver_destroy(s);
         return rc;
@@ -230,6 +241,8 @@ void iso_solver_destroy(iso_solver *s)
     free(s->rot);
     for (int i = 0; i < 3; i++)
         free(s->x_seen[i]);
+    free(s->x_factor);
+    free(s->x_job);
     cholmod_finish(&s->c);
     free(s->free_of);
     free(s->vert_of);

@@ -114,6 +114,12 @@ struct iso_solver {
      * n_seen of the first two hold evaluations. */
     double *x_seen[3];
     int n_seen;
+    /* With a worker: the positions of the factor in use (have_x_factor)
+     * and of the worker's job, so that a mesh at rest gives it no job
+     * (ISO_SOLVER_SAME_MATRIX); same_move is that bound in scene units. */
+    double *x_factor, *x_job;
+    int have_x_factor;
+    double same_move;
     int w_left; /* evaluations until the worker's job is taken; 0: no job */
     /* Thread controls (linsolve.c), looked up once at creation; NULL where
      * the option leaves them alone or the process has no such library. */

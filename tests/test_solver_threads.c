@@ -279,6 +279,55 @@ static void worker_is_deterministic_and_accurate(void **state)
     problem_deinit(&bar);
 }
 
+/* A mesh at rest gives the worker nothing to do: every evaluation at the
+ * same positions (handles still) finds its matrix the factor's own
+ * (ISO_SOLVER_SAME_MATRIX), so no job is given and none handed over;
+ * positions that move give it a job again. */
+static void a_mesh_at_rest_leaves_the_worker_idle(void **state)
+{
+    (void)state;
+    problem cactus;
+    problem_init(&cactus, "cactus", 1);
+    int nv = iso_mesh_vertex_count(cactus.mesh);
+    iso_solver_opts o;
+    iso_solver_opts_default(&o);
+    o.refactor = ISO_REFACTOR_ADAPTIVE;
+    o.worker_lag = 2;
+    iso_solver *s = NULL;
+    iso_err err;
+    assert_int_equal(iso_solver_create(cactus.mesh, &cactus.reg, &o, &s, &err), ISO_OK);
+    double *x = malloc(3 * (size_t)nv * sizeof *x), *vc = calloc(3 * (size_t)nv, sizeof *vc),
+           *v = malloc(3 * (size_t)nv * sizeof *v);
+    assert_true(x && vc && v);
+    memcpy(x, iso_mesh_positions(cactus.mesh), 3 * (size_t)nv * sizeof *x);
+    for (int k = 0; k < 12; k++)
+        assert_int_equal(iso_solver_field(s, x, vc, v, &err), ISO_OK);
+    iso_solver_stats at_rest;
+    iso_solver_get_stats(s, &at_rest);
+    double step = 1e-3 * diagonal(&cactus); /* a bend's worth: the free vertices lean */
+    for (int k = 0; k < 12; k++) {
+        for (int i = 0; i < nv; i++)
+            if (cactus.reg.kind[i] == ISO_FREE)
+                x[3 * i] += step * x[3 * i + 2];
+        assert_int_equal(iso_solver_field(s, x, vc, v, &err), ISO_OK);
+    }
+    iso_solver_stats moving;
+    iso_solver_get_stats(s, &moving);
+    printf("at rest: %ld jobs left undone, %ld handed over, %ld factorizations; moving: %ld "
+           "more handed over\n",
+           at_rest.worker_idle, at_rest.handovers, at_rest.factorizations,
+           moving.handovers - at_rest.handovers);
+    assert_int_equal(at_rest.handovers, 0);
+    assert_int_equal(at_rest.factorizations, 1); /* the first evaluation's */
+    assert_true(at_rest.worker_idle >= 10);
+    assert_true(moving.handovers > at_rest.handovers);
+    free(x);
+    free(vc);
+    free(v);
+    iso_solver_destroy(s);
+    problem_deinit(&cactus);
+}
+
 /* The defaults change nothing the caller could see: OpenBLAS's count and
  * the calling thread's OpenMP level cap are what they were. */
 static void defaults_leave_settings_alone(void **state)
@@ -386,6 +435,7 @@ int main(void)
     const struct CMUnitTest t[] = {
         cmocka_unit_test(two_solvers_match_one_at_a_time),
         cmocka_unit_test(worker_is_deterministic_and_accurate),
+        cmocka_unit_test(a_mesh_at_rest_leaves_the_worker_idle),
         cmocka_unit_test(defaults_leave_settings_alone),
         cmocka_unit_test(sized_blas_lasts_the_solver_lifetime),
         cmocka_unit_test(bad_thread_policy_is_refused),
