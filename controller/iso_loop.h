@@ -38,11 +38,15 @@
  * period and, for a longer tick, the smaller of the periods it covers and
  * the motion's need: every sub-step turns a handle by at most
  * ISO_LOOP_SUBSTEP_DEG degrees and moves its centroid by at most
- * ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal. So a late tick costs
- * what its motion needs (a still handle: one step), and no sub-step is
- * longer than an on-time tick. n is capped at ISO_LOOP_MAX_SUBSTEPS so a
- * slow mesh cannot spiral; a tick that hits the cap is counted as coarse
- * (its handles still reach their commanded poses).
+ * ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal, and with restoration
+ * on none is longer than ISO_LOOP_RESTORE_SUBSTEP_PERIODS periods (its
+ * relaxation has a time scale; the motion alone has none). So a late tick
+ * costs what its motion needs (a still handle without restoration: one
+ * step), and no sub-step moves more than an on-time tick may. n is capped
+ * at ISO_LOOP_MAX_SUBSTEPS so a slow mesh cannot spiral; a tick that hits
+ * the cap is counted as coarse (its handles still reach their commanded
+ * poses). A sub-step far longer than the step before it restarts the
+ * stepper's history (ISO_STEPPER_MAX_STEP_RATIO).
  *
  * Stopping. *stop (a signal handler's flag) is read at tick boundaries and
  * during the wait for a deadline: a run always ends on a whole tick, and a
@@ -133,6 +137,7 @@ typedef struct iso_loop iso_loop; /* opaque */
 #define ISO_LOOP_SUBSTEP_DEG 1.0    /* rotation per sub-step of a late tick, at most */
 #define ISO_LOOP_SUBSTEP_DIAG 0.005 /* centroid travel per sub-step, of the diagonal */
 #define ISO_LOOP_MAX_SUBSTEPS 32
+#define ISO_LOOP_RESTORE_SUBSTEP_PERIODS 4 /* with restoration on: a sub-step's length, at most */
 /* The tick thread's SCHED_FIFO priority in real time (see "Priorities"). */
 #define ISO_LOOP_RT_PRIORITY 20
 

@@ -37,6 +37,15 @@ static int substeps_for(iso_loop *l, const iso_twist *tw, double H, double perio
         if (l->diag > 0)
             need = fmax(need, ceil(dis / (ISO_LOOP_SUBSTEP_DIAG * l->diag) - 1e-9));
     }
+    /* Restoration has a time scale of its own: a long step relaxes the
+     * mesh as if τ were κ h, which is stable for the rates the clamp was
+     * measured at, not for a step of seconds (a recorded session's mesh
+     * tore when one sub-step covered 31 s). Sub-steps stay within
+     * ISO_LOOP_RESTORE_SUBSTEP_PERIODS periods while it is on. */
+    if (l->sc->solver.restore_mu > 0)
+        need =
+            fmax(need,
+                 ceil(H / (ISO_LOOP_RESTORE_SUBSTEP_PERIODS * 1e-9 * (double)l->period_ns) - 1e-9));
     double n = fmin(need, ceil(periods - 1e-6));
     if (n < 1)
         n = 1;

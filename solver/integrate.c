@@ -598,6 +598,14 @@ static int stepper_advance(iso_stepper *st, double h, int restart, iso_err *err)
     int rc = set_step_tau(g, h, err);
     if (rc != ISO_OK)
         return rc;
+    /* A step much longer than the history's last interval (a late tick
+     * of the loop, covering seconds in few sub-steps) would extrapolate
+     * the field's interpolant far beyond its nodes: at 128 times the
+     * interval a quadratic's curvature grows 16,000-fold, and a recorded
+     * session's mesh tore (edge strain 385%) in one such step. It restarts
+     * the history instead, at the cost of a restart's two evaluations. */
+    if (g->hist > 1 && h > ISO_STEPPER_MAX_STEP_RATIO * (g->tf[0] - g->tf[1]))
+        restart = 1;
     if (restart || g->hist == 0) {
         set_cg_target(g, h);
         if ((rc = eval_field(g, st->t, st->x, g->f[0], err)) != ISO_OK)

@@ -176,8 +176,14 @@ ISO_API ISO_NODISCARD int iso_stepper_configure(iso_stepper *st, iso_abm_mode mo
  * negative or non-finite share. */
 ISO_API ISO_NODISCARD int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err);
 
+/* The longest step, over the history's last interval, that keeps the
+ * history: a longer one restarts it (as restart != 0 does), since the
+ * Adams interpolant would be extrapolated far past its nodes. */
+#define ISO_STEPPER_MAX_STEP_RATIO 2.0
+
 /* Advances by h > 0 with twists[k] (one per handle) held over the step.
- * restart != 0 drops the multistep history first. The step's order and
+ * restart != 0 drops the multistep history first; so does a step longer
+ * than ISO_STEPPER_MAX_STEP_RATIO times the last one. The step's order and
  * evaluations follow the sequence above: at most two evaluations a step.
  * On error x is left at the last completed step, and the next step restarts
  * the history. */
