@@ -11,8 +11,13 @@
  * program that runs solvers in several threads (CTest also sets
  * OPENBLAS_NUM_THREADS=1): OpenBLAS's threaded kernels round differently.
  *
+ * The reduced model's prolongation and fit, which run in halves on the
+ * proxy's own two-thread team for a large mesh, give the same bits at
+ * every call.
+ *
  * The same program is built with ThreadSanitizer as test_solver_threads_tsan
  * (tests/CMakeLists.txt). */
+#include <dirent.h>
 #include <dlfcn.h>
 #include <math.h>
 #include <pthread.h>
@@ -21,6 +26,7 @@
 #include <string.h>
 
 #include "iso_integrate.h"
+#include "iso_proxy.h"
 #include "iso_shapes.h"
 #include "iso_solver.h"
 #include "testutil.h"
@@ -397,6 +403,104 @@ static void sized_blas_lasts_the_solver_lifetime(void **state)
     problem_deinit(&bar);
 }
 
+/* The threads this process has now (its /proc/self/task entries), or -1
+ * where /proc is not there. */
+static int thread_count(void)
+{
+    DIR *d = opendir("/proc/self/task");
+    if (!d)
+        return -1;
+    int n = 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL;)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n;
+}
+
+/* A non-rigid motion of the tentacle (its axis is z, the body z in
+ * [-3, 3]): a twist about the axis that grows with height, a swelling that
+ * grows with it too, and a sideways shear, so that every ring rotation
+ * differs and the fit has work to do. */
+static void twist_and_swell(const double *p, double *q)
+{
+    double a = 0.12 * (p[2] + 4), c = cos(a), s = sin(a), w = 1 + 0.03 * (p[2] + 4);
+    q[0] = w * (c * p[0] - s * p[1]) + 0.02 * p[2] * p[2];
+    q[1] = w * (s * p[0] + c * p[1]);
+    q[2] = p[2];
+}
+
+/* The reduced model's prolongation and its fit (solver/proxy.c,
+ * proxy_fit.c) run their halves on the proxy's own team, the caller and a
+ * helper thread, for a mesh of ISO_SOLVER__CPU_SPLIT_EDGES / 3 (20,000)
+ * vertices and more: the tentacle at 48 has 23,042. Every call on the same
+ * input is the same bits, whichever half finishes first; and under
+ * ThreadSanitizer each of the fit's phases (CG steps that read the
+ * neighbours' entries the other half wrote in the phase before) is
+ * checked for a race. The handles go where their pose takes them, the
+ * fixed region stays, the free proxy vertices move by twist_and_swell. */
+static void proxy_prolongation_on_its_team_is_deterministic(void **state)
+{
+    (void)state;
+    problem t;
+    problem_init(&t, "tentacle", 48);
+    int nv = iso_mesh_vertex_count(t.mesh);
+    assert_int_equal(nv, 23042);
+    iso_err err;
+    iso_err_clear(&err);
+    int before = thread_count();
+    iso_proxy *px = NULL;
+    if (iso_proxy_create(t.mesh, &t.reg, 2000, &px, &err) != ISO_OK)
+        fail_msg("tentacle 48, budget 2000: %s", err.msg);
+    int after = thread_count();
+    if (before >= 0) /* the proxy's team started its helper: the halves run in two threads */
+        assert_true(after >= before + 1);
+    const iso_mesh *pm = iso_proxy_mesh(px);
+    const iso_regions *pr = iso_proxy_regions(px);
+    int np = iso_mesh_vertex_count(pm);
+    assert_true(np <= 2000);
+    iso_twist xi = {{0.0, 0.0, 0.3}, {0.1, 0.0, 0.2}};
+    iso_pose g;
+    iso_twist_exp(&xi, 1.0, &g);
+    assert_int_equal(pr->n_handles, 1);
+    const double *Y = iso_mesh_positions(pm);
+    size_t n = 3 * (size_t)nv;
+    double *y = malloc(3 * (size_t)np * sizeof *y), *x0 = malloc(n * sizeof *x0),
+           *x = malloc(n * sizeof *x);
+    assert_true(y && x0 && x);
+    for (int k = 0; k < np; k++)
+        if (pr->kind[k] == ISO_HANDLE)
+            iso_pose_apply(&g, Y + 3 * k, y + 3 * k);
+        else if (pr->kind[k] == ISO_FIXED)
+            memcpy(y + 3 * k, Y + 3 * k, 3 * sizeof *y);
+        else
+            twist_and_swell(Y + 3 * k, y + 3 * k);
+    iso_proxy_prolong(px, y, &g, x0);
+    const double *X = iso_mesh_positions(t.mesh);
+    double moved = iso_test_max_abs_diff(x0, X, n);
+    assert_true(moved > 0.1); /* the motion reached the full mesh */
+    for (int call = 1; call < 4; call++) {
+        memset(x, 0, n * sizeof *x);
+        iso_proxy_prolong(px, y, &g, x);
+        if (memcmp(x0, x, n * sizeof *x) != 0)
+            fail_msg("prolongation %d differs from the first by %g", call + 1,
+                     iso_test_max_abs_diff(x0, x, n));
+    }
+    iso_proxy_stats st;
+    iso_proxy_get_stats(px, &st);
+    printf("tentacle %d vertices through %d proxy vertices, the halves on the caller and the "
+           "proxy's helper: 4 prolongations, the same bits; the fit took %ld iterations (at most "
+           "%ld in one), %ld failures\n",
+           nv, np, st.fit_iterations, st.fit_max_iterations, st.fit_failures);
+    assert_int_equal(st.prolongations, 4);
+    assert_int_equal(st.fit_failures, 0);
+    assert_true(st.fit_iterations >= 4); /* the fit ran at every call */
+    free(y);
+    free(x0);
+    free(x);
+    iso_proxy_destroy(px);
+    problem_deinit(&t);
+}
+
 static void bad_thread_policy_is_refused(void **state)
 {
     (void)state;
@@ -439,6 +543,7 @@ int main(void)
         cmocka_unit_test(defaults_leave_settings_alone),
         cmocka_unit_test(sized_blas_lasts_the_solver_lifetime),
         cmocka_unit_test(bad_thread_policy_is_refused),
+        cmocka_unit_test(proxy_prolongation_on_its_team_is_deterministic),
     };
     return cmocka_run_group_tests_name("solver_threads", t, NULL, NULL);
 }
