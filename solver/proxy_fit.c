@@ -21,10 +21,10 @@
  * the full mesh plus the correction on the proxy (the prolongation's
  * barycentric weights as the interpolation P, the Galerkin product PᵀLP
  * factored once by CHOLMOD), so the iterations needed do not grow with
- * how much finer the mesh is than its proxy. The stopping rule is a fixed
- * relative residual and a cap, both below; everything is a function of
- * the inputs, summed in a fixed order (two halves, half 0 first), so the
- * bits are the same on one thread or two. */
+ * how much finer the mesh is than its proxy. It takes a fixed number of
+ * iterations (below); everything is a function of the inputs, summed in a
+ * fixed order (two halves, half 0 first), so the bits are the same on one
+ * thread or two. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -32,13 +32,17 @@
 #include "proxy_internal.h"
 #include "solver_internal.h"
 
-/* The residual the fit stops at, relative to its start's, and the most
- * iterations it takes. On the 40k bumpplane and the 160k tentacle under
- * their screw motions the fit then takes 3 and 4 iterations, and its
- * metricErr is within 0.1% of the converged fit's, its largest edge strain
- * within 6% (docs/performance.md); 1M vertices take about 6. */
-#define FIT_RTOL 1e-1
-#define FIT_MAX_ITERATIONS 10
+/* The fit's conjugate-gradient iterations, a fixed number (a tick's cost
+ * known in advance). From the prolongation, one takes most of the way: on
+ * the 40k bumpplane and the 160k tentacle under their screw motions,
+ * metricErr 3.665 and 0.8167 after one, 3.616 and 0.8025 after two, 3.611
+ * and 0.8021 converged (the prolongation alone: 4.107 and 0.9461); the
+ * largest edge strain 6.9% and 42% after one, 6.0% and 27-33% after two or
+ * more (alone: 12% and 97%). The second iteration cost 2-5 ms a tick on
+ * two cores (a direction, a step and a coarse solve), a third of what the
+ * whole 40k tick may take at 60 Hz, for 1.3% in metricErr. */
+#define FIT_ITERATIONS 1
+
 /* Each free vertex is also drawn to where the prolongation put it, with a
  * weight of FIT_ANCHOR np / nv against one edge's (np proxy vertices, nv
  * full ones): about one over the number of full vertices between two proxy
@@ -67,9 +71,8 @@ struct iso_proxy__fit {
     cholmod_dense *Bc, *Xc, *Yc, *Ec; /* nc × 3 right-hand side, solution, workspace */
     int *lp_start, *lp_col;           /* nf + 1, and CSR: the rows of L P */
     double *lp_val;
-    double *acc;                 /* 2 × 3 nc: each half's share of Pᵀ r */
-    double *xs, *r, *zj, *d, *q; /* 3 nf each: the iterate, CG's vectors, D⁻¹ r */
-    unsigned char *held;         /* nv: held where the prolongation put it */
+    double *acc;            /* 2 × 3 nc: each half's share of Pᵀ r */
+    double *r, *zj, *d, *q; /* 3 nf each: CG's vectors, D⁻¹ r */
     iso_solver__team *team;
     /* per run */
     const double *R; /* 9 nv: every full vertex's rotation */
@@ -291,16 +294,14 @@ iso_proxy__fit *iso_proxy__fit_create(const iso_mesh *m, const unsigned char *he
     f->c_started = 1;
     f->c.print = 0;
     f->c.error_handler = NULL;
-    f->held = malloc((size_t)f->nv + 1);
-    if (!f->held || build_graph(f, m, held) != 0)
+    if (build_graph(f, m, held) != 0)
         goto fail;
-    memcpy(f->held, held, (size_t)f->nv);
     size_t nf3 = 3 * (size_t)f->nf + 1;
     f->inv_deg = malloc(nf3 / 3 * sizeof(double) + sizeof(double));
     f->umb = malloc(nf3 * sizeof *f->umb);
     f->pc = malloc(nf3 * sizeof *f->pc);
     f->pw = malloc(nf3 * sizeof *f->pw);
-    double **vec[] = {&f->xs, &f->r, &f->zj, &f->d, &f->q};
+    double **vec[] = {&f->r, &f->zj, &f->d, &f->q};
     for (size_t v = 0; v < sizeof vec / sizeof vec[0]; v++)
         if (!(*vec[v] = malloc(nf3 * sizeof(double))))
             goto fail;
@@ -335,7 +336,6 @@ void iso_proxy__fit_destroy(iso_proxy__fit *f)
         cholmod_free_dense(&f->Ec, &f->c);
         cholmod_finish(&f->c);
     }
-    free(f->held);
     free(f->free_of);
     free(f->start);
     free(f->nb);
@@ -349,7 +349,6 @@ void iso_proxy__fit_destroy(iso_proxy__fit *f)
     free(f->lp_start);
     free(f->lp_col);
     free(f->lp_val);
-    free(f->xs);
     free(f->r);
     free(f->zj);
     free(f->d);
@@ -359,28 +358,27 @@ void iso_proxy__fit_destroy(iso_proxy__fit *f)
 
 /* ===== one fit =========================================================== */
 
-/* b at free vertex k: ½ R_k u_k + ½ Σ_j R_j (X_k − X_j), plus the held
- * neighbours' positions (the entries of L for them, moved over) and the
- * anchor's pull to the prolongation. */
-static void rhs_at(const iso_proxy__fit *f, int k, double *b)
+/* The start's residual at free vertex k, b − (L + λ I) x⁰ with x⁰ the
+ * prolongation: ½ R_k u_k + Σ_j (½ R_j (X_k − X_j) − (x⁰_k − x⁰_j)) over
+ * every neighbour j (a held neighbour's entry of L is b's, moved over, and
+ * the anchor's pull is zero at x⁰). */
+static void residual_at(const iso_proxy__fit *f, int k, double *r)
 {
     int i = f->free_of[k];
-    const double *Xi = f->X + 3 * i;
-    double s[3], h0 = 0, h1 = 0, h2 = 0;
+    const double *Xi = f->X + 3 * i, *xi = f->x + 3 * i;
+    double s[3], d0 = 0, d1 = 0, d2 = 0;
     iso_m3_mul_vec(f->R + 9 * i, f->umb + 3 * k, s);
     for (int q = f->start[k]; q < f->start[k + 1]; q++) {
         int j = f->nb[q];
-        const double *Xj = f->X + 3 * j;
+        const double *Xj = f->X + 3 * j, *xj = f->x + 3 * j;
         double e[3] = {Xi[0] - Xj[0], Xi[1] - Xj[1], Xi[2] - Xj[2]}, t[3];
         iso_m3_mul_vec(f->R + 9 * j, e, t);
         s[0] += t[0], s[1] += t[1], s[2] += t[2];
-        if (f->held[j])
-            h0 += f->x[3 * j], h1 += f->x[3 * j + 1], h2 += f->x[3 * j + 2];
+        d0 += xi[0] - xj[0], d1 += xi[1] - xj[1], d2 += xi[2] - xj[2];
     }
-    const double *x0 = f->x + 3 * i;
-    b[0] = 0.5 * s[0] + h0 + f->anchor * x0[0];
-    b[1] = 0.5 * s[1] + h1 + f->anchor * x0[1];
-    b[2] = 0.5 * s[2] + h2 + f->anchor * x0[2];
+    r[0] = 0.5 * s[0] - d0;
+    r[1] = 0.5 * s[1] - d1;
+    r[2] = 0.5 * s[2] - d2;
 }
 
 /* Σ_free j v_j over k's free neighbours. */
@@ -418,7 +416,7 @@ static inline void after_residual(iso_proxy__fit *f, int k, double *acc, double 
     }
 }
 
-enum { PH_START, PH_RESIDUAL, PH_DIRECTION, PH_STEP, PH_WRITE };
+enum { PH_RESIDUAL, PH_DIRECTION, PH_STEP, PH_LAST_STEP };
 
 /* The new direction at k: z = D⁻¹ r + P e, d = z + β d and q = L d =
  * L D⁻¹ r + (L P) e + β q. Returns d·q's three terms in dq. */
@@ -455,29 +453,22 @@ static inline void direction_at(iso_proxy__fit *f, int k, const double *e, doubl
     }
 }
 
-/* One phase over one half of the free vertices; part gets the half's sums. */
+/* One phase over one half of the free vertices; part gets the half's sums.
+ * The iterate is x itself: a half writes only its own vertices, and no
+ * phase that writes x reads a neighbour's. */
 static void run_half(void *ctx, int half)
 {
     iso_proxy__fit *f = ctx;
     int b, e;
     half_range(f, half, &b, &e);
-    double sum[6] = {0, 0, 0, 0, 0, 0}, y[3];
+    double sum[6] = {0, 0, 0, 0, 0, 0};
     double *acc = f->acc ? f->acc + 3 * (size_t)f->nc * half : NULL;
     if (acc && (f->phase == PH_RESIDUAL || f->phase == PH_STEP))
         memset(acc, 0, 3 * (size_t)f->nc * sizeof *acc);
     switch (f->phase) {
-    case PH_START: /* the start and the right-hand side */
+    case PH_RESIDUAL:
         for (int k = b; k < e; k++) {
-            memcpy(f->xs + 3 * k, f->x + 3 * f->free_of[k], 3 * sizeof(double));
-            rhs_at(f, k, f->r + 3 * k);
-        }
-        break;
-    case PH_RESIDUAL: /* r = b − L x */
-        for (int k = b; k < e; k++) {
-            double deg = 1.0 / f->inv_deg[k];
-            neighbour_sum(f, f->xs, k, y);
-            for (int c = 0; c < 3; c++)
-                f->r[3 * k + c] -= deg * f->xs[3 * k + c] - y[c];
+            residual_at(f, k, f->r + 3 * k);
             after_residual(f, k, acc, sum);
         }
         break;
@@ -485,18 +476,18 @@ static void run_half(void *ctx, int half)
         for (int k = b; k < e; k++)
             direction_at(f, k, f->Xc ? f->Xc->x : NULL, sum);
         break;
-    case PH_STEP: /* x += α d, r −= α q */
+    case PH_STEP:      /* x += α d, r −= α q, and what the next direction needs */
+    case PH_LAST_STEP: /* x += α d alone */
         for (int k = b; k < e; k++) {
-            for (int c = 0; c < 3; c++) {
-                f->xs[3 * k + c] += f->alpha[c] * f->d[3 * k + c];
+            double *x = f->x + 3 * f->free_of[k];
+            for (int c = 0; c < 3; c++)
+                x[c] += f->alpha[c] * f->d[3 * k + c];
+            if (f->phase == PH_LAST_STEP)
+                continue;
+            for (int c = 0; c < 3; c++)
                 f->r[3 * k + c] -= f->alpha[c] * f->q[3 * k + c];
-            }
             after_residual(f, k, acc, sum);
         }
-        break;
-    case PH_WRITE:
-        for (int k = b; k < e; k++)
-            memcpy(f->x + 3 * f->free_of[k], f->xs + 3 * k, 3 * sizeof(double));
         break;
     }
     memcpy(f->part[half], sum, sizeof sum);
@@ -540,21 +531,22 @@ int iso_proxy__fit_run(iso_proxy__fit *f, const double *X, const double *R, doub
     f->iterations = 0;
     if (f->nf == 0)
         return 0;
-    double s0[6], s[6], rz[3], rzn[3], dq[6];
-    phase(f, PH_START, NULL);
-    phase(f, PH_RESIDUAL, s0);
-    double stop = FIT_RTOL * FIT_RTOL * (s0[0] + s0[1] + s0[2]);
-    if (coarse_solve(f, s0, rz) != 0)
+    double s[6], rz[3], rzn[3], dq[6];
+    phase(f, PH_RESIDUAL, s);
+    if (!(s[0] + s[1] + s[2] > 0)) /* x⁰ is the fit already (the rest pose, a rigid motion) */
+        return 0;
+    if (coarse_solve(f, s, rz) != 0)
         return -1;
     f->first = 1;
-    for (int it = 0; it < FIT_MAX_ITERATIONS && s0[0] + s0[1] + s0[2] > 0; it++) {
+    for (int it = 0; it < FIT_ITERATIONS; it++) {
         phase(f, PH_DIRECTION, dq);
         f->first = 0;
         for (int c = 0; c < 3; c++)
             f->alpha[c] = dq[c] > 0 ? rz[c] / dq[c] : 0;
-        phase(f, PH_STEP, s);
+        int last = it + 1 == FIT_ITERATIONS;
+        phase(f, last ? PH_LAST_STEP : PH_STEP, s);
         f->iterations = it + 1;
-        if (s[0] + s[1] + s[2] <= stop)
+        if (last)
             break;
         if (coarse_solve(f, s, rzn) != 0)
             return -1;
@@ -563,7 +555,6 @@ int iso_proxy__fit_run(iso_proxy__fit *f, const double *X, const double *R, doub
             rz[c] = rzn[c];
         }
     }
-    phase(f, PH_WRITE, NULL);
     return 0;
 }
 
