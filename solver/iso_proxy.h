@@ -24,7 +24,11 @@
  * handle's, a fixed vertex's the identity). So the rest pose and every
  * rigid motion are reproduced exactly, and the result is continuous across
  * proxy edges. Handle and fixed vertices of the full mesh are then placed
- * exactly: at their handle's pose, and at rest.
+ * exactly: at their handle's pose, and at rest. Last, the free vertices
+ * are fitted to the rotations R̄ edge by edge (solver/proxy_fit.c), which
+ * takes out the kinks of a piecewise-affine map along the proxy's edges
+ * and keeps the proxy's own motion; exact at rest and under rigid motions
+ * too.
  *
  * Everything here is deterministic (no clock, no race): the same mesh,
  * regions and budget give the same proxy and the same positions, bit for
