@@ -4,7 +4,7 @@
 # and back (keyframes: the problem's .def translation reached at 4 s, rest
 # again at 8 s, and so on), paced in real time at 60 Hz with the scene's
 # defaults for everything else (so the reduced model where `auto` picks it),
-# no view. Prints the loop's deadline misses, the tick's median, p99 and max,
+# no view (HZ=N in the environment for another rate). Prints the loop's deadline misses, the tick's median, p99 and max,
 # and the reduced model's line. docs/performance.md has the figures.
 #   usage: tests/tools/realtime_minute.sh [BUILD_DIR] [MESH] [SECONDS]
 #     MESH: bumpplane (the benchmark's 40k plane, else the built-in one at
@@ -40,7 +40,7 @@ esac
         else echo "          - {t: $t, translate: [0, 0, 0]}"; fi
     done
     echo "integrator: {abm: pec}"
-    echo "tick_hz: 60"
+    echo "tick_hz: ${HZ:-60}"
 } > "$tmp/scene.yaml"
 uptime
 "$bin" run "$tmp/scene.yaml" --no-display --duration "$secs" --stats-json "$tmp/s.json" 2>&1 |
