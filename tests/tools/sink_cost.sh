@@ -6,11 +6,16 @@
 # both see the same machine. Prints each run's tick median and p99, then the
 # median of the medians of each and their ratio (the target: at most 1.05).
 # The live view is off in both (its cost is not the question here).
-#   usage: tests/tools/sink_cost.sh [BUILD_DIR] [ROUNDS]   (default: build 3)
+# SPEED (default 1) paces the replay slower than real time: a machine that
+# cannot keep the scene at 60 Hz merges late ticks, and then the two runs
+# compute different ticks; at SPEED 0.25 every tick is computed, each the
+# same 60 Hz step of stream time as in real time.
+#   usage: tests/tools/sink_cost.sh [BUILD_DIR] [ROUNDS] [SPEED]   (default: build 3 1)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 build=${1:-build}
 rounds=${2:-3}
+speed=${3:-1}
 bin="$build/isoshape"
 [ -x "$bin" ] || { echo "sink_cost: no $bin; build first (bash .ci/setup)" >&2; exit 2; }
 tmp=$(mktemp -d)
@@ -21,14 +26,14 @@ scene=config/scenes/replay_cactus.yaml
 tick() { tr -d '\n ' <"$1" | grep -o "\"tick_ms\":{[^}]*}" | grep -o "\"$2\":[-0-9.e+]*" | cut -d: -f2; }
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
-echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg), speed $speed"
 printf '%-8s %5s %10s %10s %8s %8s\n' run round "median ms" "p99 ms" ticks dropped
 : >"$tmp/without" && : >"$tmp/with"
 for r in $(seq 1 "$rounds"); do
     for mode in without with; do
         extra=()
         [ "$mode" = with ] && extra=(--pc2 "$tmp/run.pc2" --mcap "$tmp/run.mcap")
-        "$bin" run "$scene" --no-display --quiet --stats-json "$tmp/s.json" "${extra[@]}" \
+        "$bin" run "$scene" --no-display --quiet --speed "$speed" --stats-json "$tmp/s.json" "${extra[@]}" \
             2>"$tmp/err" || { cat "$tmp/err" >&2; exit 1; }
         med=$(tick "$tmp/s.json" median)
         p99=$(tick "$tmp/s.json" p99)
