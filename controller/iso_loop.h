@@ -39,8 +39,9 @@
  * the motion's need: every sub-step turns a handle by at most
  * ISO_LOOP_SUBSTEP_DEG degrees and moves its centroid by at most
  * ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal, and with restoration
- * on none is longer than ISO_LOOP_RESTORE_SUBSTEP_PERIODS periods (its
- * relaxation has a time scale; the motion alone has none). So a late tick
+ * on none is longer than ISO_LOOP_RESTORE_SUBSTEP_TAU of its τ (or a
+ * period, should τ be shorter): its relaxation has a time scale, the
+ * motion alone has none. So a late tick
  * costs what its motion needs (a still handle without restoration: one
  * step), and no sub-step moves more than an on-time tick may. n is capped
  * at ISO_LOOP_MAX_SUBSTEPS so a slow mesh cannot spiral; a tick that hits
@@ -137,7 +138,8 @@ typedef struct iso_loop iso_loop; /* opaque */
 #define ISO_LOOP_SUBSTEP_DEG 1.0    /* rotation per sub-step of a late tick, at most */
 #define ISO_LOOP_SUBSTEP_DIAG 0.005 /* centroid travel per sub-step, of the diagonal */
 #define ISO_LOOP_MAX_SUBSTEPS 32
-#define ISO_LOOP_RESTORE_SUBSTEP_PERIODS 4 /* with restoration on: a sub-step's length, at most */
+#define ISO_LOOP_RESTORE_SUBSTEP_TAU                                                               \
+    1.0 /* with restoration on: a sub-step's length, in τ, at most */
 /* The tick thread's SCHED_FIFO priority in real time (see "Priorities"). */
 #define ISO_LOOP_RT_PRIORITY 20
 

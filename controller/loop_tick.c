@@ -39,13 +39,15 @@ static int substeps_for(iso_loop *l, const iso_twist *tw, double H, double perio
     }
     /* Restoration has a time scale of its own: a long step relaxes the
      * mesh as if τ were κ h, which is stable for the rates the clamp was
-     * measured at, not for a step of seconds (a recorded session's mesh
-     * tore when one sub-step covered 31 s). Sub-steps stay within
-     * ISO_LOOP_RESTORE_SUBSTEP_PERIODS periods while it is on. */
-    if (l->sc->solver.restore_mu > 0)
-        need =
-            fmax(need,
-                 ceil(H / (ISO_LOOP_RESTORE_SUBSTEP_PERIODS * 1e-9 * (double)l->period_ns) - 1e-9));
+     * measured at, not for a step of many τ (a recorded session's mesh
+     * tore when one sub-step covered 31 s at τ 0.5 s; steps of 1 s held).
+     * Sub-steps stay within ISO_LOOP_RESTORE_SUBSTEP_TAU τ while it is
+     * on (and within a period, should τ be shorter). */
+    if (l->sc->solver.restore_mu > 0) {
+        double hmax = fmax(ISO_LOOP_RESTORE_SUBSTEP_TAU * l->sc->solver.restore_tau,
+                           1e-9 * (double)l->period_ns);
+        need = fmax(need, ceil(H / hmax - 1e-9));
+    }
     double n = fmin(need, ceil(periods - 1e-6));
     if (n < 1)
         n = 1;

@@ -6,7 +6,7 @@
  *       Before the stepper restarted its history for a step far longer than
  *       its last (iso_integrate.h), the replay without restoration ended at
  *       961% strain; before the loop also bounded a sub-step's length under
- *       restoration (iso_loop.h), the one with it tore the mesh to 1,000%
+ *       restoration to its τ (iso_loop.h), the one with it tore the mesh to 1,000%
  *       and failed ("the free-free system is not positive definite");
  *   (b) the same replay twice gives the same bits (the rules are functions
  *       of the recorded tick times alone). */
