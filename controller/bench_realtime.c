@@ -60,32 +60,15 @@ static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
     so.refactor = ISO_REFACTOR_ALWAYS;
     so.worker_lag = 0;
     iso_cli__solver_threads(&so.threads); /* as the tick engine's solver had them */
-    int nv = iso_mesh_vertex_count(sc->mesh);
-    const double *x = iso_mesh_positions(sc->mesh);
-    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    iso_solver_stats each[99];
     double t[99];
-    iso_solver *s = NULL;
-    int rc = vc && v ? iso_solver_create(sc->mesh, &sc->regions, &so, &s, err)
-                     : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
-    for (int i = 0; rc == ISO_OK && i < nv; i++)
-        if (sc->regions.kind[i] == ISO_HANDLE)
-            iso_twist_velocity(&sc->handles[0].driver.twist, x + 3 * i, vc + 3 * i);
-    if (rc == ISO_OK)
-        rc = iso_solver_field(s, x, vc, v, err); /* warm caches and workspace */
-    for (int r = 0; rc == ISO_OK && r < reps; r++) {
-        iso_solver_stats a, b;
-        iso_solver_get_stats(s, &a);
-        rc = iso_solver_field(s, x, vc, v, err);
-        iso_solver_get_stats(s, &b);
-        t[r] = b.t_solve - a.t_solve;
-    }
+    int rc = iso_cli__rest_fields(sc, &so, reps, each, NULL, NULL, err);
+    for (int r = 0; rc == ISO_OK && r < reps; r++)
+        t[r] = each[r].t_solve;
     if (rc == ISO_OK) {
         qsort(t, (size_t)reps, sizeof *t, cmp_double);
         *ms = 1e3 * (reps % 2 ? t[reps / 2] : 0.5 * (t[reps / 2 - 1] + t[reps / 2]));
     }
-    iso_solver_destroy(s);
-    free(vc);
-    free(v);
     return rc;
 }
 

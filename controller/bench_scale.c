@@ -537,45 +537,27 @@ static int factor_figures(const iso_scene *sc, iso_cli__scale_factor_row *row, i
     so.proxy = 0;
     iso_cli__solver_threads(&so.threads);
     blas_as_the_engine();
-    int nv = iso_mesh_vertex_count(sc->mesh);
-    const double *x = iso_mesh_positions(sc->mesh);
-    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    iso_solver_stats each[ISO_CLI_SCALE_FACTOR_REPS], st;
     double tf[ISO_CLI_SCALE_FACTOR_REPS], ts[ISO_CLI_SCALE_FACTOR_REPS],
-        ta[ISO_CLI_SCALE_FACTOR_REPS];
-    iso_solver *s = NULL;
-    int rc = vc && v ? iso_solver_create(sc->mesh, &sc->regions, &so, &s, err)
-                     : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
-    for (int i = 0; rc == ISO_OK && i < nv; i++)
-        if (sc->regions.kind[i] == ISO_HANDLE)
-            iso_twist_velocity(&sc->handles[0].driver.twist, x + 3 * i, vc + 3 * i);
-    if (rc == ISO_OK)
-        rc = iso_solver_field(s, x, vc, v, err);
+        ta[ISO_CLI_SCALE_FACTOR_REPS], flops = NAN;
+    int rc = iso_cli__rest_fields(sc, &so, ISO_CLI_SCALE_FACTOR_REPS, each, &st, &flops, err);
     for (int k = 0; rc == ISO_OK && k < ISO_CLI_SCALE_FACTOR_REPS; k++) {
-        iso_solver_stats a, b;
-        iso_solver_get_stats(s, &a);
-        rc = iso_solver_field(s, x, vc, v, err);
-        iso_solver_get_stats(s, &b);
-        tf[k] = 1e3 * (b.t_factor - a.t_factor);
-        ts[k] = 1e3 * (b.t_solve - a.t_solve);
-        ta[k] = 1e3 * (b.t_assembly - a.t_assembly);
+        tf[k] = 1e3 * each[k].t_factor;
+        ts[k] = 1e3 * each[k].t_solve;
+        ta[k] = 1e3 * each[k].t_assembly;
     }
     if (rc == ISO_OK) {
-        iso_solver_stats st;
-        iso_solver_get_stats(s, &st);
         row->unknowns = 3 * st.n_free;
         row->supernodal = st.supernodal;
         row->nnz_a = st.nnz_a;
         row->nnz_l = st.nnz_l;
         row->factor_mb = (double)st.factor_bytes / (1024.0 * 1024.0);
-        row->gflop = iso_cli__factor_flops(s) / 1e9;
+        row->gflop = flops / 1e9;
         row->analysis_s = st.t_analysis;
         row->factor_ms = median3(tf);
         row->solve_ms = median3(ts);
         row->assembly_ms = median3(ta);
     }
-    iso_solver_destroy(s);
-    free(vc);
-    free(v);
     if (rc == ISO_OK)
         row->product_ms = product_ms(sc->mesh, &sc->regions, &row->product_nnz);
     return rc;

@@ -29,6 +29,40 @@ void iso_cli__loop_opts_default(iso_loop_opts *o, const char *cmd)
     o->cmd = cmd;
 }
 
+int iso_cli__rest_fields(const struct iso_scene *sc, const iso_solver_opts *so, int reps,
+                         iso_solver_stats *each, iso_solver_stats *total, double *flops,
+                         iso_err *err)
+{
+    int nv = iso_mesh_vertex_count(sc->mesh);
+    const double *x = iso_mesh_positions(sc->mesh);
+    double *vc = calloc((size_t)nv * 3, sizeof *vc), *v = malloc((size_t)nv * 3 * sizeof *v);
+    iso_solver *s = NULL;
+    int rc = vc && v ? iso_solver_create(sc->mesh, &sc->regions, so, &s, err)
+                     : iso_err_set(err, ISO_ENOMEM, -1, "out of memory for %d vertices", nv);
+    for (int i = 0; rc == ISO_OK && i < nv; i++)
+        if (sc->regions.kind[i] == ISO_HANDLE)
+            iso_twist_velocity(&sc->handles[0].driver.twist, x + 3 * i, vc + 3 * i);
+    if (rc == ISO_OK)
+        rc = iso_solver_field(s, x, vc, v, err); /* warm caches and workspace */
+    for (int k = 0; rc == ISO_OK && k < reps; k++) {
+        iso_solver_stats a, b;
+        iso_solver_get_stats(s, &a);
+        rc = iso_solver_field(s, x, vc, v, err);
+        iso_solver_get_stats(s, &b);
+        each[k].t_assembly = b.t_assembly - a.t_assembly;
+        each[k].t_factor = b.t_factor - a.t_factor;
+        each[k].t_solve = b.t_solve - a.t_solve;
+    }
+    if (rc == ISO_OK && total)
+        iso_solver_get_stats(s, total);
+    if (rc == ISO_OK && flops)
+        *flops = iso_cli__factor_flops(s);
+    iso_solver_destroy(s);
+    free(vc);
+    free(v);
+    return rc;
+}
+
 void iso_cli__solver_threads(iso_solver_threads *t)
 {
     int omp_user = getenv("OMP_MAX_ACTIVE_LEVELS") || getenv("OMP_THREAD_LIMIT");

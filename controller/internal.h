@@ -231,6 +231,17 @@ void iso_cli__solver_opts_default(iso_solver_opts *so);
  * OPENBLAS_NUM_THREADS, keeps that choice: the solver then leaves it. */
 void iso_cli__solver_threads(iso_solver_threads *t);
 
+/* The scene's system evaluated at its rest pose, the first handle moving
+ * by its driver's twist: one evaluation to warm the caches and the
+ * workspace, then reps (at most 99) timed ones. each[k] gets evaluation
+ * k's t_assembly, t_factor and t_solve (seconds); *total the solver's
+ * stats after the last and *flops its factorization's flops (either may be
+ * NULL). For the benches' bare-system figures. */
+struct iso_scene;
+int iso_cli__rest_fields(const struct iso_scene *sc, const iso_solver_opts *so, int reps,
+                         iso_solver_stats *each, iso_solver_stats *total, double *flops,
+                         iso_err *err);
+
 /* The tick engine's defaults with the command's thread settings and name
  * (cmd: "run", "replay", ...), for every command that runs the engine. */
 struct iso_loop_opts;
