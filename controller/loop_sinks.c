@@ -14,6 +14,7 @@
 #include <sys/stat.h>
 
 #include "iso_actuators.h"
+#include "iso_clock.h"
 #include "iso_foxglove.h"
 
 struct iso_loop_sinks {
@@ -27,6 +28,10 @@ struct iso_loop_sinks {
     iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
     iso_loop_summary files;  /* the writer's counts, kept when it closes */
     long frames_sent;        /* kept when the display closes */
+    /* What handing the frame to the writer costs the tick: the frame's
+     * fill and its copy into a slot, timed on the tick's thread. */
+    int64_t handoff_ns_sum, handoff_ns_max;
+    long handoff_n;
 };
 
 static void display_notice(void *ctx, const char *line)
@@ -296,6 +301,7 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
         rc = r < 0 ? r : ISO_OK;
     }
     if (rc == ISO_OK && k->writer) {
+        int64_t t0 = iso_clock_ns();
         rc = iso_loop__writer_check(k->writer, err);
         int want;
         iso_fox_frame *f = rc == ISO_OK ? iso_loop__writer_slot(k->writer, tick, &want) : NULL;
@@ -308,6 +314,11 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
                 fill_frame(l, tick, f);
             iso_loop__writer_push(k->writer, l->x);
         }
+        int64_t dt = iso_clock_ns() - t0;
+        k->handoff_ns_sum += dt;
+        k->handoff_n++;
+        if (dt > k->handoff_ns_max)
+            k->handoff_ns_max = dt;
     }
     return rc;
 }
@@ -402,6 +413,10 @@ void iso_loop__sinks_summary(const iso_loop *l, iso_loop_summary *s)
         s->view_grants = cs.grants;
         s->view_stops = cs.stops;
         s->view_device = l->view_src != NULL;
+    }
+    if (k->handoff_n) {
+        s->handoff_ms_mean = (double)k->handoff_ns_sum * 1e-6 / (double)k->handoff_n;
+        s->handoff_ms_max = (double)k->handoff_ns_max * 1e-6;
     }
     if (k->writer)
         iso_loop__writer_counts(k->writer, s);

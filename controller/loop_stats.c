@@ -268,6 +268,11 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
     if (s->pc2_frames || s->mcap_messages)
         fprintf(f, "  streams     %ld PC2 frames, %ld MCAP messages\n", s->pc2_frames,
                 s->mcap_messages);
+    if (s->handoff_ms_max > 0)
+        fprintf(f,
+                "  writer      the tick's hand-off of its frame: mean %.3f ms, max %.3f ms (the "
+                "writer thread encodes and writes)\n",
+                s->handoff_ms_mean, s->handoff_ms_max);
     if (s->frames_dropped)
         fprintf(f,
                 "  dropped     %ld ticks not written to files (the disk was slower than the "
@@ -460,6 +465,10 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     const long long nf[] = {s->ply_frames, s->snapshots, s->pc2_frames, s->mcap_messages,
                             s->frames_dropped};
     json_counts(j, files, nf, 5);
+    iso_json_object(j, "writer_handoff_ms");
+    iso_json_number(j, "mean", s->handoff_ms_mean);
+    iso_json_number(j, "max", s->handoff_ms_max);
+    iso_json_close(j);
     iso_json_bool(j, "realtime", s->rt_active);
     iso_json_bool(j, "memory_locked", s->mem_locked);
     json_actuators(j, s);

@@ -5,7 +5,11 @@
 # without and with `--pc2 --mcap`, alternately, ROUNDS times each, so that
 # both see the same machine. Prints each run's tick median and p99, then the
 # median of the medians of each and their ratio (the target: at most 1.05).
-# The live view is off in both (its cost is not the question here).
+# The live view is off in both (its cost is not the question here). The
+# last line is what the tick itself spends on the outputs (filling its frame
+# and copying it to the writer's queue) as a share of its median: on a
+# machine whose cores the solver keeps busy, the ratio of medians also
+# carries the writer thread's encoding competing for them.
 # SPEED (default 1) paces the replay slower than real time: a machine that
 # cannot keep the scene at 60 Hz merges late ticks, and then the two runs
 # compute different ticks; at SPEED 0.25 every tick is computed, each the
@@ -27,7 +31,7 @@ tick() { tr -d '\n ' <"$1" | grep -o "\"tick_ms\":{[^}]*}" | grep -o "\"$2\":[-0
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
 echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg), speed $speed"
-printf '%-8s %5s %10s %10s %8s %8s\n' run round "median ms" "p99 ms" ticks dropped
+printf '%-8s %5s %10s %10s %8s %8s %12s %10s\n' run round "median ms" "p99 ms" ticks dropped "hand-off ms" "max ms"
 : >"$tmp/without" && : >"$tmp/with"
 for r in $(seq 1 "$rounds"); do
     for mode in without with; do
@@ -37,12 +41,16 @@ for r in $(seq 1 "$rounds"); do
             2>"$tmp/err" || { cat "$tmp/err" >&2; exit 1; }
         med=$(tick "$tmp/s.json" median)
         p99=$(tick "$tmp/s.json" p99)
-        ticks=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"ticks":[0-9]*' | cut -d: -f2)
+        ticks=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"ticks":[0-9]*' | head -n 1 | cut -d: -f2)
         dropped=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"frames_dropped":[0-9]*' | cut -d: -f2)
-        printf '%-8s %5s %10.3f %10.3f %8s %8s\n' "$mode" "$r" "$med" "$p99" "$ticks" "$dropped"
+        hand=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"writer_handoff_ms":{[^}]*}' | grep -o '"mean":[-0-9.e+]*' | cut -d: -f2)
+        hmax=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"writer_handoff_ms":{[^}]*}' | grep -o '"max":[-0-9.e+]*' | cut -d: -f2)
+        printf '%-8s %5s %10.3f %10.3f %8s %8s %12.4f %10.4f\n' "$mode" "$r" "$med" "$p99" "$ticks" "$dropped" "$hand" "$hmax"
         echo "$med" >>"$tmp/$mode"
+        if [ "$mode" = with ]; then echo "$hand $med" >>"$tmp/hand"; fi
     done
 done
 a=$(median <"$tmp/without")
 b=$(median <"$tmp/with")
 awk -v a="$a" -v b="$b" 'BEGIN {printf "median of medians: without %.3f ms, with PC2+MCAP %.3f ms, ratio %.3f (target <= 1.05)\n", a, b, b / a}'
+awk '{s += $1 / $2; n++} END {printf "the tick'"'"'s hand-off to the writer: %.3f %% of the tick median (mean over the runs with the outputs)\n", 100 * s / n}' "$tmp/hand"
