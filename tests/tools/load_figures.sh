@@ -16,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 reps=${1:-3}
 busy=${2:-$(($(nproc) + 1))}
-shift 2 || true
+shift $(($# < 2 ? $# : 2)) # REPS and BUSY, as many as were given
 bins=("$@")
 ((${#bins[@]})) || bins=(build/isoshape)
 tmp=$(mktemp -d)
