@@ -5,6 +5,7 @@
  * record cut off at the end stops the replay where the last complete one
  * ended, and a damaged record is skipped by resynchronising on the next
  * sync byte that starts a record whose checksum holds. */
+#include "iso_crc32.h"
 #include "iso_dev.h"
 #include "iso_file.h"
 
@@ -18,22 +19,12 @@
 #define REC_HEAD 13u /* sync, type, source, len (2), t (8) */
 #define REC_MAX (REC_HEAD + ISO_DEV_CHUNK_MAX + 4u)
 
-/* Four bits at a time: the bitwise loop made a 16 MB recording's load
- * check and a noisy device's recording cost 8 shifts a byte. The table is
- * the bitwise CRC of each nibble (the check value test holds it). */
+/* Four bits at a time (iso_crc32_small): the bitwise loop made a 16 MB
+ * recording's load check and a noisy device's recording cost 8 shifts a
+ * byte. */
 uint32_t iso_dev_crc32(const uint8_t *p, size_t len)
 {
-    static const uint32_t nib[16] = {0x00000000u, 0x1DB71064u, 0x3B6E20C8u, 0x26D930ACu,
-                                     0x76DC4190u, 0x6B6B51F4u, 0x4DB26158u, 0x5005713Cu,
-                                     0xEDB88320u, 0xF00F9344u, 0xD6D6A3E8u, 0xCB61B38Cu,
-                                     0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
-    uint32_t c = 0xFFFFFFFFu;
-    for (size_t i = 0; i < len; i++) {
-        c ^= p[i];
-        c = (c >> 4) ^ nib[c & 15u];
-        c = (c >> 4) ^ nib[c & 15u];
-    }
-    return c ^ 0xFFFFFFFFu;
+    return iso_crc32_small(0, p, len);
 }
 
 /* ---- little-endian cursors --------------------------------------------- */

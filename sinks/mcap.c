@@ -9,6 +9,7 @@
 #include <zstd.h>
 
 #include "iso_bytes.h"
+#include "iso_crc32.h"
 #include "iso_pc2.h" /* iso_pc2_temp_path: one rule for temporary names */
 
 enum {
@@ -73,13 +74,13 @@ typedef struct msg_index { /* one channel's (log time, offset) pairs in the open
 
 struct iso_mcap {
     FILE *f;
-    uint64_t off; /* bytes written */
-    uint32_t crc_table[256];
-    uint32_t data_crc; /* running, over every byte so far (until Data End) */
-    buf chunk;         /* the open chunk's records */
-    int compression;   /* iso_mcap_compression */
-    ZSTD_CCtx *zstd;   /* made at the first zstd chunk, kept for the next */
-    buf packed;        /* a chunk's records compressed */
+    uint64_t off;        /* bytes written */
+    iso_crc32_table crc; /* slicing by eight: the writer checksums every byte twice */
+    uint32_t data_crc;   /* running, over every byte so far (until Data End) */
+    buf chunk;           /* the open chunk's records */
+    int compression;     /* iso_mcap_compression */
+    ZSTD_CCtx *zstd;     /* made at the first zstd chunk, kept for the next */
+    buf packed;          /* a chunk's records compressed */
     uint64_t chunk_t0, chunk_t1;
     int chunk_msgs;
     msg_index idx[ISO_MCAP_MAX_CHANNELS];
@@ -95,10 +96,7 @@ struct iso_mcap {
 
 static uint32_t crc_update(const iso_mcap *m, uint32_t c, const unsigned char *p, size_t n)
 {
-    c = ~c;
-    for (size_t i = 0; i < n; i++)
-        c = m->crc_table[(c ^ p[i]) & 0xff] ^ (c >> 8);
-    return ~c;
+    return iso_crc32_fast(&m->crc, c, p, n);
 }
 
 /* Writes n bytes to the file, counting them into the data section's CRC. */
@@ -137,12 +135,7 @@ int iso_mcap_create(const char *path, const char *profile, const char *library, 
     iso_mcap *m = calloc(1, sizeof *m);
     if (!m)
         return iso_err_set(err, ISO_ENOMEM, -1, "MCAP: out of memory");
-    for (uint32_t i = 0; i < 256; i++) { /* CRC-32 (IEEE), reflected 0xEDB88320 */
-        uint32_t c = i;
-        for (int k = 0; k < 8; k++)
-            c = c & 1 ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-        m->crc_table[i] = c;
-    }
+    iso_crc32_table_init(&m->crc); /* CRC-32 (IEEE), as the MCAP spec names it */
     snprintf(m->path, sizeof m->path, "%s", path);
     iso_pc2_temp_path(path, (long)getpid(), m->tmp, sizeof m->tmp);
     m->f = fopen(m->tmp, "wb");
