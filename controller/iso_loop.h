@@ -238,9 +238,10 @@ typedef struct iso_loop_summary {
     long pc2_frames;     /* PC2 cache frames written (dropped ticks' repeats included) */
     long mcap_messages;  /* MCAP messages written */
     long frames_dropped; /* ticks the file writer could not take (the disk behind) */
-    /* The tick's own cost of the file outputs: filling the frame and copying
-     * it into the writer's queue, per tick (0 without file outputs). The
-     * encoding, compression and writes are the writer thread's. */
+    /* The tick's own cost of the file outputs: filling the frame (unless
+     * the live view filled it already) and copying it into the writer's
+     * queue, per tick (0 without file outputs). The encoding, compression
+     * and writes are the writer thread's. */
     double handoff_ms_mean, handoff_ms_max;
     int rt_active; /* 1: SCHED_FIFO held */
     int mem_locked;
