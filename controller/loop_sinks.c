@@ -28,8 +28,8 @@ struct iso_loop_sinks {
     iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
     iso_loop_summary files;  /* the writer's counts, kept when it closes */
     long frames_sent;        /* kept when the display closes */
-    /* What handing the frame to the writer costs the tick: the frame's
-     * fill and its copy into a slot, timed on the tick's thread. */
+    /* What handing the frame to the writer costs the tick (the summary's
+     * handoff_ms_*), timed on the tick's thread. */
     int64_t handoff_ns_sum, handoff_ns_max;
     long handoff_n;
 };

@@ -26,8 +26,9 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 scene=config/scenes/replay_cactus.yaml
 
-# The tick_ms object's field (median, p99) from a --stats-json file.
-tick() { tr -d '\n ' <"$1" | grep -o "\"tick_ms\":{[^}]*}" | grep -o "\"$2\":[-0-9.e+]*" | cut -d: -f2; }
+# A field of one of a --stats-json file's objects: field FILE OBJECT KEY
+# (tick_ms median, writer_handoff_ms max, ...).
+field() { tr -d '\n ' <"$1" | grep -o "\"$2\":{[^}]*}" | grep -o "\"$3\":[-0-9.e+]*" | cut -d: -f2; }
 median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
 
 echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg), speed $speed"
@@ -39,12 +40,12 @@ for r in $(seq 1 "$rounds"); do
         [ "$mode" = with ] && extra=(--pc2 "$tmp/run.pc2" --mcap "$tmp/run.mcap")
         "$bin" run "$scene" --no-display --quiet --speed "$speed" --stats-json "$tmp/s.json" "${extra[@]}" \
             2>"$tmp/err" || { cat "$tmp/err" >&2; exit 1; }
-        med=$(tick "$tmp/s.json" median)
-        p99=$(tick "$tmp/s.json" p99)
+        med=$(field "$tmp/s.json" tick_ms median)
+        p99=$(field "$tmp/s.json" tick_ms p99)
         ticks=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"ticks":[0-9]*' | head -n 1 | cut -d: -f2)
         dropped=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"frames_dropped":[0-9]*' | cut -d: -f2)
-        hand=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"writer_handoff_ms":{[^}]*}' | grep -o '"mean":[-0-9.e+]*' | cut -d: -f2)
-        hmax=$(tr -d '\n ' <"$tmp/s.json" | grep -o '"writer_handoff_ms":{[^}]*}' | grep -o '"max":[-0-9.e+]*' | cut -d: -f2)
+        hand=$(field "$tmp/s.json" writer_handoff_ms mean)
+        hmax=$(field "$tmp/s.json" writer_handoff_ms max)
         printf '%-8s %5s %10.3f %10.3f %8s %8s %12.4f %10.4f\n' "$mode" "$r" "$med" "$p99" "$ticks" "$dropped" "$hand" "$hmax"
         echo "$med" >>"$tmp/$mode"
         if [ "$mode" = with ]; then echo "$hand $med" >>"$tmp/hand"; fi
