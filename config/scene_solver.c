@@ -97,6 +97,11 @@ static const scene_key solver_keys[] = {
      .help = "the reduced model: the method on a proxy of at most this many vertices, the mesh "
              "following it; auto: none where the method fits the tick, else the proxy that does",
      .dflt = "auto"},
+    {"proxy_smoothness", SK_ENUM, FIELD(iso_solver_opts, proxy_smoothness),
+     .names = iso_proxy_smoothness_names,
+     .help = "with a proxy: the mesh's omega, or matched: the omega that lets the proxy bend as "
+             "the mesh would (nearer the whole mesh's result, more refactoring)",
+     .dflt = "mesh"},
     {"worker_ahead", SK_BOOL, FIELD(iso_solver_opts, worker_ahead),
      .help = "with the worker: factor the matrix at the positions extrapolated to the middle of "
              "the factor's use, instead of the giving evaluation's",

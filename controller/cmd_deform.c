@@ -138,6 +138,10 @@ static const iso_cli__opt deform_options[] = {
              "whole mesh follow it (auto: the size a 60 Hz tick allows, none for a mesh the "
              "method steps in full); default off",
      .set = set_proxy},
+    {"proxy-smoothness", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(deform_args, so.proxy_smoothness), NULL,
+     .help = "with --proxy: step it with the mesh's omega (mesh, default) or with the omega that "
+             "lets it bend as the mesh would (matched; docs/method.md)",
+     .names = iso_proxy_smoothness_names},
     {"against", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, against), "MESH",
      .help = "also report each vertex's distance to MESH (the same mesh deformed otherwise, "
              "e.g. without --proxy), as a share of the bounding-box diagonal"},
@@ -338,6 +342,8 @@ static void print_json(const deform_args *a, const report *r)
                     iso_cli__per_evaluation_ms(sst->t_solve, sst->evaluations));
     iso_json_number(&j, "other_seconds", r->run.other);
     iso_json_int(&j, "proxy_vertices", r->run.proxy_vertices);
+    if (r->run.proxy_vertices > 0)
+        iso_json_number(&j, "proxy_omega", r->run.proxy_omega);
     iso_json_number(&j, "proxy_seconds", r->run.proxy_s);
     if (r->run.proxy_vertices > 0)
         json_measures(&j, "proxy_", &r->run.proxy_metrics);
@@ -392,6 +398,9 @@ static void print_text(const iso_cli__problem *p, const deform_args *a, const re
         printf("reduced model  the method on a proxy of %d vertices (built in %.3f s), the %d of "
                "the mesh following it\n",
                r->run.proxy_vertices, r->run.proxy_s, iso_mesh_vertex_count(p->mesh));
+    if (r->run.proxy_vertices > 0 && a->so.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
+        printf("               stepped with omega %.4g, matched to the mesh's %.4g\n",
+               r->run.proxy_omega, a->so.omega);
     if (r->run.proxy_vertices > 0)
         printf("               the proxy's own: metricErr %.6e, maxEdgeStrain %.4g\n",
                r->run.proxy_metrics.metric_err, r->run.proxy_metrics.max_edge_strain);

@@ -312,6 +312,7 @@ typedef struct iso_cli__run {
     double factor_flops;       /* of one numeric factorization; NAN if unknown */
     char notice[256];          /* iso_solver_notice(), "" if none */
     int proxy_vertices;        /* so->proxy's proxy, 0 if none */
+    double proxy_omega;        /* the ω it was stepped with */
     iso_metrics proxy_metrics; /* the proxy's own result against its rest pose */
     double proxy_s;            /* seconds it took to build (in seconds too) */
 } iso_cli__run;

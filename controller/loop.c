@@ -96,6 +96,11 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
         fprintf(l->log,
                 "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s)\n",
                 l->cmd, np, l->nv, l->proxy_s);
+    if (sc->solver.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
+        fprintf(l->log,
+                "isoshape %s: reduced model: the proxy stepped with omega %.4g, matched to "
+                "the mesh's %.4g\n",
+                l->cmd, iso_proxy_omega(l->proxy, sc->solver.omega), sc->solver.omega);
     return ISO_OK;
 }
 
@@ -115,6 +120,8 @@ static int build_solver(iso_loop *l, iso_err *err)
     const iso_regions *reg = &sc->regions;
     double *pos = l->x;
     int rc = build_proxy(l, &mesh, &reg, &pos, err);
+    if (rc == ISO_OK && l->proxy && so.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
+        so.omega = iso_proxy_omega(l->proxy, so.omega);
     if (rc == ISO_OK)
         rc = iso_solver_create(mesh, reg, &so, &l->solver, err);
     if (rc != ISO_OK)

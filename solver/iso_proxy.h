@@ -70,6 +70,21 @@ ISO_API int iso_proxy_full_vertex(const iso_proxy *p, int k);
  * own for large meshes; the same bits either way. */
 ISO_API void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, double *x);
 
+/* The smoothness weight that lets the proxy bend as the full mesh does
+ * under `omega` (what `proxy_smoothness: matched` steps it with). The
+ * smoothness term d2 holds a strain part, which does not depend on the
+ * mesh's resolution, and a bending part, which grows with the square of
+ * the edge length: on a proxy whose edges are H long against the mesh's h,
+ * the same ω resists bending (H/h)² times more, and the method finds a
+ * stiffer field than on the mesh itself. So the proxy takes the ω' with
+ * ω'/(1 − ω') = ω/(1 − ω) · (h/H)², (h/H)² = np / nv (a proxy vertex
+ * stands for nv / np of the mesh's area): its field bends as freely as the
+ * mesh's would. Measured against the whole mesh's integral in
+ * docs/method.md (the reduced model), with why it is not the default.
+ * ω = 1 (no d1) stays 1. A function of the two meshes alone, so a replay
+ * takes the same ω'. */
+ISO_API double iso_proxy_omega(const iso_proxy *p, double omega);
+
 /* What the prolongations so far cost their fit (solver/proxy_fit.c): the
  * calls, the conjugate-gradient iterations in all and the most in one,
  * and the fits that failed (CHOLMOD could not solve the proxy's small

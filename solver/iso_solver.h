@@ -63,12 +63,22 @@ typedef enum iso_precond {
     ISO_PRECOND_PLAIN,       /* the factor as it is */
 } iso_precond;
 
+/* The smoothness weight of the method on a proxy (iso_proxy_omega): the
+ * mesh's ω as it is, or matched to the mesh's resolution, so that the proxy
+ * bends as freely as the mesh would (nearer the whole mesh's integral,
+ * at the price of a stiffer system to precondition; docs/method.md). */
+typedef enum iso_proxy_smoothness {
+    ISO_PROXY_SMOOTHNESS_MESH = 0, /* the mesh's ω (default) */
+    ISO_PROXY_SMOOTHNESS_MATCHED,  /* iso_proxy_omega's */
+} iso_proxy_smoothness;
+
 /* The enums' names, indexed by value (common/iso_names.h): "cpu",
- * "opencl", "auto"; "adaptive", "always"; "rotated", "plain". Scenes,
- * options and output use these. */
+ * "opencl", "auto"; "adaptive", "always"; "rotated", "plain"; "mesh",
+ * "matched". Scenes, options and output use these. */
 ISO_API extern const char *const iso_assembly_names[];
 ISO_API extern const char *const iso_refactor_names[];
 ISO_API extern const char *const iso_precond_names[];
+ISO_API extern const char *const iso_proxy_smoothness_names[];
 
 /* Threads. Debian's CHOLMOD asks OpenMP for a team of 4 in its supernodal
  * loops and calls OpenBLAS, which keeps a pool of its own. On systems the
@@ -183,6 +193,8 @@ typedef struct iso_solver_opts {
      * tick rate (none where the method fits the tick). The solver steps the
      * mesh it is given and reads no further than the range check. */
     int proxy;
+    /* With a proxy: the ω it is stepped with (iso_proxy_smoothness). */
+    iso_proxy_smoothness proxy_smoothness;
 } iso_solver_opts;
 
 #define ISO_SOLVER_PROXY_AUTO (-1)

@@ -621,6 +621,16 @@ int iso_proxy_full_vertex(const iso_proxy *p, int k)
 #define AUTO_FULL 8000.0
 #define AUTO_BUDGET 4000.0
 
+double iso_proxy_omega(const iso_proxy *p, double omega)
+{
+    int nv = iso_mesh_vertex_count(p->m) - iso_mesh_unreferenced_count(p->m);
+    int np = iso_mesh_vertex_count(iso_proxy_mesh(p));
+    if (!(omega > 0 && omega < 1) || nv <= 0 || np >= nv)
+        return omega;
+    double r = omega / (1 - omega) * np / nv;
+    return r / (1 + r);
+}
+
 int iso_proxy_auto_budget(int nv, double tick_hz)
 {
     double scale = tick_hz > 0 && tick_hz < 60.0 ? 60.0 / tick_hz : 1.0;

@@ -18,6 +18,7 @@
 const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
 const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
 const char *const iso_precond_names[] = {"rotated", "plain", NULL};
+const char *const iso_proxy_smoothness_names[] = {"mesh", "matched", NULL};
 
 void iso_solver_opts_default(iso_solver_opts *o)
 {
@@ -34,6 +35,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->worker_lag = 0;
     o->worker_ahead = 1;
     o->proxy = 0;
+    o->proxy_smoothness = ISO_PROXY_SMOOTHNESS_MESH;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
 }
