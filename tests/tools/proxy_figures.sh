@@ -14,7 +14,9 @@
 #   proxy_figures.sh BUILD_DIR SHAPE RESOLUTION "BUDGET ..." [RESTORE [REF_TOL]]
 #
 # e.g. proxy_figures.sh build bumpplane 201 "2000 4000 8000 16000" off
-# RESTORE is deform's --restore (default off: the paper's method). Slow:
+# RESTORE is deform's --restore (default off: the paper's method).
+# SMOOTHNESS in the environment lists --proxy-smoothness values, each a row
+# per budget (default "mesh"; "mesh matched" compares the two). Slow:
 # the whole-mesh deformation of a 160k mesh takes tens of minutes and
 # gigabytes at REF_TOL 1e-6.
 set -euo pipefail
@@ -24,6 +26,7 @@ res=${3:?resolution}
 budgets=${4:?budgets}
 restore=${5:-off}
 ref_tol=${6:-1e-6}
+smooth=${SMOOTHNESS:-mesh}
 iso="$build/isoshape"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -44,16 +47,17 @@ echo "# $shape $res: $(echo "$full" | field evaluations) evaluations at --tol $r
     "angleErr ${ref[angle_err]}, max strain ${ref[max_edge_strain]}," \
     "rms strain ${ref[rms_edge_strain]}, $(echo "$full" | field seconds) s;" \
     "converged ARAP (2000 iterations at most): metricErr $arap"
-printf '%7s %6s %8s %9s %8s %8s %8s %8s %8s %10s %10s %8s\n' budget proxy seconds \
+printf '%7s %8s %6s %8s %9s %8s %8s %8s %8s %8s %10s %10s %8s\n' budget omega proxy seconds \
     metricErr "/whole" "area/" "angle/" "max/" "rms/" "dist max" "dist rms" "meets"
-for b in $budgets; do
+for b in $budgets; do for sm in $smooth; do
     out=$("$iso" deform --shape "$shape" --resolution "$res" --restore "$restore" \
-        --refactor adaptive --worker-lag 0 --json --proxy "$b" --against "$tmp/full.ply" 2>/dev/null)
+        --refactor adaptive --worker-lag 0 --json --proxy "$b" --proxy-smoothness "$sm" \
+        --against "$tmp/full.ply" 2>/dev/null)
     m=$(echo "$out" | field metric_err)
     meets=$(awk -v m="$m" -v w="${ref[metric_err]}" -v a="$arap" \
         'BEGIN { print (m <= 1.5 * w && m < a) ? "yes" : "no" }')
-    printf '%7s %6s %8.2f %9.4g %8s %8s %8s %8s %8s %10.3g %10.3g %8s\n' "$b" \
-        "$(echo "$out" | field proxy_vertices)" "$(echo "$out" | field seconds)" "$m" \
+    printf '%7s %8.4g %6s %8.2f %9.4g %8s %8s %8s %8s %8s %10.3g %10.3g %8s\n' "$b" \
+        "$(echo "$out" | field proxy_omega)" "$(echo "$out" | field proxy_vertices)" "$(echo "$out" | field seconds)" "$m" \
         "$(ratio "$m" "${ref[metric_err]}")" \
         "$(ratio "$(echo "$out" | field area_err)" "${ref[area_err]}")" \
         "$(ratio "$(echo "$out" | field angle_err)" "${ref[angle_err]}")" \
@@ -61,4 +65,4 @@ for b in $budgets; do
         "$(ratio "$(echo "$out" | field rms_edge_strain)" "${ref[rms_edge_strain]}")" \
         "$(echo "$out" | field against_max_distance)" \
         "$(echo "$out" | field against_rms_distance)" "$meets"
-done
+done; done

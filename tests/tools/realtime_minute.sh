@@ -6,6 +6,8 @@
 # defaults for everything else (so the reduced model where `auto` picks it),
 # no view (HZ=N in the environment for another rate). Prints the loop's deadline misses, the tick's median, p99 and max,
 # and the reduced model's line. docs/performance.md has the figures.
+# PROXY_SMOOTHNESS=matched in the environment steps the proxy with the
+# matched omega (solver.proxy_smoothness).
 #   usage: tests/tools/realtime_minute.sh [BUILD_DIR] [MESH] [SECONDS]
 #     MESH: bumpplane (the benchmark's 40k plane, else the built-in one at
 #           resolution 201), tentacle128 (163,842 vertices), tentacle317
@@ -40,6 +42,7 @@ esac
         else echo "          - {t: $t, translate: [0, 0, 0]}"; fi
     done
     echo "integrator: {abm: pec}"
+    [ -z "${PROXY_SMOOTHNESS:-}" ] || echo "solver: {proxy_smoothness: $PROXY_SMOOTHNESS}"
     echo "tick_hz: ${HZ:-60}"
 } > "$tmp/scene.yaml"
 uptime
