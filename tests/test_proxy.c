@@ -272,6 +272,33 @@ static void the_prolongation_converges(void **state)
 
 /* (d) the method's own motion: the tentacle's bend and twist integrated on
  * its proxy, the full mesh prolonged with the fit and without. */
+/* The method on mesh/reg (p's own or a proxy's) along p's screw to t = 1,
+ * from the rest positions into pos, with smoothness omega and step
+ * tolerance tol (0: the default); the handle's final pose into g. */
+static void integrate_screw(const problem *p, const iso_mesh *mesh, const iso_regions *reg,
+                            double omega, double tol, double *pos, iso_pose *g)
+{
+    iso_err err;
+    iso_twist xi, tw;
+    assert_int_equal(iso_twist_from_matrix(p->s.M, &xi, &err), ISO_OK);
+    iso_screw_path sp = {&xi, 1};
+    iso_path path = iso_screw_path_make(&sp);
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.omega = omega;
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(mesh, reg, &so, &s, &err), ISO_OK);
+    iso_integrate_opts io;
+    iso_integrate_opts_default(&io);
+    if (tol > 0)
+        io.tol = tol;
+    iso_integrate_stats st;
+    memcpy(pos, iso_mesh_positions(mesh), 3 * (size_t)iso_mesh_vertex_count(mesh) * sizeof *pos);
+    assert_int_equal(iso_integrate(s, mesh, reg, &path, &io, pos, &st, &err), ISO_OK);
+    assert_int_equal(path.eval(path.ctx, 0, 1.0, g, &tw), ISO_OK);
+    iso_solver_destroy(s);
+}
+
 static void the_fit_lowers_the_distortion(void **state)
 {
     (void)state;
@@ -279,24 +306,11 @@ static void the_fit_lowers_the_distortion(void **state)
     problem_init(&t, "tentacle", 40); /* 16,002 vertices */
     iso_proxy *px = check_proxy(&t, 1500);
     const iso_mesh *pm = iso_proxy_mesh(px);
-    const iso_regions *pr = iso_proxy_regions(px);
     int np = iso_mesh_vertex_count(pm), nv = t.s.nv;
-    iso_err err;
-    iso_twist xi;
-    assert_int_equal(iso_twist_from_matrix(t.s.M, &xi, &err), ISO_OK);
-    iso_screw_path sp = {&xi, 1};
-    iso_path path = iso_screw_path_make(&sp);
-    iso_solver *s = NULL;
-    assert_int_equal(iso_solver_create(pm, pr, NULL, &s, &err), ISO_OK);
-    iso_integrate_opts io;
-    iso_integrate_opts_default(&io);
-    iso_integrate_stats st;
     double *y = proxy_under(px, NULL), *x = malloc(3 * (size_t)nv * sizeof *x);
     assert_non_null(x);
-    assert_int_equal(iso_integrate(s, pm, pr, &path, &io, y, &st, &err), ISO_OK);
     iso_pose g;
-    iso_twist tw;
-    assert_int_equal(path.eval(path.ctx, 0, 1.0, &g, &tw), ISO_OK);
+    integrate_screw(&t, pm, iso_proxy_regions(px), 1.0 / 3, 0, y, &g);
     const double *X = iso_mesh_positions(t.m);
     iso_metrics m[2], mp;
     iso_metrics_compute(pm, iso_mesh_positions(pm), y, &mp);
@@ -314,43 +328,24 @@ static void the_fit_lowers_the_distortion(void **state)
     assert_true(m[1].rms_edge_strain < m[0].rms_edge_strain);
     free(x);
     free(y);
-    iso_solver_destroy(s);
     iso_proxy_destroy(px);
     problem_deinit(&t);
 }
 
-/* The method on the proxy of p at `budget` with smoothness omega, along
- * p's screw to t = 1, the full mesh following; its metricErr. */
+/* The method on p's proxy px with smoothness omega, the full mesh
+ * following; the full mesh's metricErr. */
 static double proxy_metric_err(const problem *p, iso_proxy *px, double omega)
 {
     const iso_mesh *pm = iso_proxy_mesh(px);
-    const iso_regions *pr = iso_proxy_regions(px);
-    int nv = p->s.nv;
-    iso_err err;
-    iso_twist xi;
-    assert_int_equal(iso_twist_from_matrix(p->s.M, &xi, &err), ISO_OK);
-    iso_screw_path sp = {&xi, 1};
-    iso_path path = iso_screw_path_make(&sp);
-    iso_solver_opts so;
-    iso_solver_opts_default(&so);
-    so.omega = omega;
-    iso_solver *s = NULL;
-    assert_int_equal(iso_solver_create(pm, pr, &so, &s, &err), ISO_OK);
-    iso_integrate_opts io;
-    iso_integrate_opts_default(&io);
-    iso_integrate_stats st;
-    double *y = proxy_under(px, NULL), *x = malloc(3 * (size_t)nv * sizeof *x);
+    double *y = proxy_under(px, NULL), *x = malloc(3 * (size_t)p->s.nv * sizeof *x);
     assert_non_null(x);
-    assert_int_equal(iso_integrate(s, pm, pr, &path, &io, y, &st, &err), ISO_OK);
     iso_pose g;
-    iso_twist tw;
-    assert_int_equal(path.eval(path.ctx, 0, 1.0, &g, &tw), ISO_OK);
+    integrate_screw(p, pm, iso_proxy_regions(px), omega, 0, y, &g);
     iso_proxy_prolong(px, y, &g, x);
     iso_metrics m;
     iso_metrics_compute(p->m, iso_mesh_positions(p->m), x, &m);
     free(x);
     free(y);
-    iso_solver_destroy(s);
     return m.metric_err;
 }
 
@@ -366,21 +361,10 @@ static void the_proxy_bends_as_the_mesh_does(void **state)
     assert_true(fabs(wp / (1 - wp) - 0.5 * np / nv) <= 1e-14);
     assert_true(iso_proxy_omega(px, 1.0) == 1.0);
     /* the whole mesh's integral, at a fine step (tol 1e-6) */
-    iso_err err;
-    iso_twist xi;
-    assert_int_equal(iso_twist_from_matrix(b.s.M, &xi, &err), ISO_OK);
-    iso_screw_path sp = {&xi, 1};
-    iso_path path = iso_screw_path_make(&sp);
-    iso_solver *s = NULL;
-    assert_int_equal(iso_solver_create(b.m, &b.r, NULL, &s, &err), ISO_OK);
-    iso_integrate_opts io;
-    iso_integrate_opts_default(&io);
-    io.tol = 1e-6;
-    iso_integrate_stats st;
     double *x = malloc(3 * (size_t)nv * sizeof *x);
     assert_non_null(x);
-    memcpy(x, iso_mesh_positions(b.m), 3 * (size_t)nv * sizeof *x);
-    assert_int_equal(iso_integrate(s, b.m, &b.r, &path, &io, x, &st, &err), ISO_OK);
+    iso_pose g;
+    integrate_screw(&b, b.m, &b.r, w, 1e-6, x, &g);
     iso_metrics whole;
     iso_metrics_compute(b.m, iso_mesh_positions(b.m), x, &whole);
     double same = proxy_metric_err(&b, px, w), matched = proxy_metric_err(&b, px, wp);
@@ -389,7 +373,6 @@ static void the_proxy_bends_as_the_mesh_does(void **state)
            np, matched, wp, same, w, whole.metric_err);
     assert_true(fabs(matched - whole.metric_err) < fabs(same - whole.metric_err));
     free(x);
-    iso_solver_destroy(s);
     iso_proxy_destroy(px);
     problem_deinit(&b);
 }
