@@ -7,7 +7,10 @@
 # no view (HZ=N in the environment for another rate). Prints the loop's deadline misses, the tick's median, p99 and max,
 # and the reduced model's line. docs/performance.md has the figures.
 # PROXY_SMOOTHNESS=matched in the environment steps the proxy with the
-# matched omega (solver.proxy_smoothness).
+# matched omega (solver.proxy_smoothness). FAST=1 computes every tick as
+# fast as it goes (--fast) instead: no tick merged into the next, so the
+# solver's counts (factorizations, capped solves) are the same on any
+# machine and compare two settings exactly.
 #   usage: tests/tools/realtime_minute.sh [BUILD_DIR] [MESH] [SECONDS]
 #     MESH: bumpplane (the benchmark's 40k plane, else the built-in one at
 #           resolution 201), tentacle128 (163,842 vertices), tentacle317
@@ -46,5 +49,6 @@ esac
     echo "tick_hz: ${HZ:-60}"
 } > "$tmp/scene.yaml"
 uptime
-"$bin" run "$tmp/scene.yaml" --no-display --duration "$secs" --stats-json "$tmp/s.json" 2>&1 |
+"$bin" run "$tmp/scene.yaml" --no-display --duration "$secs" ${FAST:+--fast} \
+    --stats-json "$tmp/s.json" 2>&1 |
     grep -E "reduced model|real-time|tick time|latency|deadlines|scene minute|solver|CG iter|worker"
