@@ -100,7 +100,8 @@ static const scene_key solver_keys[] = {
     {"proxy_smoothness", SK_ENUM, FIELD(iso_solver_opts, proxy_smoothness),
      .names = iso_proxy_smoothness_names,
      .help = "with a proxy: the mesh's omega, or matched: the omega that lets the proxy bend as "
-             "the mesh would (nearer the whole mesh's result, more refactoring)",
+             "the mesh would (nearer the whole mesh's result without restoration, more "
+             "refactoring)",
      .dflt = "mesh"},
     {"worker_ahead", SK_BOOL, FIELD(iso_solver_opts, worker_ahead),
      .help = "with the worker: factor the matrix at the positions extrapolated to the middle of "

@@ -140,7 +140,8 @@ static const iso_cli__opt deform_options[] = {
      .set = set_proxy},
     {"proxy-smoothness", ISO_CLI_OPT_ENUM, ISO_CLI_ENUM_AT(deform_args, so.proxy_smoothness), NULL,
      .help = "with --proxy: step it with the mesh's omega (mesh, default) or with the omega that "
-             "lets it bend as the mesh would (matched; docs/method.md)",
+             "lets it bend as the mesh would (matched: nearer the whole mesh without "
+             "restoration; docs/method.md)",
      .names = iso_proxy_smoothness_names},
     {"against", ISO_CLI_OPT_STRING, ISO_CLI_STRING_AT(deform_args, against), "MESH",
      .help = "also report each vertex's distance to MESH (the same mesh deformed otherwise, "

@@ -65,8 +65,8 @@ typedef enum iso_precond {
 
 /* The smoothness weight of the method on a proxy (iso_proxy_omega): the
  * mesh's ω as it is, or matched to the mesh's resolution, so that the proxy
- * bends as freely as the mesh would (nearer the whole mesh's integral,
- * at the price of a stiffer system to precondition; docs/method.md). */
+ * bends as freely as the mesh would (nearer the whole mesh's integral
+ * without restoration, at the price of more refactoring; docs/method.md). */
 typedef enum iso_proxy_smoothness {
     ISO_PROXY_SMOOTHNESS_MESH = 0, /* the mesh's ω (default) */
     ISO_PROXY_SMOOTHNESS_MATCHED,  /* iso_proxy_omega's */
