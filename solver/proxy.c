@@ -43,6 +43,7 @@ struct iso_proxy {
     iso_proxy__fit *fit; /* the second stage (proxy_fit.c) */
     double *rot_full;    /* 9 nv: every full vertex's rotation, for the fit */
     const double *y_now; /* the prolongation's input, for the team */
+    const iso_pose *poses_now;
     double *x_out;
     iso_proxy_stats st;
     int fit_off; /* white-box tests: the prolongation alone */
@@ -201,33 +202,50 @@ static void to_quaternion(const double *R, double *q)
 
 static const double I3[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
 
-static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
+/* Proxy vertices [begin, end): each one's ring rotation since rest, and
+ * its quaternion. Each vertex's alone, so the halves give one thread's
+ * bits. */
+static void rotations_range(iso_proxy *p, int begin, int end)
 {
-    const double *Y = iso_mesh_positions(p->pm);
-    normals_now(p, y);
-    for (int k = 0; k < p->np; k++) {
+    const double *Y = iso_mesh_positions(p->pm), *y = p->y_now;
+    for (int k = begin; k < end; k++) {
         double *R = p->rot + 9 * k;
         if (p->pr.kind[k] == ISO_FIXED) {
             memcpy(R, I3, sizeof I3);
-            continue;
+        } else if (p->pr.kind[k] == ISO_HANDLE) {
+            memcpy(R, p->poses_now[p->pr.handle[k]].R, 9 * sizeof *R);
+        } else {
+            double S[9];
+            ring_moment(p, k, y, Y, S);
+            const double *Pi = p->pinv + 9 * k;
+            if (Pi[0] == 0 && Pi[4] == 0 && Pi[8] == 0)
+                memcpy(R, I3, sizeof I3);
+            else {
+                iso_m3_mul(S, Pi, R);
+                if (!newton_schulz(R))
+                    horn(S, R);
+            }
         }
-        if (p->pr.kind[k] == ISO_HANDLE) {
-            memcpy(R, poses[p->pr.handle[k]].R, 9 * sizeof *R);
-            continue;
-        }
-        double S[9];
-        ring_moment(p, k, y, Y, S);
-        const double *Pi = p->pinv + 9 * k;
-        if (Pi[0] == 0 && Pi[4] == 0 && Pi[8] == 0) {
-            memcpy(R, I3, sizeof I3);
-            continue;
-        }
-        iso_m3_mul(S, Pi, R);
-        if (!newton_schulz(R))
-            horn(S, R);
+        to_quaternion(R, p->quat + 4 * k);
     }
-    for (int k = 0; k < p->np; k++)
-        to_quaternion(p->rot + 9 * k, p->quat + 4 * k);
+}
+
+static void rotations_half(void *ctx, int half)
+{
+    iso_proxy *p = ctx;
+    int mid = p->np / 2;
+    if (half == 0)
+        rotations_range(p, 0, mid);
+    else
+        rotations_range(p, mid, p->np);
+}
+
+static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
+{
+    normals_now(p, y);
+    p->y_now = y;
+    p->poses_now = poses;
+    iso_solver__team_run(p->team, rotations_half, p);
 }
 
 /* ===== prolongation ====================================================== */
@@ -293,7 +311,6 @@ static void prolong_half(void *ctx, int half)
 void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, double *x)
 {
     rotations(p, y, poses);
-    p->y_now = y;
     p->x_out = x;
     iso_solver__team_run(p->team, prolong_half, p);
     const double *X = iso_mesh_positions(p->m);
