@@ -294,6 +294,8 @@ int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
     if (px && so->proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
         pso.omega = iso_proxy_omega(px, so->omega);
     out->proxy_omega = pso.omega;
+    if (px) /* as the tick engine steps a proxy */
+        pso.threads.split = ISO_SOLVER_SPLIT_ALWAYS;
     if (rc == ISO_OK)
         rc = iso_solver_create(mesh, reg, &pso, &s, err);
     if (rc == ISO_OK) {

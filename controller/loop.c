@@ -122,6 +122,8 @@ static int build_solver(iso_loop *l, iso_err *err)
     int rc = build_proxy(l, &mesh, &reg, &pos, err);
     if (rc == ISO_OK && l->proxy && so.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
         so.omega = iso_proxy_omega(l->proxy, so.omega);
+    if (l->proxy) /* the proxy's assembly is a third of the tick: both threads */
+        so.threads.split = ISO_SOLVER_SPLIT_ALWAYS;
     if (rc == ISO_OK)
         rc = iso_solver_create(mesh, reg, &so, &l->solver, err);
     if (rc != ISO_OK)

@@ -17,7 +17,8 @@
  * Every triangle element's Q1 rides on one of its interior edges (its
  * blocks are all among the edge's), chosen as the OpenCL path chooses.
  *
- * On a large mesh (ISO_SOLVER__CPU_SPLIT_EDGES interior edges or more) the
+ * On a large mesh (ISO_SOLVER_CPU_SPLIT_EDGES interior edges or more), or
+ * at any size under ISO_SOLVER_SPLIT_ALWAYS (the reduced model's proxy), the
  * fits and the edges run in two fixed halves of the plan's order, on the
  * evaluating thread and on a helper (iso_solver__team): the 40k bumpplane
  * assembly is 30 ms on one core. The halves add into A's values directly,

@@ -123,9 +123,27 @@ typedef enum iso_solver_blas {
  * nothing measurable (cactus: 0.47 GFLOP, 33 ms on one thread or two). */
 #define ISO_SOLVER_BLAS_THREADED_FLOPS 4e9
 
+/* The C assembly's two halves (solver/assemble_cpu.c): on the evaluating
+ * thread and a helper of the solver's own, with one thread's bits either
+ * way, but each split changes a mesh's bits against the unsplit sum. */
+typedef enum iso_solver_split {
+    /* From ISO_SOLVER_CPU_SPLIT_EDGES interior edges on (about 20k
+     * vertices); smaller meshes keep one thread, where a helper would
+     * contend with the factorization worker for the second core. The
+     * library default. */
+    ISO_SOLVER_SPLIT_LARGE = 0,
+    /* At any size: for a small mesh stepped inside a larger tick (the
+     * reduced model's proxy, whose full mesh's reconstruction already runs
+     * on two threads), where the assembly is a third of the tick. */
+    ISO_SOLVER_SPLIT_ALWAYS,
+} iso_solver_split;
+
+#define ISO_SOLVER_CPU_SPLIT_EDGES 60000
+
 typedef struct iso_solver_threads {
-    iso_solver_omp omp;   /* default ISO_SOLVER_OMP_CALLER */
-    iso_solver_blas blas; /* default ISO_SOLVER_BLAS_LEAVE */
+    iso_solver_omp omp;     /* default ISO_SOLVER_OMP_CALLER */
+    iso_solver_blas blas;   /* default ISO_SOLVER_BLAS_LEAVE */
+    iso_solver_split split; /* default ISO_SOLVER_SPLIT_LARGE */
 } iso_solver_threads;
 
 typedef struct iso_solver_opts {

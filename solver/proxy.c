@@ -561,7 +561,7 @@ int iso_proxy_create(const iso_mesh *m, const iso_regions *r, int budget, iso_pr
         rc = build(p, &d, err);
     }
     iso_proxy__decimated_free(&d);
-    if (rc == ISO_OK && nv >= ISO_SOLVER__CPU_SPLIT_EDGES / 3)
+    if (rc == ISO_OK && nv >= ISO_SOLVER_CPU_SPLIT_EDGES / 3)
         p->team = iso_solver__team_create(); /* NULL: the prolongation on one thread */
     if (rc == ISO_OK)
         rc = start_fit(p, err);

@@ -38,6 +38,7 @@ void iso_solver_opts_default(iso_solver_opts *o)
     o->proxy_smoothness = ISO_PROXY_SMOOTHNESS_MESH;
     o->threads.omp = ISO_SOLVER_OMP_CALLER;
     o->threads.blas = ISO_SOLVER_BLAS_LEAVE;
+    o->threads.split = ISO_SOLVER_SPLIT_LARGE;
 }
 
 static int check_opts(const iso_solver_opts *o, iso_err *err)
@@ -76,6 +77,9 @@ static int check_opts(const iso_solver_opts *o, iso_err *err)
     if (o->threads.blas != ISO_SOLVER_BLAS_LEAVE && o->threads.blas != ISO_SOLVER_BLAS_SIZED)
         return iso_err_set(err, ISO_EINVAL, -1, "unknown BLAS thread policy %d",
                            (int)o->threads.blas);
+    if (o->threads.split != ISO_SOLVER_SPLIT_LARGE && o->threads.split != ISO_SOLVER_SPLIT_ALWAYS)
+        return iso_err_set(err, ISO_EINVAL, -1, "unknown assembly split policy %d",
+                           (int)o->threads.split);
     return ISO_OK;
 }
 
@@ -189,7 +193,8 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
     else
         iso_solver_opts_default(&s->o);
     cholmod_start(&s->c);
-    s->cpu_split_edges = ISO_SOLVER__CPU_SPLIT_EDGES;
+    s->cpu_split_edges =
+        s->o.threads.split == ISO_SOLVER_SPLIT_ALWAYS ? 0 : ISO_SOLVER_CPU_SPLIT_EDGES;
     s->cpu_helper = 1;
     int rc = check_opts(&s->o, err);
     if (rc == ISO_OK)

@@ -231,10 +231,10 @@ void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), 
 int iso_solver__team_threads(const iso_solver__team *t); /* 2 with a helper, else 1 */
 
 /* The C assembly path. Its plans are made at the first call and freed by
- * iso_solver__cpu_plan_destroy (NULL is a no-op). From this many interior
- * edges on (a mesh of about 20k vertices), it runs in two halves on two
- * threads (assemble_cpu.c says how the bits stay one thread's). */
-#define ISO_SOLVER__CPU_SPLIT_EDGES 60000
+ * iso_solver__cpu_plan_destroy (NULL is a no-op). From
+ * ISO_SOLVER_CPU_SPLIT_EDGES interior edges on (a mesh of about 20k
+ * vertices; any size under ISO_SOLVER_SPLIT_ALWAYS), it runs in two halves
+ * on two threads (assemble_cpu.c says how the bits stay one thread's). */
 typedef struct iso_solver__cpu_plan iso_solver__cpu_plan;
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
 void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p);

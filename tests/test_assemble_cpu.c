@@ -137,6 +137,45 @@ static void halves_agree_with_one(void **state)
     grid_deinit(&g);
 }
 
+/* The public policy sets the threshold: SPLIT_ALWAYS assembles the grid
+ * (far below ISO_SOLVER_CPU_SPLIT_EDGES) in two halves, the bits of a
+ * forced split; the default keeps one; an unknown policy is refused. */
+static void the_split_policy_sets_the_threshold(void **state)
+{
+    (void)state;
+    grid g;
+    grid_init(&g);
+    iso_solver_opts o;
+    iso_solver_opts_default(&o);
+    assert_int_equal(o.threads.split, ISO_SOLVER_SPLIT_LARGE);
+    o.restore_mu = 0.5;
+    o.restore_tau = 0.2;
+    o.threads.split = ISO_SOLVER_SPLIT_ALWAYS;
+    iso_solver *always, *plain, *forced = make_solver(&g, 1, 1);
+    iso_err err;
+    assert_int_equal(iso_solver_create(g.m, &g.r, &o, &always, &err), ISO_OK);
+    o.threads.split = ISO_SOLVER_SPLIT_LARGE;
+    assert_int_equal(iso_solver_create(g.m, &g.r, &o, &plain, &err), ISO_OK);
+    assert_int_equal(plain->cpu_split_edges, ISO_SOLVER_CPU_SPLIT_EDGES);
+    double *Aa, *Ba, *Af, *Bf;
+    assemble(always, g.x, g.vc, &Aa, &Ba);
+    assemble(forced, g.x, g.vc, &Af, &Bf);
+    size_t nnz = (size_t)((int *)always->A->p)[3 * always->nf], n3 = 3 * (size_t)always->nf;
+    assert_memory_equal(Aa, Af, nnz * sizeof *Aa);
+    assert_memory_equal(Ba, Bf, n3 * sizeof *Ba);
+    o.threads.split = (iso_solver_split)7;
+    iso_solver *bad = NULL;
+    iso_err_clear(&err);
+    assert_int_equal(iso_solver_create(g.m, &g.r, &o, &bad, &err), ISO_EINVAL);
+    printf("unknown policy: %s\n", err.msg);
+    assert_non_null(strstr(err.msg, "split"));
+    free(Aa), free(Ba), free(Af), free(Bf);
+    iso_solver_destroy(always);
+    iso_solver_destroy(plain);
+    iso_solver_destroy(forced);
+    grid_deinit(&g);
+}
+
 /* A triangle collapsed in the first half's fits, then in the second's. */
 static void a_singular_fit_is_reported_in_either_half(void **state)
 {
@@ -164,6 +203,7 @@ int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(halves_agree_with_one),
+        cmocka_unit_test(the_split_policy_sets_the_threshold),
         cmocka_unit_test(a_singular_fit_is_reported_in_either_half),
     };
     return cmocka_run_group_tests_name("assemble_cpu", t, NULL, NULL);

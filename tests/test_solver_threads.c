@@ -431,7 +431,7 @@ static void twist_and_swell(const double *p, double *q)
 
 /* The reduced model's prolongation and its fit (solver/proxy.c,
  * proxy_fit.c) run their halves on the proxy's own team, the caller and a
- * helper thread, for a mesh of ISO_SOLVER__CPU_SPLIT_EDGES / 3 (20,000)
+ * helper thread, for a mesh of ISO_SOLVER_CPU_SPLIT_EDGES / 3 (20,000)
  * vertices and more: the tentacle at 48 has 23,042. Every call on the same
  * input is the same bits, whichever half finishes first; and under
  * ThreadSanitizer each of the fit's phases (CG steps that read the

@@ -9,7 +9,7 @@
  * e.g. ../shared/data/benchmark/03-cactus-bend/cactus, or a built-in shape
  * as shape:NAME:RESOLUTION. REPS defaults to 31. `halves` times the C path
  * on one thread (never split) against the C path as the solver runs it (in
- * two halves on two threads from ISO_SOLVER__CPU_SPLIT_EDGES edges on).
+ * two halves on two threads from ISO_SOLVER_CPU_SPLIT_EDGES edges on).
  * Positions are the rest pose (the assembly's cost does not depend on
  * them), the handle moves with a fixed twist. Prints one line per path:
  * the median and the least wall time of one assembly, and the median CPU
