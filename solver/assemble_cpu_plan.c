@@ -12,6 +12,16 @@ typedef iso_solver__element element;
 #define LANES ISO_ELEM__LANES
 #define FIT_STRIDE ISO_ELEM__FIT_STRIDE
 
+int iso_solver__cpu_halves(const iso_solver__cpu_plan *p)
+{
+    return p->halves;
+}
+
+iso_solver__team *iso_solver__cpu_team(const iso_solver__cpu_plan *p)
+{
+    return p->team;
+}
+
 void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p)
 {
     if (!p)

@@ -157,7 +157,16 @@ static int precondition(iso_solver *s, cholmod_dense *R, cholmod_dense **Z, iso_
     if (s->super_work) {
         if (!*Z && !(*Z = cholmod_zeros(s->L->n, 1, CHOLMOD_REAL, &s->c)))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate the solution");
-        if (iso_solver__super_solve(s->L, R->x, (*Z)->x, s->super_work) == 0)
+        /* where the C assembly runs in two halves, so do the solves (the
+         * same choice every run, so the bits do not depend on timing) */
+        if (!s->super_plan_made && s->cpu && iso_solver__cpu_halves(s->cpu) == 2) {
+            s->super_plan = iso_solver__super_plan_create(s->L);
+            s->super_plan_made = 1;
+        }
+        if (s->super_plan
+                ? iso_solver__super_solve_split(s->L, s->super_plan, iso_solver__cpu_team(s->cpu),
+                                                R->x, (*Z)->x, s->super_work) == 0
+                : iso_solver__super_solve(s->L, R->x, (*Z)->x, s->super_work) == 0)
             return ISO_OK;
     }
     int levels = omp_begin(s);

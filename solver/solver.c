@@ -14,6 +14,7 @@
 #include "iso_names.h"
 #include "iso_proxy.h"
 #include "solver_internal.h"
+#include "supersolve_internal.h"
 
 const char *const iso_assembly_names[] = {"cpu", "opencl", "auto", NULL};
 const char *const iso_refactor_names[] = {"adaptive", "always", NULL};
@@ -241,6 +242,7 @@ void iso_solver_destroy(iso_solver *s)
     cholmod_free_dense(&s->Y, &s->c);
     cholmod_free_dense(&s->E, &s->c);
     free(s->super_work);
+    iso_solver__super_plan_destroy(s->super_plan);
     for (int i = 0; i < ISO_SOLVER__WORK; i++)
         cholmod_free_dense(&s->work[i], &s->c);
     iso_solver__frame_destroy(s->frame);

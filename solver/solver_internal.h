@@ -85,6 +85,8 @@ struct iso_solver {
     cholmod_factor *L;
     cholmod_dense *B, *X, *Y, *E;
     double *super_work; /* iso_solver__super_solve's, when L is supernodal; else NULL */
+    struct iso_solver__super_plan *super_plan; /* the solves' two halves, or NULL */
+    int super_plan_made;
     cholmod_dense *work[ISO_SOLVER__WORK]; /* PCG: residual, preconditioned residual,
                                               direction, A·direction, rotated residual */
     int have_factor;                       /* L holds a numeric factor of some earlier A */
@@ -238,6 +240,8 @@ int iso_solver__team_threads(const iso_solver__team *t); /* 2 with a helper, els
 typedef struct iso_solver__cpu_plan iso_solver__cpu_plan;
 int iso_solver__assemble_cpu(iso_solver *s, const double *x, const double *vc, iso_err *err);
 void iso_solver__cpu_plan_destroy(iso_solver__cpu_plan *p);
+int iso_solver__cpu_halves(const iso_solver__cpu_plan *p);             /* 1 or 2 */
+iso_solver__team *iso_solver__cpu_team(const iso_solver__cpu_plan *p); /* NULL: one thread */
 
 /* The OpenCL path (assemble_cl.c, compiled when ISO_WITH_OPENCL is defined).
  * create: after the pattern and slot map exist; builds the kernels and the

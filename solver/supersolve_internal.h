@@ -16,8 +16,9 @@
 #include <cholmod.h>
 #include <stddef.h>
 
-/* Doubles of workspace iso_solver__super_solve needs with L: 2 n + 8 (the
- * permuted right-hand side, the rows below a supernode, a panel's dots). */
+/* Doubles of workspace either solve below needs with L: 4 n + 16 (the
+ * permuted right-hand side; per half the rows below a supernode and a
+ * panel's dots; the side array of the second half's sums). */
 size_t iso_solver__super_work(const cholmod_factor *L);
 
 /* x = A⁻¹ b, where L is CHOLMOD's supernodal LLᵀ factor of A (permuted:
@@ -29,5 +30,23 @@ size_t iso_solver__super_work(const cholmod_factor *L);
  * Returns 0, or −1 without touching x when L is not a real supernodal LLᵀ
  * factor with int indices: the caller then uses cholmod_solve2. */
 int iso_solver__super_solve(const cholmod_factor *L, const double *b, double *x, double *work);
+
+/* The same solve on two threads: two disjoint groups of whole subtrees of
+ * L's supernodal elimination tree, chosen once from L's pattern so that
+ * what stays serial (the supernodes above them) plus the heavier group is
+ * least, run at once (supersolve.c says how). The sums into the supernodes
+ * above both groups take a fixed order, so the bits are the same on one
+ * thread or two and from run to run, though not the serial solve's.
+ * plan_create returns NULL when L is not supernodal, is out of memory, or
+ * no split would save a tenth of the serial time; a plan serves every
+ * factor with L's pattern. solve_split returns −1 as super_solve does, or
+ * when L's size is not the plan's. */
+typedef struct iso_solver__super_plan iso_solver__super_plan;
+struct iso_solver__team;
+iso_solver__super_plan *iso_solver__super_plan_create(const cholmod_factor *L);
+void iso_solver__super_plan_destroy(iso_solver__super_plan *p); /* NULL is a no-op */
+int iso_solver__super_solve_split(const cholmod_factor *L, const iso_solver__super_plan *p,
+                                  struct iso_solver__team *team, const double *b, double *x,
+                                  double *work);
 
 #endif
