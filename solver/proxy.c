@@ -233,11 +233,9 @@ static void rotations_range(iso_proxy *p, int begin, int end)
 static void rotations_half(void *ctx, int half)
 {
     iso_proxy *p = ctx;
-    int mid = p->np / 2;
-    if (half == 0)
-        rotations_range(p, 0, mid);
-    else
-        rotations_range(p, mid, p->np);
+    int b, e;
+    iso_solver__team_half(p->np, half, &b, &e);
+    rotations_range(p, b, e);
 }
 
 static void rotations(iso_proxy *p, const double *y, const iso_pose *poses)
@@ -301,11 +299,9 @@ static void prolong_range(iso_proxy *p, int begin, int end)
 static void prolong_half(void *ctx, int half)
 {
     iso_proxy *p = ctx;
-    int mid = p->nv / 2;
-    if (half == 0)
-        prolong_range(p, 0, mid);
-    else
-        prolong_range(p, mid, p->nv);
+    int b, e;
+    iso_solver__team_half(p->nv, half, &b, &e);
+    prolong_range(p, b, e);
 }
 
 void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *poses, double *x)

@@ -82,13 +82,6 @@ struct iso_proxy__fit {
     int phase, first, iterations;
 };
 
-static void half_range(const iso_proxy__fit *f, int half, int *b, int *e)
-{
-    int mid = f->nf / 2;
-    *b = half == 0 ? 0 : mid;
-    *e = half == 0 ? mid : f->nf;
-}
-
 /* ===== set-up ============================================================ */
 
 /* The free vertices (those not held and on an edge) and both neighbour
@@ -467,7 +460,7 @@ static void run_half(void *ctx, int half)
 {
     iso_proxy__fit *f = ctx;
     int b, e;
-    half_range(f, half, &b, &e);
+    iso_solver__team_half(f->nf, half, &b, &e);
     double sum[6] = {0, 0, 0, 0, 0, 0};
     double *acc = f->acc ? f->acc + 3 * (size_t)f->nc * half : NULL;
     if (acc && (f->phase == PH_RESIDUAL || f->phase == PH_STEP))

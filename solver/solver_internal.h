@@ -231,6 +231,8 @@ iso_solver__team *iso_solver__team_create(void);
 void iso_solver__team_destroy(iso_solver__team *t); /* NULL is a no-op */
 void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), void *ctx);
 int iso_solver__team_threads(const iso_solver__team *t); /* 2 with a helper, else 1 */
+/* The items [begin, end) of n that half 0 or 1 takes: the first n / 2, or the rest. */
+void iso_solver__team_half(int n, int half, int *begin, int *end);
 
 /* The C assembly path. Its plans are made at the first call and freed by
  * iso_solver__cpu_plan_destroy (NULL is a no-op). From

@@ -159,3 +159,9 @@ void iso_solver__team_run(iso_solver__team *t, void (*fn)(void *ctx, int half), 
         pthread_cond_wait(&t->cv, &t->mu);
     pthread_mutex_unlock(&t->mu);
 }
+
+void iso_solver__team_half(int n, int half, int *begin, int *end)
+{
+    *begin = half == 0 ? 0 : n / 2;
+    *end = half == 0 ? n / 2 : n;
+}
