@@ -13,7 +13,8 @@
  *
  * The reduced model's prolongation and fit, which run in halves on the
  * proxy's own two-thread team for a large mesh, give the same bits at
- * every call.
+ * every call; so do the assembly and the triangular solves in halves on a
+ * solver's team (ISO_SOLVER_SPLIT_ALWAYS), alone and beside another.
  *
  * The same program is built with ThreadSanitizer as test_solver_threads_tsan
  * (tests/CMakeLists.txt). */
@@ -45,9 +46,10 @@ typedef struct problem {
 typedef struct run {
     const problem *p;
     iso_refactor refactor;
-    int worker_lag; /* iso_solver_opts.worker_lag */
-    int steps;      /* fixed ABM steps; 0: 6 */
-    double *x;      /* final positions, 3 nv */
+    int worker_lag;         /* iso_solver_opts.worker_lag */
+    int steps;              /* fixed ABM steps; 0: 6 */
+    iso_solver_split split; /* the assembly's and the solves' halves */
+    double *x;              /* final positions, 3 nv */
     iso_solver_stats st;
     int rc;
     iso_err err;
@@ -84,6 +86,7 @@ static void *run_main(void *arg)
     iso_solver_opts_default(&so);
     so.refactor = r->refactor;
     so.worker_lag = r->worker_lag;
+    so.threads.split = r->split;
     iso_integrate_opts io;
     iso_integrate_opts_default(&io);
     io.steps = r->steps > 0 ? r->steps : 6;
@@ -148,6 +151,34 @@ static void assert_same(const run *alone, const run *beside)
     assert_int_equal(alone->st.factorizations, beside->st.factorizations);
     assert_int_equal(alone->st.cg_iterations, beside->st.cg_iterations);
     assert_int_equal(alone->st.handovers, beside->st.handovers);
+}
+
+/* The C assembly and the triangular solves in halves on the solver's team
+ * (ISO_SOLVER_SPLIT_ALWAYS, as the tick engine steps a proxy), with a
+ * factorization worker beside them: the same bits run to run and in a
+ * thread beside another solver, and within rounding of one thread's
+ * result. Under TSan (test_solver_threads_tsan) the halves' writes are
+ * checked for races. */
+static void split_halves_are_deterministic(void **state)
+{
+    (void)state;
+    problem cactus;
+    problem_init(&cactus, "cactus", 1);
+    run one = make_run(&cactus, 2), a = make_run(&cactus, 2), b = make_run(&cactus, 2),
+        c = make_run(&cactus, 2);
+    a.split = b.split = c.split = ISO_SOLVER_SPLIT_ALWAYS;
+    run_now(&one);
+    run_now(&a);
+    run_pair(&b, &c);
+    assert_same(&a, &b);
+    assert_same(&a, &c);
+    int nv = iso_mesh_vertex_count(cactus.mesh);
+    double d = iso_test_max_abs_diff(a.x, one.x, (size_t)nv * 3),
+           m = iso_test_max_abs(one.x, (size_t)nv * 3);
+    printf("cactus in halves against one thread: %.3g of %.3g\n", d, m);
+    assert_true(d <= 1e-9 * m);
+    free(one.x), free(a.x), free(b.x), free(c.x);
+    problem_deinit(&cactus);
 }
 
 /* ---- the process's thread controls, looked up as the solver does -------- */
@@ -538,6 +569,7 @@ int main(void)
         c.blas_set(1);
     const struct CMUnitTest t[] = {
         cmocka_unit_test(two_solvers_match_one_at_a_time),
+        cmocka_unit_test(split_halves_are_deterministic),
         cmocka_unit_test(worker_is_deterministic_and_accurate),
         cmocka_unit_test(a_mesh_at_rest_leaves_the_worker_idle),
         cmocka_unit_test(defaults_leave_settings_alone),
