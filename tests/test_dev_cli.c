@@ -235,12 +235,25 @@ static void record_from_a_pty_then_kill_9(void **state)
     assert_int_equal(r.infos[0].baud, 115200);
     iso_dev_chunk c;
     long bytes = 0, ticks = 0;
+    int64_t first = -1, last = -1;
     while (iso_dev_rec_next(&r, &c, NULL) == 1) {
         bytes += c.type == ISO_DEV_CHUNK_DATA ? c.len : 0;
-        ticks += c.type == ISO_DEV_CHUNK_TICK;
+        if (c.type == ISO_DEV_CHUNK_TICK) {
+            ticks++;
+            first = first < 0 ? c.t_ns : first;
+            last = c.t_ns;
+        }
     }
+    printf("recorded %ld ticks of 2 ms from %.4f s to %.4f s, %ld bytes\n", ticks, first / 1e9,
+           last / 1e9, bytes);
     assert_int_equal(bytes, 160);
-    assert_true(ticks >= 150 && ticks <= 200);
+    /* 0.4 s of 2 ms ticks: never more than 200, and spanning the duration
+     * (the first tick to the last, 199 periods, less one for the clock's
+     * start). Fewer than 200 when the machine is busy: a late tick is
+     * merged with the ones it missed, not recorded twice (on a loaded
+     * CI machine fewer than 150 were seen); a fifth is kept as the floor. */
+    assert_true(ticks >= 40 && ticks <= 200);
+    assert_true(last - first >= 396000000LL && last - first <= 400000000LL);
     assert_int_equal(r.torn, 0);
     iso_dev_rec_reader_deinit(&r);
     /* the replay of a live recording: identical at any speed */
