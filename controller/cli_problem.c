@@ -290,12 +290,10 @@ int iso_cli__problem_run(const iso_cli__problem *p, const iso_solver_opts *so,
     rc = with_proxy(p, so, &px, &y, out, err);
     const iso_mesh *mesh = px ? iso_proxy_mesh(px) : p->mesh;
     const iso_regions *reg = px ? iso_proxy_regions(px) : &p->reg;
-    iso_solver_opts pso = *so; /* on a proxy, the ω that bends as the whole mesh would */
-    if (px && so->proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
-        pso.omega = iso_proxy_omega(px, so->omega);
+    iso_solver_opts pso = *so;
+    if (px)
+        iso_proxy_solver_opts(px, &pso);
     out->proxy_omega = pso.omega;
-    if (px) /* as the tick engine steps a proxy */
-        pso.threads.split = ISO_SOLVER_SPLIT_ALWAYS;
     if (rc == ISO_OK)
         rc = iso_solver_create(mesh, reg, &pso, &s, err);
     if (rc == ISO_OK) {

@@ -120,10 +120,8 @@ static int build_solver(iso_loop *l, iso_err *err)
     const iso_regions *reg = &sc->regions;
     double *pos = l->x;
     int rc = build_proxy(l, &mesh, &reg, &pos, err);
-    if (rc == ISO_OK && l->proxy && so.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
-        so.omega = iso_proxy_omega(l->proxy, so.omega);
-    if (l->proxy) /* the proxy's assembly is a third of the tick: both threads */
-        so.threads.split = ISO_SOLVER_SPLIT_ALWAYS;
+    if (rc == ISO_OK && l->proxy)
+        iso_proxy_solver_opts(l->proxy, &so);
     if (rc == ISO_OK)
         rc = iso_solver_create(mesh, reg, &so, &l->solver, err);
     if (rc != ISO_OK)

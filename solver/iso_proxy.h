@@ -40,6 +40,7 @@
 #include "iso_geom.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
+#include "iso_solver.h"
 
 typedef struct iso_proxy iso_proxy; /* opaque */
 
@@ -84,6 +85,12 @@ ISO_API void iso_proxy_prolong(iso_proxy *p, const double *y, const iso_pose *po
  * ω = 1 (no d1) stays 1. A function of the two meshes alone, so a replay
  * takes the same ω'. */
 ISO_API double iso_proxy_omega(const iso_proxy *p, double omega);
+
+/* Turns the mesh's solver options into the proxy's: ω matched when
+ * so->proxy_smoothness asks for it, and the assembly and solves in halves
+ * at any size (ISO_SOLVER_SPLIT_ALWAYS: the proxy's assembly is a third of
+ * a tick, and the full mesh's reconstruction already uses both threads). */
+ISO_API void iso_proxy_solver_opts(const iso_proxy *p, iso_solver_opts *so);
 
 /* What the prolongations so far cost their fit (solver/proxy_fit.c): the
  * calls, the conjugate-gradient iterations in all and the most in one,

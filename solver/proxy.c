@@ -644,6 +644,13 @@ double iso_proxy_omega(const iso_proxy *p, double omega)
     return r / (1 + r);
 }
 
+void iso_proxy_solver_opts(const iso_proxy *p, iso_solver_opts *so)
+{
+    if (so->proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
+        so->omega = iso_proxy_omega(p, so->omega);
+    so->threads.split = ISO_SOLVER_SPLIT_ALWAYS;
+}
+
 int iso_proxy_auto_budget(int nv, double tick_hz)
 {
     double scale = tick_hz > 0 && tick_hz < 60.0 ? 60.0 / tick_hz : 1.0;
