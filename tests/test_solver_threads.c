@@ -144,9 +144,17 @@ static void run_pair(run *a, run *b)
 static void assert_same(const run *alone, const run *beside)
 {
     int nv = iso_mesh_vertex_count(alone->p->mesh);
+    /* the counts say whether another path was taken (a factorization
+     * instead of a PCG solve, another ordering) or the same path rounded
+     * otherwise */
     if (memcmp(alone->x, beside->x, (size_t)nv * 3 * sizeof(double)) != 0)
-        fail_msg("%s: in a thread beside another solver the result differs by %g", alone->p->shape,
-                 iso_test_max_abs_diff(alone->x, beside->x, (size_t)nv * 3));
+        fail_msg("%s: in a thread beside another solver the result differs by %g (alone / "
+                 "beside: %ld / %ld factorizations, %ld / %ld CG iterations, %ld / %ld solves "
+                 "with a factor, nnz(L) %ld / %ld)",
+                 alone->p->shape, iso_test_max_abs_diff(alone->x, beside->x, (size_t)nv * 3),
+                 alone->st.factorizations, beside->st.factorizations, alone->st.cg_iterations,
+                 beside->st.cg_iterations, alone->st.factor_solves, beside->st.factor_solves,
+                 alone->st.nnz_l, beside->st.nnz_l);
     assert_int_equal(alone->st.evaluations, beside->st.evaluations);
     assert_int_equal(alone->st.factorizations, beside->st.factorizations);
     assert_int_equal(alone->st.cg_iterations, beside->st.cg_iterations);
