@@ -14,6 +14,7 @@
  * edge-adjacent triangles (Q2, 4 vertices). Elements without a free vertex
  * contribute nothing to A_ff or the right-hand side and are dropped. */
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -304,6 +305,25 @@ static int build_pattern(iso_solver *s, buckets *bp, iso_err *err)
 
 /* ===== ordering and analysis ============================================ */
 
+/* Orderings, one at a time. METIS, which CHOLMOD's analysis runs beside
+ * AMD, draws from a random-number generator that the whole process shares
+ * and that each call seeds afresh, so two analyses at once in two threads
+ * interleave their draws and may order differently than either alone: the
+ * built-in bar (resolution 6) got nnz(L) 223,443 instead of 223,839 once
+ * in 300 creations beside a cactus, and its deformation then differed by
+ * 3.7e-13. A solver's ordering must depend on its mesh alone (its bits
+ * do), so every analysis in the library takes this lock. It is held only
+ * for the analysis, which runs at creation, never in a tick. */
+static pthread_mutex_t analysis_lock = PTHREAD_MUTEX_INITIALIZER;
+
+cholmod_factor *iso_solver__analyze(cholmod_sparse *A, int *perm, cholmod_common *c)
+{
+    pthread_mutex_lock(&analysis_lock);
+    cholmod_factor *L = perm ? cholmod_analyze_p(A, perm, NULL, 0, c) : cholmod_analyze(A, c);
+    pthread_mutex_unlock(&analysis_lock);
+    return L;
+}
+
 /* The block pattern bp as a CHOLMOD matrix (nf × nf, upper, pattern). */
 static cholmod_sparse *block_matrix(iso_solver *s, const buckets *bp)
 {
@@ -331,11 +351,11 @@ static int *block_ordering(iso_solver *s, const buckets *bp)
     if (!B)
         return NULL;
     s->c.nmethods = 3; /* the given ordering (none here), AMD, METIS */
-    cholmod_factor *Lb = cholmod_analyze(B, &s->c);
+    cholmod_factor *Lb = iso_solver__analyze(B, NULL, &s->c);
     if (!Lb) {
         s->c.nmethods = 0;
         s->c.status = CHOLMOD_OK;
-        Lb = cholmod_analyze(B, &s->c);
+        Lb = iso_solver__analyze(B, NULL, &s->c);
     }
     int *perm = Lb ? malloc(3 * (size_t)s->nf * sizeof *perm) : NULL;
     if (perm) {
@@ -364,7 +384,7 @@ static int analyse(iso_solver *s, const buckets *bp, iso_err *err)
     if (perm) {
         s->c.nmethods = 1;
         s->c.method[0].ordering = CHOLMOD_GIVEN;
-        s->L = cholmod_analyze_p(s->A, perm, NULL, 0, &s->c);
+        s->L = iso_solver__analyze(s->A, perm, &s->c);
         free(perm);
     }
     if (!s->L || s->c.status < CHOLMOD_OK)

@@ -266,7 +266,7 @@ static int coarse_factor(iso_proxy__fit *f)
     if (!A)
         return -1;
     f->c.supernodal = CHOLMOD_SIMPLICIAL;
-    f->Lc = cholmod_analyze(A, &f->c);
+    f->Lc = iso_solver__analyze(A, NULL, &f->c);
     int ok = f->Lc && cholmod_factorize(A, f->Lc, &f->c) && f->c.status == CHOLMOD_OK;
     cholmod_free_sparse(&A, &f->c);
     return ok ? 0 : -1;

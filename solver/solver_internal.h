@@ -154,6 +154,10 @@ int iso_solver__check_constraints(const iso_mesh *m, const iso_regions *r, iso_e
  * workspace, nnz and flops in the stats). */
 int iso_solver__build_system(iso_solver *s, iso_err *err);
 
+/* CHOLMOD's symbolic analysis of A (perm: the ordering to use, or NULL for
+ * the Common's methods), one at a time in the process (pattern.c says why). */
+cholmod_factor *iso_solver__analyze(cholmod_sparse *A, int *perm, cholmod_common *c);
+
 /* Applies opts.threads at creation (after the analysis, which knows the
  * factorization's flops) and undoes its process-wide part at destroy. */
 void iso_solver__threads_begin(iso_solver *s);
