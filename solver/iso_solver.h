@@ -89,7 +89,10 @@ ISO_API extern const char *const iso_proxy_smoothness_names[];
  * never changes a process-wide setting unless asked to here, and reads no
  * environment variable for it: a program that wants OMP_MAX_ACTIVE_LEVELS
  * or OPENBLAS_NUM_THREADS to win passes the LEAVE policies (the isoshape
- * command does when they are set). */
+ * command does when they are set). Solvers may be created in several
+ * threads at once: the library runs one CHOLMOD analysis at a time, since
+ * METIS's random numbers belong to the whole process, so each solver gets
+ * the ordering, and the bits, it would get alone. */
 typedef enum iso_solver_omp {
     /* Each CHOLMOD call runs its OpenMP regions on the calling thread: the
      * solver sets the calling thread's max-active-levels to 0 for the call
