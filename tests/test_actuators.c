@@ -12,20 +12,24 @@
  * with the MCU in QEMU is the MCU's own watchdog (100 ms) rather than 20
  * ms: the sanitized sender and sink beside a TCG emulator on two loaded
  * cores took 38.7 ms once (the setpoints still stopped within the sender's
- * cycle, which is asserted in every build). */
+ * cycle, which is asserted in every build); so is a safe stop's wait for
+ * the MCU's answer (50 ms elsewhere; 57.7 ms seen there once). */
 #define _GNU_SOURCE
 #if defined(__SANITIZE_ADDRESS__)
 #define ESTOP_ANSWER_MS 100.0
 #define CONVERGE_SLACK_S 3.0
+#define STOP_ANSWER_MS 100.0
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)
 #define ESTOP_ANSWER_MS 100.0
 #define CONVERGE_SLACK_S 3.0
+#define STOP_ANSWER_MS 100.0
 #endif
 #endif
 #ifndef ESTOP_ANSWER_MS
 #define ESTOP_ANSWER_MS 20.0
 #define CONVERGE_SLACK_S 1.0
+#define STOP_ANSWER_MS 50.0
 #endif
 #include <limits.h>
 #include <math.h>
@@ -564,9 +568,13 @@ static int end_to_end(int mode, const char *label)
     if (s.faults == s0.faults + 1 && s.last_fault_reason == ISO_FB_FAULT_REQUESTED) {
         /* the MCU braked on the request, not 100 ms later by its watchdog;
          * the stop waited for its answer, one round trip (a frame each way
-         * at 115200 baud) plus the sender's 2 ms look; generous on CI */
+         * at 115200 baud) plus the sender's 2 ms look; generous on CI, and
+         * the watchdog's 100 ms in a sanitized build beside QEMU (57.7 ms
+         * seen there on two loaded cores) */
         assert_int_equal(s.last_fault_detail_ms, ISO_FB_SAFE_STOP);
-        assert_true(waited <= 50.0);
+        if (waited > STOP_ANSWER_MS)
+            fail_msg("%s: the safe stop waited %.1f ms for the MCU's answer (bound %.0f ms)", label,
+                     waited, STOP_ANSWER_MS);
     } else {
         printf("%s: the MCU was already safe when the stop began (a stall just before it)\n",
                label);
