@@ -16,17 +16,17 @@
  * the MCU's answer (50 ms elsewhere; 57.7 ms seen there once). */
 #define _GNU_SOURCE
 #if defined(__SANITIZE_ADDRESS__)
-#define ESTOP_ANSWER_MS 100.0
-#define CONVERGE_SLACK_S 3.0
-#define STOP_ANSWER_MS 100.0
+#define UNDER_ASAN 1
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)
+#define UNDER_ASAN 1
+#endif
+#endif
+#ifdef UNDER_ASAN
 #define ESTOP_ANSWER_MS 100.0
 #define CONVERGE_SLACK_S 3.0
 #define STOP_ANSWER_MS 100.0
-#endif
-#endif
-#ifndef ESTOP_ANSWER_MS
+#else
 #define ESTOP_ANSWER_MS 20.0
 #define CONVERGE_SLACK_S 1.0
 #define STOP_ANSWER_MS 50.0

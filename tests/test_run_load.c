@@ -43,6 +43,7 @@
 #include <unistd.h>
 
 #include "iso_clock.h"
+#include "iso_loop.h"
 
 static struct {
     char bin[1024], src[1024];
@@ -56,7 +57,7 @@ typedef struct figures {
     int prio[64]; /* SCHED_FIFO priorities seen among its threads (and QEMU's) */
     int n_prio;
     char why[512]; /* the run's real-time line when it was refused */
-    /* the tick's thread (SCHED_FIFO 20) from /proc/PID/task/TID/schedstat:
+    /* the tick's thread (SCHED_FIFO ISO_LOOP_RT_PRIORITY) from /proc/PID/task/TID/schedstat:
      * ns on a CPU and ns runnable but waiting for one, at the first and the
      * last sample that saw it */
     int tick_tid;
@@ -84,14 +85,11 @@ static void note_prio(figures *f, int p)
         f->prio[f->n_prio++] = p;
 }
 
-/* The loop's tick thread's priority (controller/iso_loop.h) */
-#define TICK_PRIO 20
-
-/* Its schedstat, read beside its stat (stat_path ends in /stat). */
-static void note_tick_thread(figures *f, const char *stat_path, int tid)
+/* The schedstat of the tick's thread, tid in the task folder dir. */
+static void note_tick_thread(figures *f, const char *dir, int tid)
 {
-    char path[420], buf[128];
-    snprintf(path, sizeof path, "%.*sschedstat", (int)strlen(stat_path) - 4, stat_path);
+    char path[128], buf[128];
+    snprintf(path, sizeof path, "%s/%d/schedstat", dir, tid);
     slurp(path, buf, sizeof buf);
     double run = 0, wait = 0;
     if (sscanf(buf, "%lf %lf", &run, &wait) != 2 || (f->tick_tid && f->tick_tid != tid))
@@ -152,8 +150,8 @@ static void read_priorities(int pid, figures *f)
             field[k] = strtol(tok, NULL, 10);
         if (field[41] == 1) /* SCHED_FIFO */
             note_prio(f, (int)field[40]);
-        if (field[41] == 1 && field[40] == TICK_PRIO)
-            note_tick_thread(f, path, atoi(t->d_name));
+        if (field[41] == 1 && field[40] == ISO_LOOP_RT_PRIORITY)
+            note_tick_thread(f, dir, atoi(t->d_name));
     }
     closedir(d);
 }
@@ -312,7 +310,8 @@ static void demo_scene_holds_under_load(void **state)
             fail_msg("no thread of the run at SCHED_FIFO %d (seen: %s)", p, pb);
     assert_int_equal(b.stalls, 0);
     if (!a.tick_tid || !b.tick_tid || a.run1 <= a.run0 || b.run1 <= b.run0)
-        fail_msg("no schedstat of the tick's thread (SCHED_FIFO %d) was read in %s", TICK_PRIO,
+        fail_msg("no schedstat of the tick's thread (SCHED_FIFO %d) was read in %s",
+                 ISO_LOOP_RT_PRIORITY,
                  !a.tick_tid || a.run1 <= a.run0 ? "the run alone" : "the loaded run");
     assert_true(tick_wait_share(&b) <= tick_wait_share(&a) + 0.15);
 }
