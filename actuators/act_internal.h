@@ -52,6 +52,7 @@ struct iso_actuators {
     int top; /* highest configured channel + 1 */
     iso_act_notice_fn notice;
     void *notice_ctx;
+    struct iso_logq *logq; /* without a notice callback: stderr, through a queue */
 
     iso_link *link; /* owned */
     iso_fb_host host;
@@ -112,7 +113,8 @@ struct iso_actuators {
     const char *break_what;
 };
 
-/* A notice line through the sink's notice callback, or stderr. */
+/* A notice line through the sink's notice callback, or to stderr through
+ * the sink's log queue: the sender thread never writes to a descriptor. */
 void iso_act__say(const iso_actuators *a, const char *line);
 
 /* safety.c: the rules that stop the setpoints. */

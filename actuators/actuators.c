@@ -12,13 +12,14 @@
 
 #include "act_internal.h"
 #include "iso_clock.h"
+#include "iso_logq.h"
 
 void iso_act__say(const iso_actuators *a, const char *line)
 {
     if (a->notice)
         a->notice(a->notice_ctx, line);
     else
-        fprintf(stderr, "%s\n", line);
+        iso_logq_say(a->logq, line); /* the sender never writes to stderr itself */
 }
 
 /* ------------------------------------------------------------------------ */
@@ -182,7 +183,9 @@ int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const i
         a->notice = opts->notice;
         a->notice_ctx = opts->notice_ctx;
     }
-    int rc = iso_act__take_safety(a, safety, err);
+    int rc = a->notice ? ISO_OK : iso_logq_create(stderr, 0, &a->logq, err);
+    if (rc == ISO_OK)
+        rc = iso_act__take_safety(a, safety, err);
     for (int i = 0; i < n_ch && rc == ISO_OK; i++) {
         if ((rc = check_channel(&ch[i], i, nv, regions, err)) != ISO_OK)
             break;
@@ -251,6 +254,7 @@ void iso_actuators_destroy(iso_actuators *a)
         free(a->ch[i].verts);
     pthread_cond_destroy(&a->cond);
     pthread_mutex_destroy(&a->lock);
+    iso_logq_destroy(a->logq);
     free(a);
 }
 

@@ -157,9 +157,11 @@ typedef struct iso_act_link_spec {
  * MCU, and every safety event (loop stall, e-stop, link lost, back, MCU
  * silent, safe state confirmed). Called from the creating thread during
  * create and from the sink's sender thread after that, once per event,
- * never with the sink's lock held: it must be thread-safe (fprintf is).
- * A slow callback only delays setpoints, which fails safe. NULL in the
- * options prints the line to stderr. */
+ * never with the sink's lock held: it must be thread-safe and must not
+ * block (the sender is the loop's watchdog: no write to a descriptor, no
+ * stdio lock; hand the line to a queue). NULL in the options writes the
+ * line to stderr from a thread of the sink's own, through a bounded queue
+ * that drops (and counts) what a stderr nobody reads cannot take. */
 typedef void (*iso_act_notice_fn)(void *ctx, const char *line);
 
 /* Reads an e-stop line: returns nonzero while the e-stop is pressed. Called
@@ -170,7 +172,7 @@ typedef int (*iso_act_estop_fn)(void *ctx);
 
 typedef struct iso_act_opts {
     int link_timeout_ms;      /* no valid frame this long -> link lost; 0 = 1000 (3000 emulated) */
-    iso_act_notice_fn notice; /* NULL = stderr */
+    iso_act_notice_fn notice; /* NULL = stderr, through a queue */
     void *notice_ctx;
 } iso_act_opts;
 

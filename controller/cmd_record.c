@@ -70,6 +70,7 @@ static int scene_device(const src_spec *sp, int index, iso_scene_device *d)
 }
 
 typedef struct record_ctx {
+    iso_loop *l; /* the hooks run on its tick: they say through its log */
     int quiet;
     long every, late;
     double tick_ms;
@@ -81,16 +82,15 @@ static void on_tick(void *ctx, const iso_loop_tick_info *t)
     if (t->merged > 1 || t->dt_s > rc->tick_ms * 1.5e-3)
         rc->late++;
     if (!rc->quiet && rc->every > 0 && t->tick % rc->every == 0)
-        fprintf(stderr, "isoshape record: %.0f s, %ld ticks (%ld late)\n", t->t_s, t->tick,
-                rc->late);
+        iso_loop_say(rc->l, "%.0f s, %ld ticks (%ld late)", t->t_s, t->tick, rc->late);
 }
 
 static void on_command(void *ctx, const iso_dev_tick *out, double dt)
 {
-    (void)ctx;
+    const record_ctx *rc = ctx;
     (void)dt;
     if (out->actions & (1u << ISO_DEV_ACT_RESET_POSE))
-        fprintf(stderr, "isoshape record: reset pose of handle %d\n", out->active);
+        iso_loop_say(rc->l, "reset pose of handle %d", out->active);
 }
 
 typedef struct record_args {
@@ -217,7 +217,7 @@ static int record_main(int argc, char **argv)
     sa.sa_handler = on_signal;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
-    record_ctx ctx = {a.quiet, (long)llround(1000.0 / a.tick_ms), 0, a.tick_ms};
+    record_ctx ctx = {NULL, a.quiet, (long)llround(1000.0 / a.tick_ms), 0, a.tick_ms};
     iso_loop_opts lo;
     iso_cli__loop_opts_default(&lo, cmd);
     lo.rt = 0;
@@ -234,13 +234,14 @@ static int record_main(int argc, char **argv)
         free(sc);
         return 1;
     }
+    ctx.l = l;
     if (iso_loop_run(l, &err) != ISO_OK) {
-        iso_cli__fail(cmd, "%s", err.msg);
+        iso_loop_say(l, "%s", err.msg);
         status = 1;
     }
     iso_err_clear(&err);
     if (iso_loop_shutdown(l, &err) != ISO_OK) {
-        iso_cli__fail(cmd, "%s", err.msg);
+        iso_loop_say(l, "%s", err.msg);
         status = 1;
     }
     iso_loop_summary sum;

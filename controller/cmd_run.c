@@ -153,12 +153,12 @@ static int write_output(int what, const char *opt, const char *path, iso_loop *l
                                                   &sc->regions, tmp, 960, 720, NULL, &err)
                                : iso_loop_write_json(s, sc, tmp, &err);
     if (rc != ISO_OK) {
-        iso_cli__fail("run", "%s %s: %s", opt, path, err.msg);
+        iso_loop_say(l, "%s %s: %s", opt, path, err.msg);
         unlink(tmp);
         return 1;
     }
     if (rename(tmp, path) != 0) {
-        iso_cli__fail("run", "%s %s: %s", opt, path, strerror(errno));
+        iso_loop_say(l, "%s %s: %s", opt, path, strerror(errno));
         unlink(tmp);
         return 1;
     }
@@ -195,10 +195,10 @@ static void hold_view(iso_loop *l, const iso_scene *sc, const iso_loop_summary *
     free(text);
     if (!up)
         return;
-    fprintf(stderr,
-            "isoshape run: the run has ended; the live view keeps showing its last frame and "
-            "this summary at %s: press Ctrl-C to quit (--exit-at-end does not wait)\n",
-            url);
+    iso_loop_say(l,
+                 "the run has ended; the live view keeps showing its last frame and this "
+                 "summary at %s: press Ctrl-C to quit (--exit-at-end does not wait)",
+                 url);
     while (!g_stop) {
         struct timespec ts = {0, 100 * 1000 * 1000};
         nanosleep(&ts, NULL);
@@ -212,7 +212,7 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     iso_err err;
     iso_err_clear(&err);
     if (iso_loop_shutdown(l, &err) != ISO_OK) {
-        iso_cli__fail("run", "shutdown: %s", err.msg);
+        iso_loop_say(l, "shutdown: %s", err.msg);
         status = 1;
     }
     iso_loop_summary s;
@@ -267,15 +267,17 @@ static int run_main(int argc, char **argv)
         iso_scene_destroy(sc);
         return 1;
     }
+    /* From here on stderr is written through the loop's log, which never
+     * blocks: a stderr nobody reads cannot keep a stop from ending the run. */
     int status = 0;
     if (iso_loop_run(l, &err) != ISO_OK) {
-        iso_cli__fail("run", "%s", err.msg);
+        iso_loop_say(l, "%s", err.msg);
         status = 1;
     }
     int sig = g_stop;
     if (sig)
-        fprintf(stderr, "isoshape run: stopped by %s; shutting down cleanly\n",
-                sig == SIGINT ? "SIGINT" : "SIGTERM");
+        iso_loop_say(l, "stopped by %s; shutting down cleanly",
+                     sig == SIGINT ? "SIGINT" : "SIGTERM");
     status = finish(l, sc, &a, status);
     iso_loop_destroy(l);
     iso_scene_destroy(sc);

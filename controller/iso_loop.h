@@ -289,6 +289,16 @@ ISO_API int iso_loop_view_url(const iso_loop *l, char *url, size_t cap);
 /* Writes the summary as JSON to path; ISO_EIO naming the path on failure. */
 ISO_API ISO_NODISCARD int iso_loop_write_json(const iso_loop_summary *s, const iso_scene *sc,
                                               const char *path, iso_err *err);
+/* Says one line on the loop's log (opts.log), "isoshape <cmd>: " before
+ * it, the way the loop says its own notices: through a bounded queue and a
+ * thread that writes it, so it never blocks whatever the log does (a pipe
+ * nobody reads, a terminal stopped with Ctrl-S), from any thread, without
+ * allocating. A line repeated within two seconds is counted, not written
+ * again; lines that find the queue full are dropped and counted, and the
+ * count is said once the log takes lines again. What is queued is written
+ * by iso_loop_destroy(), which waits at most 300 ms for a log that takes
+ * nothing. */
+ISO_API void iso_loop_say(iso_loop *l, const char *fmt, ...) ISO_PRINTF(2, 3);
 /* Prints the summary for people. */
 ISO_API void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE *f);
 

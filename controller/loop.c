@@ -8,6 +8,8 @@
 #include <errno.h>
 #include <math.h>
 #include <sched.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -71,10 +73,10 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
     if (budget <= 0 || l->nv - iso_mesh_unreferenced_count(sc->mesh) <= budget)
         return ISO_OK;
     if (l->nv >= 100000) /* seconds of work: say what is happening */
-        fprintf(l->log,
-                "isoshape %s: reduced model: simplifying %d vertices to a proxy of at most %d "
-                "(about a second per 100,000 vertices)...\n",
-                l->cmd, l->nv, budget);
+        iso_loop_say(l,
+                     "reduced model: simplifying %d vertices to a proxy of at most %d "
+                     "(about a second per 100,000 vertices)...",
+                     l->nv, budget);
     double t0 = iso_clock_now();
     int rc = iso_proxy_create(sc->mesh, &sc->regions, budget, &l->proxy, err);
     if (rc != ISO_OK)
@@ -88,19 +90,18 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
     memcpy(l->y, iso_mesh_positions(*mesh), (size_t)np * 3 * sizeof *l->y);
     *pos = l->y;
     if (sc->solver.proxy == ISO_SOLVER_PROXY_AUTO)
-        fprintf(l->log,
-                "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s): the "
-                "whole mesh does not fit a %g Hz tick (solver.proxy: off runs it whole)\n",
-                l->cmd, np, l->nv, l->proxy_s, sc->tick_hz);
+        iso_loop_say(l,
+                     "reduced model: a proxy of %d vertices for %d (built in %.2f s): the "
+                     "whole mesh does not fit a %g Hz tick (solver.proxy: off runs it whole)",
+                     np, l->nv, l->proxy_s, sc->tick_hz);
     else
-        fprintf(l->log,
-                "isoshape %s: reduced model: a proxy of %d vertices for %d (built in %.2f s)\n",
-                l->cmd, np, l->nv, l->proxy_s);
+        iso_loop_say(l, "reduced model: a proxy of %d vertices for %d (built in %.2f s)", np, l->nv,
+                     l->proxy_s);
     if (sc->solver.proxy_smoothness == ISO_PROXY_SMOOTHNESS_MATCHED)
-        fprintf(l->log,
-                "isoshape %s: reduced model: the proxy stepped with omega %.4g, matched to "
-                "the mesh's %.4g\n",
-                l->cmd, iso_proxy_omega(l->proxy, sc->solver.omega), sc->solver.omega);
+        iso_loop_say(l,
+                     "reduced model: the proxy stepped with omega %.4g, matched to "
+                     "the mesh's %.4g",
+                     iso_proxy_omega(l->proxy, sc->solver.omega), sc->solver.omega);
     return ISO_OK;
 }
 
@@ -129,7 +130,7 @@ static int build_solver(iso_loop *l, iso_err *err)
     iso_solver_set_progress(l->solver, solver_progress, l);
     const char *notice = iso_solver_notice(l->solver);
     if (notice && notice[0])
-        fprintf(l->log, "isoshape %s: %s\n", l->cmd, notice);
+        iso_loop_say(l, "%s", notice);
     rc = iso_stepper_create(l->solver, mesh, reg, pos, &l->st, err);
     if (rc == ISO_OK)
         rc = iso_stepper_configure(l->st, (iso_abm_mode)sc->abm_mode, sc->integrate.restore_kappa,
@@ -168,7 +169,7 @@ static void plan_end(iso_loop *l)
     if (end > 0) {
         l->k_end = (int64_t)ceil(end * hz - 1e-9);
     } else if (l->o.max_ticks == 0) {
-        fprintf(l->log, "isoshape %s: nothing drives the handles: running 1 s of ticks\n", l->cmd);
+        iso_loop_say(l, "nothing drives the handles: running 1 s of ticks");
         l->k_end = (int64_t)llround(hz);
     }
     if (l->k_end < 1)
@@ -200,6 +201,11 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         iso_loop_opts_default(&l->o);
     l->log = l->o.log ? l->o.log : stderr;
     l->cmd = l->o.cmd ? l->o.cmd : "run";
+    int rc = iso_logq_create(l->log, l->o.status_line, &l->logq, err);
+    if (rc != ISO_OK) {
+        free(l);
+        return rc;
+    }
     if (!(l->o.speed > 0))
         l->o.speed = 1;
     l->period_ns = (int64_t)llround(1e9 / sc->tick_hz);
@@ -207,7 +213,7 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         iso_pose_identity(&l->cmd_pose[h]);
     iso_loop__stats_init(&l->stats);
     l->nh = sc->n_handles;
-    int rc = sc->mesh ? open_mesh_side(l, err) : ISO_OK;
+    rc = sc->mesh ? open_mesh_side(l, err) : ISO_OK;
     if (rc == ISO_OK)
         rc = iso_loop__devices_open(l, err);
     if (rc == ISO_OK && sc->mesh)
@@ -217,8 +223,7 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         rc = iso_dev_hub_record_start(l->hub, rec, err);
         l->recording = rc == ISO_OK;
     } else if (rc == ISO_OK && rec[0] && l->replay) {
-        fprintf(l->log, "isoshape %s: not recording to %s: the devices are a replay already\n",
-                l->cmd, rec);
+        iso_loop_say(l, "not recording to %s: the devices are a replay already", rec);
     }
     if (rc == ISO_OK && l->hub && !l->replay) {
         iso_err quiet; /* without libusb the retry interval still finds replugged devices */
@@ -277,7 +282,7 @@ void iso_loop_destroy(iso_loop *l)
     iso_err e;
     iso_err_clear(&e);
     if (iso_loop_shutdown(l, &e) != ISO_OK)
-        fprintf(l->log, "isoshape %s: shutdown: %s\n", l->cmd, e.msg);
+        iso_loop_say(l, "shutdown: %s", e.msg);
     iso_loop__sinks_free(l); /* the view before the hub: it queues on the hub's view device */
     iso_dev_usb_watch_destroy(l->watch);
     iso_dev_hub_destroy(l->hub);
@@ -290,7 +295,18 @@ void iso_loop_destroy(iso_loop *l)
     free(l->x);
     free(l->y);
     iso_proxy_destroy(l->proxy);
+    iso_logq_destroy(l->logq); /* last: everything above may still say something */
     free(l);
+}
+
+void iso_loop_say(iso_loop *l, const char *fmt, ...)
+{
+    char msg[ISO_LOGQ_LINE_MAX];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    iso_logq_sayf(l->logq, "isoshape %s: %s", l->cmd, msg);
 }
 
 /* ======================================================================== */

@@ -41,8 +41,7 @@ static int reopen_device(void *ctx, const iso_dev_info *info, iso_dev_source **o
 
 static void hub_note(void *ctx, const char *msg)
 {
-    iso_loop *l = ctx;
-    fprintf(l->log, "%sisoshape %s: %s\n", l->o.status_line ? "\r\033[K" : "", l->cmd, msg);
+    iso_loop_say(ctx, "%s", msg);
 }
 
 /* A replayed recording stands for every device it recorded; live devices
@@ -70,7 +69,7 @@ static int open_devices(iso_loop *l, iso_err *err)
                 return rc;
             char cut[400];
             if (iso_dev_rec_reader_cut(&l->reader, cut, sizeof cut, NULL))
-                fprintf(l->log, "isoshape %s: %s: %s\n", l->cmd, d->path, cut);
+                iso_loop_say(l, "%s: %s", d->path, cut);
             l->replay = 1;
             if ((rc = iso_dev_replay_open(&l->reader, &s, err)) != ISO_OK)
                 return rc;
@@ -108,10 +107,10 @@ static int init_mapping(iso_loop *l, iso_err *err)
             first = h;
             mo = d->map;
         } else if (memcmp(&d->map, &mo, sizeof mo) != 0) {
-            fprintf(l->log,
-                    "isoshape %s: handle '%s' maps its device like handle '%s' (one mapping "
-                    "serves every device-driven handle)\n",
-                    l->cmd, sc->handles[h].name, sc->handles[first].name);
+            iso_loop_say(l,
+                         "handle '%s' maps its device like handle '%s' (one mapping "
+                         "serves every device-driven handle)",
+                         sc->handles[h].name, sc->handles[first].name);
         }
         l->dev_handle[l->n_dev++] = h;
     }
@@ -148,7 +147,7 @@ static int devices_ready(iso_loop *l, iso_err *err)
         }
         char desc[192];
         iso_dev_hub_describe(l->hub, i, desc, sizeof desc);
-        fprintf(l->log, "isoshape %s: device %zu: %s\n", l->cmd, i, desc);
+        iso_loop_say(l, "device %zu: %s", i, desc);
     }
     return ISO_OK;
 }
@@ -201,11 +200,11 @@ static int toggle_recording(iso_loop *l, iso_err *err)
     if (l->recording) {
         rc = iso_dev_hub_record_stop(l->hub, err);
         l->recording = 0;
-        fprintf(l->log, "isoshape %s: recording stopped\n", l->cmd);
+        iso_loop_say(l, "recording stopped");
     } else if (rec[0]) {
         rc = iso_dev_hub_record_start(l->hub, rec, err);
         l->recording = rc == ISO_OK;
-        fprintf(l->log, "isoshape %s: recording to %s\n", l->cmd, rec);
+        iso_loop_say(l, "recording to %s", rec);
     }
     return rc;
 }
@@ -233,7 +232,7 @@ int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, i
     if (l->o.on_command)
         l->o.on_command(l->o.hook_ctx, &cmd, dt);
     if (l->replay && l->reader.damaged > l->damaged_seen) {
-        fprintf(l->log, "isoshape %s: %s\n", l->cmd, l->reader.note);
+        iso_loop_say(l, "%s", l->reader.note);
         l->damaged_seen = l->reader.damaged;
     }
     if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay &&

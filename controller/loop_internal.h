@@ -8,6 +8,7 @@
 #include "iso_dev.h"
 #include "iso_display.h"
 #include "iso_integrate.h"
+#include "iso_logq.h"
 #include "iso_proxy.h"
 #include "iso_snapshot.h"
 
@@ -56,6 +57,10 @@ struct iso_loop {
     const iso_scene *sc;
     iso_loop_opts o;
     FILE *log;
+    /* Every line the loop says goes through it, from any thread: a log
+     * that takes nothing never holds up the tick, the sender or the view's
+     * server (common/iso_logq.h). */
+    iso_logq *logq;
     const char *cmd; /* "run", "record", "replay": names notices */
 
     /* the method (NULL without a mesh) */

@@ -84,13 +84,13 @@ static void go_realtime(iso_loop *l)
                  "not permitted (%.250s): normal priority (grant CAP_SYS_NICE and CAP_IPC_LOCK, "
                  "or rtprio/memlock in limits.conf)",
                  why);
-        fprintf(l->log, "isoshape %s: real-time scheduling %s\n", l->cmd, r->rt_note);
+        iso_loop_say(l, "real-time scheduling %s", r->rt_note);
     } else {
-        fprintf(l->log,
-                "isoshape %s: real-time: SCHED_FIFO priority %d (factorization worker %d%s), "
-                "memory locked\n",
-                l->cmd, sp.sched_priority, sp.sched_priority - 1,
-                iso_loop_actuators(l) ? ", actuator sender and its MCU above" : "");
+        iso_loop_say(l,
+                     "real-time: SCHED_FIFO priority %d (factorization worker %d%s), "
+                     "memory locked",
+                     sp.sched_priority, sp.sched_priority - 1,
+                     iso_loop_actuators(l) ? ", actuator sender and its MCU above" : "");
     }
 }
 
@@ -136,10 +136,11 @@ static void status_line(iso_loop *l, double t_s, double dt)
     if (l->sinks)
         iso_loop__sinks_status(l, extra, sizeof extra);
     devices_status(l, dt, dev, sizeof dev);
-    fprintf(l->log,
-            "\r\033[Ktick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s%s",
-            l->ticks, t_s, med, p99, max, l->stats.misses, dev, extra);
-    fflush(l->log);
+    char line[ISO_LOGQ_LINE_MAX];
+    snprintf(line, sizeof line,
+             "tick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s%s", l->ticks,
+             t_s, med, p99, max, l->stats.misses, dev, extra);
+    iso_logq_status(l->logq, line);
 }
 
 /* The first tick's start: a live run's is now; a replay's is the recorded
@@ -165,8 +166,7 @@ int iso_loop_run(iso_loop *l, iso_err *err)
     if (timed && l->o.rt)
         go_realtime(l);
     else if (!timed && live)
-        fprintf(l->log, "isoshape %s: --fast with live devices: ticks do not wait for input\n",
-                l->cmd);
+        iso_loop_say(l, "--fast with live devices: ticks do not wait for input");
     start_streams(l);
     l->wall0 = iso_clock_ns();
     int64_t prev_wake = l->wall0;
@@ -202,22 +202,24 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         }
     }
     l->wall_end = iso_clock_now();
-    if (l->o.status_line)
-        fprintf(l->log, "\r\033[K");
+    if (l->o.status_line) { /* erased before the summary is printed under it */
+        iso_logq_status(l->logq, "");
+        (void)iso_logq_flush(l->logq, ISO_LOGQ_CLOSE_MS);
+    }
     if (l->rt.rt_active) {
         /* The summary needs no real-time priority, nor does an idle worker;
          * the actuators' sender keeps its priority through the safe stop. */
         struct sched_param sp;
         memset(&sp, 0, sizeof sp);
         if (sched_setscheduler(0, SCHED_OTHER, &sp) != 0)
-            fprintf(l->log, "isoshape %s: back to SCHED_OTHER: %s\n", l->cmd, strerror(errno));
+            iso_loop_say(l, "back to SCHED_OTHER: %s", strerror(errno));
         iso_err e;
         iso_err_clear(&e);
         if (l->solver && iso_solver_set_worker_priority(l->solver, 0, &e) != ISO_OK)
-            fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
+            iso_loop_say(l, "%s", e.msg);
         iso_err_clear(&e);
         if (l->hub && iso_dev_hub_set_priority(l->hub, 0, &e) != ISO_OK)
-            fprintf(l->log, "isoshape %s: %s\n", l->cmd, e.msg);
+            iso_loop_say(l, "%s", e.msg);
     }
     return rc;
 }

@@ -37,7 +37,7 @@ struct iso_loop_sinks {
 static void display_notice(void *ctx, const char *line)
 {
     iso_loop *l = ctx;
-    fprintf(l->log, "isoshape %s: live view: %s\n", l->cmd, line);
+    iso_loop_say(l, "live view: %s", line);
 }
 
 /* The handles a page may move: the device-driven ones, in the mapping's
@@ -81,7 +81,7 @@ static int open_display(iso_loop *l, iso_err *err)
     if (rc == ISO_EIO && o.port != 0 && l->o.port < 0) {
         /* the scene's port is taken (another run, another server): any free
          * one serves as well, and the line below says which */
-        fprintf(l->log, "isoshape %s: %s; using a free port instead\n", l->cmd, err->msg);
+        iso_loop_say(l, "%s; using a free port instead", err->msg);
         iso_err_clear(err);
         o.port = 0;
         rc = iso_display_create(&o, &l->sinks->display, err);
@@ -91,20 +91,20 @@ static int open_display(iso_loop *l, iso_err *err)
     char url[300];
     iso_loop_view_url(l, url, sizeof url);
     const char *tok = iso_display_token(l->sinks->display);
-    fprintf(l->log, "isoshape %s: live view on %s\n", l->cmd, url);
+    iso_loop_say(l, "live view on %s", url);
     if (l->view_src)
-        fprintf(l->log,
-                "isoshape %s: the page can drive %s: take control there, then drag the gizmo "
-                "(Esc stops)%s\n",
-                l->cmd, o.n_handles == 1 ? "the handle" : "the handles",
-                tok[0] ? "; commanding needs the token in this URL, watching does not" : "");
+        iso_loop_say(l,
+                     "the page can drive %s: take control there, then drag the gizmo "
+                     "(Esc stops)%s",
+                     o.n_handles == 1 ? "the handle" : "the handles",
+                     tok[0] ? "; commanding needs the token in this URL, watching does not" : "");
     return ISO_OK;
 }
 
 static void act_notice(void *ctx, const char *line)
 {
     iso_loop *l = ctx;
-    fprintf(l->log, "isoshape %s: %s\n", l->cmd, line);
+    iso_loop_say(l, "%s", line);
 }
 
 /* The e-stop inputs the sender reads by itself: the embedder's probe and
@@ -354,7 +354,7 @@ int iso_loop__sinks_close(iso_loop *l, iso_err *err)
         return ISO_OK;
     int rc = close_actuators(k, err);
     if (k->act_stop[0])
-        fprintf(l->log, "isoshape %s: actuators: %s\n", l->cmd, k->act_stop);
+        iso_loop_say(l, "actuators: %s", k->act_stop);
     /* The view stays up with its last frame until the loop is destroyed
      * (iso_loop_view_end), but takes no more commands. */
     iso_display_end(k->display, NULL);

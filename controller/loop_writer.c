@@ -154,9 +154,8 @@ static int save_rest(iso_loop *l, const char *pc2, iso_err *err)
     char path[ISO_SCENE_PATH_MAX + 16], t2[ISO_SCENE_PATH_MAX + 64];
     int rc = iso_pc2_save_rest(l->sc->mesh, pc2, path, sizeof path, err);
     if (rc == ISO_OK)
-        fprintf(l->log,
-                "isoshape %s: PC2 point cache into %s (as %s until the run ends), rest mesh %s\n",
-                l->cmd, pc2, iso_pc2_temp_path(pc2, (long)getpid(), t2, sizeof t2), path);
+        iso_loop_say(l, "PC2 point cache into %s (as %s until the run ends), rest mesh %s", pc2,
+                     iso_pc2_temp_path(pc2, (long)getpid(), t2, sizeof t2), path);
     return rc;
 }
 
@@ -208,10 +207,9 @@ static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
     }
     if (rc == ISO_OK) {
         char t[ISO_SCENE_PATH_MAX + 64];
-        fprintf(l->log,
-                "isoshape %s: MCAP into %s (as %s until the run ends), %d channels, chunks %s\n",
-                l->cmd, l->o.mcap, iso_pc2_temp_path(l->o.mcap, (long)getpid(), t, sizeof t),
-                w->n_ch, l->o.mcap_compression == ISO_MCAP_NONE ? "uncompressed" : "in zstd");
+        iso_loop_say(l, "MCAP into %s (as %s until the run ends), %d channels, chunks %s",
+                     l->o.mcap, iso_pc2_temp_path(l->o.mcap, (long)getpid(), t, sizeof t), w->n_ch,
+                     l->o.mcap_compression == ISO_MCAP_NONE ? "uncompressed" : "in zstd");
     }
     return rc;
 }
@@ -222,8 +220,7 @@ static int open_files(iso_loop *l, iso_loop_writer *w, iso_err *err)
     if (l->sc->ply.enabled) {
         rc = iso_ply_frames_create(l->sc->ply.dir, l->sc->mesh, l->sc->ply.every, &w->ply, err);
         if (rc == ISO_OK)
-            fprintf(l->log, "isoshape %s: PLY frames every %d ticks into %s\n", l->cmd,
-                    l->sc->ply.every, l->sc->ply.dir);
+            iso_loop_say(l, "PLY frames every %d ticks into %s", l->sc->ply.every, l->sc->ply.dir);
     }
     if (rc == ISO_OK && l->o.pc2 && l->o.pc2[0]) {
         rc = save_rest(l, l->o.pc2, err);
