@@ -139,7 +139,7 @@ static int open_wake_pipe(iso_display *d, iso_err *err)
 
 /* Wakes the server thread unless a wake is already on its way; never blocks
  * (the pipe is non-blocking and holds at most one byte from here). */
-static void wake_server(iso_display *d)
+void iso_display__wake(iso_display *d)
 {
     if (atomic_exchange(&d->wake_pending, 1))
         return;
@@ -407,7 +407,7 @@ int iso_display_publish(iso_display *d, long tick, const double *x, const iso_di
     d->latest_seq++;
     atomic_store(&d->published, d->latest_seq);
     pthread_mutex_unlock(&d->frame_lock);
-    wake_server(d);
+    iso_display__wake(d);
     return ISO_OK;
 }
 
@@ -446,7 +446,7 @@ void iso_display_end(iso_display *d, const char *text)
         atomic_fetch_add(&d->note_ver, 1);
     atomic_store(&d->ended, 1);
     pthread_mutex_unlock(&d->note_lock);
-    wake_server(d);
+    iso_display__wake(d);
 }
 
 void iso_display_destroy(iso_display *d)
@@ -456,7 +456,7 @@ void iso_display_destroy(iso_display *d)
     if (d->server_started) {
         atomic_store(&d->stopping, 1);
         atomic_store(&d->wake_pending, 0); /* make sure this wake is written */
-        wake_server(d);
+        iso_display__wake(d);
         pthread_join(d->server, NULL);
     }
     iso_display__server_free(d);

@@ -143,6 +143,9 @@ typedef struct iso_display__fox_shared iso_display__fox_shared; /* all clients' 
 /* Does the request (NUL-terminated, headers included) offer Foxglove's
  * subprotocol? */
 int iso_display__fox_offered(const char *req);
+/* Wakes the server thread unless a wake is on its way; never blocks, any
+ * thread (display.c). */
+void iso_display__wake(iso_display *d);
 void iso_display__fox_shared_free(iso_display__fox_shared *s);
 
 /* ---- connections ----------------------------------------------------------- */

@@ -68,24 +68,29 @@ static void conn_close(iso_display *d, iso_display__conn *c, int drop)
     c->state = C_FREE;
 }
 
-/* Writes what it can of c's output. Returns 1 when all of it is written, 0
- * when some is left for the next POLLOUT, -1 when the peer is gone. */
-static int flush_out(iso_display__conn *c)
+/* Writes what it can of c's output, at most *budget bytes (counted down).
+ * Returns 1 when all of it is written, 0 when some is left for the next
+ * POLLOUT or the next turn, -1 when the peer is gone. */
+static int flush_out(iso_display__conn *c, size_t *budget)
 {
     size_t total = c->head_len + c->body_len;
     while (c->out_pos < total) {
+        size_t want = total - c->out_pos < *budget ? total - c->out_pos : *budget;
+        if (want == 0)
+            return 0;
         struct iovec iov[2];
         int k = 0;
         if (c->out_pos < c->head_len) {
+            size_t h = c->head_len - c->out_pos;
             iov[k].iov_base = c->head + c->out_pos;
-            iov[k++].iov_len = c->head_len - c->out_pos;
-            if (c->body_len) {
+            iov[k++].iov_len = h < want ? h : want;
+            if (c->body_len && want > h) {
                 iov[k].iov_base = (void *)c->body;
-                iov[k++].iov_len = c->body_len;
+                iov[k++].iov_len = want - h;
             }
         } else {
             iov[k].iov_base = (void *)(c->body + (c->out_pos - c->head_len));
-            iov[k++].iov_len = total - c->out_pos;
+            iov[k++].iov_len = want;
         }
         struct msghdr m;
         memset(&m, 0, sizeof m);
@@ -97,6 +102,7 @@ static int flush_out(iso_display__conn *c)
         if (w < 0)
             return errno == EAGAIN || errno == EWOULDBLOCK ? 0 : -1;
         c->out_pos += (size_t)w;
+        *budget -= (size_t)w;
     }
     return 1;
 }
@@ -294,8 +300,9 @@ static void answer(iso_display *d, iso_display__conn *c)
  * its kind says), until the socket is full or nothing is left. */
 static void socket_pump(iso_display *d, iso_display__conn *c, long long now)
 {
+    size_t budget = ISO_DISPLAY_TURN_BYTES;
     for (;;) {
-        int st = flush_out(c);
+        int st = flush_out(c, &budget);
         if (st < 0) {
             conn_close(d, c, 1);
             return;
@@ -384,7 +391,8 @@ static void on_socket_bytes(iso_display *d, iso_display__conn *c)
 
 static void after_response(iso_display *d, iso_display__conn *c, long long now)
 {
-    int st = flush_out(c);
+    size_t budget = ISO_DISPLAY_TURN_BYTES;
+    int st = flush_out(c, &budget);
     if (st < 0) {
         conn_close(d, c, 1);
     } else if (st > 0) {
@@ -543,20 +551,29 @@ static void drain_wake(iso_display *d)
     }
 }
 
-static void service(iso_display *d, iso_display__conn *c, short re, long long now)
+/* What the peers sent: requests, closes, and a page's commands, which are
+ * handed on here, before any connection's output is written this turn. */
+static void service_input(iso_display *d, iso_display__conn *c, short re, long long now)
 {
-    if (c->state == C_REQUEST && (re & (POLLIN | POLLHUP | POLLERR)))
+    if (!(re & (POLLIN | POLLHUP | POLLERR)))
+        return;
+    if (c->state == C_REQUEST)
         on_request_bytes(d, c, now);
-    else if (c->state == C_RESPONSE && (re & (POLLOUT | POLLHUP | POLLERR)))
-        after_response(d, c, now);
-    else if (c->state == C_LINGER && (re & (POLLIN | POLLHUP | POLLERR)))
+    else if (c->state == C_LINGER)
         on_linger_bytes(d, c);
-    else if (c->state == C_SOCKET) {
-        if (re & (POLLIN | POLLHUP | POLLERR))
-            on_socket_bytes(d, c);
-        if (c->state == C_SOCKET && (re & POLLOUT))
-            socket_pump(d, c, now);
-    }
+    else if (c->state == C_SOCKET)
+        on_socket_bytes(d, c);
+}
+
+/* What goes to the peers, at most ISO_DISPLAY_TURN_BYTES a connection a
+ * turn, so that one fast reader cannot keep the others, or the next
+ * turn's reads, waiting. */
+static void service_output(iso_display *d, iso_display__conn *c, short re, long long now)
+{
+    if (c->state == C_RESPONSE && (re & (POLLOUT | POLLHUP | POLLERR)))
+        after_response(d, c, now);
+    else if (c->state == C_SOCKET && (re & POLLOUT))
+        socket_pump(d, c, now);
 }
 
 /* Past its deadline: a request that never completed, a response or message
@@ -614,9 +631,14 @@ void *iso_display__serve(void *arg)
             ended = 1;
             iso_display__viewer_end(d);
         }
-        for (int k = 2; k < n; k++) /* before accepting, which may reuse a slot and fd */
+        /* inputs first, then outputs, both before accepting, which may
+         * reuse a slot and fd */
+        for (int k = 2; k < n; k++)
             if (pf[k].revents && d->conns[slot_of[k]].fd == pf[k].fd)
-                service(d, &d->conns[slot_of[k]], pf[k].revents, now);
+                service_input(d, &d->conns[slot_of[k]], pf[k].revents, now);
+        for (int k = 2; k < n; k++)
+            if (pf[k].revents && d->conns[slot_of[k]].fd == pf[k].fd)
+                service_output(d, &d->conns[slot_of[k]], pf[k].revents, now);
         if (pf[1].revents & POLLIN)
             accept_some(d, now);
         for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {

@@ -168,6 +168,7 @@
 #define ISO_DISPLAY_MAX_REQUEST 8192        /* bytes of request line and headers */
 #define ISO_DISPLAY_MAX_CLIENT_MESSAGE 4096 /* largest message taken from a browser */
 #define ISO_DISPLAY_POLL_MS 250             /* the server's longest sleep */
+#define ISO_DISPLAY_TURN_BYTES (256 * 1024) /* written to one connection in one poll turn */
 
 typedef struct iso_display iso_display; /* opaque */
 
