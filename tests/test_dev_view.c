@@ -325,6 +325,11 @@ static void a_page_stop_is_a_stop_of_its_own(void **state)
     assert_int_equal(iso_dev_fake_push(r.gpio, r.t + 2, pair, 2), ISO_OK);
     cmd = step(&r);
     assert_int_equal(cmd.estop, 1); /* the page's stop still stands */
+    uint32_t refused = dec(&r)->n.refused;
+    push(&r, r.t + 1, ISO_DEV_VIEW_MSG, 5, ISO_DEV_VIEW_UNSTOP, 1, NULL); /* another watcher */
+    cmd = step(&r);
+    assert_int_equal(cmd.estop, 1); /* only who pressed it, or who controls, releases it */
+    assert_int_equal(dec(&r)->n.refused, refused + 1);
     push(&r, r.t + 1, ISO_DEV_VIEW_MSG, 9, ISO_DEV_VIEW_UNSTOP, 2, NULL);
     cmd = step(&r);
     assert_int_equal(cmd.estop, 0);
@@ -334,6 +339,10 @@ static void a_page_stop_is_a_stop_of_its_own(void **state)
     assert_true(fabs(r.pose.p[0] - 0.3) < 1e-15); /* a fresh one moves it */
     assert_int_equal(noted(&r.said, "STOP pressed in a page"), 1);
     assert_int_equal(noted(&r.said, "stop released in a page"), 1);
+    push(&r, r.t + 1, ISO_DEV_VIEW_MSG, 9, ISO_DEV_VIEW_STOP, 3, NULL);
+    push(&r, r.t + 2, ISO_DEV_VIEW_MSG, 3, ISO_DEV_VIEW_UNSTOP, 4, NULL); /* the one in control */
+    cmd = step(&r);
+    assert_int_equal(cmd.estop, 0);
     rig_close(&r);
 }
 

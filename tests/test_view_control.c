@@ -1,6 +1,9 @@
 /* tests/test_view_control.c -- the live view as a control surface, at its
  * server (view/iso_display.h, "Who may command"), with a view device from
  * devices/ behind it and WebSocket clients standing for pages:
+ *   - a stop is released only by the viewer who pressed it or the one in
+ *     control, never within ISO_DISPLAY_UNSTOP_MIN_MS of it: a page
+ *     flapping its stop for 1 s makes a few changes, not thousands;
  *   - one viewer at a time controls (the first to ask); the others are
  *     refused, counted and told who controls; its leaving ends its control;
  *   - a stop comes from any viewer that may command and acts on the
@@ -19,6 +22,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "iso_clock.h"
 #include "iso_display.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
@@ -137,19 +141,28 @@ static void command(int fd, int type, uint32_t seq, int handle, const double *po
 
 /* The next chunk the device got within 2 s: its envelope kind and
  * connection, and the message type (0 when none). -1 when none came. */
+static int next_chunk_now(const rig *r, uint32_t *conn, int *type);
 static int next_chunk(const rig *r, uint32_t *conn, int *type)
 {
     for (int w = 0; w < 400; w++) {
-        iso_dev_chunk c;
-        if (iso_dev_source_read(r->dev, INT64_MAX, &c, NULL) == 1) {
-            *conn = (uint32_t)c.data[1] | (uint32_t)c.data[2] << 8 | (uint32_t)c.data[3] << 16 |
-                    (uint32_t)c.data[4] << 24;
-            *type = c.data[0] == ISO_DEV_VIEW_MSG && c.len > 6 ? c.data[6] : 0;
-            return c.data[0];
-        }
+        int k = next_chunk_now(r, conn, type);
+        if (k)
+            return k;
         nap_ms(5);
     }
     return -1;
+}
+
+/* The next chunk queued now, without waiting: as next_chunk, 0 when none. */
+static int next_chunk_now(const rig *r, uint32_t *conn, int *type)
+{
+    iso_dev_chunk c;
+    if (iso_dev_source_read(r->dev, INT64_MAX, &c, NULL) != 1)
+        return 0;
+    *conn = (uint32_t)c.data[1] | (uint32_t)c.data[2] << 8 | (uint32_t)c.data[3] << 16 |
+            (uint32_t)c.data[4] << 24;
+    *type = c.data[0] == ISO_DEV_VIEW_MSG && c.len > 6 ? c.data[6] : 0;
+    return c.data[0];
 }
 
 static int nothing_queued(const rig *r)
@@ -237,13 +250,41 @@ static void a_stop_comes_from_anyone_and_acts_at_once(void **state)
     assert_int_equal(conn, you(cb));
     assert_int_equal(r.dev->ops->estop_level(r.dev), 1); /* set when it was queued */
     text_with(a, "control", "\"stop\":true", ca, sizeof ca);
+    /* a third viewer, neither in control nor the one who pressed it, cannot
+     * release it; the one in control cannot at once (a stop stands at least
+     * ISO_DISPLAY_UNSTOP_MIN_MS), and can after that */
+    char cc[512];
+    int c3 = page(&r, NULL, cc, sizeof cc);
+    command(c3, ISO_DEV_VIEW_UNSTOP, 1, 0, NULL);
+    text_with(c3, "control", "only the viewer who pressed the stop", cc, sizeof cc);
     command(a, ISO_DEV_VIEW_UNSTOP, 2, 0, NULL);
+    text_with(a, "control", "too soon after the stop", ca, sizeof ca);
+    assert_true(nothing_queued(&r));
+    assert_int_equal(r.dev->ops->estop_level(r.dev), 1);
+    nap_ms(ISO_DISPLAY_UNSTOP_MIN_MS + 50);
+    command(a, ISO_DEV_VIEW_UNSTOP, 3, 0, NULL);
     assert_int_equal(next_chunk(&r, &conn, &type), ISO_DEV_VIEW_MSG);
     assert_int_equal(type, ISO_DEV_VIEW_UNSTOP);
     assert_int_equal(r.dev->ops->estop_level(r.dev), 0);
+    /* flapping as fast as a socket takes it for 1 s: every STOP acts at
+     * once, and the stop changes at most twice a second */
+    uint32_t seq = 10;
+    double t0 = iso_clock_now();
+    while (iso_clock_now() < t0 + 1.0) {
+        command(b, ISO_DEV_VIEW_STOP, seq++, 0, NULL);
+        command(b, ISO_DEV_VIEW_UNSTOP, seq++, 0, NULL);
+        nap_ms(1);
+    }
+    nap_ms(100);
+    int changes = 0;
+    while (next_chunk_now(&r, &conn, &type) > 0)
+        changes += type == ISO_DEV_VIEW_STOP || type == ISO_DEV_VIEW_UNSTOP;
+    print_message("a page flapping its stop for 1 s: %d changes reached the device\n", changes);
+    assert_true(changes >= 1 && changes <= 2 * (1000 / ISO_DISPLAY_UNSTOP_MIN_MS + 1));
     iso_display_command_stats cs;
     iso_display_command_stats_get(r.d, &cs);
-    assert_int_equal(cs.stops, 1);
+    assert_true(cs.stops >= 2);
+    close(c3);
     close(a);
     close(b);
     rig_close(&r);

@@ -280,6 +280,8 @@ struct iso_display {
     long long accept_paused_until; /* ms: out of descriptors, accept later */
     unsigned control_ver;          /* bumped when the holder or the stop changes */
     int stop;                      /* a page's stop pressed, as the server saw it */
+    uint32_t stop_conn;            /* who pressed it */
+    long long stop_ms;             /* when (iso_display__now_ms) */
 };
 
 long long iso_display__now_ms(void);

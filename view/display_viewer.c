@@ -193,10 +193,25 @@ static int command(iso_display *d, iso_display__conn *c, const iso_dev_view_msg 
         if (m->handle >= d->n_cmd_handles)
             return refuse(d, c, "no such handle");
         break;
-    default: /* STOP, UNSTOP: anyone who may command */
-        d->stop = m->type == ISO_DEV_VIEW_STOP;
+    case ISO_DEV_VIEW_STOP: /* anyone who may command, at once, always */
         if (d->stop)
-            atomic_fetch_add(&d->cmd_stops, 1);
+            return 0; /* pressed already: no change reaches the device */
+        d->stop = 1;
+        d->stop_conn = c->id;
+        d->stop_ms = iso_display__now_ms();
+        atomic_fetch_add(&d->cmd_stops, 1);
+        d->control_ver++;
+        break;
+    default: /* UNSTOP */
+        if (!d->stop)
+            return 0; /* nothing to release: nothing reaches the device */
+        if (c->id != d->stop_conn && c->id != holder)
+            return refuse(d, c,
+                          "only the viewer who pressed the stop, or the one in control, "
+                          "can release it");
+        if (iso_display__now_ms() - d->stop_ms < ISO_DISPLAY_UNSTOP_MIN_MS)
+            return refuse(d, c, "too soon after the stop: release it again in a moment");
+        d->stop = 0;
         d->control_ver++;
         break;
     }

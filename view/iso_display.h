@@ -76,8 +76,13 @@
  * page gets it as a notebook server's does). Watching needs no token.
  * Commands (iso_dev.h, "the browser view's commands"): one viewer at a
  * time is in control, the first to send TAKE; it alone may send TARGETs
- * and RELEASE; STOP and UNSTOP come from any viewer that may command (a
- * stop button must work for everyone watching). What is refused is
+ * and RELEASE; STOP comes from any viewer that may command (a stop button
+ * must work for everyone watching) and acts at once; UNSTOP only from the
+ * viewer who pressed the stop or the one in control, and not within
+ * ISO_DISPLAY_UNSTOP_MIN_MS of the stop (a page flapping its stop makes
+ * at most two changes a second; STOP itself is never delayed). A repeated
+ * STOP, or an UNSTOP with no stop pressed, is no change and does not reach
+ * the device. What is refused is
  * counted (iso_display_command_stats) and never reaches the device; what
  * is accepted is queued on the device (iso_dev_view_push) in an envelope
  * naming the connection. A controller that disconnects ends its control
@@ -169,6 +174,7 @@
 #define ISO_DISPLAY_MAX_CLIENT_MESSAGE 4096 /* largest message taken from a browser */
 #define ISO_DISPLAY_POLL_MS 250             /* the server's longest sleep */
 #define ISO_DISPLAY_TURN_BYTES (256 * 1024) /* written to one connection in one poll turn */
+#define ISO_DISPLAY_UNSTOP_MIN_MS 500       /* a stop stays pressed at least this long */
 
 typedef struct iso_display iso_display; /* opaque */
 
