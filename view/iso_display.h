@@ -80,10 +80,10 @@
  * must work for everyone watching) and acts at once; UNSTOP only from the
  * viewer who pressed the stop or the one in control, and not within
  * ISO_DISPLAY_UNSTOP_MIN_MS of the stop (a page flapping its stop makes
- * at most two changes a second; STOP itself is never delayed). A repeated
+ * at most four stops a second; STOP itself is never delayed). A repeated
  * STOP, or an UNSTOP with no stop pressed, is no change and does not reach
- * the device. What is refused is
- * counted (iso_display_command_stats) and never reaches the device; what
+ * the device. What is refused is counted (iso_display_command_stats) and
+ * never reaches the device; what
  * is accepted is queued on the device (iso_dev_view_push) in an envelope
  * naming the connection. A controller that disconnects ends its control
  * (ISO_DEV_VIEW_END_LEFT); so does iso_display_end().
@@ -174,7 +174,7 @@
 #define ISO_DISPLAY_MAX_CLIENT_MESSAGE 4096 /* largest message taken from a browser */
 #define ISO_DISPLAY_POLL_MS 250             /* the server's longest sleep */
 #define ISO_DISPLAY_TURN_BYTES (256 * 1024) /* written to one connection in one poll turn */
-#define ISO_DISPLAY_UNSTOP_MIN_MS 500       /* a stop stays pressed at least this long */
+#define ISO_DISPLAY_UNSTOP_MIN_MS 250       /* a stop stays pressed at least this long */
 
 typedef struct iso_display iso_display; /* opaque */
 
