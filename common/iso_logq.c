@@ -8,7 +8,6 @@
 #include <limits.h>
 #include <poll.h>
 #include <pthread.h>
-#include <signal.h>
 #include <stdarg.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -16,6 +15,7 @@
 #include <unistd.h>
 
 #include "iso_clock.h"
+#include "iso_thread.h"
 
 #define REPEATS 16       /* distinct recent lines remembered for collapsing */
 #define IDLE_NS 10000000 /* the writer looks at the queue every 10 ms */
@@ -326,21 +326,7 @@ int iso_logq_create(FILE *f, int status_clear, iso_logq **out, iso_err *err)
     fflush(f);
     q->fd = fileno(f);
     q->status_clear = status_clear;
-    /* The writer runs at normal priority whoever creates it, and leaves
-     * signals to the threads that wait for them. */
-    pthread_attr_t at;
-    pthread_attr_init(&at);
-    pthread_attr_setinheritsched(&at, PTHREAD_EXPLICIT_SCHED);
-    pthread_attr_setschedpolicy(&at, SCHED_OTHER);
-    struct sched_param sp;
-    memset(&sp, 0, sizeof sp);
-    pthread_attr_setschedparam(&at, &sp);
-    sigset_t all, old;
-    sigfillset(&all);
-    pthread_sigmask(SIG_SETMASK, &all, &old);
-    int rc = pthread_create(&q->thread, &at, writer_main, q);
-    pthread_sigmask(SIG_SETMASK, &old, NULL);
-    pthread_attr_destroy(&at);
+    int rc = iso_thread_start(&q->thread, writer_main, q);
     if (rc != 0) {
         free(q);
         return iso_err_set(err, ISO_EIO, -1, "log queue: cannot start its thread: %s",

@@ -10,10 +10,12 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "iso_loop.h"
+#include "iso_outfile.h"
 #include "iso_snapshot.h"
 
 /* The one piece of file-scope state: a signal handler can reach nothing else. */
@@ -26,6 +28,7 @@ static void on_signal(int sig)
 
 typedef struct run_args {
     const char *scene, *out, *json, *png;
+    iso_outfile out_f, json_f, png_f; /* where each goes (iso_outfile.h), planned before the run */
     int quiet, ticks, exit_at_end;
     int abm; /* iso_abm_mode, -1: the scene's */
     iso_loop_opts lo;
@@ -109,7 +112,7 @@ static int parse(int argc, char **argv, run_args *a)
 }
 
 /* An output's folder must exist and be writable before a long run starts. */
-static int check_output(const char *opt, const char *path)
+static int check_folder(const char *opt, const char *path)
 {
     char dir[ISO_CLI_PATH_MAX];
     snprintf(dir, sizeof dir, "%s", path);
@@ -127,39 +130,78 @@ static int check_output(const char *opt, const char *path)
     return 0;
 }
 
-/* The temporary name beside path, extension kept (the format follows it). */
-static void temp_name(const char *path, char *tmp, size_t cap)
+/* Whether a mesh file's name says its format (iso_mesh_save chooses by it). */
+static int mesh_extension_known(const char *path)
 {
     const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
     if (!dot || (slash && dot < slash))
-        dot = path + strlen(path);
-    snprintf(tmp, cap, "%.*s.part-%ld%s", (int)(dot - path), path, (long)getpid(), dot);
+        return 0;
+    return strcasecmp(dot, ".off") == 0 || strcasecmp(dot, ".obj") == 0 ||
+           strcasecmp(dot, ".ply") == 0;
+}
+
+/* Plans an output of the run's end (iso_outfile.h): what it replaces and
+ * where it is written, or why it cannot be, said before the run starts. */
+static int plan_output(const char *opt, const char *path, iso_outfile *o)
+{
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_outfile_plan(o, opt, path, ISO_OUTFILE_SEQUENTIAL, &err) != ISO_OK) {
+        iso_cli__fail("run", "%s", err.msg);
+        return -1;
+    }
+    return o->through ? 0 : check_folder(opt, o->final);
+}
+
+static int plan_outputs(run_args *a)
+{
+    if (a->out && !mesh_extension_known(a->out)) {
+        iso_cli__fail("run",
+                      "--out %s: the name must end in .off, .obj or .ply (the format "
+                      "follows it)",
+                      a->out);
+        return -1;
+    }
+    return (a->out && plan_output("--out", a->out, &a->out_f)) ||
+                   (a->png && plan_output("--png", a->png, &a->png_f)) ||
+                   (a->json && plan_output("--stats-json", a->json, &a->json_f)) ||
+                   (a->lo.pc2 && check_folder("--pc2", a->lo.pc2)) ||
+                   (a->lo.mcap && check_folder("--mcap", a->lo.mcap)) ||
+                   (a->lo.record && a->lo.record[0] && check_folder("--record", a->lo.record))
+               ? -1
+               : 0;
+}
+
+static void abort_outputs(run_args *a)
+{
+    iso_outfile_abort(&a->out_f);
+    iso_outfile_abort(&a->png_f);
+    iso_outfile_abort(&a->json_f);
 }
 
 enum { OUT_MESH, OUT_PNG, OUT_JSON };
 
-/* Writes one output to a temporary name beside it, then renames it: a
+/* Writes one output where it was planned, then commits it (a rename onto
+ * a regular file; nothing for a FIFO or a device, written through): a
  * failure never leaves a truncated file. Returns 0, or 1 after saying why. */
-static int write_output(int what, const char *opt, const char *path, iso_loop *l,
-                        const iso_scene *sc, const iso_loop_summary *s)
+static int write_output(int what, const char *opt, iso_outfile *o, iso_loop *l, const iso_scene *sc,
+                        const iso_loop_summary *s)
 {
-    char tmp[ISO_CLI_PATH_MAX + 64];
     iso_err err;
     iso_err_clear(&err);
-    temp_name(path, tmp, sizeof tmp);
-    int rc = what == OUT_MESH  ? iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), tmp,
+    const char *w = o->write;
+    int rc = what == OUT_MESH  ? iso_mesh_save(iso_loop_mesh(l), iso_loop_positions(l), w,
                                                ISO_MESH_FMT_AUTO, &err)
              : what == OUT_PNG ? iso_snapshot_png(iso_loop_mesh(l), iso_loop_positions(l),
-                                                  &sc->regions, tmp, 960, 720, NULL, &err)
-                               : iso_loop_write_json(s, sc, tmp, &err);
+                                                  &sc->regions, w, 960, 720, NULL, &err)
+                               : iso_loop_write_json(s, sc, w, &err);
     if (rc != ISO_OK) {
-        iso_loop_say(l, "%s %s: %s", opt, path, err.msg);
-        unlink(tmp);
+        iso_loop_say(l, "%s %s: %s", opt, o->path, err.msg);
+        iso_outfile_abort(o);
         return 1;
     }
-    if (rename(tmp, path) != 0) {
-        iso_loop_say(l, "%s %s: %s", opt, path, strerror(errno));
-        unlink(tmp);
+    if (iso_outfile_commit(o, opt, &err) != ISO_OK) {
+        iso_loop_say(l, "%s", err.msg);
         return 1;
     }
     return 0;
@@ -207,7 +249,7 @@ static void hold_view(iso_loop *l, const iso_scene *sc, const iso_loop_summary *
 }
 
 /* What is left to do once the loop has stopped, for whatever reason. */
-static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int status)
+static int finish(iso_loop *l, const iso_scene *sc, run_args *a, int status)
 {
     iso_err err;
     iso_err_clear(&err);
@@ -219,15 +261,15 @@ static int finish(iso_loop *l, const iso_scene *sc, const run_args *a, int statu
     iso_loop_get_summary(l, &s);
     if (!a->quiet)
         iso_loop_print_summary(&s, sc, stdout);
-    if (a->out && write_output(OUT_MESH, "--out", a->out, l, sc, &s))
+    if (a->out && write_output(OUT_MESH, "--out", &a->out_f, l, sc, &s))
         status = 1;
     if (a->png) {
-        if (write_output(OUT_PNG, "--png", a->png, l, sc, &s))
+        if (write_output(OUT_PNG, "--png", &a->png_f, l, sc, &s))
             status = 1;
         else if (!a->quiet)
             printf("  picture     %s\n", a->png);
     }
-    if (a->json && write_output(OUT_JSON, "--stats-json", a->json, l, sc, &s))
+    if (a->json && write_output(OUT_JSON, "--stats-json", &a->json_f, l, sc, &s))
         status = 1;
     if (status == 0)
         hold_view(l, sc, &s, a);
@@ -241,15 +283,15 @@ static int run_main(int argc, char **argv)
     int r = parse(argc, argv, &a);
     if (r >= 0)
         return r;
-    if ((a.out && check_output("--out", a.out)) || (a.png && check_output("--png", a.png)) ||
-        (a.json && check_output("--stats-json", a.json)) ||
-        (a.lo.pc2 && check_output("--pc2", a.lo.pc2)) ||
-        (a.lo.mcap && check_output("--mcap", a.lo.mcap)) ||
-        (a.lo.record && a.lo.record[0] && check_output("--record", a.lo.record)))
+    if (plan_outputs(&a) != 0) {
+        abort_outputs(&a);
         return 1;
+    }
     iso_scene *sc = NULL;
-    if (iso_cli__scene_load("run", a.scene, &sc) != 0)
+    if (iso_cli__scene_load("run", a.scene, &sc) != 0) {
+        abort_outputs(&a);
         return 1;
+    }
     if (a.abm >= 0)
         sc->abm_mode = a.abm;
     g_stop = 0;
@@ -265,6 +307,7 @@ static int run_main(int argc, char **argv)
     if (iso_loop_create(sc, &a.lo, &l, &err) != ISO_OK) {
         iso_cli__fail("run", "%s", err.msg);
         iso_scene_destroy(sc);
+        abort_outputs(&a);
         return 1;
     }
     /* From here on stderr is written through the loop's log, which never
@@ -279,6 +322,7 @@ static int run_main(int argc, char **argv)
         iso_loop_say(l, "stopped by %s; shutting down cleanly",
                      sig == SIGINT ? "SIGINT" : "SIGTERM");
     status = finish(l, sc, &a, status);
+    abort_outputs(&a); /* what was not written (a failed run's) leaves nothing behind */
     iso_loop_destroy(l);
     iso_scene_destroy(sc);
     return status == 0 && sig ? 128 + sig : status;

@@ -29,6 +29,7 @@
 #include "iso_foxglove.h"
 #include "iso_mcap.h"
 #include "iso_pc2.h"
+#include "iso_thread.h"
 
 /* Queue memory: up to 64 slots, at most ~32 MB of positions, at least 4. */
 #define SLOTS_MAX 64
@@ -151,11 +152,13 @@ static void *writer_main(void *arg)
 /* The rest mesh beside the cache, and a line saying where both go. */
 static int save_rest(iso_loop *l, const char *pc2, iso_err *err)
 {
-    char path[ISO_SCENE_PATH_MAX + 16], t2[ISO_SCENE_PATH_MAX + 64];
+    char path[ISO_SCENE_PATH_MAX + 16];
     int rc = iso_pc2_save_rest(l->sc->mesh, pc2, path, sizeof path, err);
     if (rc == ISO_OK)
-        iso_loop_say(l, "PC2 point cache into %s (as %s until the run ends), rest mesh %s", pc2,
-                     iso_pc2_temp_path(pc2, (long)getpid(), t2, sizeof t2), path);
+        iso_loop_say(l,
+                     "PC2 point cache into %s (under a temporary name beside it until the run "
+                     "ends), rest mesh %s",
+                     pc2, path);
     return rc;
 }
 
@@ -223,9 +226,9 @@ static int open_files(iso_loop *l, iso_loop_writer *w, iso_err *err)
             iso_loop_say(l, "PLY frames every %d ticks into %s", l->sc->ply.every, l->sc->ply.dir);
     }
     if (rc == ISO_OK && l->o.pc2 && l->o.pc2[0]) {
-        rc = save_rest(l, l->o.pc2, err);
+        rc = iso_pc2_create(l->o.pc2, l->nv, &w->pc2, err); /* what it refuses, before the rest */
         if (rc == ISO_OK)
-            rc = iso_pc2_create(l->o.pc2, l->nv, &w->pc2, err);
+            rc = save_rest(l, l->o.pc2, err);
         w->prev = rc == ISO_OK ? calloc((size_t)l->nv * 3, sizeof *w->prev) : NULL;
         if (rc == ISO_OK && !w->prev)
             rc = iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the PC2 writer");
@@ -262,7 +265,7 @@ int iso_loop__writer_open(iso_loop *l, iso_loop_writer **out, iso_err *err)
     w->wait_for_room = l->o.fast;
     if (rc == ISO_OK && (sem_init(&w->wake, 0, 0) != 0 || sem_init(&w->room, 0, 0) != 0))
         rc = iso_err_set(err, ISO_EIO, -1, "file writer: sem_init: %s", strerror(errno));
-    if (rc == ISO_OK && pthread_create(&w->th, NULL, writer_main, w) != 0)
+    if (rc == ISO_OK && iso_thread_start(&w->th, writer_main, w) != 0)
         rc = iso_err_set(err, ISO_EIO, -1, "file writer: cannot start its thread");
     w->started = rc == ISO_OK;
     if (rc != ISO_OK) {

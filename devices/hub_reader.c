@@ -31,6 +31,7 @@
 #include <string.h>
 
 #include "internal.h"
+#include "iso_thread.h"
 
 #define RING 256u /* chunks per source: 64 KiB, four ticks' worth of ISO_DEV_DRAIN_MAX */
 #define LOOK_MS 2 /* the longest the thread waits before it looks at its sources again */
@@ -171,12 +172,7 @@ int iso_dev__reader_create(iso_dev__reader **out, iso_err *err)
     atomic_init(&rd->served, 0);
     for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++)
         atomic_init(&rd->slots[i].s, NULL);
-    /* signals stay with the program's threads */
-    sigset_t all, old;
-    sigfillset(&all);
-    pthread_sigmask(SIG_SETMASK, &all, &old);
-    int rc = pthread_create(&rd->thread, NULL, reader_main, rd);
-    pthread_sigmask(SIG_SETMASK, &old, NULL);
+    int rc = iso_thread_start(&rd->thread, reader_main, rd); /* signals stay with the program's */
     if (rc != 0) {
         free(rd);
         return iso_err_set(err, ISO_EIO, -1, "device hub: cannot start its reader thread: %s",

@@ -10,7 +10,7 @@
 
 #include "iso_bytes.h"
 #include "iso_crc32.h"
-#include "iso_pc2.h" /* iso_pc2_temp_path: one rule for temporary names */
+#include "iso_outfile.h"
 
 enum {
     OP_HEADER = 0x01,
@@ -91,7 +91,8 @@ struct iso_mcap {
     uint64_t messages, t_first, t_last;
     int err_io;
     const char *codec_err; /* zstd's name for why it failed (static), or NULL */
-    char path[4096], tmp[4200];
+    iso_outfile
+        out; /* where it goes (iso_outfile.h): a temporary name, or a FIFO written through */
 };
 
 static uint32_t crc_update(const iso_mcap *m, uint32_t c, const unsigned char *p, size_t n)
@@ -120,9 +121,9 @@ static void emit_buf(iso_mcap *m, const buf *b)
 static int io_error(iso_mcap *m, iso_err *err)
 {
     if (m->codec_err)
-        return iso_err_set(err, ISO_EIO, -1, "MCAP %s: zstd could not compress a chunk: %s", m->tmp,
-                           m->codec_err);
-    return iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->tmp,
+        return iso_err_set(err, ISO_EIO, -1, "MCAP %s: zstd could not compress a chunk: %s",
+                           m->out.write, m->codec_err);
+    return iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->out.write,
                        m->err_io == ENOMEM ? "out of memory" : strerror(m->err_io));
 }
 
@@ -130,17 +131,19 @@ int iso_mcap_create(const char *path, const char *profile, const char *library, 
                     iso_err *err)
 {
     *out = NULL;
-    if (!path || strlen(path) >= sizeof((iso_mcap *)0)->path)
-        return iso_err_set(err, ISO_EINVAL, -1, "MCAP: no path, or one too long");
     iso_mcap *m = calloc(1, sizeof *m);
     if (!m)
         return iso_err_set(err, ISO_ENOMEM, -1, "MCAP: out of memory");
     iso_crc32_table_init(&m->crc); /* CRC-32 (IEEE), as the MCAP spec names it */
-    snprintf(m->path, sizeof m->path, "%s", path);
-    iso_pc2_temp_path(path, (long)getpid(), m->tmp, sizeof m->tmp);
-    m->f = fopen(m->tmp, "wb");
+    int prc = iso_outfile_plan(&m->out, "MCAP", path, ISO_OUTFILE_SEQUENTIAL, err);
+    if (prc != ISO_OK) {
+        free(m);
+        return prc;
+    }
+    m->f = fopen(m->out.write, "wb");
     if (!m->f) {
         int e = errno;
+        iso_outfile_abort(&m->out);
         free(m);
         return iso_err_set(err, ISO_EIO, -1, "MCAP %s: cannot write it: %s", path, strerror(e));
     }
@@ -442,11 +445,10 @@ int iso_mcap_finish(iso_mcap *m, iso_err *err)
     if (m->err_io)
         rc = io_error(m, err);
     if (fclose(m->f) != 0 && rc == ISO_OK)
-        rc = iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->tmp, strerror(errno));
-    if (rc == ISO_OK && rename(m->tmp, m->path) != 0)
-        rc = iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->path, strerror(errno));
-    if (rc != ISO_OK)
-        unlink(m->tmp);
+        rc = iso_err_set(err, ISO_EIO, -1, "MCAP %s: %s", m->out.write, strerror(errno));
+    if (rc == ISO_OK)
+        rc = iso_outfile_commit(&m->out, "MCAP", err);
+    iso_outfile_abort(&m->out); /* a failed file is removed, not left beside its path */
     free_bufs(m);
     free(m);
     return rc;
@@ -458,6 +460,7 @@ void iso_mcap_destroy(iso_mcap *m)
         return;
     close_chunk(m);
     fclose(m->f);
+    iso_outfile_abort(&m->out); /* an unfinished file is not left behind (a full disk's) */
     free_bufs(m);
     free(m);
 }

@@ -1,4 +1,5 @@
 /* sinks/pc2.c -- PC2 point caches (see iso_pc2.h). */
+#include "iso_outfile.h"
 #include "iso_pc2.h"
 
 #include <errno.h>
@@ -13,7 +14,7 @@ struct iso_pc2 {
     int fd, nv;
     long frames;
     unsigned char *buf; /* one frame, 12 * nv bytes */
-    char path[4096], tmp[4200];
+    iso_outfile out;    /* where it goes (iso_outfile.h): a temporary name beside its path */
 };
 
 const char *iso_pc2_temp_path(const char *path, long pid, char *buf, size_t cap)
@@ -64,8 +65,6 @@ int iso_pc2_create(const char *path, int nv, iso_pc2 **out, iso_err *err)
     *out = NULL;
     if (!path || nv < 1)
         return iso_err_set(err, ISO_EINVAL, -1, "PC2: no path, or %d vertices", nv);
-    if (strlen(path) >= sizeof((iso_pc2 *)0)->path)
-        return iso_err_set(err, ISO_EINVAL, -1, "PC2: path too long: %.64s...", path);
     iso_pc2 *p = calloc(1, sizeof *p);
     unsigned char *buf = malloc((size_t)nv * 12);
     if (!p || !buf) {
@@ -75,9 +74,13 @@ int iso_pc2_create(const char *path, int nv, iso_pc2 **out, iso_err *err)
     }
     p->nv = nv;
     p->buf = buf;
-    snprintf(p->path, sizeof p->path, "%s", path);
-    iso_pc2_temp_path(path, (long)getpid(), p->tmp, sizeof p->tmp);
-    p->fd = open(p->tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    p->fd = -1;
+    int rc = iso_outfile_plan(&p->out, "PC2", path, ISO_OUTFILE_SEEKS, err);
+    if (rc != ISO_OK) {
+        iso_pc2_destroy(p);
+        return rc;
+    }
+    p->fd = open(p->out.write, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
     unsigned char h[ISO_PC2_HEADER];
     memset(h, 0, sizeof h);
     memcpy(h, "POINTCACHE2", 12); /* the terminating NUL included */
@@ -107,7 +110,7 @@ int iso_pc2_write(iso_pc2 *p, const double *x, iso_err *err)
     /* the frame whole first, then the count that includes it */
     if (pwrite_all(p->fd, p->buf, fb, (off_t)(ISO_PC2_HEADER + (size_t)p->frames * fb)) != 0 ||
         pwrite_all(p->fd, n, 4, 28) != 0)
-        return iso_err_set(err, ISO_EIO, -1, "PC2 %s: frame %ld: %s", p->tmp, p->frames,
+        return iso_err_set(err, ISO_EIO, -1, "PC2 %s: frame %ld: %s", p->out.write, p->frames,
                            strerror(errno));
     p->frames++;
     return ISO_OK;
@@ -126,13 +129,13 @@ int iso_pc2_commit(iso_pc2 *p, iso_err *err)
     int fd = p->fd;
     p->fd = -1;
     if (close(fd) != 0)
-        rc = iso_err_set(err, ISO_EIO, -1, "PC2 %s: %s", p->tmp, strerror(errno));
+        rc = iso_err_set(err, ISO_EIO, -1, "PC2 %s: %s", p->out.write, strerror(errno));
     else if (p->frames == 0)
-        rc = iso_err_set(err, ISO_EINVAL, -1, "PC2 %s: no frame was written; not saved", p->path);
-    else if (rename(p->tmp, p->path) != 0)
-        rc = iso_err_set(err, ISO_EIO, -1, "PC2 %s: %s", p->path, strerror(errno));
-    if (rc != ISO_OK)
-        unlink(p->tmp);
+        rc = iso_err_set(err, ISO_EINVAL, -1, "PC2 %s: no frame was written; not saved",
+                         p->out.path);
+    else
+        rc = iso_outfile_commit(&p->out, "PC2", err);
+    iso_outfile_abort(&p->out); /* nothing after a commit */
     free(p->buf);
     free(p);
     return rc;
@@ -144,6 +147,7 @@ void iso_pc2_destroy(iso_pc2 *p)
         return;
     if (p->fd >= 0)
         close(p->fd);
+    iso_outfile_abort(&p->out);
     free(p->buf);
     free(p);
 }
@@ -155,12 +159,12 @@ int iso_pc2_save_rest(const iso_mesh *m, const char *pc2_path, char *rest_path, 
     if (!dot || (slash && dot < slash))
         dot = pc2_path + strlen(pc2_path);
     snprintf(rest_path, cap, "%.*s.rest.ply", (int)(dot - pc2_path), pc2_path);
-    char tmp[4200];
-    iso_pc2_temp_path(rest_path, (long)getpid(), tmp, sizeof tmp);
-    int rc = iso_mesh_save(m, iso_mesh_positions(m), tmp, ISO_MESH_FMT_PLY_BINARY, err);
-    if (rc == ISO_OK && rename(tmp, rest_path) != 0)
-        rc = iso_err_set(err, ISO_EIO, -1, "%s: %s", rest_path, strerror(errno));
-    if (rc != ISO_OK)
-        unlink(tmp);
+    iso_outfile o;
+    int rc = iso_outfile_plan(&o, "PC2's rest mesh", rest_path, ISO_OUTFILE_SEQUENTIAL, err);
+    if (rc == ISO_OK)
+        rc = iso_mesh_save(m, iso_mesh_positions(m), o.write, ISO_MESH_FMT_PLY_BINARY, err);
+    if (rc == ISO_OK)
+        rc = iso_outfile_commit(&o, "PC2's rest mesh", err);
+    iso_outfile_abort(&o);
     return rc;
 }

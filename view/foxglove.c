@@ -24,8 +24,6 @@
 #include "display_internal.h"
 
 #include <pthread.h>
-#include <sched.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,6 +31,7 @@
 
 #include "iso_bytes.h"
 #include "iso_foxglove.h"
+#include "iso_thread.h"
 
 #define FOX_SUBPROTOCOL "foxglove.websocket.v1"
 
@@ -227,23 +226,9 @@ static void *encoder_main(void *arg)
     }
 }
 
-/* Starts the encoder at normal priority, whoever calls, with every signal
- * left to the threads that wait for them. */
 static int start_encoder(iso_display__fox_shared *s, iso_err *err)
 {
-    pthread_attr_t at;
-    pthread_attr_init(&at);
-    pthread_attr_setinheritsched(&at, PTHREAD_EXPLICIT_SCHED);
-    pthread_attr_setschedpolicy(&at, SCHED_OTHER);
-    struct sched_param sp;
-    memset(&sp, 0, sizeof sp);
-    pthread_attr_setschedparam(&at, &sp);
-    sigset_t all, old;
-    sigfillset(&all);
-    pthread_sigmask(SIG_SETMASK, &all, &old);
-    int rc = pthread_create(&s->thread, &at, encoder_main, s);
-    pthread_sigmask(SIG_SETMASK, &old, NULL);
-    pthread_attr_destroy(&at);
+    int rc = iso_thread_start(&s->thread, encoder_main, s);
     if (rc != 0)
         return iso_err_set(err, ISO_EIO, -1, "display: cannot start Foxglove's encoder: %s",
                            strerror(rc));
