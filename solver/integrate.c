@@ -499,6 +499,8 @@ struct iso_stepper {
     iso_pose *base; /* per handle: pose at t */
     iso_twist *tw;  /* per handle: twist held over the current tick */
     iso_abm_mode mode;
+    double pec_tol; /* PEC: a step whose predictor missed by more ends PECE (iso_integrate.h) */
+    double diag;    /* the mesh's bounding-box diagonal */
     iso_integrate_stats st;
 };
 
@@ -539,6 +541,8 @@ int iso_stepper_create(iso_solver *s, const iso_mesh *m, const iso_regions *r, d
     iso_solver_get_restore(s, &st->g.restore_mu, &st->g.restore_tau);
     st->g.restore_kappa = ISO_INTEGRATE_RESTORE_KAPPA;
     st->g.cg_share = ISO_INTEGRATE_CG_SHARE;
+    st->pec_tol = ISO_STEPPER_PEC_TOL;
+    st->diag = iso_mesh_bbox_diagonal(m);
     *out = st;
     return ISO_OK;
 }
@@ -581,6 +585,14 @@ int iso_stepper_configure(iso_stepper *st, iso_abm_mode mode, double restore_kap
     return ISO_OK;
 }
 
+int iso_stepper_set_pec_tol(iso_stepper *st, double tol, iso_err *err)
+{
+    if (!(tol >= 0 && isfinite(tol)))
+        return iso_err_set(err, ISO_EINVAL, -1, "pec_tol %g must be >= 0 and finite", tol);
+    st->pec_tol = tol;
+    return ISO_OK;
+}
+
 int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err)
 {
     if (!(share >= 0 && isfinite(share)))
@@ -620,12 +632,24 @@ static int stepper_advance(iso_stepper *st, double h, int restart, iso_err *err)
         return rc;
     st->st.adams_order = k;
     if (k == 3) {
-        st->st.max_err_estimate = fmax(st->st.max_err_estimate, est / iso_mesh_bbox_diagonal(g->m));
+        st->st.max_err_estimate = fmax(st->st.max_err_estimate, est / st->diag);
         keep_estimate(g, est, h);
     } else {
         st->st.low_order_steps++;
     }
-    rc = end_step(g, st->t + h, xc, st->mode == ISO_ABM_PEC || k == 1, err);
+    /* PEC keeps f(x_p) as the history's newest entry, which stands for
+     * f(x_c) only while the two points are close: the difference feeds
+     * back into every later step, and that is why PEC's stability
+     * interval is a sixth of PECE's. A step whose predictor missed by more
+     * than pec_tol of the diagonal (est = |x_c − x_p| / 10, the Milne
+     * estimate's measure, at any order) ends as PECE does, with f(x_c):
+     * a second evaluation, inside the two a step may make. The restart's
+     * step has made its two and ends PEC (iso_integrate.h). */
+    int pec =
+        k == 1 || (st->mode == ISO_ABM_PEC && !(st->pec_tol > 0 && est > st->pec_tol * st->diag));
+    if (st->mode == ISO_ABM_PEC && !pec)
+        st->st.pec_misses++;
+    rc = end_step(g, st->t + h, xc, pec, err);
     if (rc == ISO_OK)
         memcpy(st->x, xc, (size_t)(3 * g->nv) * sizeof(double));
     return rc;

@@ -85,6 +85,8 @@ typedef struct iso_integrate_stats {
     int adams_order;             /* the last step's predictor order k (0 after RK4) */
     int max_step_evaluations;    /* real time: the most field evaluations one step made */
     long max_step_cg_iterations; /* real time: the most PCG iterations one step made */
+    long pec_misses;             /* real time, PEC: steps whose predictor missed by more than
+                                    the stepper's pec_tol, ended with PECE's evaluation */
 } iso_integrate_stats;
 
 /* Integrates from t0 to t1. x (3*nv) holds the rest positions on entry (the
@@ -155,10 +157,31 @@ ISO_API void iso_stepper_destroy(iso_stepper *st); /* NULL is a no-op */
  *        κ 4, worse than without restoration (18.8 / 1.35 in area), and at
  *        2.48 / 0.63 at κ 6, 2.54 / 0.64 at κ 8 (PECE at κ 1: 2.35 /
  *        0.61). So ISO_INTEGRATE_RESTORE_KAPPA_PEC is 6. test_stepper shows
- *        a stiff term bounded at it and blowing up at κ 1 under PEC. */
+ *        a stiff term bounded at it and blowing up at κ 1 under pure PEC.
+ *        A PEC step whose predictor missed ends as PECE does (below).
+ *
+ * PEC's predictor miss. f(x_p) stands in the history for f(x_c); it is off
+ * by the field's change over |x_c − x_p|, and every later step builds on
+ * it, which is what shrinks PEC's stability interval. Along a smooth
+ * motion the miss is tiny (a recorded 3D-mouse session at 60 Hz: Milne's
+ * estimate |x_c − x_p| / 10 at most 3.1e-5 of the diagonal), but where the
+ * field jumps it is not: a page dragging a handle at 0.5-2 diagonals a
+ * second sends targets every 25 ms, so the handle's twist jumps between
+ * ticks, and the estimate was 3e-3 to 1.7e-2 of the diagonal at every step.
+ * Under restoration the fed-back f then grew (the field's largest speed 4.6
+ * diagonals a second against PECE's 1.5 on the same drag, on time), and a
+ * late tick's long steps took that mesh to 916% edge strain where PECE
+ * ends at 94%. So a PEC step whose estimate exceeds ISO_STEPPER_PEC_TOL of
+ * the diagonal (the offline tolerance of a step, ISO_INTEGRATE_DEFAULT_TOL)
+ * evaluates the field again at x_c for the history, as PECE does: at most
+ * two evaluations, and the paper's PECE path wherever PEC cannot hold it
+ * (the pec_misses count). Only a restart's own step, which has made its
+ * two, ends PEC whatever its miss. A smooth session never reaches the
+ * tolerance, so its steps and bits are PEC's. */
 typedef enum iso_abm_mode { ISO_ABM_PECE = 0, ISO_ABM_PEC = 1 } iso_abm_mode;
 
 #define ISO_INTEGRATE_RESTORE_KAPPA_PEC 6.0
+#define ISO_STEPPER_PEC_TOL ISO_INTEGRATE_DEFAULT_TOL
 
 /* "pece" or "pec", as scenes, the command line and the JSON summary write
  * it; "?" for anything else. The table: iso_abm_mode_names (iso_names.h). */
@@ -175,6 +198,12 @@ ISO_API ISO_NODISCARD int iso_stepper_configure(iso_stepper *st, iso_abm_mode mo
  * ISO_INTEGRATE_CG_SHARE; 0 = the solver's cg_tol always. ISO_EINVAL for a
  * negative or non-finite share. */
 ISO_API ISO_NODISCARD int iso_stepper_set_cg_share(iso_stepper *st, double share, iso_err *err);
+
+/* PEC's predictor miss above which a step ends with PECE's evaluation
+ * (above), relative to the mesh's bounding-box diagonal; default
+ * ISO_STEPPER_PEC_TOL, 0 = never (pure PEC, for comparison). ISO_EINVAL for
+ * a negative or non-finite value. */
+ISO_API ISO_NODISCARD int iso_stepper_set_pec_tol(iso_stepper *st, double tol, iso_err *err);
 
 /* The longest step, over the history's last interval, that keeps the
  * history: a longer one restarts it (as restart != 0 does), since the

@@ -287,9 +287,12 @@ static void restarts_keep_third_order(void **state)
 }
 
 /* (8) PEC's stability interval (h/τ < 0.287 against PECE's 1.73) is what
- * its κ default of 4 is for: a stiff restoration term (μ 10, τ far below a
- * step) stays bounded with it, as PECE does at the same τ_eff, and blows up
- * at PECE's κ = 1. (The price: at a given step PEC restores 4x slower.) */
+ * its κ default of 6 is for: a stiff restoration term (μ 10, τ far below a
+ * step) stays bounded with it, as PECE does at the same τ_eff, and pure PEC
+ * (no predictor-miss rule, pec_tol 0) blows up at PECE's κ = 1. With the
+ * rule (the default), the steps whose predictor misses end as PECE's do, and
+ * PEC at κ 1 stays bounded as well. (The clamp's price: at a given step PEC
+ * restores 6x slower.) */
 static void pec_needs_its_own_restoration_clamp(void **state)
 {
     fixture *f = *state;
@@ -301,14 +304,18 @@ static void pec_needs_its_own_restoration_clamp(void **state)
     iso_err err;
     iso_err_clear(&err);
     assert_int_equal(iso_solver_create(f->m, &f->r, &so, &s, &err), ISO_OK);
-    double strain[3];
-    double kappa[3] = {-1, 1.0, ISO_INTEGRATE_RESTORE_KAPPA_PEC};
-    iso_abm_mode mode[3] = {ISO_ABM_PEC, ISO_ABM_PEC, ISO_ABM_PECE};
-    for (int k = 0; k < 3; k++) {
+    double strain[4];
+    long misses[4];
+    double kappa[4] = {-1, 1.0, ISO_INTEGRATE_RESTORE_KAPPA_PEC, 1.0};
+    iso_abm_mode mode[4] = {ISO_ABM_PEC, ISO_ABM_PEC, ISO_ABM_PECE, ISO_ABM_PEC};
+    double pec_tol[4] = {0, 0, 0, ISO_STEPPER_PEC_TOL};
+    for (int k = 0; k < 4; k++) {
         double *x = rest_copy(f);
         iso_stepper *st = NULL;
         assert_int_equal(iso_stepper_create(s, f->m, &f->r, x, &st, &err), ISO_OK);
         assert_int_equal(iso_stepper_configure(st, mode[k], kappa[k], &err), ISO_OK);
+        assert_int_equal(iso_stepper_set_pec_tol(st, -1, &err), ISO_EINVAL);
+        assert_int_equal(iso_stepper_set_pec_tol(st, pec_tol[k], &err), ISO_OK);
         int rc = ISO_OK;
         for (int t = 0; t < 40 && rc == ISO_OK; t++)
             rc = iso_stepper_step(st, 1.0 / 40, &f->xi, 0, &err);
@@ -316,15 +323,21 @@ static void pec_needs_its_own_restoration_clamp(void **state)
         iso_metrics_compute(f->m, iso_mesh_positions(f->m), x, &mt);
         /* a blow-up may end in a degenerate triangle: infinite strain */
         strain[k] = rc == ISO_OK ? mt.max_edge_strain : INFINITY;
+        iso_integrate_stats is;
+        iso_stepper_stats(st, &is);
+        misses[k] = is.pec_misses;
         iso_stepper_destroy(st);
         free(x);
     }
-    print_message("restoration: max edge strain %.3g PEC at its default kappa %g, %.3g PEC at "
-                  "kappa 1, %.3g PECE at kappa %g\n",
+    print_message("restoration: max edge strain %.3g pure PEC at its default kappa %g, %.3g pure "
+                  "PEC at kappa 1, %.3g PECE at kappa %g, %.3g PEC at kappa 1 with the miss rule "
+                  "(%ld of 40 steps ended PECE)\n",
                   strain[0], ISO_INTEGRATE_RESTORE_KAPPA_PEC, strain[1], strain[2],
-                  ISO_INTEGRATE_RESTORE_KAPPA_PEC);
+                  ISO_INTEGRATE_RESTORE_KAPPA_PEC, strain[3], misses[3]);
     assert_true(strain[0] < 1.5 * strain[2]);
     assert_true(!(strain[1] < 1.0)); /* unbounded growth */
+    assert_true(strain[3] < 1.5 * strain[2]);
+    assert_true(misses[0] == 0 && misses[1] == 0 && misses[3] > 0);
     iso_solver_destroy(s);
 }
 
