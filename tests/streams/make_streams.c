@@ -26,7 +26,7 @@ static struct {
     unsigned lcg;
 } g = {NULL, ".", 12345u};
 
-static void start(const char *name, const iso_dev_info *infos, size_t n)
+static void start_file(const char *name, const iso_dev_info *infos, size_t n)
 {
     char path[1200];
     snprintf(path, sizeof path, "%s/%s", g.dir, name);
@@ -148,7 +148,7 @@ static double bump(double t, double t0, double t1)
 static void session(void)
 {
     iso_dev_info one = hid_info(0x256f, 0xc652, "SpaceMouse Wireless (receiver)");
-    start("sm_session.isorec", &one, 1);
+    start_file("sm_session.isorec", &one, 1);
     const int64_t tick_ns = 16666667, report_ns = 8 * MS, end = 6500 * MS;
     int64_t next_tick = tick_ns, next_report = 4 * MS;
     unsigned buttons = 0;
@@ -175,18 +175,77 @@ static void session(void)
     finish();
 }
 
+/* A page of the live view dragging the built-in cactus's top straight up
+ * at one bounding-box diagonal a second (0.9306 a second, half the view's
+ * 2 diag/s limit): a viewer takes control at 90 ms, and from 0.3 s a TARGET
+ * every 25 ms, as a browser sends them, rising for 0.5 s and then held,
+ * until 2 s. With `late`, the ticks between 0.3 s and 1 s come 1, 3, 1, 1,
+ * 2, 1, 4, 1 and 6 periods apart, cycled, as a loaded machine's late ticks
+ * record them (each TICK at the grid time the live tick jumped to); without,
+ * every tick is on time. tests/test_late_drag.c replays both. */
+static void view_env(int64_t t, int what, uint32_t seq, double z)
+{
+    uint8_t b[ISO_DEV_VIEW_ENVELOPE + ISO_DEV_VIEW_MSG_MAX];
+    const uint32_t conn = 1;
+    b[0] = (uint8_t)what;
+    for (int i = 0; i < 4; i++)
+        b[1 + i] = (uint8_t)(conn >> (8 * i));
+    size_t n = ISO_DEV_VIEW_ENVELOPE;
+    if (what == ISO_DEV_VIEW_MSG) {
+        iso_dev_view_msg m = {ISO_DEV_VIEW_TARGET, 0, seq, (double)seq * 25.0, {0, 0, z, 0, 0, 0}};
+        n += (size_t)iso_dev_view_encode(&m, b + n, ISO_DEV_VIEW_MSG_MAX);
+    }
+    rec(ISO_DEV_CHUNK_DATA, 0, t, b, n);
+}
+
+static void view_drag(const char *name, int late)
+{
+    static const int gaps[] = {1, 3, 1, 1, 2, 1, 4, 1, 6};
+    const double diag = 0.930558, speed = 1.0, rise_s = 0.5, period = 1.0 / 60;
+    const int64_t start = 300 * MS, late_end = 1000 * MS, end = 2000 * MS;
+    iso_dev_info info;
+    memset(&info, 0, sizeof info);
+    info.kind = ISO_DEV_KIND_VIEW;
+    snprintf(info.name, sizeof info.name, "hand");
+    start_file(name, &info, 1);
+    int64_t next_msg = start;
+    int k = 0, granted = 0;
+    uint32_t seq = 1;
+    size_t gi = 0;
+    for (;;) {
+        int64_t due = llround((k + 1) * period * 1e9);
+        k +=
+            late && due > start && due < late_end ? gaps[gi++ % (sizeof gaps / sizeof gaps[0])] : 1;
+        int64_t t = llround(k * period * 1e9);
+        if (t > end)
+            break;
+        if (!granted && t >= 100 * MS) {
+            view_env(90 * MS, ISO_DEV_VIEW_GRANT, 0, 0);
+            granted = 1;
+        }
+        for (; next_msg + 3 * MS <= t; next_msg += 25 * MS) {
+            double s = fmin((double)(next_msg - start) * 1e-9 + 0.025, rise_s);
+            view_env(next_msg + 3 * MS, ISO_DEV_VIEW_MSG, ++seq, speed * diag * s);
+        }
+        tick(t);
+    }
+    finish();
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1)
         snprintf(g.dir, sizeof g.dir, "%s", argv[1]);
 
     session();
+    view_drag("view_drag.isorec", 0);
+    view_drag("view_drag_late.isorec", 1);
 
     /* 1. A 3D-mouse twist: the universal receiver (combined 13-byte report 1)
      * and a SpaceNavigator (split reports 1 and 2), ticks every 1 ms. */
     iso_dev_info two[2] = {hid_info(0x256f, 0xc652, "SpaceMouse Wireless (receiver)"),
                            hid_info(0x046d, 0xc626, "SpaceNavigator")};
-    start("sm_twist.isorec", two, 2);
+    start_file("sm_twist.isorec", two, 2);
     for (int k = 1; k <= 10; k++) {
         int64_t t = k * MS;
         if (k == 2)
@@ -204,7 +263,7 @@ int main(int argc, char **argv)
     /* 2. A button-driven clutch sequence: deflected throughout; button 0
      * (clutch) held over ticks 3..5, button 1 (next handle) at tick 8. */
     iso_dev_info one = hid_info(0x256f, 0xc635, "SpaceMouse Compact");
-    start("clutch_buttons.isorec", &one, 1);
+    start_file("clutch_buttons.isorec", &one, 1);
     hid6(0, MS / 2, 350, 0, 0, 0, 0, 0);
     for (int k = 1; k <= 10; k++) {
         int64_t t = k * MS;
@@ -222,7 +281,7 @@ int main(int argc, char **argv)
 
     /* 3. An unplug and replug: deflected, gone at tick 4, back at tick 7,
      * deflected again (a fresh device starts from rest). */
-    start("unplug_replug.isorec", &one, 1);
+    start_file("unplug_replug.isorec", &one, 1);
     hid6(0, MS / 2, 0, 0, 350, 0, 0, 0);
     for (int k = 1; k <= 10; k++) {
         int64_t t = k * MS;
@@ -247,7 +306,7 @@ int main(int argc, char **argv)
     ser.parity = 'N';
     ser.stop_bits = 1;
     snprintf(ser.name, sizeof ser.name, "/dev/ttyACM0");
-    start("serial_pose.isorec", &ser, 1);
+    start_file("serial_pose.isorec", &ser, 1);
     uint8_t buf[200], fr[ISO_FB_FRAME_MAX];
     size_t n = 0;
     const uint8_t noise[] = {0x13, 0x37, 0xff, 0x42, 0x00, 0x99, 0x01};
@@ -278,7 +337,7 @@ int main(int argc, char **argv)
     gp.kind = ISO_DEV_KIND_GPIO;
     gp.debounce_us = 2000;
     snprintf(gp.name, sizeof gp.name, "gpiochip0");
-    start("gpio_estop.isorec", &gp, 1);
+    start_file("gpio_estop.isorec", &gp, 1);
     uint8_t init[4] = {ISO_DEV_GPIO_CLUTCH, 0, ISO_DEV_GPIO_ESTOP, 0};
     rec(ISO_DEV_CHUNK_DATA, 0, 0, init, 4);
     const struct {
