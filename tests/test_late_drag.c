@@ -28,7 +28,7 @@
 #include <string.h>
 
 #include "iso_loop.h"
-#include "iso_scene.h"
+#include "replay_fast.h"
 #include "testutil.h"
 
 static void replay(const char *stream, const char *abm, int restore, iso_loop_summary *s)
@@ -52,26 +52,9 @@ static void replay(const char *stream, const char *abm, int restore, iso_loop_su
              "tick_hz: 60\n",
              ISO_TEST_STREAMS, stream, restore ? "{mu: 1.0, tau: 0.5}" : "off", abm);
     iso_test_write(path, text, -1);
-    iso_scene *sc = NULL;
-    iso_err err;
-    iso_err_clear(&err);
-    if (iso_scene_load(path, &sc, &err) != ISO_OK)
-        fail_msg("%s: %s", path, err.msg);
-    iso_loop_opts o;
-    iso_loop_opts_default(&o);
-    o.fast = 1;
-    o.display = 0;
-    FILE *quiet = fopen("/dev/null", "w");
-    o.log = quiet;
-    iso_loop *l = NULL;
-    if (iso_loop_create(sc, &o, &l, &err) != ISO_OK || iso_loop_run(l, &err) != ISO_OK)
-        fail_msg("replay of %s (%s, restoration %s): %s", stream, abm, restore ? "on" : "off",
-                 err.msg);
-    iso_loop_get_summary(l, s);
-    iso_loop_destroy(l);
-    iso_scene_destroy(sc);
-    if (quiet)
-        fclose(quiet);
+    char what[160];
+    snprintf(what, sizeof what, "%s (%s, restoration %s)", stream, abm, restore ? "on" : "off");
+    replay_fast(path, what, s);
 }
 
 typedef struct drag {

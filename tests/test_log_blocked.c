@@ -48,19 +48,6 @@
 #define STOP_BOUND_S 1.0
 #endif
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static void nap_ms(int ms)
-{
-    struct timespec ts = {0, ms * 1000000L};
-    nanosleep(&ts, NULL);
-}
-
 static const char scene_text[] =
     "name: log_blocked\n"
     "mesh: {shape: cactus}\n"
@@ -85,9 +72,9 @@ static const char scene_text[] =
 static int read_port(int fd, char *seen, size_t cap)
 {
     size_t len = 0;
-    double until = now_s() + 60;
+    double until = iso_test_now_s() + 60;
     const char *key = "live view on http://127.0.0.1:";
-    while (now_s() < until) {
+    while (iso_test_now_s() < until) {
         struct pollfd p = {fd, POLLIN, 0};
         if (poll(&p, 1, 100) == 1) {
             ssize_t n = read(fd, seen + len, cap - 1 - len);
@@ -181,25 +168,25 @@ static void a_stderr_nobody_reads_freezes_nothing(void **state)
     assert_int_equal(st, 101);
     iso_test_ws_reader pager; /* reads what the page is sent, so its socket never fills */
     iso_test_ws_reader_start(&pager, page);
-    double t0 = now_s();
+    double t0 = iso_test_now_s();
     long flaps = 0, frames_2s = -1;
     uint32_t seq = 1;
-    while (now_s() < t0 + 3) {
+    while (iso_test_now_s() < t0 + 3) {
         stop_and_release(page, seq);
         seq += 2;
         flaps++;
-        if (frames_2s < 0 && now_s() > t0 + 2)
+        if (frames_2s < 0 && iso_test_now_s() > t0 + 2)
             frames_2s = watcher.frames;
         if (flaps % 50 == 0)
-            nap_ms(1); /* the server thread and the loop share two cores with us */
+            iso_test_nap_ms(1); /* the server thread and the loop share two cores with us */
     }
     long frames_3s = watcher.frames;
-    double t_int = now_s();
+    double t_int = iso_test_now_s();
     kill(pid, SIGINT);
     int status = 0;
-    while (waitpid(pid, &status, WNOHANG) == 0 && now_s() < t_int + 20)
-        nap_ms(5);
-    double stop_s = now_s() - t_int;
+    while (waitpid(pid, &status, WNOHANG) == 0 && iso_test_now_s() < t_int + 20)
+        iso_test_nap_ms(5);
+    double stop_s = iso_test_now_s() - t_int;
     if (stop_s >= 20) {
         kill(pid, SIGKILL);
         waitpid(pid, &status, 0);

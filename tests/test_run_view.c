@@ -33,19 +33,6 @@
 
 static const char *g_bin;
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static void nap_ms(int ms)
-{
-    struct timespec ts = {0, ms * 1000000L};
-    nanosleep(&ts, NULL);
-}
-
 typedef struct run_result {
     double wall_s, tick_median;
     long ticks, skipped, good_frames;
@@ -78,7 +65,7 @@ static void run_view(const char *scene, int with_bad, run_result *r)
     unlink(json);
     int m, sl;
     assert_int_equal(openpty(&m, &sl, NULL, NULL, NULL), 0);
-    double t0 = now_s();
+    double t0 = iso_test_now_s();
     pid_t pid = fork();
     assert_true(pid >= 0);
     if (pid == 0) {
@@ -94,13 +81,13 @@ static void run_view(const char *scene, int with_bad, run_result *r)
     close(sl);
     size_t len = 0;
     int port = -1;
-    while (port < 0 && now_s() < t0 + 30) {
+    while (port < 0 && iso_test_now_s() < t0 + 30) {
         drain_tty(m, r, &len);
         const char *p = strstr(r->tty, "live view on http://127.0.0.1:");
         if (p)
             port = atoi(p + strlen("live view on http://127.0.0.1:"));
         else
-            nap_ms(5);
+            iso_test_nap_ms(5);
     }
     if (port <= 0) {
         kill(pid, SIGKILL);
@@ -119,16 +106,16 @@ static void run_view(const char *scene, int with_bad, run_result *r)
     }
     int status = 0;
     while (waitpid(pid, &status, WNOHANG) == 0) {
-        if (now_s() > t0 + 120) {
+        if (iso_test_now_s() > t0 + 120) {
             kill(pid, SIGKILL);
             waitpid(pid, &status, 0);
             fail_msg("the run did not end within 120 s");
         }
         drain_tty(m, r, &len);
-        nap_ms(10);
+        iso_test_nap_ms(10);
     }
     drain_tty(m, r, &len);
-    r->wall_s = now_s() - t0;
+    r->wall_s = iso_test_now_s() - t0;
     iso_test_ws_reader_stop(&good);
     if (bad >= 0)
         close(bad);
@@ -234,13 +221,13 @@ static int run_on_a_terminal(const char *scene, const char *extra, char *tty, si
     run_result *r = calloc(1, sizeof *r);
     assert_non_null(r);
     size_t len = 0;
-    double t0 = now_s(), ended = -1;
+    double t0 = iso_test_now_s(), ended = -1;
     int status = 0, signalled = 0;
     while (waitpid(pid, &status, WNOHANG) == 0) {
         drain_tty(m, r, &len);
         const char *held = strstr(r->tty, "the run has ended; the live view keeps showing");
         if (held && ended < 0) {
-            ended = now_s();
+            ended = iso_test_now_s();
             /* the page still loads, and its viewer gets the summary */
             const char *u = strstr(held, "http://127.0.0.1:");
             assert_non_null(u);
@@ -261,21 +248,21 @@ static int run_on_a_terminal(const char *scene, const char *extra, char *tty, si
             close(fd);
             assert_true(note);
         }
-        if (ended > 0 && !signalled && now_s() > ended + 1.0) {
+        if (ended > 0 && !signalled && iso_test_now_s() > ended + 1.0) {
             kill(pid, SIGINT); /* the user's Ctrl-C */
             signalled = 1;
         }
-        if (now_s() > t0 + 120) {
+        if (iso_test_now_s() > t0 + 120) {
             kill(pid, SIGKILL);
             waitpid(pid, &status, 0);
             fail_msg("the run did not end within 120 s: %s", r->tty);
         }
-        nap_ms(10);
+        iso_test_nap_ms(10);
     }
     drain_tty(m, r, &len);
     close(m);
     snprintf(tty, cap, "%s", r->tty);
-    *held_s = ended > 0 ? now_s() - ended : 0;
+    *held_s = ended > 0 ? iso_test_now_s() - ended : 0;
     free(r);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }

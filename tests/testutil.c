@@ -8,6 +8,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 const char *iso_test_tmp(char *buf, size_t cap, const char *name)
@@ -152,4 +153,17 @@ int iso_test_isoshape_bin(char *buf, size_t cap)
     }
     snprintf(buf, cap, "%s/isoshape", self);
     return access(buf, X_OK);
+}
+
+double iso_test_now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+void iso_test_nap_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
 }

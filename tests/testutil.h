@@ -44,4 +44,8 @@ int iso_test_sh(const char *cmd, char *out, size_t out_cap, char *err, size_t er
  * test's build folder. Returns 0 if it is there and executable. */
 int iso_test_isoshape_bin(char *buf, size_t cap);
 
+/* Seconds on CLOCK_MONOTONIC, and a sleep of ms milliseconds. */
+double iso_test_now_s(void);
+void iso_test_nap_ms(int ms);
+
 #endif
