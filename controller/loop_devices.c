@@ -122,6 +122,26 @@ static int init_mapping(iso_loop *l, iso_err *err)
     return rc;
 }
 
+/* Targets and poses refused beyond the workspace: the first of a source
+ * said, then at each tenfold (a page that keeps sending one is said a few
+ * times, not every tick). */
+static void say_far(iso_loop *l)
+{
+    for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
+        uint32_t n = l->map.far[i];
+        if (n == l->far_said[i])
+            continue;
+        uint32_t next = l->far_said[i] ? l->far_said[i] * 10 : 1;
+        if (n >= next) {
+            iso_loop_say(l,
+                         "device %zu: %u target%s beyond the workspace refused (a handle's centre "
+                         "stays within %g bounding-box diagonals of where it rests)",
+                         i, n, n == 1 ? "" : "s", ISO_DEV_WORKSPACE_DIAGS);
+            l->far_said[i] = n;
+        }
+    }
+}
+
 /* Each twist stream's staleness bound (a replay's applies to every source
  * it recorded), then one line per device: what it is and where. */
 static int devices_ready(iso_loop *l, iso_err *err)
@@ -135,6 +155,13 @@ static int devices_ready(iso_loop *l, iso_err *err)
             if (rc != ISO_OK)
                 return rc;
         }
+        /* Targets and poses keep the handles within a workspace the mesh
+         * gives, the same live and replayed (without a mesh, no bound). */
+        int wrc = l->diag > 0 ? iso_dev_map_set_workspace(&l->map, (int)i,
+                                                          ISO_DEV_WORKSPACE_DIAGS * l->diag, err)
+                              : ISO_OK;
+        if (wrc != ISO_OK)
+            return wrc;
         /* A page's targets are followed at a bounded speed, the same live and
          * replayed (the bound comes from the mesh, not from the scene). */
         const iso_dev_decoder *dec = iso_dev_hub_decoder(l->hub, i);
@@ -235,6 +262,7 @@ int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, i
         iso_loop_say(l, "%s", l->reader.note);
         l->damaged_seen = l->reader.damaged;
     }
+    say_far(l);
     if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay &&
         (rc = toggle_recording(l, err)) != ISO_OK)
         return rc;

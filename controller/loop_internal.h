@@ -82,7 +82,8 @@ struct iso_loop {
     iso_dev_rec_reader reader; /* the replayed recording */
     int replay;                /* 1: the devices are one replayed recording */
     long damaged_seen;
-    iso_dev_usb_watch *watch; /* libusb hotplug wakes the hub's retry; NULL without */
+    uint32_t far_said[ISO_DEV_MAX_SOURCES]; /* map.far when it was last said */
+    iso_dev_usb_watch *watch;               /* libusb hotplug wakes the hub's retry; NULL without */
     iso_dev_map map;
     int dev_handle[ISO_SCENE_MAX_HANDLES]; /* map twist j drives handle dev_handle[j] */
     int n_dev;

@@ -380,6 +380,11 @@ enum {
  * source from the mesh, iso_dev_map_set_limits, live and on replay alike). */
 #define ISO_DEV_VIEW_MAX_DIAG_PER_S 2.0
 #define ISO_DEV_VIEW_MAX_TURN_PER_S 6.283185307179586
+/* How far a target or a pose stream may put a handle: its centre at most
+ * ISO_DEV_WORKSPACE_DIAGS bounding-box diagonals from where it rests (the
+ * loop sets it per source, iso_dev_map_set_workspace). A target beyond is
+ * refused and counted, never followed part of the way. */
+#define ISO_DEV_WORKSPACE_DIAGS 3.0
 
 /* One parsed message. */
 typedef struct iso_dev_view_msg {
@@ -657,6 +662,11 @@ typedef struct iso_dev_map {
     /* Per source, the fastest a target is followed: the handle centre's
      * speed (scene units/s) and turn rate (rad/s); 0 = no bound. */
     double max_speed[ISO_DEV_MAX_SOURCES], max_turn[ISO_DEV_MAX_SOURCES];
+    /* Per source, how far from its rest place a target or pose may put a
+     * handle's centre (scene units; 0 = no bound), and how many it refused
+     * for that. */
+    double workspace[ISO_DEV_MAX_SOURCES];
+    uint32_t far[ISO_DEV_MAX_SOURCES];
     /* Each handle's centre in rest coordinates (0 unless set): the point
      * device rotations turn about, carried along by the handle's pose. */
     double centre[ISO_DEV_MAX_HANDLES][3];
@@ -688,6 +698,13 @@ ISO_API ISO_NODISCARD int iso_dev_map_set_stale(iso_dev_map *m, int source, int6
  * index out of range or a negative or non-finite bound. */
 ISO_API ISO_NODISCARD int iso_dev_map_set_limits(iso_dev_map *m, int source, double speed,
                                                  double turn, iso_err *err);
+/* Bounds where source `source`'s targets and poses may put a handle: its
+ * centre at most `radius` scene units from its rest place (0: no bound).
+ * One beyond is refused (the handle keeps following the last one within)
+ * and counted in m->far[source]. ISO_EINVAL for a source index out of
+ * range or a negative or non-finite radius. */
+ISO_API ISO_NODISCARD int iso_dev_map_set_workspace(iso_dev_map *m, int source, double radius,
+                                                    iso_err *err);
 /* Sets handle h's centre (rest coordinates): a twist of the device then
  * turns the handle about R c + p, where it is now, instead of about p. */
 ISO_API void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3]);

@@ -139,6 +139,40 @@ int iso_dev_map_set_limits(iso_dev_map *m, int source, double speed, double turn
     return ISO_OK;
 }
 
+int iso_dev_map_set_workspace(iso_dev_map *m, int source, double radius, iso_err *err)
+{
+    if (source < 0 || source >= (int)ISO_DEV_MAX_SOURCES)
+        return iso_err_set(err, ISO_EINVAL, -1, "device mapping: source %d (must be 0 to %u)",
+                           source, ISO_DEV_MAX_SOURCES - 1);
+    if (!(radius >= 0) || isinf(radius))
+        return iso_err_set(err, ISO_EINVAL, -1,
+                           "device mapping: source %d: workspace %g must be finite and >= 0",
+                           source, radius);
+    m->workspace[source] = radius;
+    return ISO_OK;
+}
+
+/* Whether the pose v (position v[0..2] times scale, rotation vector
+ * v[3..5]) would put handle h's centre farther than radius from where it
+ * rests: |R c + p - c| (radius 0: never). */
+static int beyond_workspace(const iso_dev_map *m, int h, const double v[6], double scale,
+                            double radius)
+{
+    if (!(radius > 0))
+        return 0;
+    const double *c = m->centre[h >= 0 && h < (int)ISO_DEV_MAX_HANDLES ? h : 0];
+    iso_twist rv = {{v[3], v[4], v[5]}, {0, 0, 0}};
+    iso_pose T;
+    iso_twist_exp(&rv, 1.0, &T);
+    for (int i = 0; i < 3; i++)
+        T.p[i] = v[i] * scale;
+    double at[3], d2 = 0;
+    iso_pose_apply(&T, c, at);
+    for (int i = 0; i < 3; i++)
+        d2 += (at[i] - c[i]) * (at[i] - c[i]);
+    return !(d2 <= radius * radius); /* NaN is beyond too */
+}
+
 void iso_dev_map_set_centre(iso_dev_map *m, int h, const double c[3])
 {
     if (h >= 0 && h < (int)ISO_DEV_MAX_HANDLES)
@@ -305,6 +339,10 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             s->buttons = e->buttons;
             break;
         case ISO_DEV_EV_POSE:
+            if (beyond_workspace(m, m->active, e->v, m->o.pose_scale, m->workspace[e->source])) {
+                m->far[e->source]++;
+                break;
+            }
             memcpy(s->v, e->v, sizeof s->v);
             s->has_pose = 1;
             s->has_twist = s->has_target = 0;
@@ -316,6 +354,10 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             s->t_twist = e->t_ns;
             break;
         case ISO_DEV_EV_TARGET:
+            if (beyond_workspace(m, e->line, e->v, 1.0, m->workspace[e->source])) {
+                m->far[e->source]++;
+                break;
+            }
             memcpy(s->v, e->v, sizeof s->v);
             s->has_target = 1;
             s->handle = e->line;

@@ -346,6 +346,41 @@ static void a_page_stop_is_a_stop_of_its_own(void **state)
     rig_close(&r);
 }
 
+/* A target beyond the workspace is refused and counted, never followed
+ * part of the way: the handle keeps following the last one within, also
+ * for a turn that carries the centre far (one that is not a number never
+ * reaches the mapping: the decoder refuses it). */
+static void a_target_beyond_the_workspace_is_refused(void **state)
+{
+    (void)state;
+    rig r;
+    rig_open(&r, 0, 0, 0);
+    iso_err err;
+    iso_err_clear(&err);
+    assert_int_equal(iso_dev_map_set_workspace(&r.map, 0, 2.0, &err), ISO_OK);
+    assert_int_equal(iso_dev_map_set_workspace(&r.map, 0, -1, &err), ISO_EINVAL);
+    static const double near[6] = {1.5, 0, 0, 0, 0, 0}, far[6] = {1e12, 0, 0, 0, 0, 0};
+    /* a half turn about x through the origin carries the centre (1, 2, 3)
+     * to (1, -2, -3): 7.2 away */
+    static const double turned[6] = {0, 0, 0, 3.141592653589793, 0, 0};
+    const double nan_pose[6] = {NAN, 0, 0, 0, 0, 0};
+    push(&r, 0, ISO_DEV_VIEW_GRANT, 3, 0, 0, NULL);
+    push(&r, 1, ISO_DEV_VIEW_MSG, 3, ISO_DEV_VIEW_TARGET, 1, near);
+    step(&r);
+    assert_true(fabs(r.pose.p[0] - 1.5) < 1e-12);
+    uint32_t seq = 2, bad = dec(&r)->n.bad_frames;
+    for (int k = 0; k < 3; k++) {
+        const double *v = k == 0 ? far : k == 1 ? turned : nan_pose;
+        push(&r, r.t + 1, ISO_DEV_VIEW_MSG, 3, ISO_DEV_VIEW_TARGET, seq++, v);
+        step(&r);
+        step(&r);
+        assert_true(fabs(r.pose.p[0] - 1.5) < 1e-12); /* still on the last target within */
+    }
+    assert_int_equal(r.map.far[0], 2);
+    assert_int_equal(dec(&r)->n.bad_frames, bad + 1); /* NaN: refused before, by the decoder */
+    rig_close(&r);
+}
+
 /* The real source on its own clock, pushed from another thread's point of
  * view as the server would, recorded by the hub, then replayed. */
 static uint64_t fnv(uint64_t h, const void *p, size_t n)
@@ -450,6 +485,7 @@ int main(void)
         cmocka_unit_test(only_the_controller_in_order_moves_the_handle),
         cmocka_unit_test(quiet_released_or_gone_it_holds),
         cmocka_unit_test(a_page_stop_is_a_stop_of_its_own),
+        cmocka_unit_test(a_target_beyond_the_workspace_is_refused),
         cmocka_unit_test(a_recorded_session_replays_bit_for_bit),
     };
     return cmocka_run_group_tests_name("dev_view", t, NULL, NULL);
