@@ -11,6 +11,25 @@ int iso_display__token_eq(const char *p, size_t n, const char *s)
     return strlen(s) == n && strncasecmp(p, s, n) == 0;
 }
 
+int iso_display__list_has(const char *p, size_t n, const char *s)
+{
+    const char *e = p + n;
+    while (p < e) {
+        const char *comma = memchr(p, ',', (size_t)(e - p));
+        const char *te = comma ? comma : e;
+        const char *b = p;
+        while (b < te && (*b == ' ' || *b == '\t'))
+            b++;
+        const char *t = te;
+        while (t > b && (t[-1] == ' ' || t[-1] == '\t'))
+            t--;
+        if ((size_t)(t - b) == strlen(s) && memcmp(b, s, (size_t)(t - b)) == 0)
+            return 1;
+        p = comma ? comma + 1 : e;
+    }
+    return 0;
+}
+
 int iso_display__contains_ci(const char *p, size_t n, const char *s)
 {
     size_t k = strlen(s);

@@ -118,6 +118,10 @@ const char *iso_display__query_get(const char *q, size_t n, const char *key, siz
 /* Case-insensitive: [p, p+n) equals s / contains s. */
 int iso_display__token_eq(const char *p, size_t n, const char *s);
 int iso_display__contains_ci(const char *p, size_t n, const char *s);
+/* Is s one of the comma-separated tokens in [p, p + n), to the letter
+ * (white space around each ignored)? Subprotocol names are matched so: an
+ * offer that merely contains a name is not that name. */
+int iso_display__list_has(const char *p, size_t n, const char *s);
 
 /* ---- Foxglove's protocol (foxglove.c, foxglove_rx.c) ----------------------- */
 
@@ -127,12 +131,18 @@ typedef struct iso_display__fox_rx {
     long sub[ISO_DISPLAY_FOX_MAX_CHANNELS]; /* subscription id per channel, -1: none */
     char msg[ISO_DISPLAY_MAX_CLIENT_MESSAGE + 1];
     long messages; /* text messages taken */
+    /* What the client is told back (a "status" message, level warning):
+     * an op that is not served, a channel that is not advertised. The
+     * newest replaces one not yet sent; status_ver counts them. */
+    char status[160];
+    long status_ver;
 } iso_display__fox_rx;
 
 void iso_display__fox_rx_init(iso_display__fox_rx *rx);
 /* One whole text message (n bytes, any content) from a client of a session
- * with n_channels channels: subscribes and unsubscribes as told, ignores
- * the rest. A message longer than ISO_DISPLAY_MAX_CLIENT_MESSAGE is cut
+ * with n_channels channels: subscribes and unsubscribes as told; an op it
+ * does not serve, or a subscription to a channel it does not have, sets
+ * the status the client is told. A message longer than ISO_DISPLAY_MAX_CLIENT_MESSAGE is cut
  * there (the WebSocket reader refuses those before). */
 void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_channels, const unsigned char *p,
                                  size_t n);

@@ -194,9 +194,17 @@ static const iso_display__proto *choose_proto(iso_display *d, const iso_display_
         return &iso_display__view_proto;
     for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; k++)
         if (kinds[k]->name && (kinds[k] != &iso_display__fox_proto || atomic_load(&d->fox)) &&
-            iso_display__contains_ci(r->protocol, r->protocol_len, kinds[k]->name))
+            iso_display__list_has(r->protocol, r->protocol_len, kinds[k]->name))
             return kinds[k];
     return NULL;
+}
+
+/* Foxglove's subprotocol offered before iso_display_foxglove made the
+ * session (the first moments of a run): worth a retry, not a refusal. */
+static int fox_starting(const iso_display *d, const iso_display__request *r)
+{
+    return r->protocol && !atomic_load(&d->fox) &&
+           iso_display__list_has(r->protocol, r->protocol_len, iso_display__fox_proto.name);
 }
 
 static void start_socket(iso_display *d, iso_display__conn *c, const iso_display__request *r,
@@ -244,6 +252,9 @@ static void upgrade(iso_display *d, iso_display__conn *c, const iso_display__req
     else if (!r->version || !iso_display__token_eq(r->version, r->version_len, "13"))
         respond_error(c, 426, "Upgrade Required", "Sec-WebSocket-Version: 13\r\n",
                       "only WebSocket version 13 is spoken", 0);
+    else if (!proto && fox_starting(d, r))
+        respond_error(c, 503, "Service Unavailable", "Retry-After: 1\r\n",
+                      "the Foxglove session is starting: try again in a moment", 0);
     else if (!proto)
         respond_error(c, 400, "Bad Request", NULL, "no subprotocol offered is spoken here", 0);
     else if (count_sockets(d) >= ISO_DISPLAY_MAX_VIEWERS)

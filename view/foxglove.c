@@ -100,6 +100,7 @@ _Static_assert(ISO_FOX_MAX_CHANNELS <= ISO_DISPLAY_FOX_MAX_CHANNELS,
 struct iso_display__fox {
     iso_display__fox_rx rx; /* what the client says, and its subscriptions */
     int hello_queued;
+    long status_sent; /* rx.status_ver when the last status went out */
     unsigned long seq_sent;
     obuf out; /* the batch being written */
 };
@@ -114,7 +115,7 @@ int iso_display__fox_offered(const char *req)
             continue;
         const char *e = strchr(p, '\r');
         size_t n = e ? (size_t)(e - p) : strlen(p);
-        return iso_display__contains_ci(p, n, FOX_SUBPROTOCOL);
+        return iso_display__list_has(p, n, FOX_SUBPROTOCOL);
     }
     return 0;
 }
@@ -336,6 +337,16 @@ static int fox_next(iso_display *d, iso_display__conn *c, long long now)
     if (!f->hello_queued) {
         f->hello_queued = 1;
         iso_display__set_output(c, s->hello.p, s->hello.n);
+        return 1;
+    }
+    if (f->status_sent != f->rx.status_ver) { /* what it asked that is not served */
+        f->status_sent = f->rx.status_ver;
+        puts_(&f->out, "{\"op\":\"status\",\"level\":1,\"message\":\"");
+        put_escaped(&f->out, f->rx.status);
+        puts_(&f->out, "\"}");
+        if (f->out.oom)
+            return 0;
+        iso_display__queue_message(c, 1, f->out.p, f->out.n);
         return 1;
     }
     int any = 0;

@@ -6,6 +6,8 @@
 #include "display_internal.h"
 
 #include <ctype.h>
+#include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -56,6 +58,16 @@ static void unsubscribe(iso_display__fox_rx *rx, int n_ch, const char *m, const 
     }
 }
 
+static void tell(iso_display__fox_rx *rx, const char *fmt, ...) ISO_PRINTF(2, 3);
+static void tell(iso_display__fox_rx *rx, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(rx->status, sizeof rx->status, fmt, ap);
+    va_end(ap);
+    rx->status_ver++;
+}
+
 static void subscribe(iso_display__fox_rx *rx, int n_ch, const char *m)
 {
     const char *a = strstr(m, "\"subscriptions\"");
@@ -67,8 +79,22 @@ static void subscribe(iso_display__fox_rx *rx, int n_ch, const char *m)
         long ch = int_after(o, close, "\"channelId\"");
         if (id >= 0 && ch >= 0 && ch < n_ch)
             rx->sub[ch] = id;
+        else if (ch >= n_ch)
+            tell(rx, "channel %ld is not advertised: not subscribed", ch);
         o = close;
     }
+}
+
+/* The op's name: the string after "op" and its colon, at most cap - 1
+ * characters of it (quotes and escapes not followed: names are plain). */
+static void op_name(const char *op, char *out, size_t cap)
+{
+    const char *q = strchr(op + 4, '"');
+    size_t k = 0;
+    if (q)
+        for (q++; *q && *q != '"' && k + 1 < cap; q++)
+            out[k++] = isprint((unsigned char)*q) ? *q : '?';
+    out[k] = 0;
 }
 
 void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_ch, const unsigned char *p,
@@ -85,9 +111,12 @@ void iso_display__fox_rx_message(iso_display__fox_rx *rx, int n_ch, const unsign
     const char *op = strstr(m, "\"op\"");
     if (!op)
         return;
-    if (strstr(op, "\"unsubscribe\""))
+    char name[48];
+    op_name(op, name, sizeof name);
+    if (strcmp(name, "unsubscribe") == 0)
         unsubscribe(rx, n_ch, m, m + strlen(m));
-    else if (strstr(op, "\"subscribe\""))
+    else if (strcmp(name, "subscribe") == 0)
         subscribe(rx, n_ch, m);
-    /* other ops (client channels, parameters, services) are not served */
+    else /* client channels, parameters, services: not served, and said so */
+        tell(rx, "op '%s' is not served here", name);
 }

@@ -300,7 +300,12 @@ ISO_API void iso_display_end(iso_display *d, const char *text);
  * client, a client whose batch is unwritten ISO_DISPLAY_STALL_MS is
  * disconnected, and it counts among ISO_DISPLAY_MAX_VIEWERS. Its Origin,
  * when it sends one, must be the page's own or Foxglove's web app
- * (https://app.foxglove.dev). session->mesh must be the display's mesh.
+ * (https://app.foxglove.dev). The subprotocol is matched as a token of
+ * the offer, to the letter; an offer of it before this call (a run's first
+ * moments) gets 503 with Retry-After: 1. A subscription to a channel that
+ * is not advertised, or an op that is not served, is answered with a
+ * "status" message (level 1) saying which. session->mesh must be the
+ * display's mesh.
  * Call it once, before the first publish. ISO_EINVAL, ISO_ENOMEM. */
 struct iso_fox_session;
 struct iso_fox_frame;
