@@ -170,14 +170,7 @@ static void apply(iso_dev_decoder *d, int64_t t, uint32_t conn, const uint8_t *p
         d->n.reports++;
         set_estop(d, t, 1, conn, ev, cap, n);
         return;
-    case ISO_DEV_VIEW_UNSTOP:
-        /* A stop is released by the viewer who pressed it or by the one in
-         * control, never by any other (the server refuses it first; a
-         * recording that says otherwise is refused here too). */
-        if (d->view.estop && conn != d->view.estop_conn && (conn == 0 || conn != d->view.holder)) {
-            d->n.refused++;
-            return;
-        }
+    case ISO_DEV_VIEW_UNSTOP: /* who may release is the server's to decide: it pushes only those */
         d->n.reports++;
         set_estop(d, t, 0, conn, ev, cap, n);
         return;

@@ -205,7 +205,7 @@ static int command(iso_display *d, iso_display__conn *c, const iso_dev_view_msg 
     default: /* UNSTOP */
         if (!d->stop)
             return 0; /* nothing to release: nothing reaches the device */
-        if (c->id != d->stop_conn && c->id != holder)
+        if (d->stop_conn && c->id != d->stop_conn && c->id != holder)
             return refuse(d, c,
                           "only the viewer who pressed the stop, or the one in control, "
                           "can release it");
@@ -271,6 +271,8 @@ static void viewer_close(iso_display *d, iso_display__conn *c)
 {
     if (d->dev && atomic_load(&d->holder) == c->id)
         end_control(d, c->id, ISO_DEV_VIEW_END_LEFT);
+    if (d->stop && d->stop_conn == c->id)
+        d->stop_conn = 0; /* its page reconnects, or another releases it: not stuck */
     free(c->v.frame);
     c->v.frame = NULL;
 }

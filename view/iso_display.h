@@ -78,7 +78,9 @@
  * time is in control, the first to send TAKE; it alone may send TARGETs
  * and RELEASE; STOP comes from any viewer that may command (a stop button
  * must work for everyone watching) and acts at once; UNSTOP only from the
- * viewer who pressed the stop or the one in control, and not within
+ * viewer who pressed the stop or the one in control (any viewer that may
+ * command once the one who pressed it has gone: a page that reconnects
+ * must be able to release its own stop), and not within
  * ISO_DISPLAY_UNSTOP_MIN_MS of the stop (a page flapping its stop makes
  * at most four stops a second; STOP itself is never delayed). A repeated
  * STOP, or an UNSTOP with no stop pressed, is no change and does not reach
