@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "iso_proxy.h"
 #include "iso_scene.h"
 
 static void print_summary(const iso_scene *s)
@@ -47,6 +48,11 @@ static void print_summary(const iso_scene *s)
            iso_names_get(iso_weighting_names, s->solver.weighting),
            s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz,
            iso_abm_mode_name((iso_abm_mode)s->abm_mode));
+    char why[300];
+    int budget = iso_proxy_choose(s->mesh, s->solver.proxy, s->tick_hz, why, sizeof why);
+    printf("  model: %s\n", why);
+    if (budget <= 0 && s->solver.proxy_smoothness != ISO_PROXY_SMOOTHNESS_MESH)
+        printf("  note: solver.proxy_smoothness is ignored: there is no proxy\n");
     printf("  sinks:");
     if (s->display.enabled)
         printf(" display %s:%d", s->display.host, s->display.port);

@@ -67,11 +67,17 @@ static int build_proxy(iso_loop *l, const iso_mesh **mesh, const iso_regions **r
                        iso_err *err)
 {
     const iso_scene *sc = l->sc;
-    int budget = sc->solver.proxy == ISO_SOLVER_PROXY_AUTO
-                     ? iso_proxy_auto_budget(l->nv, sc->tick_hz)
-                     : sc->solver.proxy;
-    if (budget <= 0 || l->nv - iso_mesh_unreferenced_count(sc->mesh) <= budget)
+    char why[300];
+    int budget = iso_proxy_choose(sc->mesh, sc->solver.proxy, sc->tick_hz, why, sizeof why);
+    if (budget <= 0) {
+        /* a proxy asked for and not built, or a setting with nothing to act
+         * on, is said, not silently dropped */
+        if (sc->solver.proxy > 0)
+            iso_loop_say(l, "reduced model: none: %s", why);
+        if (sc->solver.proxy_smoothness != ISO_PROXY_SMOOTHNESS_MESH)
+            iso_loop_say(l, "solver.proxy_smoothness is ignored: the method runs on %s", why);
         return ISO_OK;
+    }
     if (l->nv >= 100000) /* seconds of work: say what is happening */
         iso_loop_say(l,
                      "reduced model: simplifying %d vertices to a proxy of at most %d "

@@ -111,4 +111,12 @@ ISO_API void iso_proxy_get_stats(const iso_proxy *p, iso_proxy_stats *out);
  * chooses as the run did. */
 ISO_API int iso_proxy_auto_budget(int nv, double tick_hz);
 
+/* What solver.proxy (0 off, N, or ISO_SOLVER_PROXY_AUTO) makes of mesh m at
+ * tick_hz: the proxy budget to build, 0 for the whole mesh (also when N is
+ * not below the mesh's size), and a phrase for people that says which and
+ * why ("a proxy of at most 4000 vertices that the whole mesh of 40401
+ * follows (solver.proxy: auto; ...)"). The one rule the loop builds by and
+ * `check` announces. */
+ISO_API int iso_proxy_choose(const iso_mesh *m, int proxy, double tick_hz, char *why, size_t cap);
+
 #endif

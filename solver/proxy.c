@@ -659,3 +659,34 @@ int iso_proxy_auto_budget(int nv, double tick_hz)
     double b = AUTO_BUDGET * scale;
     return b > 1e8 ? 100000000 : (int)b;
 }
+
+int iso_proxy_choose(const iso_mesh *m, int proxy, double tick_hz, char *why, size_t cap)
+{
+    int nv = iso_mesh_vertex_count(m), used = nv - iso_mesh_unreferenced_count(m);
+    int budget = proxy == ISO_SOLVER_PROXY_AUTO ? iso_proxy_auto_budget(nv, tick_hz) : proxy;
+    if (proxy == 0) {
+        snprintf(why, cap, "the whole mesh of %d vertices (solver.proxy: off)", used);
+        return 0;
+    }
+    if (proxy == ISO_SOLVER_PROXY_AUTO && (budget <= 0 || used <= budget)) {
+        snprintf(why, cap,
+                 "the whole mesh of %d vertices (solver.proxy: auto; it fits a %g Hz tick)", used,
+                 tick_hz);
+        return 0;
+    }
+    if (used <= budget) {
+        snprintf(why, cap,
+                 "the whole mesh of %d vertices (solver.proxy: %d is not below the mesh's size)",
+                 used, proxy);
+        return 0;
+    }
+    if (proxy == ISO_SOLVER_PROXY_AUTO)
+        snprintf(why, cap,
+                 "a proxy of at most %d vertices that the whole mesh of %d follows (solver.proxy: "
+                 "auto; the whole mesh does not fit a %g Hz tick: solver.proxy: off runs it whole)",
+                 budget, used, tick_hz);
+    else
+        snprintf(why, cap, "a proxy of at most %d vertices that the whole mesh of %d follows",
+                 budget, used);
+    return budget;
+}

@@ -158,10 +158,48 @@ static void check_and_run_agree_on_display_hosts(void **state)
     }
 }
 
+/* What the solver's model will be is said alike by both, and a setting
+ * with nothing to act on is said, not dropped: a proxy budget not below
+ * the mesh's size runs the whole mesh; proxy_smoothness without a proxy is
+ * ignored. */
+static void check_and_run_say_the_model_alike(void **state)
+{
+    (void)state;
+    need_binary();
+    static const char *const solver[] = {"{proxy: 100000}",
+                                         "{proxy: off, proxy_smoothness: matched}"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(g.doc, sizeof g.doc,
+                 "name: model\nmesh: {shape: cactus}\nregions:\n  sel: builtin\n  handles:\n"
+                 "    - name: top\n      driver: {screw: {def: builtin, duration: 1.0}}\n"
+                 "solver: %s\ntick_hz: 60\n",
+                 solver[i]);
+        iso_test_write(g.path, g.doc, -1);
+        assert_int_equal(run_iso(0, RUN_ONE_TICK), 0);
+        char check_out[sizeof g.out];
+        snprintf(check_out, sizeof check_out, "%s", g.out);
+        assert_int_equal(run_iso(1, RUN_ONE_TICK), 0);
+        print_message("solver %s: check says\n%s run says\n%s", solver[i],
+                      strstr(check_out, "  model:"), g.err[1]);
+        if (i == 0) {
+            const char *m = strstr(check_out, "model: the whole mesh of ");
+            assert_non_null(m);
+            assert_non_null(strstr(m, "(solver.proxy: 100000 is not below the mesh's size)"));
+            char line[400];
+            snprintf(line, sizeof line, "%.*s", (int)strcspn(m, "\n") - 7, m + 7);
+            assert_non_null(strstr(g.err[1], line)); /* run says the same */
+        } else {
+            assert_non_null(strstr(check_out, "note: solver.proxy_smoothness is ignored"));
+            assert_non_null(strstr(g.err[1], "solver.proxy_smoothness is ignored"));
+        }
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(check_and_run_agree_on_display_hosts),
+        cmocka_unit_test(check_and_run_say_the_model_alike),
         cmocka_unit_test(check_and_run_refuse_every_key_alike),
     };
     return cmocka_run_group_tests_name("scene_agree", tests, NULL, NULL);
