@@ -6,6 +6,7 @@
 
 #include <errno.h>
 #include <limits.h>
+#include <math.h>
 #include <poll.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -109,11 +110,6 @@ static int putf(iso_logq *q, int kind, const char *fmt, ...)
     return rc;
 }
 
-int iso_logq_sayv(iso_logq *q, const char *fmt, va_list ap)
-{
-    return put(q, KIND_LINE, fmt, ap);
-}
-
 int iso_logq_sayf(iso_logq *q, const char *fmt, ...)
 {
     va_list ap;
@@ -207,9 +203,17 @@ static void say_dropped(iso_logq *q)
     char line[160];
     snprintf(line, sizeof line, "[%ld lines lost: the output took none while they came]",
              d - q->dropped_said);
-    q->dropped_said = d;
-    emit_line(q, line);
+    emit_line(q, line); /* its own loss, if it is lost, is said next time */
     q->dropped_said = atomic_load_explicit(&q->dropped, memory_order_relaxed);
+}
+
+/* A remembered line's count, owed when its window ends or it is forgotten:
+ * "<line> [N more times in S s]". */
+static void say_repeats(iso_logq *q, const recent *r, double seconds)
+{
+    char line[ISO_LOGQ_LINE_MAX + 64];
+    snprintf(line, sizeof line, "%s [%ld more times in %.0f s]", r->text, r->repeats, seconds);
+    emit_line(q, line);
 }
 
 /* A line written less than ISO_LOGQ_REPEAT_S ago is counted instead. */
@@ -227,12 +231,8 @@ static void take_line(iso_logq *q, const char *text, double now)
         if (r->written_at < oldest->written_at)
             oldest = r;
     }
-    if (oldest->repeats > 0) { /* its count is owed before it is forgotten */
-        char line[ISO_LOGQ_LINE_MAX + 64];
-        snprintf(line, sizeof line, "%s [%ld more times in %.0f s]", oldest->text, oldest->repeats,
-                 now - oldest->written_at);
-        emit_line(q, line);
-    }
+    if (oldest->repeats > 0) /* its count is owed before it is forgotten */
+        say_repeats(q, oldest, now - oldest->written_at);
     snprintf(oldest->text, sizeof oldest->text, "%s", text);
     oldest->written_at = now;
     oldest->repeats = 0;
@@ -247,11 +247,7 @@ static void owe_repeats(iso_logq *q, double now, int all)
         if (r->written_at < 0 || (!all && now - r->written_at < ISO_LOGQ_REPEAT_S))
             continue;
         if (r->repeats > 0) {
-            char line[ISO_LOGQ_LINE_MAX + 64];
-            snprintf(line, sizeof line, "%s [%ld more times in %.0f s]", r->text, r->repeats,
-                     now - r->written_at < ISO_LOGQ_REPEAT_S ? ISO_LOGQ_REPEAT_S
-                                                             : now - r->written_at);
-            emit_line(q, line);
+            say_repeats(q, r, fmax(ISO_LOGQ_REPEAT_S, now - r->written_at));
             r->repeats = 0;
             r->written_at = now; /* a new window: the next repeats are counted again */
         } else if (!all) {

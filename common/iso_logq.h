@@ -65,7 +65,6 @@ void iso_logq_destroy(iso_logq *q);
  * (counted). q NULL: the line goes nowhere (-1). */
 int iso_logq_say(iso_logq *q, const char *line);
 int iso_logq_sayf(iso_logq *q, const char *fmt, ...) ISO_PRINTF(2, 3);
-int iso_logq_sayv(iso_logq *q, const char *fmt, va_list ap);
 
 /* Queues the status line, drawn without a newline in place of the last. */
 int iso_logq_status(iso_logq *q, const char *line);

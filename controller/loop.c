@@ -305,6 +305,11 @@ void iso_loop_destroy(iso_loop *l)
     free(l);
 }
 
+void iso_loop__note(void *ctx, const char *line)
+{
+    iso_loop_say(ctx, "%s", line);
+}
+
 void iso_loop_say(iso_loop *l, const char *fmt, ...)
 {
     char msg[ISO_LOGQ_LINE_MAX];

@@ -39,11 +39,6 @@ static int reopen_device(void *ctx, const iso_dev_info *info, iso_dev_source **o
     return open_device(ctx, out, err);
 }
 
-static void hub_note(void *ctx, const char *msg)
-{
-    iso_loop_say(ctx, "%s", msg);
-}
-
 /* A replayed recording stands for every device it recorded; live devices
  * are opened one by one. A device that is absent at the start is an error
  * (a scene for a 3D mouse without one is a mistake worth saying); one that
@@ -53,7 +48,7 @@ static int open_devices(iso_loop *l, iso_err *err)
     const iso_scene *sc = l->sc;
     if (sc->n_devices == 0)
         return ISO_OK;
-    int rc = iso_dev_hub_create(hub_note, l, &l->hub, err);
+    int rc = iso_dev_hub_create(iso_loop__note, l, &l->hub, err);
     if (rc != ISO_OK)
         return rc;
     for (int i = 0; i < sc->n_devices; i++) {

@@ -51,6 +51,10 @@ double iso_loop__stats_quantile(const iso_loop_stats *s, int lat, double q);
 /* median, p99, max of the recent window: no allocation, a sort of scratch. */
 void iso_loop__stats_recent(iso_loop_stats *s, double *med, double *p99, double *max);
 
+/* A part's notice callback (the device hub's, the actuators'): the line
+ * said as the loop's own, iso_loop_say (controller/loop.c). ctx: the loop. */
+void iso_loop__note(void *ctx, const char *line);
+
 struct iso_loop_sinks; /* loop_sinks.c */
 
 struct iso_loop {

@@ -101,12 +101,6 @@ static int open_display(iso_loop *l, iso_err *err)
     return ISO_OK;
 }
 
-static void act_notice(void *ctx, const char *line)
-{
-    iso_loop *l = ctx;
-    iso_loop_say(l, "%s", line);
-}
-
 /* The e-stop inputs the sender reads by itself: the embedder's probe and
  * the devices' e-stop lines (the hub outlives the sinks). */
 static int estop_inputs(void *ctx)
@@ -154,7 +148,7 @@ static int open_actuators(iso_loop *l, iso_err *err)
     link.port = a->port;
     link.baud = a->baud;
     link.emulation = a->emulation;
-    iso_act_opts o = {0, act_notice, l};
+    iso_act_opts o = {0, iso_loop__note, l};
     /* The loop watchdog: no progress for max(250 ms, 5 periods) and the
      * sender stops streaming and sends SAFE. The loop reports progress every
      * tick, every ABM step and inside each field evaluation (iso_loop.h). */

@@ -155,10 +155,8 @@ static int save_rest(iso_loop *l, const char *pc2, iso_err *err)
     char path[ISO_SCENE_PATH_MAX + 16];
     int rc = iso_pc2_save_rest(l->sc->mesh, pc2, path, sizeof path, err);
     if (rc == ISO_OK)
-        iso_loop_say(l,
-                     "PC2 point cache into %s (under a temporary name beside it until the run "
-                     "ends), rest mesh %s",
-                     pc2, path);
+        iso_loop_say(l, "PC2 point cache into %s (whole when the run ends), rest mesh %s", pc2,
+                     path);
     return rc;
 }
 
@@ -208,12 +206,9 @@ static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
             rc =
                 iso_mcap_add_channel(w->mcap, schema[c], w->ch[c].topic, "json", &w->ch_id[c], err);
     }
-    if (rc == ISO_OK) {
-        char t[ISO_SCENE_PATH_MAX + 64];
-        iso_loop_say(l, "MCAP into %s (as %s until the run ends), %d channels, chunks %s",
-                     l->o.mcap, iso_pc2_temp_path(l->o.mcap, (long)getpid(), t, sizeof t), w->n_ch,
-                     l->o.mcap_compression == ISO_MCAP_NONE ? "uncompressed" : "in zstd");
-    }
+    if (rc == ISO_OK)
+        iso_loop_say(l, "MCAP into %s (whole when the run ends), %d channels, chunks %s", l->o.mcap,
+                     w->n_ch, l->o.mcap_compression == ISO_MCAP_NONE ? "uncompressed" : "in zstd");
     return rc;
 }
 

@@ -26,11 +26,11 @@
  * the same libzstd (its output may differ between its versions; what it
  * decompresses to may not).
  *
- * Like the other outputs, the file is written under a temporary name
- * beside the final one (iso_pc2_temp_path's rule) and renamed when
- * iso_mcap_finish succeeds; a process stopped before leaves the temporary
- * file holding every chunk closed so far (a streaming reader reads it up to
- * there). Not thread-safe: one thread writes a file. */
+ * Like the other outputs, the file goes where iso_outfile_plan says (a
+ * temporary name beside a regular file, renamed onto it when
+ * iso_mcap_finish succeeds; a FIFO or a device written through); a process stopped before leaves
+ * the temporary file holding every chunk closed so far (a streaming reader reads it up to there).
+ * Not thread-safe: one thread writes a file. */
 #ifndef ISO_MCAP_H
 #define ISO_MCAP_H
 

@@ -20,9 +20,10 @@
  * refuses a frame count of 0, so the file is useful from its first frame.
  *
  * The file is written under a temporary name beside the final one
- * (iso_pc2_temp_path) and renamed to it by iso_pc2_commit, so a finished
- * run replaces an older cache atomically and an unfinished one never
- * overwrites it. Not thread-safe: one thread writes a cache. */
+ * (iso_outfile.h) and renamed to it by iso_pc2_commit, so a finished run
+ * replaces an older cache atomically and an unfinished one never
+ * overwrites it; a FIFO or a device is refused, since the header is
+ * rewritten. Not thread-safe: one thread writes a cache. */
 #ifndef ISO_PC2_H
 #define ISO_PC2_H
 
@@ -34,10 +35,6 @@
 #define ISO_PC2_HEADER 32
 
 typedef struct iso_pc2 iso_pc2; /* opaque */
-
-/* The temporary name the cache for `path` is written under while it is
- * open: "<path without its extension>.part-<pid><extension>". */
-ISO_API const char *iso_pc2_temp_path(const char *path, long pid, char *buf, size_t cap);
 
 /* Opens a cache of nv vertices (nv >= 1) to be committed at `path`: writes
  * the header with 0 frames under the temporary name. ISO_EINVAL for nv < 1

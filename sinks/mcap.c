@@ -91,8 +91,8 @@ struct iso_mcap {
     uint64_t messages, t_first, t_last;
     int err_io;
     const char *codec_err; /* zstd's name for why it failed (static), or NULL */
-    iso_outfile
-        out; /* where it goes (iso_outfile.h): a temporary name, or a FIFO written through */
+    /* where it goes (iso_outfile.h): a temporary name, or a FIFO written through */
+    iso_outfile out;
 };
 
 static uint32_t crc_update(const iso_mcap *m, uint32_t c, const unsigned char *p, size_t n)

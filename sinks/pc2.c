@@ -17,15 +17,6 @@ struct iso_pc2 {
     iso_outfile out;    /* where it goes (iso_outfile.h): a temporary name beside its path */
 };
 
-const char *iso_pc2_temp_path(const char *path, long pid, char *buf, size_t cap)
-{
-    const char *slash = strrchr(path, '/'), *dot = strrchr(path, '.');
-    if (!dot || (slash && dot < slash))
-        dot = path + strlen(path);
-    snprintf(buf, cap, "%.*s.part-%ld%s", (int)(dot - path), path, pid, dot);
-    return buf;
-}
-
 static void put_u32(unsigned char *d, uint32_t v)
 {
     for (int i = 0; i < 4; i++)

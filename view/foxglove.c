@@ -355,8 +355,10 @@ static int fox_next(iso_display *d, iso_display__conn *c, long long now)
     if (!any)
         return 0;
     pthread_mutex_lock(&s->mu);
-    s->want = 1; /* a newer tick than the published one, if there is one */
-    pthread_cond_signal(&s->cv);
+    if (atomic_load(&d->published) != s->cached_seq) { /* a newer tick to encode */
+        s->want = 1;
+        pthread_cond_signal(&s->cv);
+    }
     if (s->cached_seq == 0 || s->cached_seq == f->seq_sent) {
         pthread_mutex_unlock(&s->mu);
         return 0;
