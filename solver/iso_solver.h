@@ -331,11 +331,39 @@ ISO_API void iso_solver_set_cg_target(iso_solver *s, double target);
 ISO_API void iso_solver_budget_begin(iso_solver *s);
 ISO_API void iso_solver_budget_end(iso_solver *s);
 
+/* Bounded solves: the real-time loop's rule that its thread does not
+ * factor the whole system during a run (docs/realtime.md, "A tick's
+ * cost"). With on = 1, a worker (worker_lag > 0) and a factor in hand, a
+ * solve is PCG with the cached factor: it ends at the tolerance, or at the
+ * budget (above; a solve that finds it spent still takes
+ * ISO_SOLVER_BOUNDED_MIN_ITERS iterations), or when it stalls, and then
+ * keeps its best iterate if its relative residual ‖b − A x‖ / ‖b‖ is at
+ * most ISO_SOLVER_BOUNDED_RES: an inexact solve, counted in the stats
+ * with the largest such residual. Only a solve that ends above that
+ * residual falls back to a factorization here (counted in refactors): on
+ * the fast drags of tests/streams the stale factor's iterates reached
+ * residuals of 0.1 to 40 while the mesh tore ("not positive definite"),
+ * whereas every inexact solve of the recorded 3D-mouse session ended below
+ * 0.014 and moved its final mesh by less than the integrator's own error
+ * (docs/performance.md). The worker is given the matrix of every
+ * evaluation whose factor is not its own, on its usual schedule, so which
+ * solve is inexact depends on evaluation counts only: results stay
+ * bit-identical from run to run. A factorization here (25 ms on the
+ * cactus alone, 60 beside QEMU) made a late tick whose catch-up cost more
+ * solves: the cascade this rule breaks. A solve with no factor yet still
+ * factors. 0 (the default) is the fallback iso_solver_budget_begin
+ * describes. */
+ISO_API void iso_solver_set_bounded(iso_solver *s, int on);
+#define ISO_SOLVER_BOUNDED_MIN_ITERS 2
+#define ISO_SOLVER_BOUNDED_RES 1e-2
+
 typedef struct iso_solver_stats {
     long evaluations;
     long factorizations;                  /* numeric factorizations */
     long cg_iterations;                   /* adaptive refactor: PCG iterations, summed */
-    long refactors;                       /* adaptive: factorizations forced by slow/stalled CG */
+    long refactors;                       /* adaptive: factorizations forced by slow/stalled CG
+                                             (bounded: by a residual above
+                                             ISO_SOLVER_BOUNDED_RES) */
     long cg_capped;                       /* of those, forced by the iteration cap or budget */
     double t_assembly, t_factor, t_solve; /* seconds, summed */
     int n_free;                           /* free vertices */
@@ -371,6 +399,11 @@ typedef struct iso_solver_stats {
      * factor's (a mesh at rest), so the worker idles instead of factoring
      * the same matrix again. */
     long worker_idle;
+    /* Bounded solves (iso_solver_set_bounded): those that ended at the
+     * budget or a stall with their best iterate, and the largest relative
+     * residual ‖b − A x‖ / ‖b‖ one of them ended at. */
+    long inexact;
+    double inexact_res_max;
 } iso_solver_stats;
 ISO_API void iso_solver_get_stats(const iso_solver *s, iso_solver_stats *st);
 

@@ -268,6 +268,12 @@ static double predicted_iterations(double r0, double rk, int k, double target)
     return log(target / r0) / rate;
 }
 
+/* Whether this solve may not factor (iso_solver_set_bounded). */
+static int bounded_now(const iso_solver *s)
+{
+    return s->bounded && s->w && s->have_factor && s->X;
+}
+
 /* The PCG iterations this solve may spend: cg_max_iter, or what is left of
  * an open budget (iso_solver.h). */
 static int iteration_cap(const iso_solver *s)
@@ -275,6 +281,8 @@ static int iteration_cap(const iso_solver *s)
     if (!s->budget_on)
         return s->o.cg_max_iter;
     int left = s->o.cg_max_iter - s->budget_used;
+    if (bounded_now(s) && left < ISO_SOLVER_BOUNDED_MIN_ITERS)
+        return ISO_SOLVER_BOUNDED_MIN_ITERS;
     return left > 0 ? left : 0;
 }
 
@@ -297,6 +305,7 @@ typedef struct cg_goal {
     double res_target; /* ‖r‖ at which to stop: cg_tol × ‖b‖ */
     double z_target;   /* > 0: stop when vertex_max(z) reaches it */
     double z0;         /* vertex_max of the first z, for the rate */
+    double res_guard;  /* bounded: ‖r‖ above which the iterate is not kept (iso_solver.h) */
 } cg_goal;
 
 static int reached_z(iso_solver *s, cg_goal *g, const double *z, int iters)
@@ -317,14 +326,20 @@ static int reached_z(iso_solver *s, cg_goal *g, const double *z, int iters)
 /* Hopeless: at the rate seen so far the cap would not suffice, so stop now
  * rather than spend it (the common case when the factor is older than a few
  * small steps). The rate is read from what the tests measure: hopeless
- * only if neither would end within the cap. */
-static int hopeless(const cg_goal *g, double r0, double r, const double *z, int nf, int iters,
-                    int cap)
+ * only if neither would end within the cap. A bounded solve keeps its
+ * iterate at the cap, so it is hopeless only when even the cap would leave
+ * the residual above the guard: then it factors now, not after the cap. */
+static int hopeless(const iso_solver *s, const cg_goal *g, double r0, double r, const double *z,
+                    int iters, int cap)
 {
-    if (iters < 3 || predicted_iterations(r0, r, iters, g->res_target) <= (double)cap)
+    if (iters < 3)
+        return 0;
+    if (bounded_now(s))
+        return predicted_iterations(r0, r, iters, g->res_guard) > (double)cap;
+    if (predicted_iterations(r0, r, iters, g->res_target) <= (double)cap)
         return 0;
     return !(g->z_target > 0) ||
-           predicted_iterations(g->z0, vertex_max(z, nf), iters, g->z_target) > (double)cap;
+           predicted_iterations(g->z0, vertex_max(z, s->nf), iters, g->z_target) > (double)cap;
 }
 
 /* PCG from the current X. Returns 1 if converged, 0 if it should give up
@@ -343,8 +358,9 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
     for (int i = 0; i < n; i++)
         r[i] = b[i] - ap[i];
     double bnorm = sqrt(dot(b, b, n)), scale = bnorm > 0 ? bnorm : 1.0;
-    cg_goal g = {s->o.cg_tol * scale, s->cg_target, 0};
+    cg_goal g = {s->o.cg_tol * scale, s->cg_target, 0, ISO_SOLVER_BOUNDED_RES * scale};
     double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
+    s->last_res = rnorm / scale;
     if (rnorm <= g.res_target)
         return 1;
     rotations_now(s);
@@ -370,6 +386,7 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
         ++*iters;
         iso_solver__progress(s);
         rnorm = sqrt(dot(r, r, n));
+        s->last_res = rnorm / scale;
         if (rnorm <= g.res_target)
             return 1;
         /* Stalled: three iterations in a row that gained less than 10%. */
@@ -377,14 +394,14 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
         if (slow >= 3)
             return 0;
         prev = rnorm;
-        if (!(g.z_target > 0) && hopeless(&g, r0norm, rnorm, NULL, s->nf, *iters, cap))
+        if (!(g.z_target > 0) && hopeless(s, &g, r0norm, rnorm, NULL, *iters, cap))
             return *capped = 1, 0;
         if ((rc = precondition_pcg(s, R, &s->work[1], err)) != ISO_OK)
             return rc;
         z = s->work[1]->x;
         if (reached_z(s, &g, z, *iters))
             return 1;
-        if (g.z_target > 0 && hopeless(&g, r0norm, rnorm, z, s->nf, *iters, cap))
+        if (g.z_target > 0 && hopeless(s, &g, r0norm, rnorm, z, *iters, cap))
             return *capped = 1, 0;
         double rz_new = dot(r, z, n);
         double beta = rz_new / rz;
@@ -415,6 +432,8 @@ static int want_reuse(iso_solver *s)
 {
     if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || !s->have_factor || !s->X)
         return 0;
+    if (bounded_now(s))
+        return 1;
     if (iteration_cap(s) == 0) { /* the tick's budget is spent: the stated fallback */
         s->st.refactors++;
         s->st.cg_capped++;
@@ -478,16 +497,17 @@ static void after_factorization(iso_solver *s)
  * evaluation factors on its own thread unless PCG fails (the stated
  * fallback, want_reuse). A factor the evaluating thread made after the
  * job was given is younger than the worker's, which is then not taken. */
-static int worker_take(iso_solver *s, iso_err *err)
+/* Takes the worker's job back now (waiting for it if need be), given
+ * `given` evaluations ago; with `take`, its factor replaces the one in use,
+ * at that age. */
+static int worker_take_back(iso_solver *s, int take, int given, iso_err *err)
 {
-    if (s->w_left == 0 || --s->w_left > 0)
-        return ISO_OK;
-    int lag = s->o.worker_lag, take = !s->have_factor || s->factor_age > lag;
     double t0 = iso_clock_now(), busy = 0;
     int status = 0;
     long minor = 0;
     int ok =
         iso_solver__worker_finish(s->w, take ? &s->L : NULL, &s->frame, &status, &minor, &busy);
+    s->w_left = 0;
     s->st.t_wait += iso_clock_now() - t0;
     s->st.t_worker += busy;
     if (!take)
@@ -497,13 +517,21 @@ static int worker_take(iso_solver *s, iso_err *err)
     if (rc != ISO_OK)
         return rc;
     s->have_factor = 1;
-    s->factor_age = lag;
+    s->factor_age = given;
     s->st.handovers++;
     double *t = s->x_factor; /* the job's positions are the factor's now */
     s->x_factor = s->x_job;
     s->x_job = t;
     s->have_x_factor = 1;
     return ISO_OK;
+}
+
+static int worker_take(iso_solver *s, iso_err *err)
+{
+    if (s->w_left == 0 || --s->w_left > 0)
+        return ISO_OK;
+    int lag = s->o.worker_lag;
+    return worker_take_back(s, !s->have_factor || s->factor_age > lag, lag, err);
 }
 
 /* The positions k evaluations after this one, by the polynomial through
@@ -574,30 +602,48 @@ static void remember_positions(iso_solver *s)
     s->n_seen += s->n_seen < 2;
 }
 
+/* PCG with the cached factor: 1 when it converged or (bounded) kept an
+ * iterate below the guard, 0 when the caller should factor, or a negative
+ * code. */
+static int reuse(iso_solver *s, iso_err *err)
+{
+    int rc = ensure_work(s, err);
+    if (rc != ISO_OK)
+        return rc;
+    int iters = 0, capped = 0;
+    double t0 = iso_clock_now();
+    rc = pcg(s, &iters, &capped, err);
+    s->st.t_solve += iso_clock_now() - t0;
+    s->st.cg_iterations += iters;
+    s->budget_used += iters;
+    if (rc < 0)
+        return rc;
+    learn_from_attempt(s, rc == 1);
+    if (rc == 1 || (bounded_now(s) && s->last_res <= ISO_SOLVER_BOUNDED_RES)) {
+        if (rc != 1) { /* the best iterate: the bounded solve's answer */
+            s->st.inexact++;
+            s->st.inexact_res_max = fmax(s->st.inexact_res_max, s->last_res);
+        }
+        s->last_cg_iters = iters;
+        return 1;
+    }
+    s->st.cg_capped += capped;
+    return 0;
+}
+
 /* A fresh factor or PCG with the cached one (want_reuse). */
 static int solve(iso_solver *s, iso_err *err)
 {
-    int rc;
     if (want_reuse(s)) {
-        if ((rc = ensure_work(s, err)) != ISO_OK)
-            return rc;
-        int iters = 0, capped = 0;
-        double t0 = iso_clock_now();
-        rc = pcg(s, &iters, &capped, err);
-        s->st.t_solve += iso_clock_now() - t0;
-        s->st.cg_iterations += iters;
-        s->budget_used += iters;
+        int rc = reuse(s, err);
         if (rc < 0)
             return rc;
-        learn_from_attempt(s, rc == 1);
-        if (rc == 1) {
-            s->last_cg_iters = iters;
+        if (rc == 1)
             return check_finite(s, err);
-        }
         s->st.refactors++;
-        s->st.cg_capped += capped;
     }
-    if ((rc = direct_solve(s, err)) != ISO_OK)
+    int rc = direct_solve(s, err);
+    if (rc != ISO_OK)
         return rc;
     after_factorization(s);
     return check_finite(s, err);
@@ -636,6 +682,11 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
 void iso_solver_set_cg_target(iso_solver *s, double target)
 {
     s->cg_target = target > 0 && isfinite(target) ? target : 0.0;
+}
+
+void iso_solver_set_bounded(iso_solver *s, int on)
+{
+    s->bounded = on != 0;
 }
 
 void iso_solver_budget_begin(iso_solver *s)

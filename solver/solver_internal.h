@@ -103,6 +103,8 @@ struct iso_solver {
     double cg_target;    /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
     int budget_on;       /* a shared iteration budget is open */
     int budget_used;     /* its iterations spent since it opened or since a factorization */
+    int bounded;         /* iso_solver_set_bounded: no factorization here once a factor exists */
+    double last_res;     /* the last PCG solve's relative residual ‖b − A x‖ / ‖b‖ */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
     /* The rotated preconditioner (rotate.c), adaptive with
      * ISO_PRECOND_ROTATED only, else NULL: the rings, L's frame, this

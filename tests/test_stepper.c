@@ -14,7 +14,12 @@
  * PEC and PECE; (8) PEC's smaller stability interval is covered by its
  * restoration clamp; (9) PCG's iterations a step are capped, and past the
  * cap the step falls back to a fresh factorization and a direct solve, with
- * the same answer as a direct solve every evaluation. */
+ * the same answer as a direct solve every evaluation; (10) with bounded
+ * solves and a worker, the same capped path never factors on the
+ * evaluating thread after its first factor: its inexact solves end below
+ * ISO_SOLVER_BOUNDED_RES, each step's iterations stay within the cap, the
+ * bits repeat, and the path stays within the integrator's own error of a
+ * direct solve every evaluation. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -400,6 +405,86 @@ static void pcg_cap_falls_back_to_a_direct_solve(void **state)
     free(ref);
 }
 
+/* (10) The loop's rule (iso_solver_set_bounded). The cap and tolerance of
+ * (9), over 60 ticks (the shape's whole bend in a second at 60 Hz), force
+ * a factorization on the evaluating thread nearly every tick without the
+ * rule, worker or not (lag 4 here). Bounded, only the first evaluation (no
+ * factor yet) factors there; the error the inexact solves add is compared
+ * with the integrator's own, the same ticks against a direct-solve path at
+ * 8x the ticks (measured: 1e-7 of the diagonal against 8e-6). The same
+ * bend in 16 ticks, far faster than a hand moves, leaves a stale factor
+ * residuals above ISO_SOLVER_BOUNDED_RES, and those solves factor. */
+typedef struct bounded_run {
+    double *x;
+    iso_solver_stats ss;
+    iso_integrate_stats is;
+} bounded_run;
+
+static bounded_run run_bounded(fixture *f, int bounded, int ticks)
+{
+    iso_solver_opts so;
+    iso_solver_opts_default(&so);
+    so.refactor = ISO_REFACTOR_ADAPTIVE;
+    so.cg_tol = 1e-12;
+    so.cg_max_iter = 3;
+    so.worker_lag = 4;
+    iso_err err;
+    iso_err_clear(&err);
+    iso_solver *s = NULL;
+    assert_int_equal(iso_solver_create(f->m, &f->r, &so, &s, &err), ISO_OK);
+    iso_solver_set_bounded(s, bounded);
+    bounded_run r = {rest_copy(f), {0}, {0}};
+    iso_stepper *st = NULL;
+    assert_int_equal(iso_stepper_create(s, f->m, &f->r, r.x, &st, &err), ISO_OK);
+    assert_int_equal(iso_stepper_set_cg_share(st, 0, &err), ISO_OK);
+    for (int k = 0; k < ticks; k++)
+        assert_int_equal(iso_stepper_step(st, 1.0 / ticks, &f->xi, 0, &err), ISO_OK);
+    iso_solver_get_stats(s, &r.ss);
+    iso_stepper_stats(st, &r.is);
+    iso_stepper_destroy(st);
+    iso_solver_destroy(s);
+    return r;
+}
+
+static void bounded_solves_never_factor_on_the_tick(void **state)
+{
+    fixture *f = *state;
+    enum { TICKS = 60, FAST = 16 };
+    size_t n = 3 * (size_t)iso_mesh_vertex_count(f->m);
+    double diag = iso_mesh_bbox_diagonal(f->m);
+    double *direct = rest_copy(f), *fine = rest_copy(f);
+    iso_integrate_stats ds;
+    run_mode(f, f->s, ISO_ABM_PECE, -1, direct, TICKS, 1.0 / TICKS, &f->xi, -1, &ds);
+    run_mode(f, f->s, ISO_ABM_PECE, -1, fine, 8 * TICKS, 1.0 / (8 * TICKS), &f->xi, -1, &ds);
+    double own = iso_test_max_abs_diff(direct, fine, n) / diag;
+
+    bounded_run off = run_bounded(f, 0, TICKS), on = run_bounded(f, 1, TICKS);
+    bounded_run again = run_bounded(f, 1, TICKS), fast = run_bounded(f, 1, FAST);
+    double dev = iso_test_max_abs_diff(on.x, direct, n) / diag;
+    print_message("%d ticks: unbounded %ld factorizations on the evaluating thread; bounded %ld "
+                  "(%ld inexact solves, worst relative residual %.2g, at most %ld iterations a "
+                  "step), %.3g of the diagonal from a direct solve each time against the "
+                  "integrator's own error %.3g; in %d ticks %ld factorizations, %ld forced by a "
+                  "residual above %g\n",
+                  TICKS, off.ss.factorizations, on.ss.factorizations, on.ss.inexact,
+                  on.ss.inexact_res_max, on.is.max_step_cg_iterations, dev, own, FAST,
+                  fast.ss.factorizations, fast.ss.refactors, ISO_SOLVER_BOUNDED_RES);
+    assert_true(off.ss.factorizations > TICKS / 2); /* the path does defeat the stale factor */
+    assert_int_equal(on.ss.factorizations, 1);
+    assert_true(on.ss.inexact > 0 && on.ss.inexact_res_max <= ISO_SOLVER_BOUNDED_RES);
+    assert_true(on.is.max_step_cg_iterations <= 3 + ISO_SOLVER_BOUNDED_MIN_ITERS);
+    assert_memory_equal(on.x, again.x, n * sizeof *on.x);
+    assert_true(dev < 0.1 * own);
+    assert_true(fast.ss.refactors > 0 && fast.ss.factorizations == 1 + fast.ss.refactors);
+    assert_true(fast.ss.inexact_res_max <= ISO_SOLVER_BOUNDED_RES);
+    free(off.x);
+    free(on.x);
+    free(again.x);
+    free(fast.x);
+    free(direct);
+    free(fine);
+}
+
 static void bad_step_is_refused(void **state)
 {
     fixture *f = *state;
@@ -427,6 +512,7 @@ int main(void)
         cmocka_unit_test(restarts_keep_third_order),
         cmocka_unit_test(pec_needs_its_own_restoration_clamp),
         cmocka_unit_test(pcg_cap_falls_back_to_a_direct_solve),
+        cmocka_unit_test(bounded_solves_never_factor_on_the_tick),
         cmocka_unit_test(bad_step_is_refused),
     };
     return cmocka_run_group_tests_name("stepper", t, setup, teardown);
