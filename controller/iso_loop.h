@@ -35,19 +35,24 @@
  *
  * Sub-steps. A mesh step is split into steps_per_tick ABM steps (the
  * scene's integrator.steps_per_tick), times n, where n = 1 for a tick of one
- * period and, for a longer tick, the smaller of the periods it covers and
- * the motion's need: every sub-step turns a handle by at most
- * ISO_LOOP_SUBSTEP_DEG degrees and moves its centroid by at most
- * ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal, and with restoration
- * on none is longer than ISO_LOOP_RESTORE_SUBSTEP_TAU of its τ (or a
- * period, should τ be shorter): its relaxation has a time scale, the
- * motion alone has none. So a late tick
- * costs what its motion needs (a still handle without restoration: one
- * step), and no sub-step moves more than an on-time tick may. n is capped
- * at ISO_LOOP_MAX_SUBSTEPS so a slow mesh cannot spiral; a tick that hits
- * the cap is counted as coarse (its handles still reach their commanded
- * poses). A sub-step far longer than the step before it restarts the
- * stepper's history (ISO_STEPPER_MAX_STEP_RATIO).
+ * period and, for a longer tick, the motion's need: every sub-step turns a
+ * handle by at most ISO_LOOP_SUBSTEP_DEG degrees and moves its centroid by
+ * at most ISO_LOOP_SUBSTEP_DIAG of the bounding-box diagonal; but never
+ * more sub-steps than the periods the tick covers, and with restoration on
+ * never more than ISO_LOOP_LATE_SHARE of them: a late tick sheds work, so
+ * that while a step costs less than two periods the next tick covers
+ * fewer periods and the loop catches up (on the README's demo, sub-steps
+ * as many as the periods grew a late tick's 2 sub-steps to 15 in nine
+ * ticks). Without restoration every period keeps its sub-step: nothing
+ * heals the lag a longer step leaves at a twist's jump. With restoration
+ * on, no sub-step is longer than ISO_LOOP_RESTORE_SUBSTEP_TAU of its τ (or
+ * a period, should τ be shorter), whatever the share: its relaxation has a
+ * time scale, the motion alone has none. n is capped at
+ * ISO_LOOP_MAX_SUBSTEPS so a slow mesh cannot spiral; a tick whose motion
+ * wanted more sub-steps than it took (the share or the cap) is counted as
+ * coarse (its handles still reach their commanded poses). A sub-step far
+ * longer than the step before it restarts the stepper's history
+ * (ISO_STEPPER_MAX_STEP_RATIO).
  *
  * Stopping. *stop (a signal handler's flag) is read at tick boundaries and
  * during the wait for a deadline: a run always ends on a whole tick, and a
@@ -138,6 +143,7 @@ typedef struct iso_loop iso_loop; /* opaque */
 #define ISO_LOOP_SUBSTEP_DEG 1.0    /* rotation per sub-step of a late tick, at most */
 #define ISO_LOOP_SUBSTEP_DIAG 0.005 /* centroid travel per sub-step, of the diagonal */
 #define ISO_LOOP_MAX_SUBSTEPS 32
+#define ISO_LOOP_LATE_SHARE 0.5 /* a late tick's sub-steps, of the periods it covers, at most */
 #define ISO_LOOP_RESTORE_SUBSTEP_TAU                                                               \
     1.0 /* with restoration on: a sub-step's length, in τ, at most */
 /* The tick thread's SCHED_FIFO priority in real time (see "Priorities"). */
@@ -208,16 +214,18 @@ ISO_API void iso_loop_opts_default(iso_loop_opts *o);
 /* Tick figures, all in milliseconds except counts. */
 typedef struct iso_loop_summary {
     long ticks;
-    double stream_s, wall_s;                         /* stream time covered; wall time of the run */
-    double period_ms;                                /* the nominal tick period */
-    double tick_median, tick_p99, tick_max;          /* compute: wake to published */
-    double latency_median, latency_p99, latency_max; /* deadline (input due) to published */
+    double stream_s, wall_s;                /* stream time covered; wall time of the run */
+    double period_ms;                       /* the nominal tick period */
+    double tick_median, tick_p99, tick_max; /* compute: wake to published */
+    double latency_median, latency_p90, latency_p99, latency_max; /* deadline (input due) to
+                                                                     published */
     long misses;                /* ticks that started after a later deadline had passed */
     long skipped;               /* deadlines a late tick covered beyond its own */
     long restarts;              /* restarts of the Adams history */
     long device_ticks;          /* mapping ticks (TICK records written or replayed) */
     long substeps;              /* ABM steps beyond one a tick */
-    long coarse;                /* late ticks that hit ISO_LOOP_MAX_SUBSTEPS */
+    long coarse;                /* late ticks that took fewer sub-steps than their
+                                   motion wanted (the late share or the cap) */
     uint64_t commands_checksum; /* FNV-1a of every device tick's command */
     iso_integrate_stats integ;
     iso_solver_stats solver; /* of the proxy's system when there is one */

@@ -202,8 +202,10 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->wall_s > 0 ? (double)s->ticks / s->wall_s : 0.0);
     fprintf(f, "  tick time   median %.2f ms, p99 %.2f ms, max %.2f ms (period %.2f ms)\n",
             s->tick_median, s->tick_p99, s->tick_max, s->period_ms);
-    fprintf(f, "  latency     median %.2f ms, p99 %.2f ms, max %.2f ms (input due to published)\n",
-            s->latency_median, s->latency_p99, s->latency_max);
+    fprintf(f,
+            "  latency     median %.2f ms, p90 %.2f ms, p99 %.2f ms, max %.2f ms (input due to "
+            "published)\n",
+            s->latency_median, s->latency_p90, s->latency_p99, s->latency_max);
     fprintf(f, "  deadlines   %ld missed of %ld (%.2f%%), %ld skipped to catch up\n", s->misses,
             s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
     fprintf(f,
@@ -236,6 +238,12 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
                 "waits %.2f ms/evaluation\n",
                 sc->solver.worker_lag, s->solver.handovers, s->solver.t_worker,
                 1e3 * s->solver.t_wait / ev);
+    if (sc->solver.worker_lag > 0) /* bounded solves (iso_solver_set_bounded) */
+        fprintf(f,
+                "              %ld solves ended inexact at the tick's budget (worst relative "
+                "residual %.1e), %ld factorizations on the tick (a residual above %g)\n",
+                s->solver.inexact, s->solver.inexact_res_max, s->solver.refactors,
+                ISO_SOLVER_BOUNDED_RES);
     fprintf(f, "  distortion  of the mesh against its rest pose (e' and e: an edge now and at "
                "rest)\n");
     iso_metrics_print(f, "    ", &s->metrics);
@@ -372,11 +380,15 @@ static void json_device(iso_json *j, const char *desc, const iso_dev_source_stat
     iso_json_close(j);
 }
 
-/* median, p99 and max of one distribution, in an object of its own */
-static void json_spread(iso_json *j, const char *key, double med, double p99, double max)
+/* median, p90 (where given: not NaN), p99 and max of one distribution, in
+ * an object of its own */
+static void json_spread(iso_json *j, const char *key, double med, double p90, double p99,
+                        double max)
 {
     iso_json_object(j, key);
     iso_json_number(j, "median", med);
+    if (!isnan(p90))
+        iso_json_number(j, "p90", p90);
     iso_json_number(j, "p99", p99);
     iso_json_number(j, "max", max);
     iso_json_close(j);
@@ -396,8 +408,8 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_number(j, "stream_s", s->stream_s);
     iso_json_number(j, "wall_s", s->wall_s);
     iso_json_number(j, "period_ms", s->period_ms);
-    json_spread(j, "tick_ms", s->tick_median, s->tick_p99, s->tick_max);
-    json_spread(j, "latency_ms", s->latency_median, s->latency_p99, s->latency_max);
+    json_spread(j, "tick_ms", s->tick_median, NAN, s->tick_p99, s->tick_max);
+    json_spread(j, "latency_ms", s->latency_median, s->latency_p90, s->latency_p99, s->latency_max);
     iso_json_int(j, "misses", s->misses);
     iso_json_int(j, "skipped", s->skipped);
     iso_json_int(j, "restarts", s->restarts);
@@ -418,6 +430,9 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     iso_json_int(j, "proxy_fit_max_iterations", s->proxy.fit_max_iterations);
     iso_json_int(j, "proxy_fit_failures", s->proxy.fit_failures);
     iso_json_int(j, "cg_capped", s->solver.cg_capped);
+    iso_json_int(j, "refactors", s->solver.refactors);
+    iso_json_int(j, "inexact", s->solver.inexact);
+    iso_json_number(j, "inexact_res_max", s->solver.inexact_res_max);
     iso_json_number(j, "assembly_s", s->solver.t_assembly);
     iso_json_number(j, "factor_s", s->solver.t_factor);
     iso_json_number(j, "solve_s", s->solver.t_solve);

@@ -208,7 +208,7 @@ ISO_API ISO_NODISCARD int iso_stepper_set_pec_tol(iso_stepper *st, double tol, i
 /* The longest step, over the history's last interval, that keeps the
  * history: a longer one restarts it (as restart != 0 does), since the
  * Adams interpolant would be extrapolated far past its nodes. */
-#define ISO_STEPPER_MAX_STEP_RATIO 2.0
+#define ISO_STEPPER_MAX_STEP_RATIO 4.0
 
 /* Advances by h > 0 with twists[k] (one per handle) held over the step.
  * restart != 0 drops the multistep history first; so does a step longer

@@ -13,7 +13,10 @@
 #include "iso_scene.h"
 #include "testutil.h"
 
-static inline void replay_fast(const char *path, const char *what, iso_loop_summary *s)
+/* As replay_fast, with iso_loop_opts.on_tick = on_tick (ctx its context). */
+static inline void replay_fast_hooked(const char *path, const char *what, iso_loop_summary *s,
+                                      void (*on_tick)(void *, const iso_loop_tick_info *),
+                                      void *ctx)
 {
     iso_scene *sc = NULL;
     iso_err err;
@@ -24,6 +27,8 @@ static inline void replay_fast(const char *path, const char *what, iso_loop_summ
     iso_loop_opts_default(&o);
     o.fast = 1;
     o.display = 0;
+    o.on_tick = on_tick;
+    o.hook_ctx = ctx;
     FILE *quiet = fopen("/dev/null", "w");
     o.log = quiet;
     iso_loop *l = NULL;
@@ -34,6 +39,11 @@ static inline void replay_fast(const char *path, const char *what, iso_loop_summ
     iso_scene_destroy(sc);
     if (quiet)
         fclose(quiet);
+}
+
+static inline void replay_fast(const char *path, const char *what, iso_loop_summary *s)
+{
+    replay_fast_hooked(path, what, s, NULL, NULL);
 }
 
 #endif

@@ -24,6 +24,7 @@
  *       restart at the stop leaves it (docs/realtime.md, "Late ticks").
  *   (c) The late replays give the same bits twice.
  * No replay fails ("not positive definite"). */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -31,7 +32,8 @@
 #include "replay_fast.h"
 #include "testutil.h"
 
-static void replay(const char *stream, const char *abm, int restore, iso_loop_summary *s)
+static void replay_hooked(const char *stream, const char *abm, int restore, iso_loop_summary *s,
+                          void (*on_tick)(void *, const iso_loop_tick_info *), void *ctx)
 {
     char path[1024], name[96], text[2048];
     snprintf(name, sizeof name, "late_drag_%s_%s_%s.yaml", stream, abm, restore ? "on" : "off");
@@ -54,7 +56,12 @@ static void replay(const char *stream, const char *abm, int restore, iso_loop_su
     iso_test_write(path, text, -1);
     char what[160];
     snprintf(what, sizeof what, "%s (%s, restoration %s)", stream, abm, restore ? "on" : "off");
-    replay_fast(path, what, s);
+    replay_fast_hooked(path, what, s, on_tick, ctx);
+}
+
+static void replay(const char *stream, const char *abm, int restore, iso_loop_summary *s)
+{
+    replay_hooked(stream, abm, restore, s, NULL, NULL);
 }
 
 typedef struct drag {
@@ -103,11 +110,58 @@ static void without_restoration_a_late_drag_does_not_blow_up(void **state)
     assert_true(pec.late.metrics.max_edge_strain <= 1.05 * pece.late.metrics.max_edge_strain);
 }
 
+/* (d) A late tick sheds work (iso_loop.h, "Sub-steps"): with restoration
+ * on no tick takes more sub-steps than half the periods it covers (and
+ * some late tick took fewer than its periods), without it no more than
+ * its periods. And the tick's thread factors only where a bounded solve's
+ * residual stayed above the guard (iso_solver_set_bounded): every other
+ * factor came from the worker. */
+typedef struct shed {
+    double share;
+    long over, shed, late;
+} shed;
+
+static void count_shed(void *ctx, const iso_loop_tick_info *t)
+{
+    shed *c = ctx;
+    long periods = lround(t->dt_s * 60);
+    if (periods <= 1)
+        return;
+    c->late++;
+    c->over += t->substeps > (long)ceil(c->share * (double)periods - 1e-6);
+    c->shed += t->substeps < periods;
+}
+
+static void a_late_tick_sheds_work(void **state)
+{
+    (void)state;
+    for (int restore = 0; restore <= 1; restore++) {
+        shed c = {restore ? ISO_LOOP_LATE_SHARE : 1.0, 0, 0, 0};
+        iso_loop_summary s;
+        replay_hooked("view_drag_late", "pec", restore, &s, count_shed, &c);
+        print_message("restoration %-3s: %ld late ticks, %ld took fewer sub-steps than periods, "
+                      "%ld over the share; %ld factorizations on the tick's thread (1 before "
+                      "the clock, %ld for a residual above the guard), %ld from the worker, "
+                      "%ld inexact solves (worst residual %.2g)\n",
+                      restore ? "on" : "off", c.late, c.shed, c.over, s.solver.factorizations,
+                      s.solver.refactors, s.solver.handovers, s.solver.inexact,
+                      s.solver.inexact_res_max);
+        assert_true(c.late > 0);
+        assert_int_equal(c.over, 0);
+        if (restore)
+            assert_true(c.shed > 0);
+        assert_int_equal(s.solver.factorizations, 1 + s.solver.refactors);
+        assert_true(s.solver.handovers > 0);
+        assert_true(s.solver.inexact_res_max <= ISO_SOLVER_BOUNDED_RES);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(a_fast_drag_through_late_ticks_ends_as_on_time),
         cmocka_unit_test(without_restoration_a_late_drag_does_not_blow_up),
+        cmocka_unit_test(a_late_tick_sheds_work),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
