@@ -82,8 +82,9 @@ static void expect_error(const char *text, int code, ...)
 static void test_examples_load(void **state)
 {
     (void)state;
-    static const char *const names[] = {"cactus",       "bar",           "cylinder",   "bumpplane",
-                                        "mouse_cactus", "replay_cactus", "soak_cactus"};
+    static const char *const names[] = {
+        "cactus",        "bar",         "cylinder",           "bumpplane",  "mouse_cactus",
+        "replay_cactus", "soak_cactus", "replay_fast_cactus", "view_cactus"};
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         char path[1100];
         snprintf(path, sizeof path, "%s/%s.yaml", SCENES, names[i]);

@@ -175,6 +175,48 @@ static void session(void)
     finish();
 }
 
+/* A fast 3D-mouse session of 6 s: the same receiver, a person jabbing the
+ * cap to its full deflection (350 counts, where the SpaceMouse's range
+ * ends) and letting go, each push reached in 80 ms and released in 80 ms
+ * (a trapezoid, as a hand does it): lift (ty), bend over (rx), twist
+ * (rz), swing back and sideways at once (rx, tx), a quick push down (tz),
+ * then turn back with a tilt (rz, ry). The mapping's sensitivity is the
+ * speed at full deflection (devices/iso_dev.h, full_scale), so this is the
+ * fastest motion a scene lets the mouse command, at its sharpest. */
+static double jab(double t, double t0, double t1)
+{
+    const double ramp = 0.08;
+    if (t <= t0 || t >= t1)
+        return 0;
+    return fmin(1.0, fmin((t - t0) / ramp, (t1 - t) / ramp));
+}
+
+static void fast_session(void)
+{
+    iso_dev_info one = hid_info(0x256f, 0xc652, "SpaceMouse Wireless (receiver)");
+    start_file("sm_fast.isorec", &one, 1);
+    const int64_t tick_ns = 16666667, report_ns = 8 * MS, end = 6000 * MS;
+    int64_t next_tick = tick_ns, next_report = 4 * MS;
+    while (next_tick <= end) {
+        if (next_report < next_tick) {
+            double t = (double)next_report * 1e-9;
+            int tx = (int)lround(250 * jab(t, 2.8, 3.8));
+            int ty = (int)lround(350 * jab(t, 0.3, 1.0));
+            int tz = (int)lround(-350 * jab(t, 4.0, 4.4));
+            int rx = (int)lround(-350 * jab(t, 1.2, 1.9) + 350 * jab(t, 2.8, 3.8));
+            int ry = (int)lround(200 * jab(t, 4.6, 5.6));
+            int rz = (int)lround(350 * jab(t, 2.0, 2.6) - 350 * jab(t, 4.6, 5.6));
+            hid6(0, next_report, tx + noise(), ty + noise(), tz + noise(), rx + noise(),
+                 ry + noise(), rz + noise());
+            next_report += report_ns;
+        } else {
+            tick(next_tick);
+            next_tick += tick_ns;
+        }
+    }
+    finish();
+}
+
 /* A page of the live view dragging the built-in cactus's top straight up
  * at one bounding-box diagonal a second (0.9306 a second, half the view's
  * 2 diag/s limit): a viewer takes control at 90 ms, and from 0.3 s a TARGET
@@ -238,6 +280,7 @@ int main(int argc, char **argv)
         snprintf(g.dir, sizeof g.dir, "%s", argv[1]);
 
     session();
+    fast_session();
     view_drag("view_drag.isorec", 0);
     view_drag("view_drag_late.isorec", 1);
 
