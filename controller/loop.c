@@ -225,8 +225,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
     rc = sc->mesh ? open_mesh_side(l, err) : ISO_OK;
     if (rc == ISO_OK)
         rc = iso_loop__devices_open(l, err);
-    if (rc == ISO_OK && sc->mesh)
-        rc = iso_loop__sinks_open(l, err);
+    /* The recording before the sinks: a path it cannot write (a FIFO with
+     * no reader) is refused before the view and an emulated MCU start. */
     const char *rec = l->o.record ? l->o.record : sc->recording;
     if (rc == ISO_OK && rec[0] && l->hub && !l->replay) {
         rc = iso_dev_hub_record_start(l->hub, rec, err);
@@ -234,6 +234,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
     } else if (rc == ISO_OK && rec[0] && l->replay) {
         iso_loop_say(l, "not recording to %s: the devices are a replay already", rec);
     }
+    if (rc == ISO_OK && sc->mesh)
+        rc = iso_loop__sinks_open(l, err);
     if (rc == ISO_OK && l->hub && !l->replay) {
         iso_err quiet; /* without libusb the retry interval still finds replugged devices */
         iso_err_clear(&quiet);

@@ -655,9 +655,12 @@ int iso_dev_hub_tick(iso_dev_hub *h, iso_dev_map *m, int64_t now_ns, double dt_s
     }
     if (h->recording && (rc = flush_skips(h, err)) != ISO_OK)
         return rc;
-    if (h->recording)
-        return iso_dev_rec_tick(&h->rec, now_ns, err);
-    return ISO_OK;
+    if (h->recording && (rc = iso_dev_rec_tick(&h->rec, now_ns, err)) == ISO_OK) {
+        char msg[ISO_DEV_NAME_MAX * 2 + 200];
+        if (iso_dev_rec_writer_ended(&h->rec, msg, sizeof msg)) /* the run goes on */
+            say(h, "%s", msg);
+    }
+    return rc;
 }
 
 int64_t iso_dev_hub_next_tick(iso_dev_hub *h, int64_t fallback_dt_ns)

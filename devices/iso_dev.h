@@ -728,9 +728,37 @@ ISO_API void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n,
  * Read: 1 and 2. */
 #define ISO_DEV_REC_VERSION 2u
 
+/* The writer. The caller's thread (the loop's tick) only encodes records
+ * into a queue of ISO_DEV_REC_QUEUE_BYTES made at open; a thread of the
+ * writer's own writes them, a tick at a time: records become the thread's
+ * at iso_dev_rec_tick, so the file always ends at a TICK record. The
+ * calls below make no system call and take no lock after open: the tick
+ * never waits on the disk. The thread writes within a few milliseconds of
+ * each tick, so a kill -9 loses the ticks still queued, no more.
+ *
+ * The recording is never silently incomplete. When the queue cannot take a
+ * record (the disk or a FIFO's reader does not keep up) the recording is
+ * cut at the last whole tick: the tick in progress is dropped, later
+ * writes are taken and ignored (ISO_OK), the thread writes what came
+ * before and the END record. When a write fails (a full disk) the thread
+ * stops, cuts a regular file back to the last whole tick it wrote and adds
+ * the END record if the disk takes it. Either way the recording replays to
+ * where it ends, and iso_dev_rec_writer_ended says so, once; the caller
+ * goes on.
+ *
+ * open: a FIFO with no reader is refused at once (opening it would wait for
+ * one); one with a reader is written through; anything else is created or
+ * truncated. It allocates the queue and starts the thread. close: what came
+ * after the last tick is written too (a replay ends at the last TICK
+ * record), then the END record; it waits for the thread, at most
+ * ISO_DEV_REC_CLOSE_MS for a FIFO's reader that takes nothing (the
+ * recording then ends where the reader stopped, and close says so). */
+#define ISO_DEV_REC_QUEUE_BYTES (4u << 20) /* seconds of a noisy line's capped 1 MB/s */
+#define ISO_DEV_REC_CLOSE_MS 2000
+
 typedef struct iso_dev_rec_writer {
-    void *f; /* FILE * */
-    long records;
+    struct iso_dev__rec_async *a; /* the queue and its thread; NULL when closed */
+    long records;                 /* records taken */
     char path[ISO_DEV_NAME_MAX * 2];
 } iso_dev_rec_writer;
 
@@ -739,8 +767,11 @@ ISO_API ISO_NODISCARD int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const c
                                                   int64_t t0_ns, iso_err *err);
 ISO_API ISO_NODISCARD int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c,
                                             iso_err *err);
-/* Writes a TICK record and flushes to the kernel (kill -9 then loses nothing). */
+/* A TICK record: the tick's records are the thread's to write. */
 ISO_API ISO_NODISCARD int iso_dev_rec_tick(iso_dev_rec_writer *w, int64_t t_ns, iso_err *err);
+/* 1 once, after the recording was cut, with the sentence that says where
+ * it ends (msg, cap bytes); else 0. */
+ISO_API int iso_dev_rec_writer_ended(iso_dev_rec_writer *w, char *msg, size_t cap);
 ISO_API ISO_NODISCARD int iso_dev_rec_writer_close(iso_dev_rec_writer *w, iso_err *err);
 
 /* Encodes a header or a record into memory (what the writer writes).

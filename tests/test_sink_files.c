@@ -3,7 +3,8 @@
  * - Nothing allocates on the loop's thread once it ticks: malloc, calloc and
  *   realloc are interposed here and counted on the loop's thread only,
  *   between its 5th tick and its 30th, with the live view, PLY frames, a PC2
- *   cache and an MCAP file all on. Allocations made inside CHOLMOD or the
+ *   cache, an MCAP file and a device recording all on (the recording then
+ *   read back whole: its 30 ticks and its END record). Allocations made inside CHOLMOD or the
  *   BLAS (a factorization's workspace, when the solver factors on the
  *   evaluating thread) are the solver's: they are counted apart, by the
  *   caller's library, and printed, not asserted. (Under AddressSanitizer,
@@ -35,6 +36,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "iso_dev.h"
 #include "iso_foxglove.h"
 #include "iso_loop.h"
 #include "iso_mesh.h"
@@ -145,19 +147,28 @@ static iso_scene *scene_text(const char *text)
 
 /* The built-in cactus (570 vertices), its top bent by a scripted screw,
  * PLY frames of every tick into dir. */
-static iso_scene *bending_scene(const char *dir, int display)
+/* With rec, a view device beside the screw (live: it makes the loop's
+ * hub) and its recording to rec. */
+static iso_scene *bending_scene_rec(const char *dir, int display, const char *rec)
 {
-    static char text[4096];
+    static char text[4096], dev[1200];
+    snprintf(dev, sizeof dev, "devices:\n  - {name: hand, kind: view}\nrecording: %s\n",
+             rec ? rec : "");
     snprintf(text, sizeof text,
              "name: t\n"
-             "mesh: {shape: cactus, resolution: 1}\n"
+             "mesh: {shape: cactus, resolution: 1}\n%s"
              "regions:\n  sel: builtin\n  handles:\n    - name: top\n      driver: {screw: "
              "{def: builtin, duration: 0.5}}\n"
              "solver: {assembly: cpu, refactor: adaptive, worker_lag: 4}\n"
              "tick_hz: 60\n"
              "sinks:\n%s  ply: {dir: %s, every: 1}\n",
-             display ? "  display: {port: 8080}\n" : "", dir);
+             rec ? dev : "", display ? "  display: {port: 8080}\n" : "", dir);
     return scene_text(text);
+}
+
+static iso_scene *bending_scene(const char *dir, int display)
+{
+    return bending_scene_rec(dir, display, NULL);
 }
 
 static void tick_allocates_nothing(void **state)
@@ -166,17 +177,19 @@ static void tick_allocates_nothing(void **state)
     if (UNDER_ASAN)
         skip_msg("AddressSanitizer's allocator is not the one this test counts; the plain "
                  "build runs it");
-    char dir[512], pc2[512], mcap[512];
+    char dir[512], pc2[512], mcap[512], rec[512];
     snprintf(dir, sizeof dir, "%s/alloc_frames", ISO_TEST_TMP);
     snprintf(pc2, sizeof pc2, "%s/alloc.pc2", ISO_TEST_TMP);
     snprintf(mcap, sizeof mcap, "%s/alloc.mcap", ISO_TEST_TMP);
-    iso_scene *sc = bending_scene(dir, 1);
+    snprintf(rec, sizeof rec, "%s/alloc.isorec", ISO_TEST_TMP);
+    iso_scene *sc = bending_scene_rec(dir, 1, rec);
     iso_loop_opts o;
     iso_loop_opts_default(&o);
     o.fast = 1;
     o.pc2 = pc2;
     o.mcap = mcap;
     o.port = 0;
+    o.max_ticks = 30; /* the view device makes the run open-ended */
     FILE *log = tmpfile();
     o.log = log;
     count_ctx c = {5, 30, -1, -1, 0, 0};
@@ -202,6 +215,15 @@ static void tick_allocates_nothing(void **state)
     assert_int_equal(c.at_last - c.at_from, 0);
     assert_int_equal(s.ply_frames, 30);
     assert_int_equal(s.pc2_frames, 30);
+    iso_dev_rec_reader r; /* the recording is whole: its 30 ticks and its END */
+    assert_int_equal(iso_dev_rec_reader_load(&r, rec, &e), ISO_OK);
+    iso_dev_chunk ch;
+    long rec_ticks = 0;
+    while (iso_dev_rec_next(&r, &ch, NULL) == 1)
+        rec_ticks += ch.type == ISO_DEV_CHUNK_TICK;
+    assert_int_equal(rec_ticks, 30);
+    assert_true(r.ended && !r.torn);
+    iso_dev_rec_reader_deinit(&r);
     assert_true(s.mcap_messages >= 30 * 4);
     assert_int_equal(s.frames_dropped, 0); /* --fast waits for the writer instead */
     /* the tick's side of the outputs was timed on every tick that wrote */
