@@ -42,6 +42,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "child_stderr.h"
 #include "iso_dev.h"
 #include "ws_client.h"
 
@@ -61,41 +62,7 @@ static void sleep_until(double t)
     nanosleep(&ts, NULL);
 }
 
-/* The child's stderr, kept for the view's address and for a failure. */
-static struct {
-    int fd;
-    pthread_mutex_t mu;
-    char text[1 << 18];
-    size_t len;
-} g_err = {.mu = PTHREAD_MUTEX_INITIALIZER};
-
-static void *read_stderr(void *arg)
-{
-    (void)arg;
-    char buf[4096];
-    ssize_t n;
-    while ((n = read(g_err.fd, buf, sizeof buf)) > 0) {
-        pthread_mutex_lock(&g_err.mu);
-        size_t k = (size_t)n < sizeof g_err.text - 1 - g_err.len
-                       ? (size_t)n
-                       : sizeof g_err.text - 1 - g_err.len;
-        memcpy(g_err.text + g_err.len, buf, k);
-        g_err.len += k;
-        g_err.text[g_err.len] = 0;
-        pthread_mutex_unlock(&g_err.mu);
-    }
-    return NULL;
-}
-
-static int port_from_stderr(void)
-{
-    const char *key = "live view on http://127.0.0.1:";
-    pthread_mutex_lock(&g_err.mu);
-    const char *at = strstr(g_err.text, key);
-    int port = at && strchr(at, '\n') ? atoi(at + strlen(key)) : -1;
-    pthread_mutex_unlock(&g_err.mu);
-    return port;
-}
+static child_stderr g_err; /* the run's stderr */
 
 /* The number after the first "key": at or after the first `object` key
  * (NULL: the start), NaN when there is none. */
@@ -316,15 +283,13 @@ int main(int argc, char **argv)
         _exit(127);
     }
     close(err[1]);
-    g_err.fd = err[0];
-    pthread_t th;
-    pthread_create(&th, NULL, read_stderr, NULL);
+    child_stderr_start(&g_err, err[0]);
     double last[6] = {0}, diag = NAN, c[3] = {0, 0, 0};
     int dragged = 0;
     if (view) {
         int port = -1;
         for (double t = now_s(); port < 0 && now_s() < t + 120; sleep_until(now_s() + 0.02))
-            port = port_from_stderr();
+            port = child_stderr_port(&g_err);
         if (port < 0 || drag(port, P, &diag, c, last) != 0) {
             fprintf(stderr, "drag_bench: no live view, or it refused the page:\n%s\n", g_err.text);
             kill(pid, SIGKILL);
@@ -336,7 +301,7 @@ int main(int argc, char **argv)
     }
     int status = 0;
     waitpid(pid, &status, 0);
-    pthread_join(th, NULL);
+    child_stderr_join(&g_err);
     char *j = read_all(stats);
     unlink(scene);
     unlink(stats);

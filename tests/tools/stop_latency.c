@@ -35,6 +35,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "child_stderr.h"
 #include "iso_dev.h"
 #include "ws_client.h"
 
@@ -71,42 +72,7 @@ static void quantiles(const char *what, double *v, int n)
            v[(n * 9) / 10 < n ? (n * 9) / 10 : n - 1], v[n - 1], n);
 }
 
-/* The run's stderr, kept whole, read on a thread so that it never fills. */
-static struct {
-    int fd;
-    pthread_mutex_t mu;
-    char text[1 << 20];
-    size_t len;
-} g_err = {.mu = PTHREAD_MUTEX_INITIALIZER};
-
-static void *read_stderr(void *arg)
-{
-    (void)arg;
-    char buf[4096];
-    for (;;) {
-        ssize_t n = read(g_err.fd, buf, sizeof buf);
-        if (n <= 0)
-            return NULL;
-        pthread_mutex_lock(&g_err.mu);
-        size_t k = (size_t)n < sizeof g_err.text - 1 - g_err.len
-                       ? (size_t)n
-                       : sizeof g_err.text - 1 - g_err.len;
-        memcpy(g_err.text + g_err.len, buf, k);
-        g_err.len += k;
-        g_err.text[g_err.len] = 0;
-        pthread_mutex_unlock(&g_err.mu);
-    }
-}
-
-static int port_from_stderr(void)
-{
-    const char *key = "live view on http://127.0.0.1:";
-    pthread_mutex_lock(&g_err.mu);
-    const char *at = strstr(g_err.text, key);
-    int port = at && strchr(at, '\n') ? atoi(at + strlen(key)) : -1;
-    pthread_mutex_unlock(&g_err.mu);
-    return port;
-}
+static child_stderr g_err; /* the run's stderr */
 
 /* A Foxglove client that subscribes to every channel it is advertised. */
 static int subscriber(int port, const char *host)
@@ -251,12 +217,10 @@ int main(int argc, char **argv)
         _exit(127);
     }
     close(err[1]);
-    g_err.fd = err[0];
-    pthread_t th;
-    pthread_create(&th, NULL, read_stderr, NULL);
+    child_stderr_start(&g_err, err[0]);
     int port = -1;
     for (double t = now_s(); port < 0 && now_s() < t + 120; nap_ms(20))
-        port = port_from_stderr();
+        port = child_stderr_port(&g_err);
     if (port < 0) {
         fprintf(stderr, "stop_latency: no live view address:\n%s\n", g_err.text);
         kill(pid, SIGKILL);
@@ -310,7 +274,7 @@ int main(int argc, char **argv)
     shutdown(page.fd, SHUT_RDWR);
     pthread_join(page.th, NULL);
     close(page.fd);
-    pthread_join(th, NULL);
+    child_stderr_join(&g_err);
     unlink(scene);
     double safe[MAX_STOPS];
     int n_safe = safe_figures(safe, MAX_STOPS);
