@@ -6,9 +6,11 @@
 #ifndef ISO_TOOLS_CHILD_STDERR_H
 #define ISO_TOOLS_CHILD_STDERR_H
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/types.h>
 #include <unistd.h>
 
 typedef struct child_stderr {
@@ -43,6 +45,31 @@ static inline void child_stderr_start(child_stderr *c, int fd)
     c->text[0] = 0;
     pthread_mutex_init(&c->mu, NULL);
     pthread_create(&c->th, NULL, child_stderr_main, c);
+}
+
+/* Starts argv[0] with argv, its stdin and stdout /dev/null and its stderr
+ * read into c; the child's pid, or -1. */
+static inline pid_t child_stderr_run(char *const argv[], child_stderr *c)
+{
+    int err[2];
+    if (pipe(err) != 0)
+        return -1;
+    pid_t pid = fork();
+    if (pid == 0) {
+        dup2(err[1], 2);
+        int nul = open("/dev/null", O_RDWR);
+        dup2(nul, 0);
+        dup2(nul, 1);
+        execv(argv[0], argv);
+        _exit(127);
+    }
+    close(err[1]);
+    if (pid < 0) {
+        close(err[0]);
+        return -1;
+    }
+    child_stderr_start(c, err[0]);
+    return pid;
 }
 
 /* Waits for the child's end of the pipe to close (the child exited). */

@@ -255,35 +255,26 @@ int main(int argc, char **argv)
         return 1;
     }
     close(jfd);
-    int err[2];
-    if (pipe(err) != 0)
+    char *args[16];
+    int a = 0;
+    args[a++] = (char *)bin;
+    args[a++] = "run";
+    args[a++] = scene;
+    args[a++] = "--port";
+    args[a++] = "0";
+    args[a++] = "--stats-json";
+    args[a++] = stats;
+    args[a++] = view ? "--duration" : "--exit-at-end";
+    if (view)
+        args[a++] = "60";
+    if (!rt)
+        args[a++] = "--no-rt";
+    args[a] = NULL;
+    pid_t pid = child_stderr_run(args, &g_err);
+    if (pid < 0) {
+        perror("drag_bench: the run");
         return 1;
-    pid_t pid = fork();
-    if (pid == 0) {
-        dup2(err[1], 2);
-        int nul = open("/dev/null", O_RDWR);
-        dup2(nul, 0);
-        dup2(nul, 1);
-        char *args[16];
-        int a = 0;
-        args[a++] = (char *)bin;
-        args[a++] = "run";
-        args[a++] = scene;
-        args[a++] = "--port";
-        args[a++] = "0";
-        args[a++] = "--stats-json";
-        args[a++] = stats;
-        args[a++] = view ? "--duration" : "--exit-at-end";
-        if (view)
-            args[a++] = "60";
-        if (!rt)
-            args[a++] = "--no-rt";
-        args[a] = NULL;
-        execv(bin, args);
-        _exit(127);
     }
-    close(err[1]);
-    child_stderr_start(&g_err, err[0]);
     double last[6] = {0}, diag = NAN, c[3] = {0, 0, 0};
     int dragged = 0;
     if (view) {

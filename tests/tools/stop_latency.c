@@ -10,7 +10,8 @@
  * command runs when permitted; else --no-rt); connects SUBSCRIBERS (default 4)
  * Foxglove clients that subscribe to every channel and read without pause,
  * a page, and a second page that only watches. The page then presses STOP
- * STOPS times (default 20), 300 ms apart, each released before the next,
+ * STOPS times (default 20), 300 ms apart, each released 300 ms later (a
+ * stop is held at least ISO_DISPLAY_UNSTOP_MIN_MS) before the next,
  * and prints, for the STOPs:
  *   - send -> the page's control message saying "stop": when the server
  *     had read and handed the STOP on (an upper bound of its part: the
@@ -201,23 +202,13 @@ int main(int argc, char **argv)
             "      - {channel: 0, region: top, axis: z, min: -10, max: 10, scale: 100}\n",
             res);
     fclose(f);
-    int err[2];
-    if (pipe(err) != 0)
+    char *args[] = {
+        argv[1], "run", scene, "--port", "0", "--duration", "600", rt ? NULL : "--no-rt", NULL};
+    pid_t pid = child_stderr_run(args, &g_err);
+    if (pid < 0) {
+        perror("stop_latency: the run");
         return 1;
-    pid_t pid = fork();
-    if (pid == 0) {
-        dup2(err[1], 2);
-        int nul = open("/dev/null", O_RDWR);
-        dup2(nul, 0);
-        dup2(nul, 1);
-        if (rt)
-            execl(argv[1], argv[1], "run", scene, "--port", "0", "--duration", "600", (char *)NULL);
-        execl(argv[1], argv[1], "run", scene, "--no-rt", "--port", "0", "--duration", "600",
-              (char *)NULL);
-        _exit(127);
     }
-    close(err[1]);
-    child_stderr_start(&g_err, err[0]);
     int port = -1;
     for (double t = now_s(); port < 0 && now_s() < t + 120; nap_ms(20))
         port = child_stderr_port(&g_err);
@@ -256,7 +247,7 @@ int main(int argc, char **argv)
         double a = wait_control(&page, 1, t0);
         if (a >= 0)
             ack[n_ack++] = a * 1e3;
-        nap_ms(150);
+        nap_ms(300); /* a stop is not released within ISO_DISPLAY_UNSTOP_MIN_MS */
         command(page.fd, ISO_DEV_VIEW_UNSTOP, (uint32_t)(2 * k + 2));
         (void)wait_control(&page, 0, now_s());
     }
