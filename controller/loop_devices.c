@@ -215,20 +215,27 @@ static void advance_pose(iso_pose *g, const iso_twist *xi, double dt)
     *g = n;
 }
 
-static int toggle_recording(iso_loop *l, iso_err *err)
+/* The record button. A recording that cannot start or end cleanly (a FIFO
+ * with no reader, a full disk) is said, and the run goes on: the button
+ * never stops the loop. */
+static void toggle_recording(iso_loop *l)
 {
     const char *rec = l->o.record ? l->o.record : l->sc->recording;
-    int rc = ISO_OK;
+    iso_err e;
+    iso_err_clear(&e);
     if (l->recording) {
-        rc = iso_dev_hub_record_stop(l->hub, err);
         l->recording = 0;
-        iso_loop_say(l, "recording stopped");
+        if (iso_dev_hub_record_stop(l->hub, &e) != ISO_OK)
+            iso_loop_say(l, "recording stopped: %s", e.msg);
+        else
+            iso_loop_say(l, "recording stopped");
     } else if (rec[0]) {
-        rc = iso_dev_hub_record_start(l->hub, rec, err);
-        l->recording = rc == ISO_OK;
-        iso_loop_say(l, "recording to %s", rec);
+        l->recording = iso_dev_hub_record_start(l->hub, rec, &e) == ISO_OK;
+        if (l->recording)
+            iso_loop_say(l, "recording to %s", rec);
+        else
+            iso_loop_say(l, "not recording: %s", e.msg);
     }
-    return rc;
 }
 
 /* One device tick over (l->t_now, t]: drain, map with the commanded poses,
@@ -258,9 +265,8 @@ int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, i
         l->damaged_seen = l->reader.damaged;
     }
     say_far(l);
-    if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay &&
-        (rc = toggle_recording(l, err)) != ISO_OK)
-        return rc;
+    if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay)
+        toggle_recording(l);
     if (cmd.estop != l->last.estop || l->device_ticks == 0)
         iso_loop__sinks_estop(l, cmd.estop); /* at once, before the mesh step */
     if (l->device_ticks > 0 && discontinuity(&cmd, &l->last))

@@ -754,7 +754,7 @@ ISO_API void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n,
  * ISO_DEV_REC_CLOSE_MS for a FIFO's reader that takes nothing (the
  * recording then ends where the reader stopped, and close says so). */
 #define ISO_DEV_REC_QUEUE_BYTES (4u << 20) /* seconds of a noisy line's capped 1 MB/s */
-#define ISO_DEV_REC_CLOSE_MS 2000
+#define ISO_DEV_REC_CLOSE_MS 500           /* within SIGINT's second (docs/realtime.md) */
 
 typedef struct iso_dev_rec_writer {
     struct iso_dev__rec_async *a; /* the queue and its thread; NULL when closed */

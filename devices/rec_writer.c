@@ -55,14 +55,14 @@ struct iso_dev__rec_async {
 
 /* ---- the thread -------------------------------------------------------- */
 
-/* Writes n bytes at the ring's position `from`, waiting for a FIFO's reader
- * with poll (so that closing can give up on one that stalls). 0, or an
+/* Writes n bytes, waiting for a FIFO's reader with poll (so that closing
+ * can give up on one that stalls, at deadline once closing). 0, or an
  * errno value. */
-static int put_bytes(struct iso_dev__rec_async *a, size_t from, size_t n, int64_t deadline)
+static int put_raw(struct iso_dev__rec_async *a, const uint8_t *p, size_t n, int64_t deadline)
 {
     while (n > 0) {
         if (a->fifo) {
-            struct pollfd p = {a->fd, POLLOUT, 0};
+            struct pollfd q = {a->fd, POLLOUT, 0};
             int ms = 50;
             if (atomic_load(&a->closing) && deadline > 0) {
                 int64_t left = (deadline - iso_clock_ns()) / 1000000;
@@ -70,23 +70,37 @@ static int put_bytes(struct iso_dev__rec_async *a, size_t from, size_t n, int64_
                     return ETIMEDOUT;
                 ms = left < ms ? (int)left : ms;
             }
-            if (poll(&p, 1, ms) <= 0)
+            if (poll(&q, 1, ms) <= 0)
                 continue;
         }
-        size_t at = from % a->cap, k = a->cap - at < n ? a->cap - at : n;
-        ssize_t w = write(a->fd, a->ring + at, k);
+        ssize_t w = write(a->fd, p, n);
         if (w < 0 && (errno == EINTR || errno == EAGAIN))
             continue;
         if (w <= 0)
             return w < 0 ? errno : EIO;
-        from += (size_t)w;
+        p += w;
         n -= (size_t)w;
+    }
+    return 0;
+}
+
+/* Writes the ring's bytes [from, from + n), telling the producer the room
+ * each piece frees. */
+static int put_bytes(struct iso_dev__rec_async *a, size_t from, size_t n, int64_t deadline)
+{
+    while (n > 0) {
+        size_t at = from % a->cap, k = a->cap - at < n ? a->cap - at : n;
+        int e = put_raw(a, a->ring + at, k, deadline);
+        if (e != 0)
+            return e;
+        from += k;
+        n -= k;
         atomic_store_explicit(&a->done, from, memory_order_release);
     }
     return 0;
 }
 
-static void finish(struct iso_dev__rec_async *a, int failed, size_t whole)
+static void finish(struct iso_dev__rec_async *a, int failed, size_t whole, int64_t deadline)
 {
     uint8_t end[32];
     iso_dev_chunk c = {.type = ISO_DEV_CHUNK_END};
@@ -95,10 +109,8 @@ static void finish(struct iso_dev__rec_async *a, int failed, size_t whole)
         (void)!ftruncate(a->fd, (off_t)whole);
         (void)lseek(a->fd, (off_t)whole, SEEK_SET);
     }
-    if (!failed || !a->fifo) {
-        ssize_t w = len > 0 ? write(a->fd, end, (size_t)len) : -1;
-        (void)w;
-    }
+    if ((!failed || !a->fifo) && len > 0)
+        (void)put_raw(a, end, (size_t)len, deadline);
     close(a->fd);
     a->fd = -1;
 }
@@ -118,14 +130,14 @@ static void *writer_main(void *arg)
             int e = put_bytes(a, from, to - from, deadline);
             if (e != 0) {
                 atomic_store(&a->failed_errno, e);
-                finish(a, 1, whole);
+                finish(a, 1, whole, deadline);
                 return NULL;
             }
             whole = to;
             continue;
         }
         if (closing) {
-            finish(a, 0, whole);
+            finish(a, 0, whole, deadline);
             return NULL;
         }
         iso_clock_sleep_until(iso_clock_ns() + IDLE_NS);
