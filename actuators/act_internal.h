@@ -135,6 +135,13 @@ int iso_act__gap_since_look(const iso_actuators *a);
 void iso_act__host_callbacks(iso_actuators *a, iso_fb_host_callbacks *cb);
 void *iso_act__sender_main(void *arg);
 
+/* emu_find.c: the emulation's qemu-system-arm ($ISO_FB_QEMU, else PATH)
+ * and firmware ELF ($ISO_FB_FIRMWARE, else next to the program, its
+ * ../share/isoshape/, or where it is installed). Each returns 1 with the
+ * path in out, or 0 with where it looked in why. */
+int iso_act__find_qemu(char *out, size_t cap, char *why, size_t why_cap);
+int iso_act__find_firmware(char *out, size_t cap, char *why, size_t why_cap);
+
 /* 1 when l came from iso_actuators_emu_open(). */
 int iso_act__emu_is(const iso_link *l);
 /* Times the emulation was relaunched after it died; any thread. */
