@@ -319,12 +319,10 @@ static int clutch_from_buttons(const iso_dev_map *m, uint32_t b)
     return 0;
 }
 
-void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
-                      double dt_s, const iso_pose *poses, iso_dev_tick *out)
+/* Phase 1: the tick's events, in order, into each source's state; what
+ * they press goes into out. Returns the GPIO clutch after them. */
+static uint8_t apply_events(iso_dev_map *m, const iso_dev_event *ev, size_t n, iso_dev_tick *out)
 {
-    memset(out, 0, sizeof *out);
-    out->t_ns = now_ns;
-    out->n_handles = m->o.n_handles;
     uint8_t gpio_clutch = m->clutch & 2;
     for (size_t i = 0; i < n; i++) {
         const iso_dev_event *e = &ev[i];
@@ -388,6 +386,13 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
         default: break;
         }
     }
+    return gpio_clutch;
+}
+
+/* Phase 2: the sources together at now_ns: stale streams, buttons, the
+ * e-stop and the clutch, into out. Returns 1 when the handles hold. */
+static int sum_sources(iso_dev_map *m, uint8_t gpio_clutch, int64_t now_ns, iso_dev_tick *out)
+{
     /* Strictly past the stale time: a sample exactly stale_ns old still counts. */
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         iso_dev_map_src *s = &m->src[i];
@@ -413,10 +418,14 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
     out->buttons = buttons;
     out->gone = m->gone;
     int hold = m->o.clutch_is_deadman ? !out->clutch : out->clutch;
-    if (m->estop || hold) {
+    if (m->estop || hold)
         out->targeting = 0;
-        return;
-    }
+    return m->estop || hold;
+}
+
+/* Phase 3: each live source's twist, added to its handle's. */
+static void add_twists(iso_dev_map *m, double dt_s, const iso_pose *poses, iso_dev_tick *out)
+{
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         const iso_dev_map_src *s = &m->src[i];
         if ((m->gone & ((uint32_t)1 << i)) || s->stale)
@@ -451,4 +460,15 @@ void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t
             t->v[k] += x.v[k];
         }
     }
+}
+
+void iso_dev_map_tick(iso_dev_map *m, const iso_dev_event *ev, size_t n, int64_t now_ns,
+                      double dt_s, const iso_pose *poses, iso_dev_tick *out)
+{
+    memset(out, 0, sizeof *out);
+    out->t_ns = now_ns;
+    out->n_handles = m->o.n_handles;
+    uint8_t gpio_clutch = apply_events(m, ev, n, out);
+    if (!sum_sources(m, gpio_clutch, now_ns, out))
+        add_twists(m, dt_s, poses, out);
 }
