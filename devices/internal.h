@@ -8,6 +8,11 @@
 
 #include <string.h>
 
+/* A record's size around its chunk (RECORDING.md): sync, type, source,
+ * len (2) and t (8) before the data, its CRC-32 after. */
+#define ISO_DEV__REC_HEAD 13u
+#define ISO_DEV__REC_MAX (ISO_DEV__REC_HEAD + ISO_DEV_CHUNK_MAX + 4u)
+
 /* A read of n bytes into out->data: n > 0 stamps the chunk with the time
  * base of every live chunk (iso_clock_ns) and returns 1; n <= 0 returns 0,
  * leaving the caller to tell "nothing yet" from an error. */

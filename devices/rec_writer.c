@@ -19,6 +19,7 @@
  * iso_dev_rec_writer_ended says so once, naming the tick, and the caller
  * goes on. */
 #define _GNU_SOURCE /* O_CLOEXEC with _POSIX_C_SOURCE */
+#include "internal.h"
 #include "iso_clock.h"
 #include "iso_dev.h"
 #include "iso_thread.h"
@@ -33,7 +34,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#define REC_MAX (13u + ISO_DEV_CHUNK_MAX + 4u)
 #define IDLE_NS 2000000 /* the thread's nap when there is nothing to write */
 
 enum { CUT_NONE = 0, CUT_FULL = 1, CUT_FAILED = 2 };
@@ -194,6 +194,13 @@ static void cut(struct iso_dev__rec_async *a, int why)
     a->cut_ticks = a->ticks;
 }
 
+/* A write the thread could not make ends the recording too. */
+static void take_failure(struct iso_dev__rec_async *a)
+{
+    if (!a->cut && atomic_load(&a->failed_errno) != 0)
+        cut(a, CUT_FAILED);
+}
+
 static void destroy(struct iso_dev__rec_async *a)
 {
     if (!a)
@@ -253,15 +260,14 @@ int iso_dev_rec_writer_open(iso_dev_rec_writer *w, const char *path, const iso_d
 int iso_dev_rec_write(iso_dev_rec_writer *w, const iso_dev_chunk *c, iso_err *err)
 {
     struct iso_dev__rec_async *a = w->a;
-    uint8_t buf[REC_MAX];
+    uint8_t buf[ISO_DEV__REC_MAX];
     int len = iso_dev_rec_encode_record(buf, sizeof buf, c);
     if (len < 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: a chunk of %u bytes cannot be recorded",
                            w->path, c->len);
     if (!a)
         return iso_err_set(err, ISO_EIO, -1, "%s: the recording is not open", w->path);
-    if (!a->cut && atomic_load(&a->failed_errno) != 0)
-        cut(a, CUT_FAILED);
+    take_failure(a);
     if (a->cut)
         return ISO_OK; /* ended: said by iso_dev_rec_writer_ended */
     if (!append(a, buf, (size_t)len)) {
@@ -289,8 +295,7 @@ int iso_dev_rec_writer_ended(iso_dev_rec_writer *w, char *msg, size_t cap)
     struct iso_dev__rec_async *a = w->a;
     if (!a)
         return 0;
-    if (!a->cut && atomic_load(&a->failed_errno) != 0)
-        cut(a, CUT_FAILED);
+    take_failure(a);
     if (!a->cut || a->said)
         return 0;
     a->said = 1;

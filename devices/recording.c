@@ -5,6 +5,7 @@
  * record cut off at the end stops the replay where the last complete one
  * ended, and a damaged record is skipped by resynchronising on the next
  * sync byte that starts a record whose checksum holds. */
+#include "internal.h"
 #include "iso_crc32.h"
 #include "iso_dev.h"
 #include "iso_file.h"
@@ -16,8 +17,6 @@
 
 #define MAGIC "ISOSHREC"
 #define SYNC 0xA5u
-#define REC_HEAD 13u /* sync, type, source, len (2), t (8) */
-#define REC_MAX (REC_HEAD + ISO_DEV_CHUNK_MAX + 4u)
 
 /* Four bits at a time (iso_crc32_small): the bitwise loop made a 16 MB
  * recording's load check and a noisy device's recording cost 8 shifts a
@@ -277,7 +276,7 @@ static int record_at(const iso_dev_rec_reader *r, size_t off, size_t *rl)
     size_t left = r->len - off;
     if (left < 1 || p[0] != SYNC)
         return 0;
-    if (left < REC_HEAD)
+    if (left < ISO_DEV__REC_HEAD)
         return -1;
     size_t len = (size_t)(p[3] | (unsigned)p[4] << 8);
     int last_type = r->version >= 2 ? ISO_DEV_CHUNK_SKIP : ISO_DEV_CHUNK_TICK;
@@ -286,9 +285,9 @@ static int record_at(const iso_dev_rec_reader *r, size_t off, size_t *rl)
     int sourceless = p[1] == ISO_DEV_CHUNK_TICK || p[1] == ISO_DEV_CHUNK_END;
     if (!sourceless && p[2] >= r->n_sources)
         return 0;
-    if (left < REC_HEAD + len + 4)
+    if (left < ISO_DEV__REC_HEAD + len + 4)
         return -1;
-    size_t body = REC_HEAD + len;
+    size_t body = ISO_DEV__REC_HEAD + len;
     uint32_t crc = (uint32_t)(p[body] | (uint32_t)p[body + 1] << 8 | (uint32_t)p[body + 2] << 16 |
                               (uint32_t)p[body + 3] << 24);
     if (iso_dev_crc32(p, body) != crc)
@@ -358,7 +357,7 @@ int iso_dev_rec_next(iso_dev_rec_reader *r, iso_dev_chunk *c, int *damaged_now)
     for (int i = 0; i < 8; i++)
         t |= (uint64_t)p[5 + i] << (8 * i);
     c->t_ns = (int64_t)t;
-    memcpy(c->data, p + REC_HEAD, c->len);
+    memcpy(c->data, p + ISO_DEV__REC_HEAD, c->len);
     r->pos += rl;
     r->end_at = (long)r->pos;
     r->records++;

@@ -497,17 +497,16 @@ static void after_factorization(iso_solver *s)
  * evaluation factors on its own thread unless PCG fails (the stated
  * fallback, want_reuse). A factor the evaluating thread made after the
  * job was given is younger than the worker's, which is then not taken. */
-/* Takes the worker's job back now (waiting for it if need be), given
- * `given` evaluations ago; with `take`, its factor replaces the one in use,
- * at that age. */
-static int worker_take_back(iso_solver *s, int take, int given, iso_err *err)
+static int worker_take(iso_solver *s, iso_err *err)
 {
+    if (s->w_left == 0 || --s->w_left > 0)
+        return ISO_OK;
+    int lag = s->o.worker_lag, take = !s->have_factor || s->factor_age > lag;
     double t0 = iso_clock_now(), busy = 0;
     int status = 0;
     long minor = 0;
     int ok =
         iso_solver__worker_finish(s->w, take ? &s->L : NULL, &s->frame, &status, &minor, &busy);
-    s->w_left = 0;
     s->st.t_wait += iso_clock_now() - t0;
     s->st.t_worker += busy;
     if (!take)
@@ -517,21 +516,13 @@ static int worker_take_back(iso_solver *s, int take, int given, iso_err *err)
     if (rc != ISO_OK)
         return rc;
     s->have_factor = 1;
-    s->factor_age = given;
+    s->factor_age = lag;
     s->st.handovers++;
     double *t = s->x_factor; /* the job's positions are the factor's now */
     s->x_factor = s->x_job;
     s->x_job = t;
     s->have_x_factor = 1;
     return ISO_OK;
-}
-
-static int worker_take(iso_solver *s, iso_err *err)
-{
-    if (s->w_left == 0 || --s->w_left > 0)
-        return ISO_OK;
-    int lag = s->o.worker_lag;
-    return worker_take_back(s, !s->have_factor || s->factor_age > lag, lag, err);
 }
 
 /* The positions k evaluations after this one, by the polynomial through
