@@ -19,6 +19,9 @@
  *              bumpplane, on the reduced model solver.proxy auto chooses)
  *     RESTORE  on (mu 1, tau 0.5 s, as the shipped scenes) or off
  *     rt       the run at real-time priority where permitted (else --no-rt)
+ *     record=FILE  the run's devices recorded to FILE, so that the same
+ *              drag replays at --fast (a preconditioner or a step rule
+ *              compared on the very motion a person made)
  *
  * The scene is the shipped view_cactus.yaml's: PEC, worker_lag 4, the live
  * view, and the actuators behind the emulated MCU (the real firmware in
@@ -240,11 +243,18 @@ int main(int argc, char **argv)
 {
     if (argc < 5) {
         fprintf(stderr, "usage: drag_bench ISOSHAPE view-person|view-fast|FILE.isorec "
-                        "cactus|plane on|off [rt]\n");
+                        "cactus|plane on|off [rt] [record=FILE]\n");
         return 2;
     }
     const char *bin = argv[1], *source = argv[2], *mesh = argv[3];
-    int restore = strcmp(argv[4], "on") == 0, rt = argc > 5 && strcmp(argv[5], "rt") == 0;
+    int restore = strcmp(argv[4], "on") == 0, rt = 0;
+    const char *record = NULL;
+    for (int i = 5; i < argc; i++) {
+        if (strcmp(argv[i], "rt") == 0)
+            rt = 1;
+        else if (strncmp(argv[i], "record=", 7) == 0)
+            record = argv[i] + 7;
+    }
     int view = strncmp(source, "view-", 5) == 0;
     const profile *P = strcmp(source, "view-fast") == 0 ? &FAST : &PERSON;
     signal(SIGPIPE, SIG_IGN);
@@ -269,6 +279,10 @@ int main(int argc, char **argv)
         args[a++] = "60";
     if (!rt)
         args[a++] = "--no-rt";
+    if (record) {
+        args[a++] = "--record";
+        args[a++] = (char *)record;
+    }
     args[a] = NULL;
     pid_t pid = child_stderr_run(args, &g_err);
     if (pid < 0) {
