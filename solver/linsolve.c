@@ -231,16 +231,8 @@ static int direct_solve(iso_solver *s, iso_err *err)
     return rc;
 }
 
-static double dot(const double *a, const double *b, int n)
-{
-    double acc = 0;
-    for (int i = 0; i < n; i++)
-        acc += a[i] * b[i];
-    return acc;
-}
-
 /* y = A x with A stored as its upper triangle. */
-static int matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *err)
+int iso_solver__matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *err)
 {
     double one[2] = {1, 0}, zero[2] = {0, 0};
     if (!cholmod_sdmult(s->A, 0, one, zero, x, y, &s->c))
@@ -254,6 +246,12 @@ static int ensure_work(iso_solver *s, iso_err *err)
     for (int i = 0; i < n; i++)
         if (!s->work[i] &&
             !(s->work[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c)))
+            return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
+    for (int i = 0; i < ISO_SOLVER__HIST; i++)
+        if ((!s->hist[i] &&
+             !(s->hist[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c))) ||
+            (!s->ahist[i] &&
+             !(s->ahist[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c))))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
     return ISO_OK;
 }
@@ -353,13 +351,14 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
     const double *b = s->B->x;
     *iters = 0;
     *capped = 0;
-    if ((rc = matvec(s, s->X, AP, err)) != ISO_OK)
+    if ((rc = iso_solver__matvec(s, s->X, AP, err)) != ISO_OK ||
+        (rc = iso_solver__warm_start(s, s->X, AP, err)) != ISO_OK)
         return rc;
     for (int i = 0; i < n; i++)
         r[i] = b[i] - ap[i];
-    double bnorm = sqrt(dot(b, b, n)), scale = bnorm > 0 ? bnorm : 1.0;
+    double bnorm = sqrt(iso_solver__dot(b, b, n)), scale = bnorm > 0 ? bnorm : 1.0;
     cg_goal g = {s->o.cg_tol * scale, s->cg_target, 0, ISO_SOLVER_BOUNDED_RES * scale};
-    double rnorm = sqrt(dot(r, r, n)), prev = rnorm, r0norm = rnorm;
+    double rnorm = sqrt(iso_solver__dot(r, r, n)), prev = rnorm, r0norm = rnorm;
     s->last_res = rnorm / scale;
     if (rnorm <= g.res_target)
         return 1;
@@ -370,12 +369,12 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
     if (reached_z(s, &g, z, 0))
         return 1;
     memcpy(p, z, (size_t)n * sizeof(double));
-    double rz = dot(r, z, n);
+    double rz = iso_solver__dot(r, z, n);
     int slow = 0;
     while (*iters < cap) {
-        if ((rc = matvec(s, P, AP, err)) != ISO_OK)
+        if ((rc = iso_solver__matvec(s, P, AP, err)) != ISO_OK)
             return rc;
-        double pap = dot(p, ap, n);
+        double pap = iso_solver__dot(p, ap, n);
         if (!(pap > 0) || !(rz > 0))
             return 0;
         double alpha = rz / pap;
@@ -385,7 +384,7 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
         }
         ++*iters;
         iso_solver__progress(s);
-        rnorm = sqrt(dot(r, r, n));
+        rnorm = sqrt(iso_solver__dot(r, r, n));
         s->last_res = rnorm / scale;
         if (rnorm <= g.res_target)
             return 1;
@@ -403,7 +402,7 @@ static int pcg(iso_solver *s, int *iters, int *capped, iso_err *err)
             return 1;
         if (g.z_target > 0 && hopeless(s, &g, r0norm, rnorm, z, *iters, cap))
             return *capped = 1, 0;
-        double rz_new = dot(r, z, n);
+        double rz_new = iso_solver__dot(r, z, n);
         double beta = rz_new / rz;
         rz = rz_new;
         for (int i = 0; i < n; i++)
@@ -664,6 +663,8 @@ int iso_solver__linsolve(iso_solver *s, iso_err *err)
         rc = solve(s, err);
     if (rc == ISO_OK && s->w)
         rc = worker_give(s, err);
+    if (rc == ISO_OK)
+        iso_solver__warm_remember(s);
     remember_positions(s);
     return rc;
 }

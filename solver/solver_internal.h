@@ -65,6 +65,7 @@ static inline void iso_solver__edge_layout(const iso_solver__element *e, int map
 }
 
 #define ISO_SOLVER__WORK 5
+#define ISO_SOLVER__HIST 2 /* past solutions PCG's start is projected on (warmstart.c) */
 
 struct iso_solver {
     const iso_mesh *m;
@@ -87,11 +88,14 @@ struct iso_solver {
     double *super_work; /* iso_solver__super_solve's, when L is supernodal; else NULL */
     struct iso_solver__super_plan *super_plan; /* the solves' two halves, or NULL */
     int super_plan_made;
-    cholmod_dense *work[ISO_SOLVER__WORK]; /* PCG: residual, preconditioned residual,
-                                              direction, A·direction, rotated residual */
-    int have_factor;                       /* L holds a numeric factor of some earlier A */
-    double factor_flops;                   /* CHOLMOD's Common->fl after analysis */
-    struct iso_solver__cpu_plan *cpu;      /* C path's plans (assemble_cpu.c), made at first use */
+    cholmod_dense *work[ISO_SOLVER__WORK];  /* PCG: residual, preconditioned residual,
+                                               direction, A·direction, rotated residual */
+    cholmod_dense *hist[ISO_SOLVER__HIST];  /* the last solutions' free parts, newest first */
+    cholmod_dense *ahist[ISO_SOLVER__HIST]; /* A times each, this evaluation's A */
+    int n_hist;                             /* of hist, those that hold a solution */
+    int have_factor;                        /* L holds a numeric factor of some earlier A */
+    double factor_flops;                    /* CHOLMOD's Common->fl after analysis */
+    struct iso_solver__cpu_plan *cpu;       /* C path's plans (assemble_cpu.c), made at first use */
     int cpu_split_edges; /* interior edges from which the C path runs in two halves */
     int cpu_helper;      /* the two halves may run on a helper thread (else both here) */
     int last_cg_iters;   /* iterations of the previous PCG solve, −1 after a direct one */
@@ -169,6 +173,26 @@ void iso_solver__threads_end(iso_solver *s);
  * (adaptive refactor) PCG preconditioned by the cached factor. Accumulates
  * t_factor / t_solve and the factor statistics. */
 int iso_solver__linsolve(iso_solver *s, iso_err *err);
+
+/* aᵀb over n entries, summed in order (the bits of a replay depend on it). */
+static inline double iso_solver__dot(const double *a, const double *b, int n)
+{
+    double acc = 0;
+    for (int i = 0; i < n; i++)
+        acc += a[i] * b[i];
+    return acc;
+}
+
+/* y = A x with A's current values (its upper triangle, as stored). */
+int iso_solver__matvec(iso_solver *s, cholmod_dense *x, cholmod_dense *y, iso_err *err);
+
+/* PCG's start (warmstart.c): X (the caller's guess) and AX = A X are
+ * replaced by the combination of the guess and the remembered solutions
+ * that is closest to the solution in A's norm, and A times it. remember:
+ * the solution in s->X joins the history (a no-op until PCG's vectors
+ * exist). */
+int iso_solver__warm_start(iso_solver *s, cholmod_dense *X, cholmod_dense *AX, iso_err *err);
+void iso_solver__warm_remember(iso_solver *s);
 
 /* Factors s->A as it is, with its frame at s->x_now (iso_solver_factor_at). */
 int iso_solver__factor_now(iso_solver *s, iso_err *err);

@@ -797,54 +797,107 @@ static void factor_at_serves_the_first_evaluation(void **state)
     bumpy_deinit(&bp);
 }
 
-/* iso_solver_field_from: PCG starts from the guess. Started from the exact
- * solution (an always-refactor solver's field at the same point) it needs
- * no iteration; started from zero it needs more than from the previous
- * solution; every start meets the tolerance (1e-7 of the field, as above).
- * With the plain factor: the rotated one preconditions this small turn so
- * well that zero and the previous solution both take 4 iterations. */
+/* An adaptive solver that has factored at the bumpy mesh's rest and
+ * computed its field v there (no PCG yet, so it remembers no solution:
+ * warmstart.c), and x moved along v by `move`: the next solve's point. */
+static iso_solver *one_step_solver(const bumpy *bp, iso_solver_opts o, double move, double *x,
+                                   double *v)
+{
+    iso_solver *always = NULL, *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    create_pair(bp, o, &always, &s);
+    iso_solver_destroy(always);
+    int n = 3 * bp->fm.nv;
+    memcpy(x, bp->fm.x, sizeof(double) * (size_t)n);
+    assert_int_equal(iso_solver_field(s, x, bp->vc, v, &err), ISO_OK); /* factors */
+    for (int i = 0; i < n; i++)
+        x[i] += move * v[i];
+    return s;
+}
+
+/* The field at x by a fresh factorization (the reference). */
+static void reference_field(const bumpy *bp, iso_solver_opts o, const double *x, double *ref)
+{
+    iso_solver *s = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    o.refactor = ISO_REFACTOR_ALWAYS;
+    if (iso_solver_create(bp->m, &bp->r, &o, &s, &err) != ISO_OK)
+        fail_msg("iso_solver_create (always): %s", err.msg);
+    assert_int_equal(iso_solver_field(s, x, bp->vc, ref, &err), ISO_OK);
+    iso_solver_destroy(s);
+}
+
+/* PCG's iterations for one solve from guess, and that the cached factor
+ * served it within 1e-7 of the reference's largest entry. */
+static long solve_counting(iso_solver *s, const bumpy *bp, const double *x, const double *guess,
+                           double *v, const double *ref, double top)
+{
+    iso_solver_stats a, c;
+    iso_err err;
+    iso_err_clear(&err);
+    int n = 3 * bp->fm.nv;
+    iso_solver_get_stats(s, &a);
+    assert_int_equal(iso_solver_field_from(s, x, bp->vc, guess, v, &err), ISO_OK);
+    iso_solver_get_stats(s, &c);
+    assert_int_equal(c.factorizations, a.factorizations); /* the cached factor served */
+    assert_true(iso_test_max_abs_diff(v, ref, (size_t)n) <= 1e-7 * top);
+    return c.cg_iterations - a.cg_iterations;
+}
+
+/* iso_solver_field_from: PCG starts from the guess, or from a better
+ * combination of it with the solutions the solver remembers
+ * (warmstart.c). With no solution remembered: from the exact solution no
+ * iteration, from zero more than from the previous solution. Once it has
+ * solved this very system, the projection finds that solution again from
+ * any guess, zero or a thousand times the field turned around: no
+ * iteration; nor from the exact solution scaled by −100, whose scale the
+ * projection takes away. With the plain factor: the rotated one preconditions this
+ * small turn so well that zero and the previous solution both take 4. */
 static void guess_is_where_cg_starts(void **state)
 {
     (void)state;
     bumpy bp;
     bumpy_init(&bp);
     int n = 3 * bp.fm.nv;
-    double *x = malloc(sizeof(double) * (size_t)n);
+    double *x = malloc(sizeof(double) * (size_t)n), *far = malloc(sizeof(double) * (size_t)n);
     double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
     double *zero = calloc((size_t)n, sizeof(double));
-    assert_true(x && ref && v && zero);
+    assert_true(x && far && ref && v && zero);
     iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
-    iso_solver *always = NULL, *s = NULL;
-    iso_err err;
-    iso_err_clear(&err);
-    o.preconditioner = ISO_PRECOND_PLAIN; /* the reference factors: no PCG to precondition */
-    create_pair(&bp, o, &always, &s);
-    memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
-    assert_int_equal(iso_solver_field(s, x, bp.vc, v, &err), ISO_OK); /* factors */
-    for (int i = 0; i < n; i++)
-        x[i] += 0.02 * v[i];
-    assert_int_equal(iso_solver_field(always, x, bp.vc, ref, &err), ISO_OK);
-    double top = iso_test_max_abs(ref, (size_t)n);
-    /* the previous solution first: it is the one at the point before */
-    const double *starts[3] = {NULL, zero, ref};
-    long iters[3];
-    for (int k = 0; k < 3; k++) {
-        iso_solver_stats a, c;
-        iso_solver_get_stats(s, &a);
-        assert_int_equal(iso_solver_field_from(s, x, bp.vc, starts[k], v, &err), ISO_OK);
-        iso_solver_get_stats(s, &c);
-        iters[k] = c.cg_iterations - a.cg_iterations;
-        assert_int_equal(c.factorizations, a.factorizations); /* the cached factor served */
-        assert_true(iso_test_max_abs_diff(v, ref, (size_t)n) <= 1e-7 * top);
+    o.preconditioner = ISO_PRECOND_PLAIN;
+    /* the previous solution first: it is the one at the point before; the
+     * last, the exact solution scaled by −100 (the start's own scale is
+     * projected away) */
+    const double *starts[4] = {NULL, zero, ref, far};
+    long iters[4];
+    for (int k = 0; k < 4; k++) {
+        iso_solver *s = one_step_solver(&bp, o, 0.02, x, v);
+        if (k == 0)
+            reference_field(&bp, o, x, ref);
+        double top = iso_test_max_abs(ref, (size_t)n);
+        if (k == 3)
+            for (int i = 0; i < n; i++)
+                far[i] = -100 * ref[i];
+        iters[k] = solve_counting(s, &bp, x, starts[k], v, ref, top);
+        if (k == 0) { /* the same system again: the remembered solution is found */
+            for (int i = 0; i < n; i++)
+                far[i] = -1e3 * ref[i] + (double)(i % 7) * top;
+            assert_int_equal(solve_counting(s, &bp, x, zero, v, ref, top), 0);
+            assert_int_equal(solve_counting(s, &bp, x, far, v, ref, top), 0);
+        }
+        iso_solver_destroy(s);
     }
-    printf("CG iterations from the previous solution %ld, zero %ld, the exact solution %ld\n",
-           iters[0], iters[1], iters[2]);
+    printf("CG iterations from the previous solution %ld, zero %ld, the exact solution %ld, "
+           "-100 times it %ld\n",
+           iters[0], iters[1], iters[2], iters[3]);
     assert_true(iters[0] > 0);
     assert_true(iters[1] > iters[0]);
     assert_int_equal(iters[2], 0);
-    iso_solver_destroy(always);
-    iso_solver_destroy(s);
+    assert_int_equal(iters[3], 0);
     free(x);
+    free(far);
     free(ref);
     free(v);
     free(zero);
@@ -856,7 +909,7 @@ static void guess_is_where_cg_starts(void **state)
  * direct solve is within the target too; a tighter target costs more
  * iterations, and target 0 goes back to cg_tol. Each solve starts from the
  * same guess (the field at the point before), with the factor of that
- * point. */
+ * point, on a solver that remembers no other solution. */
 static void cg_target_bounds_the_error(void **state)
 {
     (void)state;
@@ -867,20 +920,17 @@ static void cg_target_bounds_the_error(void **state)
     double *ref = malloc(sizeof(double) * (size_t)n), *v = malloc(sizeof(double) * (size_t)n);
     assert_true(x && v0 && ref && v);
     iso_solver_opts o = make_opts(1.0 / 3.0, ISO_WEIGHT_PARAM);
-    iso_solver *always = NULL, *s = NULL;
     iso_err err;
     iso_err_clear(&err);
     o.cg_max_iter = 100; /* the reference factors: no PCG to cap */
-    create_pair(&bp, o, &always, &s);
-    memcpy(x, bp.fm.x, sizeof(double) * (size_t)n);
-    assert_int_equal(iso_solver_field(s, x, bp.vc, v0, &err), ISO_OK); /* factors */
-    for (int i = 0; i < n; i++)
-        x[i] += 0.05 * v0[i];
-    assert_int_equal(iso_solver_field(always, x, bp.vc, ref, &err), ISO_OK);
-    double top = iso_test_max_abs(ref, (size_t)n), start = iso_test_vertex_max_diff(v0, ref, nv);
     static const double share[4] = {1e-2, 1e-4, 1e-7, 0};
     long iters[4];
     for (int k = 0; k < 4; k++) {
+        iso_solver *s = one_step_solver(&bp, o, 0.05, x, v0);
+        if (k == 0)
+            reference_field(&bp, o, x, ref);
+        double top = iso_test_max_abs(ref, (size_t)n),
+               start = iso_test_vertex_max_diff(v0, ref, nv);
         iso_solver_stats a, c;
         iso_solver_get_stats(s, &a);
         iso_solver_set_cg_target(s, share[k] * top);
@@ -896,10 +946,9 @@ static void cg_target_bounds_the_error(void **state)
             assert_true(e <= share[k] * top);
         else
             assert_true(e <= 1e-7 * top); /* cg_tol 1e-10, as the tests above */
+        iso_solver_destroy(s);
     }
     assert_true(iters[0] <= iters[1] && iters[1] < iters[2]);
-    iso_solver_destroy(always);
-    iso_solver_destroy(s);
     free(x);
     free(v0);
     free(ref);
