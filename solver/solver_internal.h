@@ -65,7 +65,7 @@ static inline void iso_solver__edge_layout(const iso_solver__element *e, int map
 }
 
 #define ISO_SOLVER__WORK 5
-#define ISO_SOLVER__HIST 2 /* past solutions PCG's start is projected on (warmstart.c) */
+#define ISO_SOLVER__HIST 8 /* past solutions PCG's start is projected on (warmstart.c) */
 
 struct iso_solver {
     const iso_mesh *m;

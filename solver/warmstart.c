@@ -1,5 +1,6 @@
 /* solver/warmstart.c -- where PCG starts: the best combination, in A's
- * energy norm, of the caller's guess and the last two solutions.
+ * energy norm, of the caller's guess and the last ISO_SOLVER__HIST (8)
+ * solutions.
  *
  * Why: under a person's drag the handles' velocity jumps from tick to tick
  * (a page's targets every 25 ms, a mouse's jabs), and the integrator's
@@ -8,13 +9,17 @@
  * 100 times ‖b‖, far worse than starting from zero, and PCG with a stale
  * factor then failed and the evaluation factored on its own thread
  * (docs/performance.md, "Under a person's hand"). The Galerkin projection
- * of the solution onto W = [guess, x₋₁, x₋₂],
+ * of the solution onto W = [guess, x₋₁, …, x₋₈],
  *     x₀ = W c,   (Wᵀ A W) c = Wᵀ b,
  * is the start in that span whose error is smallest in the A-norm, the norm
  * PCG minimises; zero is in the span, so it is never worse than starting
- * from zero or from the guess. It costs two products with A (A·guess is
- * PCG's first product anyway) and a 3×3 solve, and depends on nothing
- * but the evaluation's own numbers, so replays keep their bits.
+ * from zero or from the guess. It costs eight products with A (A·guess
+ * is PCG's first product anyway) and a 9×9 solve, and depends on nothing
+ * but the evaluation's own numbers, so replays keep their bits. Eight:
+ * on the recorded drags and the README's demo 2, 3, 4, 6, 8 and 12
+ * solutions left 17, 15, 16, 15, 12 and 9 factorizations on the tick of
+ * a page drag, and the demo's median tick was lowest at 8
+ * (docs/performance.md).
  *
  * Before any solution is remembered the span is the guess alone: its scale
  * is still projected (a start twice too large costs nothing).
@@ -28,41 +33,44 @@
 
 /* Directions whose pivot falls below this share of their own energy are
  * dependent on those before them (the guess is mostly a combination of the
- * history on a smooth path) and are left out of the start. */
-#define WARM_PIVOT_REL 1e-10
+ * history on a smooth path) and are left out of the start, which bounds
+ * the coefficients' cancellation, and so the rounding of the start and of
+ * its product with A, to about 1e4 ε. */
+#define WARM_PIVOT_REL 1e-8
+#define WARM_K (1 + ISO_SOLVER__HIST) /* the guess and the history */
 
-/* Solves the k×k SPD system G c = g (row-major, leading dimension 3) by
+/* Solves the k×k SPD system G c = g (row-major, leading dimension WARM_K) by
  * Cholesky, giving c = 0 to every direction whose pivot is dependent. */
 static void small_solve(const double *G, const double *g, int k, double *c)
 {
-    double L[9] = {0}, y[3] = {0};
-    int use[3] = {0, 0, 0};
+    double L[WARM_K * WARM_K] = {0}, y[WARM_K] = {0};
+    int use[WARM_K] = {0};
     for (int a = 0; a < k; a++) {
-        double d = G[4 * a];
+        double d = G[(WARM_K + 1) * a];
         for (int q = 0; q < a; q++)
-            d -= use[q] ? L[3 * a + q] * L[3 * a + q] : 0;
-        if (!(G[4 * a] > 0) || !(d > WARM_PIVOT_REL * G[4 * a]))
+            d -= use[q] ? L[WARM_K * a + q] * L[WARM_K * a + q] : 0;
+        if (!(G[(WARM_K + 1) * a] > 0) || !(d > WARM_PIVOT_REL * G[(WARM_K + 1) * a]))
             continue;
         use[a] = 1;
-        L[4 * a] = sqrt(d);
+        L[(WARM_K + 1) * a] = sqrt(d);
         for (int t = a + 1; t < k; t++) {
-            double v = G[3 * t + a];
+            double v = G[WARM_K * t + a];
             for (int q = 0; q < a; q++)
-                v -= use[q] ? L[3 * t + q] * L[3 * a + q] : 0;
-            L[3 * t + a] = v / L[4 * a];
+                v -= use[q] ? L[WARM_K * t + q] * L[WARM_K * a + q] : 0;
+            L[WARM_K * t + a] = v / L[(WARM_K + 1) * a];
         }
     }
     for (int a = 0; a < k; a++) {
         double v = g[a];
         for (int q = 0; q < a; q++)
-            v -= use[q] ? L[3 * a + q] * y[q] : 0;
-        y[a] = use[a] ? v / L[4 * a] : 0;
+            v -= use[q] ? L[WARM_K * a + q] * y[q] : 0;
+        y[a] = use[a] ? v / L[(WARM_K + 1) * a] : 0;
     }
     for (int a = k - 1; a >= 0; a--) {
         double v = y[a];
         for (int t = a + 1; t < k; t++)
-            v -= use[t] ? L[3 * t + a] * c[t] : 0;
-        c[a] = use[a] ? v / L[4 * a] : 0;
+            v -= use[t] ? L[WARM_K * t + a] * c[t] : 0;
+        c[a] = use[a] ? v / L[(WARM_K + 1) * a] : 0;
     }
 }
 
@@ -70,7 +78,7 @@ int iso_solver__warm_start(iso_solver *s, cholmod_dense *X, cholmod_dense *AX, i
 {
     int n = 3 * s->nf, k = 1 + (s->hist[0] ? s->n_hist : 0);
     const double *b = s->B->x;
-    double *W[3] = {X->x, NULL, NULL}, *AW[3] = {AX->x, NULL, NULL};
+    double *W[WARM_K] = {X->x}, *AW[WARM_K] = {AX->x};
     for (int j = 1; j < k; j++) {
         int rc = iso_solver__matvec(s, s->hist[j - 1], s->ahist[j - 1], err);
         if (rc != ISO_OK)
@@ -78,11 +86,11 @@ int iso_solver__warm_start(iso_solver *s, cholmod_dense *X, cholmod_dense *AX, i
         W[j] = s->hist[j - 1]->x;
         AW[j] = s->ahist[j - 1]->x;
     }
-    double G[9] = {0}, g[3] = {0}, c[3] = {0};
+    double G[WARM_K * WARM_K] = {0}, g[WARM_K] = {0}, c[WARM_K] = {0};
     for (int a = 0; a < k; a++) {
         g[a] = iso_solver__dot(W[a], b, n);
         for (int q = 0; q <= a; q++)
-            G[3 * a + q] = G[3 * q + a] = iso_solver__dot(W[a], AW[q], n);
+            G[WARM_K * a + q] = G[WARM_K * q + a] = iso_solver__dot(W[a], AW[q], n);
     }
     small_solve(G, g, k, c);
     for (int i = 0; i < n; i++) {

@@ -588,7 +588,9 @@ static void create_pair(const bumpy *bp, iso_solver_opts o, iso_solver **always,
 /* Adaptive refactoring (PCG preconditioned by the cached factor) against a
  * fresh factorization every evaluation, along one sequence of positions
  * that moves like an integrator's: pairs of nearby evaluations (predictor,
- * corrector) a step apart, with steps that grow so the factor goes stale.
+ * corrector) a step apart, with steps that grow so the factor goes stale
+ * (fast enough that PCG's start from the remembered solutions does not
+ * save it).
  * Every field agrees with the always-refactor one to 1e-7 of its largest
  * entry (CG stops at 1e-10 relative residual; A_ff's condition number here
  * is ~1e3), the factor was reused, and at least one attempt found it too
@@ -627,7 +629,7 @@ static void factor_reuse_matches_refactoring(void **state)
             /* The next point: the always run's field moves every run alike,
              * a small nudge after even evaluations, a growing step after odd. */
             const double *drive = v[0] + (size_t)n * (size_t)e;
-            double h = e % 2 == 0 ? 1e-4 : 0.05 * (1 + e / 4);
+            double h = e % 2 == 0 ? 1e-4 : 0.05 * (1 + e / 2);
             for (int i = 0; i < n; i++)
                 x[i] += h * drive[i];
         }
