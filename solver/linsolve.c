@@ -247,12 +247,10 @@ static int ensure_work(iso_solver *s, iso_err *err)
         if (!s->work[i] &&
             !(s->work[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c)))
             return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
-    for (int i = 0; i < ISO_SOLVER__HIST; i++)
-        if ((!s->hist[i] &&
-             !(s->hist[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c))) ||
-            (!s->ahist[i] &&
-             !(s->ahist[i] = cholmod_zeros((size_t)(3 * s->nf), 1, CHOLMOD_REAL, &s->c))))
-            return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
+    size_t hn = (size_t)(3 * s->nf);
+    if ((!s->hist && !(s->hist = cholmod_zeros(hn, ISO_SOLVER__HIST, CHOLMOD_REAL, &s->c))) ||
+        (!s->ahist && !(s->ahist = cholmod_zeros(hn, ISO_SOLVER__HIST, CHOLMOD_REAL, &s->c))))
+        return iso_err_set(err, ISO_ENOMEM, -1, "CHOLMOD could not allocate PCG vectors");
     return ISO_OK;
 }
 

@@ -245,10 +245,8 @@ void iso_solver_destroy(iso_solver *s)
     iso_solver__super_plan_destroy(s->super_plan);
     for (int i = 0; i < ISO_SOLVER__WORK; i++)
         cholmod_free_dense(&s->work[i], &s->c);
-    for (int i = 0; i < ISO_SOLVER__HIST; i++) {
-        cholmod_free_dense(&s->hist[i], &s->c);
-        cholmod_free_dense(&s->ahist[i], &s->c);
-    }
+    cholmod_free_dense(&s->hist, &s->c);
+    cholmod_free_dense(&s->ahist, &s->c);
     iso_solver__frame_destroy(s->frame);
     iso_solver__rings_destroy(s->rings);
     free(s->rot);

@@ -88,27 +88,28 @@ struct iso_solver {
     double *super_work; /* iso_solver__super_solve's, when L is supernodal; else NULL */
     struct iso_solver__super_plan *super_plan; /* the solves' two halves, or NULL */
     int super_plan_made;
-    cholmod_dense *work[ISO_SOLVER__WORK];  /* PCG: residual, preconditioned residual,
-                                               direction, A·direction, rotated residual */
-    cholmod_dense *hist[ISO_SOLVER__HIST];  /* the last solutions' free parts, newest first */
-    cholmod_dense *ahist[ISO_SOLVER__HIST]; /* A times each, this evaluation's A */
-    int n_hist;                             /* of hist, those that hold a solution */
-    int have_factor;                        /* L holds a numeric factor of some earlier A */
-    double factor_flops;                    /* CHOLMOD's Common->fl after analysis */
-    struct iso_solver__cpu_plan *cpu;       /* C path's plans (assemble_cpu.c), made at first use */
-    int cpu_split_edges; /* interior edges from which the C path runs in two halves */
-    int cpu_helper;      /* the two halves may run on a helper thread (else both here) */
-    int last_cg_iters;   /* iterations of the previous PCG solve, −1 after a direct one */
-    int cg_failures;     /* consecutive PCG attempts at factor age 1 that failed */
-    int cg_skip;         /* evaluations left before PCG is tried again */
-    int factor_age;      /* evaluations since L was computed (this one included) */
-    int reuse_horizon;   /* oldest factor age PCG is tried at; 0: not learned yet */
-    int horizon_probe;   /* factorizations left until the horizon is probed */
-    double cg_target;    /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
-    int budget_on;       /* a shared iteration budget is open */
-    int budget_used;     /* its iterations spent since it opened or since a factorization */
-    int bounded;         /* iso_solver_set_bounded: no factorization here once a factor exists */
-    double last_res;     /* the last PCG solve's relative residual ‖b − A x‖ / ‖b‖ */
+    cholmod_dense *work[ISO_SOLVER__WORK]; /* PCG: residual, preconditioned residual,
+                                              direction, A·direction, rotated residual */
+    cholmod_dense *hist;              /* 3 nf × ISO_SOLVER__HIST: the last solutions' free parts */
+    cholmod_dense *ahist;             /* A times each, this evaluation's A */
+    int n_hist;                       /* of hist's columns, those that hold a solution */
+    int hist_head;                    /* the column the next solution goes to */
+    int have_factor;                  /* L holds a numeric factor of some earlier A */
+    double factor_flops;              /* CHOLMOD's Common->fl after analysis */
+    struct iso_solver__cpu_plan *cpu; /* C path's plans (assemble_cpu.c), made at first use */
+    int cpu_split_edges;              /* interior edges from which the C path runs in two halves */
+    int cpu_helper;    /* the two halves may run on a helper thread (else both here) */
+    int last_cg_iters; /* iterations of the previous PCG solve, −1 after a direct one */
+    int cg_failures;   /* consecutive PCG attempts at factor age 1 that failed */
+    int cg_skip;       /* evaluations left before PCG is tried again */
+    int factor_age;    /* evaluations since L was computed (this one included) */
+    int reuse_horizon; /* oldest factor age PCG is tried at; 0: not learned yet */
+    int horizon_probe; /* factorizations left until the horizon is probed */
+    double cg_target;  /* > 0: PCG stops on z's largest vertex (iso_solver.h) */
+    int budget_on;     /* a shared iteration budget is open */
+    int budget_used;   /* its iterations spent since it opened or since a factorization */
+    int bounded;       /* iso_solver_set_bounded: no factorization here once a factor exists */
+    double last_res;   /* the last PCG solve's relative residual ‖b − A x‖ / ‖b‖ */
     struct iso_solver__worker *w; /* factorization worker (worker_lag > 0), else NULL */
     /* The rotated preconditioner (rotate.c), adaptive with
      * ISO_PRECOND_ROTATED only, else NULL: the rings, L's frame, this
