@@ -220,7 +220,12 @@ typedef struct iso_loop_summary {
     double latency_median, latency_p90, latency_p99, latency_max; /* deadline (input due) to
                                                                      published */
     long misses;                /* ticks that started after a later deadline had passed */
-    long skipped;               /* deadlines a late tick covered beyond its own */
+    long skipped;               /* deadlines a late tick covered beyond its own: deadlines
+                                   that passed without a tick of their own */
+    double gap_max_ms;          /* the longest wall time from one tick's start to the
+                                   next's: whatever held the loop (a stopped process, a
+                                   starved core, a blocked call) shows here, even when
+                                   no tick itself was long */
     long restarts;              /* restarts of the Adams history */
     long device_ticks;          /* mapping ticks (TICK records written or replayed) */
     long substeps;              /* ABM steps beyond one a tick */

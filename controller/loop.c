@@ -352,6 +352,7 @@ void iso_loop_get_summary(iso_loop *l, iso_loop_summary *s)
     s->latency_max = iso_loop__stats_quantile(st, 1, 1.0);
     s->misses = st->misses;
     s->skipped = st->skipped;
+    s->gap_max_ms = st->max_gap_ms;
     s->restarts = l->restarts;
     s->device_ticks = l->device_ticks;
     s->substeps = l->substeps;

@@ -26,6 +26,7 @@ typedef struct iso_loop_stats {
     double *tick_ms, *lat_ms; /* the first min(n, cap) ticks' samples */
     long n, cap;              /* ticks added; samples room */
     long misses, skipped;
+    double max_gap_ms; /* the longest wall time from one tick's wake to the next's */
     double last_lat_ms;
     double max_tick_ms, max_lat_ms;
     uint32_t hist_tick[ISO_LOOP_HIST_BINS], hist_lat[ISO_LOOP_HIST_BINS];

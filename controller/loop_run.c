@@ -138,8 +138,8 @@ static void status_line(iso_loop *l, double t_s, double dt)
     devices_status(l, dt, dev, sizeof dev);
     char line[ISO_LOGQ_LINE_MAX];
     snprintf(line, sizeof line,
-             "tick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  misses %ld  %s%s", l->ticks,
-             t_s, med, p99, max, l->stats.misses, dev, extra);
+             "tick %ld  t %.2f s  tick %.1f/%.1f/%.1f ms (med/p99/max)  missed %ld  %s%s", l->ticks,
+             t_s, med, p99, max, l->stats.skipped, dev, extra);
     iso_logq_status(l->logq, line);
 }
 
@@ -193,6 +193,8 @@ int iso_loop_run(iso_loop *l, iso_err *err)
         int64_t done = iso_clock_ns();
         iso_loop__stats_add(&l->stats, (double)(done - wake) * 1e-6,
                             (double)(done - prev_wake) * 1e-6);
+        if (l->ticks > 1)
+            l->stats.max_gap_ms = fmax(l->stats.max_gap_ms, (double)(wake - prev_wake) * 1e-6);
         prev_wake = wake;
         double w = iso_clock_now();
         if (l->o.status_line && w - last_status > 0.25) {

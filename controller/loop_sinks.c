@@ -235,7 +235,7 @@ static void fill_frame(iso_loop *l, long tick, iso_fox_frame *f)
     f->tick_ms =
         n > 0 ? l->stats.recent[(l->stats.head + ISO_LOOP_RECENT - 1) % ISO_LOOP_RECENT] : NAN;
     f->latency_ms = n > 0 ? l->stats.last_lat_ms : NAN;
-    f->misses = l->stats.misses;
+    f->misses = l->stats.skipped; /* deadlines without a tick of their own */
     f->dropped = iso_loop__writer_dropped(l->sinks->writer);
     frame_devices(l, f);
     f->have_act = 0;

@@ -206,8 +206,12 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             "  latency     median %.2f ms, p90 %.2f ms, p99 %.2f ms, max %.2f ms (input due to "
             "published)\n",
             s->latency_median, s->latency_p90, s->latency_p99, s->latency_max);
-    fprintf(f, "  deadlines   %ld missed of %ld (%.2f%%), %ld skipped to catch up\n", s->misses,
-            s->ticks, s->ticks ? 100.0 * (double)s->misses / (double)s->ticks : 0.0, s->skipped);
+    long periods = s->ticks + s->skipped;
+    fprintf(f,
+            "  deadlines   %ld of %ld passed without a tick of their own (%.2f%%), caught up by "
+            "%ld late ticks; the longest wait from one tick to the next %.2f ms\n",
+            s->skipped, periods, periods ? 100.0 * (double)s->skipped / (double)periods : 0.0,
+            s->misses, s->gap_max_ms);
     fprintf(f,
             "  integrator  %d steps (%d low-order, %ld restarts, ABM3 %s), %ld field evaluations, "
             "at most %d a step\n",
@@ -412,6 +416,7 @@ static void json_summary(iso_json *j, const iso_loop_summary *s, const iso_scene
     json_spread(j, "latency_ms", s->latency_median, s->latency_p90, s->latency_p99, s->latency_max);
     iso_json_int(j, "misses", s->misses);
     iso_json_int(j, "skipped", s->skipped);
+    iso_json_number(j, "gap_max_ms", s->gap_max_ms);
     iso_json_int(j, "restarts", s->restarts);
     iso_json_int(j, "steps", s->integ.steps);
     iso_json_int(j, "rk4_steps", s->integ.rk4_steps);

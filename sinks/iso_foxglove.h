@@ -94,7 +94,8 @@ typedef struct iso_fox_frame {
     uint32_t buttons;
     long evaluations, factorizations, cg_iterations; /* the solver's, so far */
     double tick_ms, latency_ms;                      /* wall times (wall_times only) */
-    long misses, dropped;
+    long misses, dropped; /* deadlines that passed without a tick of their own; frames
+                             the writer could not take */
     iso_fox_device dev[ISO_FOX_MAX_DEVICES];
     int have_act;
     int16_t setpoints[ISO_ACT_MAX_CHANNELS]; /* by SETPOINTS index */

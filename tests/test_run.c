@@ -485,6 +485,41 @@ static void overruns_are_counted_and_skipped(void **state)
     assert_true(lat_max <= 2 * tick_max + 5);
 }
 
+/* A loop held from outside (the process stopped for a second, as a
+ * starved core or a blocked call would hold it) shows in the summary
+ * however short every tick was: the deadlines that passed without a tick
+ * of their own and the longest wait from one tick to the next, in the
+ * JSON and in the printed line. The run still covers every period once. */
+static void a_held_loop_shows_in_the_summary(void **state)
+{
+    (void)state;
+    char scene[PATH_MAX], json[PATH_MAX], cmd[3 * PATH_MAX + 300];
+    static char j[8192];
+    write_scene(iso_test_tmp(scene, sizeof scene, "held.yaml"), "",
+                "{screw: {def: builtin, duration: 2.0}}", "tick_hz: 60\n");
+    iso_test_tmp(json, sizeof json, "held.json");
+    snprintf(cmd, sizeof cmd,
+             "{ '%s' run '%s' --no-rt --stats-json '%s' & p=$!; sleep 0.5; kill -STOP $p; "
+             "sleep 1; kill -CONT $p; wait $p; }",
+             g_bin, scene, json);
+    assert_int_equal(iso_test_sh(cmd, g_out, sizeof g_out, g_err, sizeof g_err), 0);
+    slurp(json, j, sizeof j);
+    double ticks = iso_test_json_num(j, "ticks"), skipped = iso_test_json_num(j, "skipped");
+    double gap = iso_test_json_num(j, "gap_max_ms");
+    printf("held for 1 s: %.0f ticks, %.0f deadlines without a tick, longest wait %.0f ms\n", ticks,
+           skipped, gap);
+    assert_int_equal((long)(ticks + skipped), 120); /* every period covered, once */
+    assert_true(skipped >= 45); /* a second at 60 Hz, less the machine's slack */
+    assert_true(gap >= 900);
+    char want[96];
+    snprintf(want, sizeof want, "deadlines   %.0f of 120 passed without a tick of their own",
+             skipped);
+    const char *said = strstr(g_out, want) ? g_out : g_err; /* the summary: stdout or stderr */
+    if (!strstr(said, want))
+        fail_msg("the summary does not say \"%s\":\n%s%s", want, g_out, g_err);
+    assert_non_null(strstr(said, "the longest wait from one tick to the next"));
+}
+
 static void pacing_follows_speed(void **state)
 {
     (void)state;
@@ -800,6 +835,7 @@ int main(void)
         cmocka_unit_test(keyframes_end_at_their_pose),
         cmocka_unit_test(actuator_counters_are_numbers),
         cmocka_unit_test(overruns_are_counted_and_skipped),
+        cmocka_unit_test(a_held_loop_shows_in_the_summary),
         cmocka_unit_test(pacing_follows_speed),
         cmocka_unit_test(sigterm_closes_the_recording_whole),
         cmocka_unit_test(chromium_watches_a_replay_run),

@@ -121,7 +121,8 @@
  *            20  f32  tick compute time p99, ms
  *            24  f32  tick compute time max, ms
  *            28  f32  input-to-publish latency, ms
- *            32  u32  deadline misses (saturated at 2^32-1)
+ *            32  u32  deadlines missed: passed without a tick of their own, however
+ *                 the loop was held (saturated at 2^32-1)
  *            36  u32  H, the handle poses that follow the header
  *            40  u32  the connection whose command the tick applied last
  *            44  u32  that command's sequence number (0: none yet)
@@ -217,7 +218,7 @@ typedef struct iso_display_opts {
 typedef struct iso_display_stats {
     double tick_ms_median, tick_ms_p99, tick_ms_max; /* tick compute time */
     double latency_ms;                               /* input to publish */
-    long misses;                                     /* deadline misses so far */
+    long misses; /* deadlines that passed without a tick of their own so far */
     /* The handles' poses, rest -> current, for the mesh's handles 0..n-1
      * (at most the regions' count and ISO_DISPLAY_MAX_HANDLES). */
     int n_handles;

@@ -246,7 +246,7 @@ function onFrame(buf) {
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
   statsText = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
     ' p99 ' + fmt(dv.getFloat32(20, true)) + ' max ' + fmt(dv.getFloat32(24, true)) +
-    ' | misses ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
+    ' | missed ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
   document.body.setAttribute('data-frames', String(frames));
   document.body.setAttribute('data-tick', String(tick));
   lastTick = tick;
