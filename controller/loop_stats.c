@@ -208,8 +208,8 @@ void iso_loop_print_summary(const iso_loop_summary *s, const iso_scene *sc, FILE
             s->latency_median, s->latency_p90, s->latency_p99, s->latency_max);
     long periods = s->ticks + s->skipped;
     fprintf(f,
-            "  deadlines   %ld of %ld passed without a tick of their own (%.2f%%), caught up by "
-            "%ld late ticks; the longest wait from one tick to the next %.2f ms\n",
+            "  deadlines   %ld of %ld passed without a tick of their own (%.2f%%)\n"
+            "              caught up by %ld late ticks; longest wait between ticks %.2f ms\n",
             s->skipped, periods, periods ? 100.0 * (double)s->skipped / (double)periods : 0.0,
             s->misses, s->gap_max_ms);
     fprintf(f,
