@@ -48,7 +48,9 @@ static const scene_key top_keys[] = {
     {"sinks", SK_SECTION, 0, 0, .sub = &iso_scene__sinks,
      .help = "where the shape goes: display, ply, actuators", .dflt = "none"},
     {"recording", SK_PATH, FIELD(iso_scene, recording),
-     .help = "a .isorec file to record the devices to", .dflt = "none"},
+     .help = "a .isorec file to record the devices to (a `record` button's later recordings: "
+             "NAME-2.EXT, NAME-3.EXT, ...)",
+     .dflt = "none"},
     {.key = NULL},
 };
 

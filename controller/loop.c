@@ -234,6 +234,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
     } else if (rc == ISO_OK && rec[0] && l->replay) {
         iso_loop_say(l, "not recording to %s: the devices are a replay already", rec);
     }
+    if (rc == ISO_OK && rec[0] && l->hub && !l->replay)
+        rc = iso_loop__recorder_create(l, rec, l->recording, &l->recorder, err);
     if (rc == ISO_OK && sc->mesh)
         rc = iso_loop__sinks_open(l, err);
     if (rc == ISO_OK && l->hub && !l->replay) {
@@ -295,6 +297,7 @@ void iso_loop_destroy(iso_loop *l)
     if (iso_loop_shutdown(l, &e) != ISO_OK)
         iso_loop_say(l, "shutdown: %s", e.msg);
     iso_loop__sinks_free(l); /* the view before the hub: it queues on the hub's view device */
+    iso_loop__recorder_destroy(l->recorder);
     iso_dev_usb_watch_destroy(l->watch);
     iso_dev_hub_destroy(l->hub);
     if (l->replay)

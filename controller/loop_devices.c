@@ -215,27 +215,17 @@ static void advance_pose(iso_pose *g, const iso_twist *xi, double dt)
     *g = n;
 }
 
-/* The record button. A recording that cannot start or end cleanly (a FIFO
- * with no reader, a full disk) is said, and the run goes on: the button
- * never stops the loop. */
-static void toggle_recording(iso_loop *l)
+/* The record button: its recordings open and close on the recorder's
+ * thread (loop_recorder.c), never on the tick. Without a recording path
+ * it says so. A recording that cannot start or end cleanly (a FIFO with no
+ * reader, a full disk) is said, and the run goes on. */
+static void press_record(iso_loop *l)
 {
-    const char *rec = l->o.record ? l->o.record : l->sc->recording;
-    iso_err e;
-    iso_err_clear(&e);
-    if (l->recording) {
-        l->recording = 0;
-        if (iso_dev_hub_record_stop(l->hub, &e) != ISO_OK)
-            iso_loop_say(l, "recording stopped: %s", e.msg);
-        else
-            iso_loop_say(l, "recording stopped");
-    } else if (rec[0]) {
-        l->recording = iso_dev_hub_record_start(l->hub, rec, &e) == ISO_OK;
-        if (l->recording)
-            iso_loop_say(l, "recording to %s", rec);
-        else
-            iso_loop_say(l, "not recording: %s", e.msg);
-    }
+    if (l->recorder)
+        iso_loop__recorder_press(l->recorder, l->hub, &l->recording);
+    else
+        iso_loop_say(l, "the record button: no recording path (the scene's `recording:` or "
+                        "--record FILE)");
 }
 
 /* One device tick over (l->t_now, t]: drain, map with the commanded poses,
@@ -253,6 +243,8 @@ int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, i
         P[j] = l->cmd_pose[l->dev_handle[j]];
     if (l->watch && iso_dev_usb_watch_poll(l->watch) > 0)
         iso_dev_hub_retry_now(l->hub);
+    if (l->recorder)
+        iso_loop__recorder_poll(l->recorder, l->hub, &l->recording);
     iso_dev_tick cmd;
     int rc = iso_dev_hub_tick(l->hub, &l->map, t, dt, P, &cmd, err);
     if (rc != ISO_OK)
@@ -266,7 +258,7 @@ int iso_loop__device_tick(iso_loop *l, int64_t t, iso_twist *tw, int *restart, i
     }
     say_far(l);
     if ((cmd.actions & (1u << ISO_DEV_ACT_RECORD)) && !l->replay)
-        toggle_recording(l);
+        press_record(l);
     if (cmd.estop != l->last.estop || l->device_ticks == 0)
         iso_loop__sinks_estop(l, cmd.estop); /* at once, before the mesh step */
     if (l->device_ticks > 0 && discontinuity(&cmd, &l->last))

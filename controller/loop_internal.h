@@ -92,9 +92,10 @@ struct iso_loop {
     iso_dev_map map;
     int dev_handle[ISO_SCENE_MAX_HANDLES]; /* map twist j drives handle dev_handle[j] */
     int n_dev;
-    iso_dev_tick last;        /* the previous device tick's command */
-    iso_dev_source *view_src; /* the scene's view device (owned by the hub), or NULL */
-    int recording;
+    iso_dev_tick last;                   /* the previous device tick's command */
+    iso_dev_source *view_src;            /* the scene's view device (owned by the hub), or NULL */
+    int recording;                       /* the hub records (a writer is attached to it) */
+    struct iso_loop__recorder *recorder; /* the record button's, live devices with a path */
 
     /* commanded motion */
     iso_pose cmd_pose[ISO_SCENE_MAX_HANDLES];  /* rest to commanded, per handle */
@@ -121,6 +122,19 @@ struct iso_loop {
     int last_merged, last_substeps, last_restart;
     int64_t last_dt_ns;
 };
+
+/* loop_recorder.c: the record button's recordings, opened and closed on a
+ * thread of their own. create: for the scene's path base (recording_now:
+ * the run records to it already). press: the button, on the tick (starts
+ * or stops; *recording follows the hub). poll: each device tick before
+ * the drain, attaches a recording the thread has opened. destroy: after
+ * the last tick; a recording being closed ends whole. */
+typedef struct iso_loop__recorder iso_loop__recorder;
+ISO_NODISCARD int iso_loop__recorder_create(iso_loop *l, const char *base, int recording_now,
+                                            iso_loop__recorder **out, iso_err *err);
+void iso_loop__recorder_destroy(iso_loop__recorder *r);
+void iso_loop__recorder_press(iso_loop__recorder *r, iso_dev_hub *hub, int *recording);
+void iso_loop__recorder_poll(iso_loop__recorder *r, iso_dev_hub *hub, int *recording);
 
 /* loop_devices.c: the mapping, the devices or the replay, ready to tick. */
 ISO_NODISCARD int iso_loop__devices_open(iso_loop *l, iso_err *err);

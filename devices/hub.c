@@ -300,22 +300,34 @@ void iso_dev_hub_retry_now(iso_dev_hub *h)
     h->retry_now = 1;
 }
 
+size_t iso_dev_hub_infos(const iso_dev_hub *h, iso_dev_info *infos, size_t cap)
+{
+    for (size_t i = 0; i < h->n && i < cap; i++)
+        infos[i] = h->src[i].info;
+    return h->n;
+}
+
+int iso_dev_hub_record_attach(iso_dev_hub *h, const iso_dev_rec_writer *w, iso_err *err)
+{
+    if (h->recording)
+        return iso_err_set(err, ISO_EINVAL, -1, "%s: already recording to %s", w->path,
+                           h->rec.path);
+    h->rec = *w;
+    h->recording = 1;
+    for (size_t i = 0; i < h->n; i++)
+        memset(&h->src[i].cap, 0, sizeof h->src[i].cap);
+    return ISO_OK;
+}
+
 int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err)
 {
     if (h->recording)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: already recording to %s", path, h->rec.path);
-    iso_dev_info *infos = calloc(h->n ? h->n : 1, sizeof *infos);
-    if (!infos)
-        return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
-    for (size_t i = 0; i < h->n; i++)
-        infos[i] = h->src[i].info;
-    int rc = iso_dev_rec_writer_open(&h->rec, path, infos, h->n, iso_clock_ns(), err);
-    free(infos);
-    if (rc == ISO_OK)
-        h->recording = 1;
-    for (size_t i = 0; i < h->n; i++)
-        memset(&h->src[i].cap, 0, sizeof h->src[i].cap);
-    return rc;
+    iso_dev_info infos[ISO_DEV_MAX_SOURCES];
+    size_t n = iso_dev_hub_infos(h, infos, ISO_DEV_MAX_SOURCES);
+    iso_dev_rec_writer w;
+    int rc = iso_dev_rec_writer_open(&w, path, infos, n, iso_clock_ns(), err);
+    return rc == ISO_OK ? iso_dev_hub_record_attach(h, &w, err) : rc;
 }
 
 /* The chunks of source i left out since its last record, as one SKIP
@@ -349,14 +361,25 @@ static int flush_skips(iso_dev_hub *h, iso_err *err)
     return rc;
 }
 
-int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
+int iso_dev_hub_record_detach(iso_dev_hub *h, iso_dev_rec_writer *w, iso_err *err)
 {
     if (!h->recording)
-        return ISO_OK;
-    int rc = flush_skips(h, err);
+        return 0;
+    /* The SKIP records go into the writer's queue, which cuts the recording
+     * itself when they do not fit: no failure is left for the caller. */
+    if (flush_skips(h, err) != ISO_OK)
+        iso_err_clear(err);
+    *w = h->rec;
     h->recording = 0;
-    int rc2 = iso_dev_rec_writer_close(&h->rec, rc == ISO_OK ? err : NULL);
-    return rc != ISO_OK ? rc : rc2;
+    return 1;
+}
+
+int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
+{
+    iso_dev_rec_writer w;
+    if (!iso_dev_hub_record_detach(h, &w, err))
+        return ISO_OK;
+    return iso_dev_rec_writer_close(&w, err);
 }
 
 /* A view's changes of control and its stop, one sentence each (the

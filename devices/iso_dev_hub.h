@@ -83,6 +83,18 @@ ISO_API void iso_dev_hub_retry_now(iso_dev_hub *h);                   /* hotplug
 /* Records every chunk from now on (header: the current sources). */
 ISO_API ISO_NODISCARD int iso_dev_hub_record_start(iso_dev_hub *h, const char *path, iso_err *err);
 ISO_API ISO_NODISCARD int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err);
+typedef struct iso_dev_rec_writer iso_dev_rec_writer; /* iso_dev_rec.h */
+/* The same in halves, so that a real-time caller opens and closes the file
+ * on another thread: infos gets the current sources (cap entries; returns
+ * how many there are), for iso_dev_rec_writer_open there; attach hands the
+ * hub a writer opened so (ISO_EINVAL when it records already), and detach
+ * takes it back into *w after the SKIP records of noise left out (returns 1,
+ * or 0 when it was not recording), for iso_dev_rec_writer_close there.
+ * Neither makes a system call or allocates. */
+ISO_API size_t iso_dev_hub_infos(const iso_dev_hub *h, iso_dev_info *infos, size_t cap);
+ISO_API ISO_NODISCARD int iso_dev_hub_record_attach(iso_dev_hub *h, const iso_dev_rec_writer *w,
+                                                    iso_err *err);
+ISO_API int iso_dev_hub_record_detach(iso_dev_hub *h, iso_dev_rec_writer *w, iso_err *err);
 
 /* Once per tick: drains every source up to now_ns, records and decodes what
  * came, handles unplug and replug, and returns the events (at most cap; the

@@ -40,6 +40,7 @@
 #include <unistd.h>
 
 #include "iso_dev.h"
+#include "iso_fb.h"
 #include "iso_mesh.h"
 
 static char g_bin[PATH_MAX];
@@ -656,6 +657,137 @@ static void sigterm_closes_the_recording_whole(void **state)
     assert_true(same_bytes(out, again));
 }
 
+/* Whether the recording at path ends whole (its END record, no tear). */
+static int ends_whole(const char *path)
+{
+    iso_dev_rec_reader r;
+    iso_err e;
+    iso_err_clear(&e);
+    if (iso_dev_rec_reader_load(&r, path, &e) != ISO_OK)
+        return 0;
+    char msg[320];
+    int cut = iso_dev_rec_reader_cut(&r, msg, sizeof msg, NULL);
+    iso_dev_rec_reader_deinit(&r);
+    return !cut;
+}
+
+/* One pose sample at rest on the line, with the buttons given. */
+static void send_sample(int fd, uint16_t seq, unsigned buttons)
+{
+    iso_fb_sample smp;
+    memset(&smp, 0, sizeof smp);
+    smp.t_us = seq * 1000u;
+    smp.kind = ISO_FB_SAMPLE_POSE;
+    smp.buttons = (uint16_t)buttons;
+    uint8_t pl[64], fr[ISO_FB_FRAME_MAX];
+    int n = iso_fb_sample_pack(pl, sizeof pl, &smp);
+    assert_true(n > 0);
+    int w = iso_fb_frame_encode(fr, sizeof fr, ISO_FB_HANDLE_SAMPLE, seq, pl, (size_t)n);
+    assert_true(w > 0);
+    assert_int_equal(write(fd, fr, (size_t)w), (ssize_t)w);
+}
+
+/* Presses and releases the line's button 0, 100 ms apart. */
+static void press(int fd, uint16_t *seq)
+{
+    send_sample(fd, ++*seq, 1);
+    struct timespec ts = {0, 100 * 1000 * 1000};
+    nanosleep(&ts, NULL);
+    send_sample(fd, ++*seq, 0);
+}
+
+/* Waits up to 20 s for `what` in the file at log. */
+static int wait_for_line(const char *log, const char *what)
+{
+    for (int i = 0; i < 400; i++) {
+        static char buf[1 << 16];
+        slurp(log, buf, sizeof buf);
+        if (strstr(buf, what))
+            return 1;
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    return 0;
+}
+
+/* The record button (a serial line's button 0 mapped to `record`) in a live
+ * run that records from its start: a press ends that recording whole, the
+ * next starts another in a file of its own (NAME-2.EXT), which leaves the
+ * first as it was, and SIGTERM ends the second whole. The files are opened
+ * and closed on the recorder's thread (loop_recorder.c), so the presses
+ * cost the tick nothing; what this test holds is what a person sees: two
+ * whole recordings, nothing overwritten. */
+static void the_record_button_makes_a_file_each_time(void **state)
+{
+    (void)state;
+    int master, slave;
+    char tty[256];
+    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
+    struct termios raw;
+    assert_int_equal(tcgetattr(slave, &raw), 0);
+    cfmakeraw(&raw);
+    assert_int_equal(tcsetattr(slave, TCSANOW, &raw), 0);
+    char scene[PATH_MAX], rec[PATH_MAX], rec2[PATH_MAX], log[PATH_MAX], dev[512];
+    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
+             tty);
+    write_scene(iso_test_tmp(scene, sizeof scene, "button.yaml"), dev,
+                "{device: link, mapping: {buttons: [record]}}", "tick_hz: 50\n");
+    iso_test_tmp(rec, sizeof rec, "button.isorec");
+    iso_test_tmp(rec2, sizeof rec2, "button-2.isorec");
+    iso_test_tmp(log, sizeof log, "button.log");
+    unlink(rec);
+    unlink(rec2);
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        dup2(fd, 1);
+        dup2(fd, 2);
+        execl(g_bin, g_bin, "run", scene, "--no-rt", "--record", rec, (char *)NULL);
+        _exit(127);
+    }
+    long ticks0 = 0;
+    for (int i = 0; i < 400 && ticks0 == 0; i++) {
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+        ticks0 = recorded_ticks(rec, NULL, NULL);
+    }
+    assert_true(ticks0 > 0);
+    uint16_t seq = 0;
+    press(master, &seq);
+    int stopped = wait_for_line(log, "recording stopped: ");
+    long first = recorded_ticks(rec, NULL, NULL);
+    int whole1 = ends_whole(rec);
+    press(master, &seq);
+    char want[PATH_MAX + 32];
+    snprintf(want, sizeof want, "recording to %s", rec2);
+    int started = wait_for_line(log, want);
+    long second0 = 0;
+    for (int i = 0; i < 200 && second0 == 0 && started; i++) {
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+        second0 = recorded_ticks(rec2, NULL, NULL);
+    }
+    long first_after = recorded_ticks(rec, NULL, NULL);
+    kill(pid, SIGTERM);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    close(master);
+    close(slave);
+    static char said[1 << 16];
+    slurp(log, said, sizeof said);
+    long second = recorded_ticks(rec2, NULL, NULL);
+    printf("record button: first recording %ld ticks (whole %d), second %ld ticks (whole %d)\n",
+           first, whole1, second, ends_whole(rec2));
+    if (!stopped || !started)
+        fail_msg("the button was not said as pressed:\n%s", said);
+    assert_true(whole1 && first > 0);
+    assert_int_equal(first_after, first); /* the second press left the first file alone */
+    assert_true(second0 > 0 && second >= second0);
+    assert_true(ends_whole(rec2));
+    assert_true(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM);
+}
+
 /* ---- the live view in a real browser ------------------------------------------------ */
 
 /* Waits up to 20 s for "live view on http://127.0.0.1:PORT/" in the log. */
@@ -838,6 +970,7 @@ int main(void)
         cmocka_unit_test(a_held_loop_shows_in_the_summary),
         cmocka_unit_test(pacing_follows_speed),
         cmocka_unit_test(sigterm_closes_the_recording_whole),
+        cmocka_unit_test(the_record_button_makes_a_file_each_time),
         cmocka_unit_test(chromium_watches_a_replay_run),
         cmocka_unit_test(bad_input_is_named),
         cmocka_unit_test(exits_and_files),
