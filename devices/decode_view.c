@@ -225,8 +225,7 @@ size_t iso_dev__view_decode(iso_dev_decoder *d, int64_t t, const uint8_t *p, siz
         d->n.grants++;
         break;
     case ISO_DEV_VIEW_END:
-        if (blen != 1 || body[0] < ISO_DEV_VIEW_END_RELEASED ||
-            body[0] > ISO_DEV_VIEW_END_STOPPED) {
+        if (blen != 1 || body[0] < ISO_DEV_VIEW_END_RELEASED || body[0] > ISO_DEV_VIEW_END_LAPSED) {
             d->n.bad_frames++;
             break;
         }

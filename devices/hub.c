@@ -386,11 +386,12 @@ int iso_dev_hub_record_stop(iso_dev_hub *h, iso_err *err)
  * recording holds them, so a replay says them again in the same ticks). */
 static void say_view(iso_dev_hub *h, const hub_src *x, const iso_dev_event *ev, size_t k)
 {
-    static const char *const why[] = {"", "the page let go", "the viewer left", "the view stopped"};
+    static const char *const why[] = {"", "the page let go", "the viewer left", "the view stopped",
+                                      "the page fell silent"};
     for (size_t i = 0; i < k; i++) {
         if (ev[i].kind == ISO_DEV_EV_RELEASE)
             say(h, "view %s: control released (%s): its handle holds where it is", x->info.name,
-                ev[i].level <= 3 ? why[ev[i].level] : "?");
+                ev[i].level <= 4 ? why[ev[i].level] : "?");
         else if (ev[i].kind == ISO_DEV_EV_GPIO && ev[i].line == ISO_DEV_GPIO_ESTOP)
             say(h,
                 ev[i].level ? "view %s: STOP pressed in a page: handles hold, actuators to their "

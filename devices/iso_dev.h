@@ -372,7 +372,8 @@ enum { ISO_DEV_VIEW_MSG = 1, ISO_DEV_VIEW_GRANT = 2, ISO_DEV_VIEW_END = 3 };
 enum {
     ISO_DEV_VIEW_END_RELEASED = 1, /* the page let go */
     ISO_DEV_VIEW_END_LEFT = 2,     /* the viewer disconnected */
-    ISO_DEV_VIEW_END_STOPPED = 3   /* the server stopped (the run ended) */
+    ISO_DEV_VIEW_END_STOPPED = 3,  /* the server stopped (the run ended) */
+    ISO_DEV_VIEW_END_LAPSED = 4    /* the page in control fell silent (ISO_DISPLAY_LAPSE_MS) */
 };
 /* How fast a view target is followed, at most: the handle's centre moves
  * ISO_DEV_VIEW_MAX_DIAG_PER_S bounding-box diagonals a second and turns

@@ -6,7 +6,8 @@
  *     ISO_DISPLAY_UNSTOP_MIN_MS of it: a page flapping its stop for 1 s
  *     makes a few changes, not thousands;
  *   - one viewer at a time controls (the first to ask); the others are
- *     refused, counted and told who controls; its leaving ends its control;
+ *     refused, counted and told who controls; its leaving ends its control,
+ *     and so does its silence for ISO_DISPLAY_LAPSE_MS;
  *   - a stop comes from any viewer that may command and acts on the
  *     device's e-stop level at once; its release is a message of its own;
  *   - malformed, oversized or unpermitted commands never reach the device;
@@ -233,6 +234,59 @@ static void one_viewer_controls_at_a_time(void **state)
     rig_close(&r);
 }
 
+/* A holder that stays connected but sends nothing (a hung or throttled
+ * tab) loses control after ISO_DISPLAY_LAPSE_MS, with an END the device
+ * records (ISO_DEV_VIEW_END_LAPSED) and a reason on its page; another
+ * viewer may then take it. One that keeps sending (a keepalive's target
+ * every 25 ms, here every 500 ms for twice the lapse) keeps it. */
+static void a_silent_holder_loses_control(void **state)
+{
+    (void)state;
+    rig r;
+    rig_open(&r, 1, NULL);
+    char ca[512], cb[512];
+    int a = page(&r, NULL, ca, sizeof ca), b = page(&r, NULL, cb, sizeof cb);
+    uint32_t ida = you(ca), idb = you(cb), conn;
+    int type;
+    command(a, ISO_DEV_VIEW_TAKE, 1, 0, NULL);
+    assert_int_equal(next_chunk(&r, &conn, &type), ISO_DEV_VIEW_GRANT);
+    static const double pose[6] = {0.5, 0, 0, 0, 0, 0.1};
+    uint32_t seq = 1;
+    int64_t t0 = 0;                                            /* its last command */
+    for (int k = 0; k < 2 * ISO_DISPLAY_LAPSE_MS / 500; k++) { /* sending: it keeps control */
+        command(a, ISO_DEV_VIEW_TARGET, ++seq, 0, pose);
+        t0 = iso_clock_ns();
+        assert_int_equal(next_chunk(&r, &conn, &type), ISO_DEV_VIEW_MSG);
+        nap_ms(500);
+    }
+    assert_int_equal(iso_display_holder(r.d), ida);
+    /* silent: the END comes after the lapse, not before */
+    iso_dev_chunk c;
+    int64_t ended = 0;
+    for (int w = 0; w < 2 * ISO_DISPLAY_LAPSE_MS / 10 && !ended; w++) {
+        if (iso_dev_source_read(r.dev, INT64_MAX, &c, NULL) == 1) {
+            assert_int_equal(c.data[0], ISO_DEV_VIEW_END);
+            assert_int_equal(c.data[5], ISO_DEV_VIEW_END_LAPSED);
+            ended = iso_clock_ns();
+        } else {
+            nap_ms(10);
+        }
+    }
+    double after_ms = (double)(ended - t0) * 1e-6;
+    print_message("a silent holder lost control %.0f ms after its last command\n", after_ms);
+    assert_true(ended > 0);
+    assert_true(after_ms >= ISO_DISPLAY_LAPSE_MS - 5 && /* the server counts whole ms */
+                after_ms <= ISO_DISPLAY_LAPSE_MS + ISO_DISPLAY_POLL_MS + 500);
+    text_with(a, "control", "control lapsed", ca, sizeof ca);
+    assert_int_equal(iso_display_holder(r.d), 0);
+    command(b, ISO_DEV_VIEW_TAKE, 1, 0, NULL);
+    assert_int_equal(next_chunk(&r, &conn, &type), ISO_DEV_VIEW_GRANT);
+    assert_int_equal(conn, idb);
+    close(a);
+    close(b);
+    rig_close(&r);
+}
+
 static void a_stop_comes_from_anyone_and_acts_at_once(void **state)
 {
     (void)state;
@@ -443,6 +497,7 @@ int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(one_viewer_controls_at_a_time),
+        cmocka_unit_test(a_silent_holder_loses_control),
         cmocka_unit_test(a_stop_comes_from_anyone_and_acts_at_once),
         cmocka_unit_test(malformed_commands_never_reach_the_device),
         cmocka_unit_test(beyond_loopback_commanding_needs_the_token),

@@ -292,6 +292,7 @@ struct iso_display {
     int stop;                      /* a page's stop pressed, as the server saw it */
     uint32_t stop_conn;            /* who pressed it */
     long long stop_ms;             /* when (iso_display__now_ms) */
+    long long holder_ms;           /* when the holder's last command came */
 };
 
 long long iso_display__now_ms(void);
@@ -318,5 +319,8 @@ void iso_display__queue_message(iso_display__conn *c, int opcode, const void *bo
 /* The view protocol's hooks for the server (display_viewer.c): the end of
  * the run reaches each viewer; the stop state changed. */
 void iso_display__viewer_end(iso_display *d);
+/* Ends the control of a holder silent for ISO_DISPLAY_LAPSE_MS (each
+ * server turn). */
+void iso_display__viewer_lapse(iso_display *d, long long now);
 
 #endif

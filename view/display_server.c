@@ -642,6 +642,7 @@ void *iso_display__serve(void *arg)
             ended = 1;
             iso_display__viewer_end(d);
         }
+        iso_display__viewer_lapse(d, now);
         /* inputs first, then outputs, both before accepting, which may
          * reuse a slot and fd */
         for (int k = 2; k < n; k++)

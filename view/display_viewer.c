@@ -164,6 +164,7 @@ static int take(iso_display *d, iso_display__conn *c)
     if (!push(d, ISO_DEV_VIEW_GRANT, c->id, NULL, 0))
         return refuse(d, c, "the device is busy: try again");
     atomic_store(&d->holder, c->id);
+    d->holder_ms = iso_display__now_ms();
     atomic_fetch_add(&d->cmd_grants, 1);
     c->v.why[0] = 0;
     d->control_ver++;
@@ -180,6 +181,8 @@ static int command(iso_display *d, iso_display__conn *c, const iso_dev_view_msg 
     if (!c->v.may_command)
         return refuse(d, c, "commanding needs the token of the URL isoshape printed (?token=...)");
     uint32_t holder = atomic_load(&d->holder);
+    if (holder == c->id)
+        d->holder_ms = iso_display__now_ms(); /* any command keeps control alive */
     switch (m->type) {
     case ISO_DEV_VIEW_TAKE: return take(d, c);
     case ISO_DEV_VIEW_RELEASE:
@@ -275,6 +278,20 @@ static void viewer_close(iso_display *d, iso_display__conn *c)
         d->stop_conn = 0; /* its page reconnects, or another releases it: not stuck */
     free(c->v.frame);
     c->v.frame = NULL;
+}
+
+void iso_display__viewer_lapse(iso_display *d, long long now)
+{
+    uint32_t holder = atomic_load(&d->holder);
+    if (!d->dev || !holder || now - d->holder_ms <= ISO_DISPLAY_LAPSE_MS)
+        return;
+    end_control(d, holder, ISO_DEV_VIEW_END_LAPSED);
+    for (int i = 0; i < ISO_DISPLAY_MAX_CONNS; i++) {
+        iso_display__conn *c = &d->conns[i];
+        if (c->id == holder && c->state != C_FREE)
+            snprintf(c->v.why, sizeof c->v.why, "control lapsed: no command for %d s",
+                     ISO_DISPLAY_LAPSE_MS / 1000);
+    }
 }
 
 void iso_display__viewer_end(iso_display *d)

@@ -88,7 +88,11 @@
  * never reaches the device; what
  * is accepted is queued on the device (iso_dev_view_push) in an envelope
  * naming the connection. A controller that disconnects ends its control
- * (ISO_DEV_VIEW_END_LEFT); so does iso_display_end().
+ * (ISO_DEV_VIEW_END_LEFT); so does iso_display_end(), and so does a
+ * controller that sends no command for ISO_DISPLAY_LAPSE_MS
+ * (ISO_DEV_VIEW_END_LAPSED): a hung or throttled tab cannot keep control
+ * from another viewer, while a page in control sends its target every
+ * 25 ms and a background tab's timers still run once a second.
  *
  * Pages served (from memory, except three.js):
  *   /, /index.html       the viewer (HTML)
@@ -178,6 +182,7 @@
 #define ISO_DISPLAY_POLL_MS 250             /* the server's longest sleep */
 #define ISO_DISPLAY_TURN_BYTES (256 * 1024) /* written to one connection in one poll turn */
 #define ISO_DISPLAY_UNSTOP_MIN_MS 250       /* a stop stays pressed at least this long */
+#define ISO_DISPLAY_LAPSE_MS 3000           /* a silent holder's control ends after this */
 
 typedef struct iso_display iso_display; /* opaque */
 

@@ -362,6 +362,10 @@ var surface = (function () {
     } else if (!gizmo) ownGizmo();
     $('take').onclick = function () { send(TAKE); };
     $('release').onclick = function () { send(RELEASE); };
+    // a hidden tab's timers are throttled to a second or a minute: it lets
+    // go rather than hold control with a stale hand (the server ends a
+    // holder's control after 3 s without a command anyway)
+    document.onvisibilitychange = function () { if (document.hidden && mine()) send(RELEASE); };
     $('mode').onclick = function () { setMode(mode === 'translate' ? 'rotate' : 'translate'); };
     // an e-stop acts when it is pressed, not when the button is let go; a
     // handler, not a listener added: setup runs again on each reconnect
