@@ -146,11 +146,16 @@ typedef struct iso_scene_device {
      * time in ms (key `stale_ms`): this long without a sample and it stops
      * moving its handle (iso_dev_map_set_stale). Other kinds hold the
      * default, unused. */
-    int stale_ms;
+    int stale_ms; /* 0: not given; each source's kind's default then */
 } iso_scene_device;
 #define ISO_SCENE_STALE_MS_DEFAULT 100 /* = ISO_DEV_STALE_DEFAULT_NS */
-#define ISO_SCENE_STALE_MS_MIN 1       /* = ISO_DEV_STALE_MIN_NS */
-#define ISO_SCENE_STALE_MS_MAX 10000   /* = ISO_DEV_STALE_MAX_NS */
+/* A view's default: a page in control sends its target every 25 ms, but a
+ * browser on a busy machine delivers 12-30 a second, and a foreground tab's
+ * timers slip by tens of ms more; at 100 ms a drag stuttered with pairs of
+ * stale and resume notices. 250 ms is three periods at 12 a second. */
+#define ISO_SCENE_STALE_MS_VIEW_DEFAULT 250
+#define ISO_SCENE_STALE_MS_MIN 1     /* = ISO_DEV_STALE_MIN_NS */
+#define ISO_SCENE_STALE_MS_MAX 10000 /* = ISO_DEV_STALE_MAX_NS */
 _Static_assert(ISO_SCENE_STALE_MS_DEFAULT * 1000000LL == ISO_DEV_STALE_DEFAULT_NS &&
                    ISO_SCENE_STALE_MS_MIN * 1000000LL == ISO_DEV_STALE_MIN_NS &&
                    ISO_SCENE_STALE_MS_MAX * 1000000LL == ISO_DEV_STALE_MAX_NS,
@@ -277,6 +282,12 @@ ISO_API ISO_NODISCARD int iso_scene_load_mem(const char *text, size_t len, const
                                              const iso_scene_opts *opts, iso_scene **out,
                                              iso_err *err);
 ISO_API void iso_scene_destroy(iso_scene *s); /* NULL is a no-op */
+
+/* The stale time in ms the device d's source of kind source_kind
+ * (ISO_DEV_KIND_*; in a replay, the recorded source's) gets: d's
+ * stale_ms when the scene gives it, else ISO_SCENE_STALE_MS_VIEW_DEFAULT
+ * for a view and ISO_SCENE_STALE_MS_DEFAULT for any other. */
+ISO_API int iso_scene_device_stale_ms(const iso_scene_device *d, int source_kind);
 
 /* Names used in the schema, for summaries. Never NULL. */
 ISO_API const char *iso_scene_driver_name(int kind);

@@ -42,7 +42,7 @@ static const scene_key device_keys[] = {
     {"stale_ms", SK_INT, FIELD(iso_scene_device, stale_ms),
      IN(ISO_SCENE_STALE_MS_MIN, ISO_SCENE_STALE_MS_MAX), .with = "tty tcp serialport replay view",
      .help = "a twist or target stream this long without a sample stops moving its handle",
-     .dflt = STR(ISO_SCENE_STALE_MS_DEFAULT)},
+     .dflt = STR(ISO_SCENE_STALE_MS_DEFAULT) ", a view " STR(ISO_SCENE_STALE_MS_VIEW_DEFAULT)},
     {"path", SK_STRING, FIELD(iso_scene_device, path), .with = "hid tty", .need = "tty",
      .help = "the device node (hid: a hidraw node; tty: e.g. /dev/ttyUSB0)",
      .dflt = "hid: the first 3D mouse"},
@@ -78,7 +78,7 @@ static int device_begin(scene_ctx *c, scene_map *m)
 {
     iso_scene_device *d = m->obj;
     (void)c;
-    d->stale_ms = ISO_SCENE_STALE_MS_DEFAULT;
+    d->stale_ms = 0; /* the source's kind's default (controller/loop_devices.c) */
     return ISO_OK;
 }
 
@@ -148,3 +148,11 @@ const scene_section iso_scene__device = {.name = "devices[]",
                                          .begin = device_begin,
                                          .chosen = device_kind,
                                          .end = device_end};
+
+int iso_scene_device_stale_ms(const iso_scene_device *d, int source_kind)
+{
+    if (d->stale_ms > 0)
+        return d->stale_ms;
+    return source_kind == ISO_DEV_KIND_VIEW ? ISO_SCENE_STALE_MS_VIEW_DEFAULT
+                                            : ISO_SCENE_STALE_MS_DEFAULT;
+}

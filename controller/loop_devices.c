@@ -142,14 +142,16 @@ static void say_far(iso_loop *l)
 static int devices_ready(iso_loop *l, iso_err *err)
 {
     const iso_scene *sc = l->sc;
-    size_t n = iso_dev_hub_sources(l->hub);
-    for (size_t i = 0; i < n; i++) {
+    iso_dev_info infos[ISO_DEV_MAX_SOURCES];
+    size_t n = iso_dev_hub_infos(l->hub, infos, ISO_DEV_MAX_SOURCES);
+    for (size_t i = 0; i < n && i < ISO_DEV_MAX_SOURCES; i++) {
         const iso_scene_device *d = &sc->devices[l->replay ? 0 : i];
-        if (d->stale_ms > 0) {
-            int rc = iso_dev_map_set_stale(&l->map, (int)i, (int64_t)d->stale_ms * 1000000, err);
-            if (rc != ISO_OK)
-                return rc;
-        }
+        /* a source's kind gives the default, the recorded kind in a
+         * replay, so a replay times out as the live run did */
+        int ms = iso_scene_device_stale_ms(d, infos[i].kind);
+        int rc = iso_dev_map_set_stale(&l->map, (int)i, (int64_t)ms * 1000000, err);
+        if (rc != ISO_OK)
+            return rc;
         /* Targets and poses keep the handles within a workspace the mesh
          * gives, the same live and replayed (without a mesh, no bound). */
         int wrc = l->diag > 0 ? iso_dev_map_set_workspace(&l->map, (int)i,

@@ -178,7 +178,13 @@ static void test_round_trip(void **state)
     assert_int_equal(s->n_devices, 2);
     assert_string_equal(s->devices[0].address, "localhost:4000");
     assert_int_equal(s->devices[1].baud, 9600);
-    assert_int_equal(s->devices[0].stale_ms, ISO_SCENE_STALE_MS_DEFAULT);
+    assert_int_equal(s->devices[0].stale_ms, 0); /* not given: its kind's default at run time */
+    assert_int_equal(iso_scene_device_stale_ms(&s->devices[0], ISO_DEV_KIND_SERIAL),
+                     ISO_SCENE_STALE_MS_DEFAULT);
+    assert_int_equal(iso_scene_device_stale_ms(&s->devices[0], ISO_DEV_KIND_VIEW),
+                     ISO_SCENE_STALE_MS_VIEW_DEFAULT); /* a replay's recorded view */
+    assert_int_equal(iso_scene_device_stale_ms(&s->devices[1], ISO_DEV_KIND_SERIAL),
+                     250); /* given */
     assert_int_equal(s->devices[1].stale_ms, 250);
     assert_int_equal(s->n_handles, 2);
     const iso_scene_driver *d = &s->handles[0].driver;

@@ -22,8 +22,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             !(s->solver.omega > 0 && s->solver.omega <= 1))
             abort();
         for (int i = 0; i < s->n_devices; i++)
-            if (s->devices[i].stale_ms < ISO_SCENE_STALE_MS_MIN ||
-                s->devices[i].stale_ms > ISO_SCENE_STALE_MS_MAX)
+            if ((s->devices[i].stale_ms < ISO_SCENE_STALE_MS_MIN && s->devices[i].stale_ms != 0) ||
+                s->devices[i].stale_ms > ISO_SCENE_STALE_MS_MAX) /* 0: the kind's default */
                 abort();
         for (int h = 0; h < s->n_handles; h++) {
             const iso_scene_driver *d = &s->handles[h].driver;
