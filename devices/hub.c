@@ -59,9 +59,10 @@ struct iso_dev_hub {
     iso_dev_rec_writer rec;
     int64_t last_tick;
     int ticked;
-    long tick_records;       /* replay: TICK records drained so far */
-    iso_dev_decoder before;  /* take(): a decoder before its chunk, for the noise cap */
-    iso_dev__reader *reader; /* reads the byte streams (hub_reader.c); NULL until one */
+    long tick_records;           /* replay: TICK records drained so far */
+    iso_dev_decoder before;      /* take(): a decoder before its chunk, for the noise cap */
+    iso_dev__reader *reader;     /* reads the byte streams (hub_reader.c); NULL until one */
+    iso_dev__reopener *reopener; /* reopens gone sources (hub_reopen.c); NULL until one */
     iso_dev_event ev[HUB_EVENTS];
     size_t nev;
     /* Guards src[].s and n against iso_dev_hub_estop_probe on another
@@ -116,6 +117,7 @@ void iso_dev_hub_destroy(iso_dev_hub *h)
     if (!h)
         return;
     iso_dev__reader_destroy(h->reader); /* first: it may be reading a source */
+    iso_dev__reopener_destroy(h->reopener);
     for (size_t i = 0; i < h->n; i++)
         iso_dev_source_close(swap_source(h, i, NULL));
     iso_dev_source_close(h->mux);
@@ -143,7 +145,8 @@ static int hand_over(iso_dev_hub *h, size_t i, iso_err *err)
 
 int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms)
 {
-    return !h || !h->reader || iso_dev__reader_sync(h->reader, timeout_ms);
+    int ok = !h || !h->reader || iso_dev__reader_sync(h->reader, timeout_ms);
+    return ok && (!h || !h->reopener || iso_dev__reopener_sync(h->reopener, timeout_ms));
 }
 
 int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err)
@@ -189,6 +192,10 @@ int iso_dev_hub_add(iso_dev_hub *h, iso_dev_source *s, iso_dev_reopen_fn reopen,
     x->info = s->info;
     int rc = iso_dev_decoder_init(&x->dec, &s->info, (uint8_t)h->n, err);
     if (rc != ISO_OK) {
+        iso_dev_source_close(s);
+        return rc;
+    }
+    if (reopen && !h->reopener && (rc = iso_dev__reopener_create(&h->reopener, err)) != ISO_OK) {
         iso_dev_source_close(s);
         return rc;
     }
@@ -476,13 +483,17 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
 {
     hub_src *x = &h->src[i];
     if (!x->s) {
-        if (!x->reopen || (now < x->next_try && !h->retry_now))
-            return ISO_OK;
-        iso_err e;
-        iso_err_clear(&e);
-        x->next_try = now + h->retry_ns;
+        /* asked on one tick, taken on a later one (hub_reopen.c) */
         iso_dev_source *back = NULL;
-        if (x->reopen(x->reopen_ctx, &x->info, &back, &e) != ISO_OK || !back)
+        if (!x->reopen)
+            return ISO_OK;
+        if (!iso_dev__reopener_take(h->reopener, i, &back)) {
+            if ((now >= x->next_try || h->retry_now) &&
+                iso_dev__reopener_ask(h->reopener, i, x->reopen, x->reopen_ctx, &x->info))
+                x->next_try = now + h->retry_ns;
+            return ISO_OK;
+        }
+        if (!back)
             return ISO_OK;
         swap_source(h, i, back);
         memcpy(x->detail, x->s->detail, sizeof x->detail);
@@ -511,7 +522,9 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
             say(h, "%s %s went away (%s): its handles hold still until it is back",
                 iso_dev_kind_name(x->info.kind), x->info.name, e.msg);
             x->threaded = 0;
-            iso_dev_source_close(swap_source(h, i, NULL));
+            iso_dev_source *old = swap_source(h, i, NULL);
+            if (!h->reopener || !iso_dev__reopener_close(h->reopener, i, old))
+                iso_dev_source_close(old);
             x->next_try = now + h->retry_ns;
             return mark(h, i, ISO_DEV_CHUNK_GONE, now, err);
         }

@@ -73,6 +73,23 @@ int iso_dev__skip_encode(const iso_dev_decoder *after, const iso_dev_decoder *fi
 /* Applies a SKIP record's payload (t: its time) to the decoder. */
 void iso_dev__skip_apply(iso_dev_decoder *d, int64_t t, const uint8_t *p, size_t len);
 
+/* hub_reopen.c: the thread that opens gone sources again and closes the
+ * handles of those that went, so that neither happens on the tick. ask:
+ * source i is to be reopened by fn(ctx, info, ...) (info and ctx stay valid
+ * until the answer is taken); 0 when an answer for i is pending already.
+ * take: 1 with the answer (*back: the source, or NULL when it is not back),
+ * 0 while there is none. close: hands s over to be closed; 0 when the last
+ * one handed over for i is still open (the caller closes s itself). */
+typedef struct iso_dev__reopener iso_dev__reopener;
+ISO_NODISCARD int iso_dev__reopener_create(iso_dev__reopener **out, iso_err *err);
+void iso_dev__reopener_destroy(iso_dev__reopener *r); /* closes what it holds; NULL: no-op */
+int iso_dev__reopener_ask(iso_dev__reopener *r, size_t i, iso_dev_reopen_fn fn, void *ctx,
+                          const iso_dev_info *info);
+int iso_dev__reopener_take(iso_dev__reopener *r, size_t i, iso_dev_source **back);
+int iso_dev__reopener_close(iso_dev__reopener *r, size_t i, iso_dev_source *s);
+/* Waits up to timeout_ms until nothing is being reopened or closed: 1, or 0. */
+int iso_dev__reopener_sync(iso_dev__reopener *r, int timeout_ms);
+
 /* hub_reader.c: the thread that reads the hub's byte streams, so that the
  * tick never waits in the kernel's tty layer (the file says why). */
 typedef struct iso_dev__reader iso_dev__reader;

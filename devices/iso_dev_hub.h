@@ -12,7 +12,10 @@
 
 typedef struct iso_dev_hub iso_dev_hub;
 /* Called to open a source again after it went away; returns ISO_OK and a new
- * source, or an error (tried again every retry interval). */
+ * source, or an error (tried again every retry interval). It is called on
+ * a thread of the hub's own, never in a tick (a device open may take as
+ * long as a USB enumeration): the drain that asks takes the answer on a
+ * later drain, and closes a gone source's handle there too. */
 typedef int (*iso_dev_reopen_fn)(void *ctx, const iso_dev_info *info, iso_dev_source **out,
                                  iso_err *err);
 /* One sentence per state change (gone, back, damaged record), no newline. */
@@ -37,8 +40,10 @@ ISO_API size_t iso_dev_hub_sources(const iso_dev_hub *h);
 ISO_API ISO_NODISCARD int iso_dev_hub_set_priority(iso_dev_hub *h, int priority, iso_err *err);
 /* Waits up to timeout_ms until that thread has read what its byte streams
  * had sent by now, so that a drain after it misses nothing (a recording's
- * last drain, a test). Returns 1 when it has, 0 on the timeout. Never in a
- * tick: it waits. */
+ * last drain, a test), and until no gone source is being reopened (the
+ * tick asks for a reopen and takes the answer on a later tick, from a
+ * thread of the hub's: iso_dev_hub_drain). Returns 1 when it has, 0 on the
+ * timeout. Never in a tick: it waits. */
 ISO_API int iso_dev_hub_sync(iso_dev_hub *h, int timeout_ms);
 /* The e-stop inputs (sources whose estop_level answers, e.g. a GPIO e-stop
  * line), read now: 1 when any is pressed, or is gone or unreadable (an

@@ -9,8 +9,10 @@
 
 #include <cmocka.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 
 #include "iso_dev.h"
 #include "testutil.h"
@@ -105,6 +107,7 @@ static void live_unplug_replug_record_replay(void **state)
     for (int k = 0; k < TICKS; k++) {
         w.now = (k + 1) * MS;
         assert_int_equal(iso_dev_hub_tick(h, &m, w.now, 1e-3, P, &live[k], &err), ISO_OK);
+        assert_int_equal(iso_dev_hub_sync(h, 2000), 1); /* a reopen asked for is answered */
     }
     int last_level = -1;
     assert_int_equal(iso_dev_fake_writes(gpio, &last_level), 2 * TICKS); /* one pulse a tick */
@@ -122,11 +125,13 @@ static void live_unplug_replug_record_replay(void **state)
     assert_string_equal(w.msgs[0], "hid /dev/hidraw7 went away (/dev/hidraw7: device unplugged "
                                    "(fake)): its handles hold still until it is back");
     assert_string_equal(w.msgs[1], "hid /dev/hidraw7 is back");
-    /* retried every 3 ms from the unplug at tick 11: 14, 17, 20 (back) */
+    /* retried every 3 ms from the unplug at tick 11: asked at 14, 17, 20,
+     * each answer taken a tick later (the reopen is the hub's thread's, not
+     * the tick's): back at 21 */
     assert_int_equal(w.reopen_calls, 3);
-    assert_int_equal(live[18].gone, 1);
-    assert_int_equal(live[19].gone, 0);
-    assert_true(live[19].twist[0].v[0] == 0);
+    assert_int_equal(live[19].gone, 1);
+    assert_int_equal(live[20].gone, 0);
+    assert_true(live[20].twist[0].v[0] == 0);
     assert_true(fabs(live[25].twist[0].v[0] + 0.1 * 0.45 / 0.95) < 1e-15);
     /* e-stop pressed at 30.0005 ms: zero in tick 31 itself; released at 33,
      * taken once stable for the 1 ms debounce (tick 34) */
@@ -192,10 +197,84 @@ static void hub_refuses_mixing_replay_and_live(void **state)
     iso_dev_hub_destroy(h);
 }
 
+/* A device that takes 300 ms to open again (a USB hub enumerating) costs
+ * the tick nothing: the reopen runs on the hub's own thread, every tick in
+ * the meantime returns at once with the source still gone, and the source
+ * is back on the first tick after the open finished. */
+typedef struct slow_world {
+    pthread_t tick_thread, reopen_thread;
+    iso_dev_source *next;
+} slow_world;
+
+static int slow_reopen(void *ctx, const iso_dev_info *info, iso_dev_source **out, iso_err *err)
+{
+    slow_world *w = ctx;
+    (void)info;
+    (void)err;
+    w->reopen_thread = pthread_self();
+    struct timespec ts = {0, 300 * 1000 * 1000};
+    nanosleep(&ts, NULL);
+    *out = w->next;
+    w->next = NULL;
+    return ISO_OK;
+}
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+static void a_slow_reopen_costs_the_tick_nothing(void **state)
+{
+    (void)state;
+    static slow_world w;
+    iso_err err;
+    iso_err_clear(&err);
+    iso_dev_hub *h;
+    assert_int_equal(iso_dev_hub_create(NULL, NULL, &h, &err), ISO_OK);
+    iso_dev_hub_set_retry(h, 1 * MS);
+    iso_dev_source *hid = fake(ISO_DEV_KIND_HID, "/dev/hidraw7", 0);
+    assert_int_equal(iso_dev_fake_push_gone(hid, 1 * MS), ISO_OK);
+    w.next = fake(ISO_DEV_KIND_HID, "/dev/hidraw7", 0);
+    w.tick_thread = pthread_self();
+    assert_int_equal(iso_dev_hub_add(h, hid, slow_reopen, &w, &err), ISO_OK);
+    iso_dev_map_opts o;
+    iso_dev_map_opts_default(&o);
+    static iso_dev_map m;
+    assert_int_equal(iso_dev_map_init(&m, &o, &err), ISO_OK);
+    iso_pose P[ISO_DEV_MAX_HANDLES];
+    for (unsigned i = 0; i < ISO_DEV_MAX_HANDLES; i++)
+        iso_pose_identity(&P[i]);
+    double worst = 0, t0 = now_ms();
+    int k = 0, back_at = -1;
+    iso_dev_tick t;
+    for (; k < 2000 && back_at < 0; k++) { /* ticks every 1 ms of wall time */
+        double a = now_ms();
+        assert_int_equal(iso_dev_hub_tick(h, &m, (k + 1) * MS, 1e-3, P, &t, &err), ISO_OK);
+        double b = now_ms();
+        worst = b - a > worst ? b - a : worst;
+        if (k > 2 && !t.gone)
+            back_at = k;
+        struct timespec ts = {0, 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    print_message("a 300 ms reopen: back after %.0f ms of ticks (%d ticks), the slowest tick "
+                  "%.3f ms\n",
+                  now_ms() - t0, back_at, worst);
+    assert_true(back_at > 0);
+    assert_true(now_ms() - t0 >= 300); /* it did wait for the open */
+    assert_true(worst < 100);          /* no tick waited for it */
+    assert_false(pthread_equal(w.reopen_thread, w.tick_thread));
+    iso_dev_hub_destroy(h);
+}
+
 int main(void)
 {
     const struct CMUnitTest t[] = {
         cmocka_unit_test(live_unplug_replug_record_replay),
+        cmocka_unit_test(a_slow_reopen_costs_the_tick_nothing),
         cmocka_unit_test(hub_refuses_mixing_replay_and_live),
     };
     return cmocka_run_group_tests_name("dev_hub", t, NULL, NULL);

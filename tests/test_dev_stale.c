@@ -376,8 +376,10 @@ static void counters_and_descriptions(void **state)
     iso_pose P[ISO_DEV_MAX_HANDLES];
     identity_poses(P);
     iso_dev_tick t;
-    for (int k = 1; k <= 12; k++)
+    for (int k = 1; k <= 12; k++) {
         assert_int_equal(iso_dev_hub_tick(h, &m, k * MS, 1e-3, P, &t, &err), ISO_OK);
+        assert_int_equal(iso_dev_hub_sync(h, 2000), 1); /* a reopen asked for is answered */
+    }
     iso_dev_source_stats st;
     assert_int_equal(iso_dev_hub_source_stats(h, 0, &st), ISO_OK);
     assert_int_equal(st.gone, 1);
