@@ -6,9 +6,24 @@
 
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "iso_proxy.h"
 #include "iso_scene.h"
+
+/* A recording on a FIFO is written through, and the run refuses one that
+ * no one reads (opening it would wait for a reader): said here, so that
+ * `check` does not pass over what `run` may refuse. Not opened to see
+ * whether a reader is there: a writer that opens and closes would give
+ * that reader its end of file. "" for anything else. */
+static const char *fifo_note(const char *path)
+{
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISFIFO(st.st_mode))
+        return "";
+    return " (a FIFO: written through; start its reader before the run, which refuses a FIFO "
+           "that no one reads)";
+}
 
 static void print_summary(const iso_scene *s)
 {
@@ -65,7 +80,7 @@ static void print_summary(const iso_scene *s)
         printf(" none");
     printf("\n");
     if (s->recording[0])
-        printf("  recording: %s\n", s->recording);
+        printf("  recording: %s%s\n", s->recording, fifo_note(s->recording));
 }
 
 static const iso_cli__opt check_options[] = {{0}};

@@ -233,6 +233,8 @@ int iso_loop_create(const iso_scene *sc, const iso_loop_opts *o, iso_loop **out,
         l->recording = rc == ISO_OK;
     } else if (rc == ISO_OK && rec[0] && l->replay) {
         iso_loop_say(l, "not recording to %s: the devices are a replay already", rec);
+    } else if (rc == ISO_OK && rec[0] && !l->hub) {
+        iso_loop_say(l, "not recording to %s: the scene has no devices to record", rec);
     }
     if (rc == ISO_OK && rec[0] && l->hub && !l->replay)
         rc = iso_loop__recorder_create(l, rec, l->recording, &l->recorder, err);

@@ -34,6 +34,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <termios.h>
 #include <time.h>
@@ -788,6 +789,41 @@ static void the_record_button_makes_a_file_each_time(void **state)
     assert_true(WIFEXITED(status) && WEXITSTATUS(status) == 128 + SIGTERM);
 }
 
+/* A recording aimed at a FIFO: `check` says what the run will need (its
+ * reader first), and the run, with no reader, refuses it at once and
+ * names why, before anything starts; the FIFO is left a FIFO. */
+static void a_fifo_recording_without_a_reader_is_said_and_refused(void **state)
+{
+    (void)state;
+    int master, slave;
+    char tty[256];
+    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
+    char scene[PATH_MAX], fifo[PATH_MAX], extra[PATH_MAX + 32], dev[512];
+    iso_test_tmp(fifo, sizeof fifo, "rec.fifo");
+    unlink(fifo);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    snprintf(extra, sizeof extra, "recording: %s\n", fifo);
+    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
+             tty);
+    write_scene(iso_test_tmp(scene, sizeof scene, "fifo_rec.yaml"), dev, "{device: link}", extra);
+    assert_int_equal(iso("check '%s'", scene), 0);
+    if (!strstr(g_out, "start its reader before the run"))
+        fail_msg("check does not say the FIFO needs its reader:\n%s%s", g_out, g_err);
+    double t0 = iso_test_now_s();
+    int rc = iso("run '%s' --no-rt --quiet --duration 0.2", scene);
+    double took = iso_test_now_s() - t0;
+    printf("a FIFO with no reader: run rc %d in %.2f s: %s", rc, took, g_err);
+    assert_true(rc != 0);
+    assert_non_null(strstr(g_err, "a FIFO that no one reads"));
+    assert_true(took < 10);
+    struct stat st;
+    assert_int_equal(stat(fifo, &st), 0);
+    assert_true(S_ISFIFO(st.st_mode));
+    unlink(fifo);
+    close(master);
+    close(slave);
+}
+
 /* ---- the live view in a real browser ------------------------------------------------ */
 
 /* Waits up to 20 s for "live view on http://127.0.0.1:PORT/" in the log. */
@@ -971,6 +1007,7 @@ int main(void)
         cmocka_unit_test(pacing_follows_speed),
         cmocka_unit_test(sigterm_closes_the_recording_whole),
         cmocka_unit_test(the_record_button_makes_a_file_each_time),
+        cmocka_unit_test(a_fifo_recording_without_a_reader_is_said_and_refused),
         cmocka_unit_test(chromium_watches_a_replay_run),
         cmocka_unit_test(bad_input_is_named),
         cmocka_unit_test(exits_and_files),
