@@ -55,6 +55,7 @@ struct iso_dev_hub {
     void *notify_ctx;
     int64_t retry_ns;
     int retry_now;
+    int retry_kept; /* retry_now holds for the next drain too */
     int recording;
     iso_dev_rec_writer rec;
     int64_t last_tick;
@@ -487,14 +488,15 @@ static int drain_live(iso_dev_hub *h, size_t i, int64_t now, iso_err *err)
         iso_dev_source *back = NULL;
         if (!x->reopen)
             return ISO_OK;
-        if (!iso_dev__reopener_take(h->reopener, i, &back)) {
-            if ((now >= x->next_try || h->retry_now) &&
-                iso_dev__reopener_ask(h->reopener, i, x->reopen, x->reopen_ctx, &x->info))
-                x->next_try = now + h->retry_ns;
+        if (!iso_dev__reopener_take(h->reopener, i, &back) || !back) {
+            if (now >= x->next_try || h->retry_now) {
+                if (iso_dev__reopener_ask(h->reopener, i, x->reopen, x->reopen_ctx, &x->info))
+                    x->next_try = now + h->retry_ns;
+                else if (h->retry_now)
+                    h->retry_kept = 1; /* a replug seen while a reopen is under way */
+            }
             return ISO_OK;
         }
-        if (!back)
-            return ISO_OK;
         swap_source(h, i, back);
         memcpy(x->detail, x->s->detail, sizeof x->detail);
         say(h, "%s %s is back", iso_dev_kind_name(x->info.kind), x->info.name);
@@ -566,7 +568,8 @@ static int drain_all(iso_dev_hub *h, int64_t now, iso_err *err)
     else
         for (size_t i = 0; i < h->n && rc == ISO_OK; i++)
             rc = drain_live(h, i, now, err);
-    h->retry_now = 0;
+    h->retry_now = h->retry_kept;
+    h->retry_kept = 0;
     for (size_t i = 0; i < h->n; i++)
         h->nev += iso_dev_decode_tick(&h->src[i].dec, now, h->ev + h->nev, HUB_EVENTS - h->nev);
     return rc;

@@ -38,6 +38,7 @@ struct iso_dev__reopener {
     reopen_slot slot[ISO_DEV_MAX_SOURCES];
     sem_t wake;
     _Atomic int quit;
+    _Atomic int closing; /* handles taken from `dead` and not yet closed */
     pthread_t th;
 };
 
@@ -49,8 +50,15 @@ static void *reopener_main(void *arg)
             ;
         for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
             reopen_slot *q = &r->slot[i];
+            /* the state first: an ask seen here came after its source's
+             * handle was handed over, so that handle is closed before the
+             * device is opened again (an exclusive open, spnav's one
+             * connection) */
+            int st = atomic_load(&q->state);
+            atomic_fetch_add(&r->closing, 1);
             iso_dev_source_close(atomic_exchange(&q->dead, NULL));
-            if (atomic_load(&r->quit) || atomic_load(&q->state) != SLOT_ASKED)
+            atomic_fetch_sub(&r->closing, 1);
+            if (atomic_load(&r->quit) || st != SLOT_ASKED)
                 continue;
             iso_err e;
             iso_err_clear(&e);
@@ -132,7 +140,7 @@ int iso_dev__reopener_close(iso_dev__reopener *r, size_t i, iso_dev_source *s)
 {
     iso_dev_source *expected = NULL;
     if (!atomic_compare_exchange_strong(&r->slot[i].dead, &expected, s))
-        return 0; /* the last one is still being closed: the caller closes this one */
+        return 0; /* the last one handed over is not picked up yet: the caller closes this */
     sem_post(&r->wake);
     return 1;
 }
@@ -140,7 +148,7 @@ int iso_dev__reopener_close(iso_dev__reopener *r, size_t i, iso_dev_source *s)
 int iso_dev__reopener_sync(iso_dev__reopener *r, int timeout_ms)
 {
     for (int waited = 0;; waited++) {
-        int busy = 0;
+        int busy = atomic_load(&r->closing) != 0;
         for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++)
             busy |= atomic_load(&r->slot[i].state) == SLOT_ASKED ||
                     atomic_load(&r->slot[i].dead) != NULL;

@@ -15,7 +15,7 @@
  * PCG minimises; zero is in the span, so it is never worse than starting
  * from zero or from the guess. It costs one product of A with the eight
  * solutions as one block (CHOLMOD reads A once for four columns; A·guess is
- * PCG's first product anyway), 45 dot products and a 9×9 solve, and depends on nothing
+ * PCG's first product anyway), 54 dot products and a 9×9 solve, and depends on nothing
  * but the evaluation's own numbers, so replays keep their bits. Eight:
  * on the recorded drags and the README's demo 2, 3, 4, 6, 8 and 12
  * solutions left 17, 15, 16, 15, 12 and 9 factorizations on the tick of
