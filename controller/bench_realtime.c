@@ -45,12 +45,6 @@ static int load_scene(const char *name, const char *bench_dir, int resolution,
     return iso_scene_load_mem(text, strlen(text), name, &opts, out, err);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* One bare solve of the scene's system at its rest pose: the median over
  * reps evaluations of the solve alone (each factors afresh first). */
 static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
@@ -66,8 +60,7 @@ static int bare_solve(const iso_scene *sc, int reps, double *ms, iso_err *err)
     for (int r = 0; rc == ISO_OK && r < reps; r++)
         t[r] = each[r].t_solve;
     if (rc == ISO_OK) {
-        qsort(t, (size_t)reps, sizeof *t, cmp_double);
-        *ms = 1e3 * (reps % 2 ? t[reps / 2] : 0.5 * (t[reps / 2 - 1] + t[reps / 2]));
+        *ms = 1e3 * iso_cli__median(t, reps);
     }
     return rc;
 }

@@ -199,12 +199,6 @@ static void sym_product(const csc *a, const double *v, double *y)
     }
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* The median time of one product, over 21; *nnz: the matrix's entries. */
 static double product_ms(const iso_mesh *m, const iso_regions *r, long *nnz)
 {
@@ -221,8 +215,7 @@ static double product_ms(const iso_mesh *m, const iso_regions *r, long *nnz)
             sym_product(&a, v, y);
             t[k] = 1e3 * (iso_clock_now() - t0);
         }
-        qsort(t, 21, sizeof t[0], cmp_double);
-        ms = t[10];
+        ms = iso_cli__median(t, 21);
         *nnz = a.p[a.n];
     }
     free(v);
@@ -515,12 +508,6 @@ static void blas_as_the_engine(void)
     set_threads(1);
 }
 
-static double median3(double *v)
-{
-    qsort(v, ISO_CLI_SCALE_FACTOR_REPS, sizeof *v, cmp_double);
-    return v[ISO_CLI_SCALE_FACTOR_REPS / 2];
-}
-
 /* The whole mesh's system at its rest pose, the scene's handle moving:
  * evaluations under the paper's scheme (refactor always, no worker, the C
  * assembly), each exactly one assembly, one numeric factorization and one
@@ -554,9 +541,9 @@ static int factor_figures(const iso_scene *sc, iso_cli__scale_factor_row *row, i
         row->factor_mb = (double)st.factor_bytes / (1024.0 * 1024.0);
         row->gflop = flops / 1e9;
         row->analysis_s = st.t_analysis;
-        row->factor_ms = median3(tf);
-        row->solve_ms = median3(ts);
-        row->assembly_ms = median3(ta);
+        row->factor_ms = iso_cli__median(tf, ISO_CLI_SCALE_FACTOR_REPS);
+        row->solve_ms = iso_cli__median(ts, ISO_CLI_SCALE_FACTOR_REPS);
+        row->assembly_ms = iso_cli__median(ta, ISO_CLI_SCALE_FACTOR_REPS);
     }
     if (rc == ISO_OK)
         row->product_ms = product_ms(sc->mesh, &sc->regions, &row->product_nnz);

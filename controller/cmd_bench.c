@@ -101,21 +101,6 @@ typedef struct bench_result {
 /* Small helpers                                                              */
 /* ------------------------------------------------------------------------ */
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Median of n values (sorts them). */
-static double median(double *v, int n)
-{
-    if (n <= 0)
-        return NAN;
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 static double peak_rss_mb(void)
 {
     struct rusage ru;
@@ -227,7 +212,7 @@ static double dgemm_rate(int n, int reps)
         dgemm("N", "N", &n, &n, &n, &one, A, &n, B, &n, &zero, C, &n);
         t[r] = iso_clock_now() - t0;
     }
-    rate = 2.0 * (double)n * (double)n * (double)n / median(t, reps) / 1e9;
+    rate = 2.0 * (double)n * (double)n * (double)n / iso_cli__median(t, reps) / 1e9;
 out:
     free(A);
     free(B);
@@ -301,8 +286,8 @@ static int bare_cholmod(const iso_cli__problem *p, int reps, bench_machine *m, i
         m->unknowns = 3 * st.n_free;
         m->nnz_l = st.nnz_l;
         m->flops = iso_cli__factor_flops(s);
-        m->bare_factor_s = median(tf, reps);
-        m->bare_solve_s = median(ts, reps);
+        m->bare_factor_s = iso_cli__median(tf, reps);
+        m->bare_solve_s = iso_cli__median(ts, reps);
     }
 out:
     iso_solver_destroy(s);
@@ -331,7 +316,7 @@ static int timed_runs(const iso_cli__problem *p, const iso_solver_opts *so, doub
             return rc;
         t[r] = runs[r].seconds;
     }
-    double med = median(t, reps);
+    double med = iso_cli__median(t, reps);
     *run = runs[0];
     for (int r = 0; r < reps; r++)
         if (runs[r].seconds == med)

@@ -23,6 +23,8 @@
 
 /* Prints "isoshape <cmd>: <message>\n" on stderr. */
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
+/* The median of n values, sorting them in place; NAN for none (cli_stats.c). */
+double iso_cli__median(double *v, int n);
 
 /* ------------------------------------------------------------------------ */
 /* Options as tables (cli_opts.c)                                             */
