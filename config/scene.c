@@ -18,11 +18,6 @@
 #include "iso_file.h"
 #include "iso_names.h"
 
-/* Key paths are cut at ISO_SCENE_KEY_MAX, by design. */
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wformat-truncation"
-#endif
-
 /* ------------------------------------------------------------------------ */
 /* The top level                                                             */
 /* ------------------------------------------------------------------------ */
