@@ -137,14 +137,7 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
 
 int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv, const iso_regions *regions,
                          const iso_act_link_spec *link, const iso_act_opts *opts,
-                         iso_actuators **out, iso_err *err)
-{
-    return iso_actuators_create_v2(ch, n_ch, nv, regions, link, opts, NULL, out, err);
-}
-
-int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, int nv, const iso_regions *regions,
-                            const iso_act_link_spec *link, const iso_act_opts *opts,
-                            const iso_act_safety_opts *safety, iso_actuators **out, iso_err *err)
+                         const iso_act_safety_opts *safety, iso_actuators **out, iso_err *err)
 {
     if (out)
         *out = NULL;

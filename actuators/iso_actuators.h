@@ -60,7 +60,7 @@
  *    tests/test_actuators.c; the goal is 20 ms). Without SAFE, ~102 ms;
  *  - the link is up (see "Loss" below).
  * The loop watchdog's bound and the e-stop probe are iso_act_safety_opts
- * (iso_actuators_create_v2).
+ * (iso_actuators_create).
  * A stalled process: the sender also watches its own clock. When two of its
  * 2 ms looks lie further apart than the loop bound (loop_timeout_ms; 250 ms
  * without a loop watchdog), the whole process did not run (SIGSTOP, a
@@ -176,7 +176,7 @@ typedef struct iso_act_opts {
     void *notice_ctx;
 } iso_act_opts;
 
-/* The safety options of iso_actuators_create_v2. A struct of
+/* The safety options of iso_actuators_create. A struct of
  * its own, not fields added to iso_act_opts: callers initialise that one
  * positionally, which -Wextra -Werror would turn into a build break. Zero
  * means the default everywhere; NULL is all defaults. */
@@ -260,32 +260,21 @@ typedef struct iso_actuators iso_actuators; /* opaque */
  * A bad spec is ISO_EINVAL with a sentence naming the channel entry and
  * what is wrong: a channel index used twice or out of range, min >= max, a
  * zero or non-finite scale, an axis outside 0..2, a vertex out of range, a
- * region that does not exist or has no vertex. Link failures are ISO_EIO
- * (ISO_ENOTSUP for a transport this build lacks).
+ * region that does not exist or has no vertex, a safety loop_timeout_ms of
+ * 1..9. Link failures are ISO_EIO (ISO_ENOTSUP for a transport this build
+ * lacks). safety may be NULL: the loop watchdog at 250 ms once alive() is
+ * first called, no e-stop probe.
  * On success stores a new handle in *out (iso_actuators_destroy frees it);
  * on failure leaves *out NULL and fills err. */
-ISO_API ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, /* in */
-                                               int nv,
-                                               const iso_regions *regions,    /* in, may be NULL */
-                                               const iso_act_link_spec *link, /* in, NULL = NONE */
-                                               const iso_act_opts *opts, /* in, NULL = defaults */
-                                               iso_actuators **out,      /* out */
-                                               iso_err *err);            /* out, may be NULL */
+ISO_API ISO_NODISCARD int iso_actuators_create(const iso_act_channel *ch, int n_ch, int nv,
+                                               const iso_regions *regions,    /* may be NULL */
+                                               const iso_act_link_spec *link, /* NULL = NONE */
+                                               const iso_act_opts *opts,      /* NULL = defaults */
+                                               const iso_act_safety_opts *safety,
+                                               iso_actuators **out, iso_err *err);
 /* Closes the link (and ends an emulation) without waiting for the MCU: call
  * iso_actuators_safe_stop() first for a clean stop. NULL is a no-op. */
 ISO_API void iso_actuators_destroy(iso_actuators *a);
-
-/* iso_actuators_create with the safety options; create() is this with
- * safety = NULL (loop watchdog at 250 ms once alive() is first called, no
- * e-stop probe). Errors as create's, plus ISO_EINVAL for a loop_timeout_ms
- * of 1..9. */
-ISO_API ISO_NODISCARD int iso_actuators_create_v2(const iso_act_channel *ch, int n_ch, /* in */
-                                                  int nv, const iso_regions *regions,  /* in */
-                                                  const iso_act_link_spec *link,       /* in */
-                                                  const iso_act_opts *opts,            /* in */
-                                                  const iso_act_safety_opts *safety,   /* in */
-                                                  iso_actuators **out,                 /* out */
-                                                  iso_err *err);                       /* out */
 
 /* Computes the channel values for positions x (3*nv, xyz interleaved) into
  * values[ch] for every configured channel (others are left alone), counting

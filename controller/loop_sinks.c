@@ -158,8 +158,8 @@ static int open_actuators(iso_loop *l, iso_err *err)
     so.loop_timeout_ms = a->loop_timeout_ms; /* 0: the default above */
     so.estop_probe = estop_inputs;           /* read on the sender thread, every 2 ms */
     so.estop_ctx = l;
-    return iso_actuators_create_v2(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &so,
-                                   &l->sinks->act, err);
+    return iso_actuators_create(ch, a->n_ch, l->nv, &l->sc->regions, &link, &o, &so, &l->sinks->act,
+                                err);
 }
 
 int iso_loop__sinks_open(iso_loop *l, iso_err *err)

@@ -144,7 +144,7 @@ static void values_equal_closed_form_and_clamps_are_counted(void **state)
     iso_actuators *a = NULL;
     iso_err err;
     iso_err_clear(&err);
-    assert_int_equal(iso_actuators_create(ch, 5, NV, &r, NULL, NULL, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(ch, 5, NV, &r, NULL, NULL, NULL, &a, &err), ISO_OK);
 
     double x[3 * NV] = {
         1.0,    2.0, 3.0,  /* 0 */
@@ -188,7 +188,7 @@ static void clamps_to_limits_and_int16_counted_per_channel(void **state)
     iso_actuators *a = NULL;
     iso_err err;
     iso_err_clear(&err);
-    assert_int_equal(iso_actuators_create(ch, 3, NV, &r, NULL, NULL, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(ch, 3, NV, &r, NULL, NULL, NULL, &a, &err), ISO_OK);
     double x[3 * NV];
     memset(x, 0, sizeof x);
     int16_t v[ISO_ACT_MAX_CHANNELS];
@@ -260,7 +260,7 @@ static void builtin_shape_centroids(void **state)
         reg(2, 0, 0, -100, 100, 1000),
     };
     iso_actuators *a = NULL;
-    assert_int_equal(iso_actuators_create(ch, 3, sh.nv, &r, NULL, NULL, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(ch, 3, sh.nv, &r, NULL, NULL, NULL, &a, &err), ISO_OK);
     int16_t v[ISO_ACT_MAX_CHANNELS];
     assert_int_equal(iso_actuators_compute(a, sh.x, v, &err), ISO_OK);
     printf("bar: fixed centroid z %.4f, handle centroid z %.4f x %.4f\n", cf[2] / nf, ch0[2] / nh,
@@ -282,7 +282,7 @@ static void expect_bad(const iso_act_channel *ch, int n, const iso_regions *r, l
     iso_actuators *a = (iso_actuators *)&g; /* must come back NULL */
     iso_err err;
     iso_err_clear(&err);
-    assert_int_equal(iso_actuators_create(ch, n, NV, r, NULL, NULL, &a, &err), ISO_EINVAL);
+    assert_int_equal(iso_actuators_create(ch, n, NV, r, NULL, NULL, NULL, &a, &err), ISO_EINVAL);
     assert_null(a);
     printf("  bad spec: %s\n", err.msg);
     assert_int_equal(err.offset, entry);
@@ -443,10 +443,10 @@ static int emulated_sink(iso_regions *r, int mode, iso_actuators **a, iso_err *e
     iso_err_clear(err);
     forget_notices();
     *a = NULL;
-    return iso_actuators_create(E2E, 4, NV, r, &link, &opts, a, err);
+    return iso_actuators_create(E2E, 4, NV, r, &link, &opts, NULL, a, err);
 }
 
-/* The same with safety options (iso_actuators_create_v2). */
+/* The same with safety options. */
 static int safety_sink(iso_regions *r, int mode, const iso_act_safety_opts *so, iso_actuators **a,
                        iso_err *err)
 {
@@ -459,7 +459,7 @@ static int safety_sink(iso_regions *r, int mode, const iso_act_safety_opts *so, 
     iso_err_clear(err);
     forget_notices();
     *a = NULL;
-    int rc = iso_actuators_create_v2(E2E, 4, NV, r, &link, &opts, so, a, err);
+    int rc = iso_actuators_create(E2E, 4, NV, r, &link, &opts, so, a, err);
     if (rc != ISO_OK && rc != ISO_ENOTSUP)
         fail_msg("create: %s", err->msg);
     if (rc == ISO_ENOTSUP)
@@ -894,7 +894,7 @@ static void mcu_channel_count_disagreement(void **state)
     iso_actuators *a = NULL;
     iso_err_clear(&err);
     forget_notices();
-    assert_int_equal(iso_actuators_create(two, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(two, 2, NV, &r, &link, &opts, NULL, &a, &err), ISO_OK);
     run_ticks(a, &tick, 8000, NULL, NULL, streaming);
     run_ticks(a, &tick, 300, NULL, NULL, NULL);
     iso_act_stats s;
@@ -915,7 +915,7 @@ static void mcu_channel_count_disagreement(void **state)
     five[1].channel = 5;
     a = NULL;
     forget_notices();
-    assert_int_equal(iso_actuators_create(five, 2, NV, &r, &link, &opts, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(five, 2, NV, &r, &link, &opts, NULL, &a, &err), ISO_OK);
     int rc = 0;
     double end = iso_clock_now() + 8;
     while (iso_clock_now() < end && rc == 0) {
@@ -1059,7 +1059,7 @@ static void scene_runs_hardware_free(void **state)
     forget_notices();
     int nv = iso_mesh_vertex_count(s->mesh);
     iso_err_clear(&err);
-    if (iso_actuators_create(ch, s->actuators.n_ch, nv, &s->regions, &link, &opts, &a, &err))
+    if (iso_actuators_create(ch, s->actuators.n_ch, nv, &s->regions, &link, &opts, NULL, &a, &err))
         fail_msg("%s", err.msg);
     const double *x = iso_mesh_positions(s->mesh);
     int16_t want[ISO_ACT_MAX_CHANNELS];
@@ -1507,14 +1507,13 @@ static void safety_opts_are_checked(void **state)
     iso_actuators *a = (iso_actuators *)&g;
     iso_err err;
     iso_err_clear(&err);
-    assert_int_equal(iso_actuators_create_v2(E2E, 4, NV, &r, &link, NULL, &so, &a, &err),
-                     ISO_EINVAL);
+    assert_int_equal(iso_actuators_create(E2E, 4, NV, &r, &link, NULL, &so, &a, &err), ISO_EINVAL);
     assert_null(a);
     printf("  %s\n", err.msg);
     assert_non_null(strstr(err.msg, "loop_timeout_ms 5 is shorter than the sender's 10 ms"));
     /* no link: the calls are harmless, the state says off */
     so.loop_timeout_ms = -1;
-    assert_int_equal(iso_actuators_create_v2(E2E, 4, NV, &r, &link, NULL, &so, &a, &err), ISO_OK);
+    assert_int_equal(iso_actuators_create(E2E, 4, NV, &r, &link, NULL, &so, &a, &err), ISO_OK);
     iso_actuators_alive(a);
     iso_actuators_estop(a, 1);
     iso_actuators_estop(a, 0);
