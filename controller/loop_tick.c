@@ -69,10 +69,6 @@ static int substeps_for(iso_loop *l, const iso_twist *tw, double H, double perio
     return n > ISO_LOOP_MAX_SUBSTEPS ? ISO_LOOP_MAX_SUBSTEPS : (int)n;
 }
 
-/* Moves the mesh's handles to their commanded poses over H seconds. When
- * the tick was one device tick and needs one step, the handles take the
- * commanded twists themselves (the same arithmetic as the commanded poses,
- * bit for bit); otherwise the constant twist that reaches each pose. */
 /* The twists that take each handle from where the stepper has it to its
  * commanded pose in H seconds; with `direct`, device-driven handles take
  * the commanded twists themselves. */
@@ -92,6 +88,10 @@ static int aim_twists(iso_loop *l, int direct, const iso_twist *dev_tw, double H
     return ISO_OK;
 }
 
+/* Moves the mesh's handles to their commanded poses over H seconds. When
+ * the tick was one device tick and needs one step, the handles take the
+ * commanded twists themselves (the same arithmetic as the commanded poses,
+ * bit for bit); otherwise the constant twist that reaches each pose. */
 static int mesh_step(iso_loop *l, double H, int merged, int covered, const iso_twist *dev_tw,
                      int restart, int *steps, iso_err *err)
 {

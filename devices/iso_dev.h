@@ -422,7 +422,7 @@ typedef struct iso_dev_decoder {
 } iso_dev_decoder;
 
 /* Prepares a decoder for a source of info->kind. ISO_EINVAL for an unknown
- * kind; ISO_ENOTSUP for serial when the firmware bridge was not built. */
+ * kind. */
 ISO_API ISO_NODISCARD int iso_dev_decoder_init(iso_dev_decoder *d, const iso_dev_info *info,
                                                uint8_t source, iso_err *err);
 /* Decodes one chunk into at most cap events appended at ev. Returns the
