@@ -1,5 +1,5 @@
 /* tests/test_foxglove_proto.c -- the edges of the view's Foxglove protocol
- * (view/foxglove.c), on an in-process display:
+ * (view/foxglove_live.c), on an in-process display:
  *   - before the session exists (the first moments of a run) an offer of
  *     foxglove.websocket.v1 gets 503 with Retry-After, not a refusal;
  *   - the subprotocol is matched as a token: "xfoxglove.websocket.v1y" is

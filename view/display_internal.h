@@ -123,7 +123,7 @@ int iso_display__contains_ci(const char *p, size_t n, const char *s);
  * offer that merely contains a name is not that name. */
 int iso_display__list_has(const char *p, size_t n, const char *s);
 
-/* ---- Foxglove's protocol (foxglove.c, foxglove_rx.c) ----------------------- */
+/* ---- Foxglove's protocol (foxglove_live.c, foxglove_live_rx.c) ----------------------- */
 
 /* What a Foxglove client says, and the subscriptions it asked for. */
 #define ISO_DISPLAY_FOX_MAX_CHANNELS 64
@@ -182,7 +182,7 @@ typedef struct iso_display__proto {
 } iso_display__proto;
 
 extern const iso_display__proto iso_display__view_proto;
-extern const iso_display__proto iso_display__fox_proto; /* foxglove.c */
+extern const iso_display__proto iso_display__fox_proto; /* foxglove_live.c */
 
 typedef enum iso_display__conn_state {
     C_FREE,
@@ -234,7 +234,7 @@ struct iso_display__conn {
     const iso_display__proto *proto;
     iso_display__ws_rx rx;
     iso_display__viewer v;
-    iso_display__fox *fox; /* Foxglove's part (foxglove.c) */
+    iso_display__fox *fox; /* Foxglove's part (foxglove_live.c) */
 };
 
 /* ---- the display's state -------------------------------------------------- */

@@ -1,5 +1,5 @@
 /* tests/fuzz/fuzz_fox.c -- what a Foxglove client says to the view's server
- * (view/foxglove_rx.c) under arbitrary bytes. The first byte picks the
+ * (view/foxglove_live_rx.c) under arbitrary bytes. The first byte picks the
  * session's channel count; the rest is a run of text messages split at
  * newlines. Every message is taken (counted); subscriptions stay none or a
  * u32 on an existing channel; and a message said twice leaves the same

@@ -1,4 +1,4 @@
-/* view/foxglove.c -- the view's server speaking Foxglove's WebSocket
+/* view/foxglove_live.c -- the view's server speaking Foxglove's WebSocket
  * protocol (subprotocol "foxglove.websocket.v1", its specification is
  * public) to a client that offers it: Foxglove Studio connected live.
  *

@@ -1,5 +1,5 @@
-/* view/foxglove_rx.c -- what a Foxglove client says to the view's server
- * (foxglove.c): of its text messages, whole (the server's WebSocket reader
+/* view/foxglove_live_rx.c -- what a Foxglove client says to the view's server
+ * (foxglove_live.c): of its text messages, whole (the server's WebSocket reader
  * framed them), the two the server takes, subscribe and unsubscribe.
  * Everything else is read and ignored. Apart from the rest of the protocol
  * so that a fuzz target takes it alone (tests/fuzz). */

@@ -1,4 +1,4 @@
-/* sinks/foxglove.c -- a session's channels in Foxglove's JSON schemas (see
+/* sinks/foxglove_encode.c -- a session's channels in Foxglove's JSON schemas (see
  * iso_foxglove.h). The schemas below are written from Foxglove's published
  * message definitions, reduced to the fields these messages fill. */
 #include "iso_foxglove.h"
