@@ -380,9 +380,9 @@ static void colour_keys(iso_fox_encoder *e, const double *x)
             double l = edge(x, T[3 * t + k], T[3 * t + (k + 1) % 3]);
             double s = l0 > 0 ? fabs(l - l0) / l0 : 0;
             if (s > worst || !(s == s))
-                worst = s == s ? s : ISO_DISPLAY_STRAIN_FULL;
+                worst = s == s ? s : ISO_SNAPSHOT_STRAIN_FULL;
         }
-        double u = worst / ISO_DISPLAY_STRAIN_FULL;
+        double u = worst / ISO_SNAPSHOT_STRAIN_FULL;
         int q = (int)floor((u < 1 ? u : 1) * (ISO_FOX_STRAIN_LEVELS - 1) + 0.5);
         e->key[t] = e->tint[t] * ISO_FOX_STRAIN_LEVELS + q;
         e->count[e->key[t] + 1]++;
@@ -398,10 +398,11 @@ static void primitive(iso_fox_encoder *e, const double *x, int key, int from, in
 {
     const int *T = iso_mesh_triangles(e->s.mesh);
     double rgb[3];
-    iso_display_strain_color((double)(key % ISO_FOX_STRAIN_LEVELS) / (ISO_FOX_STRAIN_LEVELS - 1) *
-                                 ISO_DISPLAY_STRAIN_FULL,
-                             rgb);
-    iso_display_tint_color(key / ISO_FOX_STRAIN_LEVELS == 2, key / ISO_FOX_STRAIN_LEVELS == 1, rgb);
+    iso_snapshot_strain_color((double)(key % ISO_FOX_STRAIN_LEVELS) / (ISO_FOX_STRAIN_LEVELS - 1) *
+                                  ISO_SNAPSHOT_STRAIN_FULL,
+                              rgb);
+    iso_snapshot_tint_color(key / ISO_FOX_STRAIN_LEVELS == 2, key / ISO_FOX_STRAIN_LEVELS == 1,
+                            rgb);
     add(e,
         "%s{\"pose\":{\"position\":{\"x\":0,\"y\":0,\"z\":0},\"orientation\":{\"x\":0,"
         "\"y\":0,\"z\":0,\"w\":1}},\"points\":[",

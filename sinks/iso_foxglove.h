@@ -11,7 +11,7 @@
  *                               "world", its triangles coloured by edge
  *                               strain as the live view colours them (the
  *                               largest relative change of the three edge
- *                               lengths, blue 0 - red ISO_DISPLAY_STRAIN_FULL,
+ *                               lengths, blue 0 - red ISO_SNAPSHOT_STRAIN_FULL,
  *                               magenta tint at handles, grey at fixed
  *                               vertices). A SceneUpdate replaces an entity
  *                               whole, so each message carries the points and

@@ -5,7 +5,7 @@
  * z-buffer, flat Lambert shading), coloured like the live view: each
  * triangle by its local metric distortion, the largest relative change of
  * its three edge lengths against the rest pose, on a blue - yellow - red
- * scale that saturates at ISO_DISPLAY_STRAIN_FULL; triangles touching a
+ * scale that saturates at ISO_SNAPSHOT_STRAIN_FULL; triangles touching a
  * handle vertex are tinted magenta, those touching a fixed vertex grey.
  *
  * The PLY frames are binary little-endian PLY files (iso_mesh_save), named
@@ -21,7 +21,7 @@
 #include "iso_regions.h"
 
 /* Relative edge-length change at which the colour scale is fully red. */
-#define ISO_DISPLAY_STRAIN_FULL 0.10
+#define ISO_SNAPSHOT_STRAIN_FULL 0.10
 
 /* Background of the PNG (and the page), 8-bit sRGB. */
 #define ISO_SNAPSHOT_BG_R 24
@@ -39,12 +39,12 @@ typedef struct iso_snapshot_view {
 
 /* Colour of a relative strain s >= 0 on the distortion scale, as 0..1 RGB.
  * The page uses the same scale. */
-ISO_API void iso_display_strain_color(double s, double rgb[3]);
+ISO_API void iso_snapshot_strain_color(double s, double rgb[3]);
 
 /* Tints a triangle's colour rgb (in place) as the page and the picture do:
  * magenta when it touches a handle vertex, else grey when it touches a
  * fixed one, else unchanged. */
-ISO_API void iso_display_tint_color(int touches_handle, int touches_fixed, double rgb[3]);
+ISO_API void iso_snapshot_tint_color(int touches_handle, int touches_fixed, double rgb[3]);
 
 /* Renders mesh m at positions x (3*nv; NULL = rest) to an RGB PNG of
  * width x height pixels at `path`. regions may be NULL (no tint), view may

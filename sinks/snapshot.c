@@ -15,10 +15,10 @@
 
 /* ---- colours ------------------------------------------------------------ */
 
-void iso_display_strain_color(double s, double rgb[3])
+void iso_snapshot_strain_color(double s, double rgb[3])
 {
     static const double stops[3][3] = {{0.23, 0.49, 0.85}, {0.96, 0.84, 0.26}, {0.86, 0.16, 0.12}};
-    double t = s / ISO_DISPLAY_STRAIN_FULL;
+    double t = s / ISO_SNAPSHOT_STRAIN_FULL;
     if (!(t > 0)) /* also NaN */
         t = 0;
     if (t > 1)
@@ -55,7 +55,7 @@ static void triangle_color(const iso_mesh *m, const double *x, const iso_regions
                            double rgb[3])
 {
     const int *tri = iso_mesh_triangles(m) + 3 * t;
-    iso_display_strain_color(triangle_strain(iso_mesh_positions(m), x, tri), rgb);
+    iso_snapshot_strain_color(triangle_strain(iso_mesh_positions(m), x, tri), rgb);
     if (!r)
         return;
     int handle = 0, fixed = 0;
@@ -63,10 +63,10 @@ static void triangle_color(const iso_mesh *m, const double *x, const iso_regions
         handle |= r->kind[tri[k]] == ISO_HANDLE;
         fixed |= r->kind[tri[k]] == ISO_FIXED;
     }
-    iso_display_tint_color(handle, fixed, rgb);
+    iso_snapshot_tint_color(handle, fixed, rgb);
 }
 
-void iso_display_tint_color(int touches_handle, int touches_fixed, double rgb[3])
+void iso_snapshot_tint_color(int touches_handle, int touches_fixed, double rgb[3])
 {
     static const double magenta[3] = {0.90, 0.25, 0.90}, grey[3] = {0.45, 0.47, 0.52};
     const double *tint = touches_handle ? magenta : touches_fixed ? grey : NULL;

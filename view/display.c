@@ -101,7 +101,7 @@ static int build_topology(iso_display *d, const iso_display_opts *o, iso_err *er
     const int *tri = iso_mesh_triangles(d->mesh);
     int nt = iso_mesh_triangle_count(d->mesh);
     sb_printf(&b, "{\"type\":\"topology\",\"nv\":%d,\"nt\":%d,\"strain_full\":%g,\"rest\":[", d->nv,
-              nt, ISO_DISPLAY_STRAIN_FULL);
+              nt, ISO_SNAPSHOT_STRAIN_FULL);
     for (int i = 0; i < 3 * d->nv; i++)
         sb_printf(&b, "%s%.9g", i ? "," : "", x[i]);
     sb_printf(&b, "],\"tri\":[");
