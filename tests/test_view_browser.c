@@ -3,7 +3,9 @@
  * real-time loop running in this process on config/scenes/view_cactus.yaml
  * (the benchmark's cactus when the data is there, else the built-in one;
  * the emulated actuator MCU as the scene says):
- *   1. the page loads, takes control (Enter), and its gizmo is dragged along
+ *   1. the page loads, takes control (Enter), every arrow of its gizmo is
+ *      on screen at the first framing (the cactus's up arrow was above it),
+ *      and its gizmo is dragged along
  *      x by 60 px with the mouse; once the drag has ended and the ticks
  *      after it have run, the handle's pose in the loop equals the pose the
  *      page sent, within 1e-9 of the bounding-box diagonal, and moved along
@@ -429,6 +431,25 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
     double before[6];
     assert_true(json_array(s0, "target", before, 6));
     free(s0);
+    /* at the page's first framing every arrow of the gizmo is on screen,
+     * the handle's up arrow too: a first drag needs no camera move */
+    char *wh = iso_cdp_eval(c, "JSON.stringify([innerWidth, innerHeight])", 10000);
+    double size[2] = {0, 0};
+    assert_true(wh && sscanf(wh, "[%lf,%lf]", &size[0], &size[1]) == 2);
+    free(wh);
+    static const char *const axes[3] = {"X", "Y", "Z"};
+    for (int k = 0; k < 3; k++) {
+        char ex[80];
+        snprintf(ex, sizeof ex, "JSON.stringify(isoView.pickerAt('%s'))", axes[k]);
+        char *pa = iso_cdp_eval(c, ex, 10000);
+        double a[2] = {-1, -1};
+        assert_true(pa && json_array(pa, "at", a, 2));
+        free(pa);
+        print_message("the gizmo's %s arrow at %.0f, %.0f of %.0f x %.0f\n", axes[k], a[0], a[1],
+                      size[0], size[1]);
+        if (!(a[0] >= 0 && a[0] <= size[0] && a[1] >= 0 && a[1] <= size[1]))
+            fail_msg("the gizmo's %s arrow is off screen at the first framing", axes[k]);
+    }
     char *pk = iso_cdp_eval(c, "JSON.stringify(isoView.pickerAt('X'))", 10000);
     double at[2] = {0, 0}, ce[2] = {0, 0};
     assert_true(json_array(pk, "at", at, 2) && json_array(pk, "centre", ce, 2));

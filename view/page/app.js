@@ -125,7 +125,11 @@ function onTopology(t) {
   target.set((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2);
   topo.diag = Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) || 1;
   var r = 0.5 * topo.diag;
-  orbit.dist = r / Math.sin(camera.fov * Math.PI / 360) * 1.05;
+  // The bounding sphere fills about three quarters of the view's height:
+  // room for the gizmo, whose arrows keep their size on screen (about a
+  // sixth of the height), on a handle at the mesh's edge (at 1.05 the
+  // cactus's up arrow started above the view).
+  orbit.dist = r / Math.sin(camera.fov * Math.PI / 360) * 1.35;
   camera.near = r / 100; camera.far = r * 100; camera.updateProjectionMatrix();
   place();
   if (THREE.OrbitControls && !controls) {
