@@ -5,11 +5,12 @@
  * the emulated actuator MCU as the scene says):
  *   1. the page loads, takes control (Enter), every arrow of its gizmo is
  *      on screen at the first framing (the cactus's up arrow was above it),
- *      and its gizmo is dragged along
- *      x by 60 px with the mouse; once the drag has ended and the ticks
- *      after it have run, the handle's pose in the loop equals the pose the
- *      page sent, within 1e-9 of the bounding-box diagonal, and moved along
- *      x by about what 60 px are there, and along nothing else;
+ *      its gizmo is dragged along x by 60 px with the mouse; once the drag
+ *      has ended and the ticks after it have run, the handle's pose in the
+ *      loop equals the pose the page sent, within 1e-9 of the bounding-box
+ *      diagonal, and moved along x by about what 60 px are there, and along
+ *      nothing else; the page's status line shows the input-to-frame
+ *      latency it measured;
  *   2. the STOP button, clicked five times (and Escape once), brings the
  *      MCU to its safe state through the SAFE path; each release takes the
  *      deliberate second click, after which the sink arms again;
@@ -506,6 +507,12 @@ static void take_control_and_drag(iso_cdp *c, drag_result *out)
     out->lat_median = iso_cdp_num(s1, "median");
     out->lat_p99 = iso_cdp_num(s1, "p99");
     free(s1);
+    /* and the page says what it measured, in its status line */
+    if (!iso_cdp_wait(c,
+                      "document.getElementById('stats').textContent.indexOf("
+                      "'your input to frame') >= 0",
+                      10000))
+        fail_msg("the status line does not show the page's latency: %s", c->why);
     out->n_log = page_log(c, &out->log);
     out->offset_ms[1] = page_clock_offset(c, 20, &out->half_rtt_ms[1]);
     out->dx_world = out->sent[0] - before[0];

@@ -250,7 +250,9 @@ function onFrame(buf) {
     pageMs: dv.getFloat64(48, true), flags: dv.getUint32(56, true), arrived: arrived});
   statsText = 'tick ' + tick + ' | tick ms median ' + fmt(dv.getFloat32(16, true)) +
     ' p99 ' + fmt(dv.getFloat32(20, true)) + ' max ' + fmt(dv.getFloat32(24, true)) +
-    ' | missed ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms';
+    ' | missed ' + dv.getUint32(32, true) + ' | latency ' + fmt(dv.getFloat32(28, true)) + ' ms' +
+    // what this page measures: its last 64 commands, sent to the frame that applied them
+    (lat.length ? ' | your input to frame ' + fmt(quantile(lat.slice(-64), 0.5)) + ' ms' : '');
   document.body.setAttribute('data-frames', String(frames));
   document.body.setAttribute('data-tick', String(tick));
   lastTick = tick;
