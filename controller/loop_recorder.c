@@ -101,13 +101,15 @@ static void *recorder_main(void *arg)
     for (;;) {
         while (sem_wait(&r->wake) != 0 && errno == EINTR)
             ;
-        if (atomic_load(&r->quit))
-            return NULL;
+        /* a request posted before quit is carried out first: a recording
+         * being closed ends whole */
         int st = atomic_load(&r->state);
         if (st == REC_OPENING)
             open_next(r);
         else if (st == REC_CLOSING)
             close_it(r);
+        if (atomic_load(&r->quit))
+            return NULL;
     }
 }
 
@@ -140,10 +142,6 @@ void iso_loop__recorder_destroy(iso_loop__recorder *r)
 {
     if (!r)
         return;
-    /* what the thread is doing, it finishes: a recording being closed
-     * ends whole */
-    while (atomic_load(&r->state) == REC_OPENING || atomic_load(&r->state) == REC_CLOSING)
-        iso_clock_sleep_until(iso_clock_ns() + 1000000);
     atomic_store(&r->quit, 1);
     sem_post(&r->wake);
     pthread_join(r->th, NULL);

@@ -571,23 +571,43 @@ static long recorded_ticks(const char *path, long *bytes, long *torn_damaged)
     return ticks;
 }
 
+/* A pseudo-terminal raw from the start (a cooked line discipline would eat
+ * XON, 0x11, before isoshape opens the line and makes it raw itself), and
+ * the scene `name` in the tests' folder with it as a tty device `link`
+ * driving the handle with `driver`; its path into scene. */
+static void tty_scene(const char *name, const char *driver, const char *extra, int *master,
+                      int *slave, char *scene, size_t cap)
+{
+    char tty[256], dev[512];
+    assert_int_equal(openpty(master, slave, tty, NULL, NULL), 0);
+    struct termios raw;
+    assert_int_equal(tcgetattr(*slave, &raw), 0);
+    cfmakeraw(&raw);
+    assert_int_equal(tcsetattr(*slave, TCSANOW, &raw), 0);
+    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
+             tty);
+    write_scene(iso_test_tmp(scene, cap, name), dev, driver, extra);
+}
+
+/* Waits up to 20 s for the recording at path to hold a TICK record; returns
+ * the TICK records it holds then. */
+static long wait_recorded_ticks(const char *path)
+{
+    long ticks = 0;
+    for (int i = 0; i < 400 && ticks == 0; i++) {
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+        ticks = recorded_ticks(path, NULL, NULL);
+    }
+    return ticks;
+}
+
 static void sigterm_closes_the_recording_whole(void **state)
 {
     (void)state;
     int master, slave;
-    char tty[256];
-    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
-    /* raw from the start: a cooked line discipline would eat XON (0x11)
-     * before isoshape opens the line and makes it raw itself */
-    struct termios raw;
-    assert_int_equal(tcgetattr(slave, &raw), 0);
-    cfmakeraw(&raw);
-    assert_int_equal(tcsetattr(slave, TCSANOW, &raw), 0);
-    char scene[PATH_MAX], rec[PATH_MAX], out[PATH_MAX], dev[512];
-    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
-             tty);
-    write_scene(iso_test_tmp(scene, sizeof scene, "live.yaml"), dev, "{device: link}",
-                "tick_hz: 50\n");
+    char scene[PATH_MAX], rec[PATH_MAX], out[PATH_MAX];
+    tty_scene("live.yaml", "{device: link}", "tick_hz: 50\n", &master, &slave, scene, sizeof scene);
     iso_test_tmp(rec, sizeof rec, "live.isorec");
     iso_test_tmp(out, sizeof out, "live.off");
     unlink(rec);
@@ -604,12 +624,7 @@ static void sigterm_closes_the_recording_whole(void **state)
     /* Wait for the loop's first TICK record: start-up (mesh, solver, and
      * under the sanitizers a slow process start) must not eat the second
      * of line traffic below. */
-    long ticks0 = 0;
-    for (int i = 0; i < 400 && ticks0 == 0; i++) {
-        struct timespec ts = {0, 50 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-        ticks0 = recorded_ticks(rec, NULL, NULL);
-    }
+    long ticks0 = wait_recorded_ticks(rec);
     assert_true(ticks0 > 0); /* within 20 s */
     /* bytes on the line for a second: not frames, so they are counted as
      * garbage, but every one is recorded */
@@ -722,17 +737,9 @@ static void the_record_button_makes_a_file_each_time(void **state)
 {
     (void)state;
     int master, slave;
-    char tty[256];
-    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
-    struct termios raw;
-    assert_int_equal(tcgetattr(slave, &raw), 0);
-    cfmakeraw(&raw);
-    assert_int_equal(tcsetattr(slave, TCSANOW, &raw), 0);
-    char scene[PATH_MAX], rec[PATH_MAX], rec2[PATH_MAX], log[PATH_MAX], dev[512];
-    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
-             tty);
-    write_scene(iso_test_tmp(scene, sizeof scene, "button.yaml"), dev,
-                "{device: link, mapping: {buttons: [record]}}", "tick_hz: 50\n");
+    char scene[PATH_MAX], rec[PATH_MAX], rec2[PATH_MAX], log[PATH_MAX];
+    tty_scene("button.yaml", "{device: link, mapping: {buttons: [record]}}", "tick_hz: 50\n",
+              &master, &slave, scene, sizeof scene);
     iso_test_tmp(rec, sizeof rec, "button.isorec");
     iso_test_tmp(rec2, sizeof rec2, "button-2.isorec");
     iso_test_tmp(log, sizeof log, "button.log");
@@ -747,13 +754,7 @@ static void the_record_button_makes_a_file_each_time(void **state)
         execl(g_bin, g_bin, "run", scene, "--no-rt", "--record", rec, (char *)NULL);
         _exit(127);
     }
-    long ticks0 = 0;
-    for (int i = 0; i < 400 && ticks0 == 0; i++) {
-        struct timespec ts = {0, 50 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-        ticks0 = recorded_ticks(rec, NULL, NULL);
-    }
-    assert_true(ticks0 > 0);
+    assert_true(wait_recorded_ticks(rec) > 0);
     uint16_t seq = 0;
     press(master, &seq);
     int stopped = wait_for_line(log, "recording stopped: ");
@@ -763,12 +764,7 @@ static void the_record_button_makes_a_file_each_time(void **state)
     char want[PATH_MAX + 32];
     snprintf(want, sizeof want, "recording to %s", rec2);
     int started = wait_for_line(log, want);
-    long second0 = 0;
-    for (int i = 0; i < 200 && second0 == 0 && started; i++) {
-        struct timespec ts = {0, 50 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-        second0 = recorded_ticks(rec2, NULL, NULL);
-    }
+    long second0 = started ? wait_recorded_ticks(rec2) : 0;
     long first_after = recorded_ticks(rec, NULL, NULL);
     kill(pid, SIGTERM);
     int status = 0;
@@ -796,16 +792,12 @@ static void a_fifo_recording_without_a_reader_is_said_and_refused(void **state)
 {
     (void)state;
     int master, slave;
-    char tty[256];
-    assert_int_equal(openpty(&master, &slave, tty, NULL, NULL), 0);
-    char scene[PATH_MAX], fifo[PATH_MAX], extra[PATH_MAX + 32], dev[512];
+    char scene[PATH_MAX], fifo[PATH_MAX], extra[PATH_MAX + 32];
     iso_test_tmp(fifo, sizeof fifo, "rec.fifo");
     unlink(fifo);
     assert_int_equal(mkfifo(fifo, 0600), 0);
     snprintf(extra, sizeof extra, "recording: %s\n", fifo);
-    snprintf(dev, sizeof dev, "devices:\n  - {name: link, kind: tty, path: %s, baud: 115200}\n",
-             tty);
-    write_scene(iso_test_tmp(scene, sizeof scene, "fifo_rec.yaml"), dev, "{device: link}", extra);
+    tty_scene("fifo_rec.yaml", "{device: link}", extra, &master, &slave, scene, sizeof scene);
     assert_int_equal(iso("check '%s'", scene), 0);
     if (!strstr(g_out, "start its reader before the run"))
         fail_msg("check does not say the FIFO needs its reader:\n%s%s", g_out, g_err);
