@@ -1,13 +1,16 @@
 /* controller/cmd_check.c -- isoshape check SCENE: validates a scene file
  * without running it. Loads the mesh and regions (config/iso_scene.h) and
- * builds the solver, so ill-posed constraints are caught too; prints a short
+ * checks them as the solver will (iso_solver_check), so ill-posed
+ * constraints are caught too, without building the system; prints a short
  * summary and exits 0, or the error and exits 1. */
 #include "internal.h"
 
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include "iso_clock.h"
 #include "iso_proxy.h"
 #include "iso_scene.h"
 
@@ -25,7 +28,66 @@ static const char *fifo_note(const char *path)
            "that no one reads)";
 }
 
-static void print_summary(const iso_scene *s)
+/* Measured peak memory of `run --fast` on the reduced model (this
+ * machine, no sinks; MiB throughout): 150 at 40k vertices (bumpplane
+ * 201), 193 at 164k, 288 at 400k, 542 at 1M (tentacle 128, 200, 317): a
+ * fixed part (the libraries, the proxy's solver) and a share per vertex
+ * of the mesh, the line through the ends, within 4% between them. */
+#define CHECK_PROXY_BASE_MB 133.0
+#define CHECK_PROXY_BYTES_PER_VERTEX 426.0
+
+/* A need beyond the machine's memory is said beside it: such a run
+ * swaps or is killed, and the reduced model (solver.proxy) is the way out. */
+static void beyond_machine(double mb, char *out, size_t cap)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    double have = pages > 0 && page > 0 ? (double)pages * (double)page / (1024.0 * 1024.0) : 0.0;
+    if (have > 0 && mb > have)
+        snprintf(out, cap, ": more than this machine's %.0f MB", have);
+}
+
+/* What a run of this scene will hold, said before anyone starts one: the
+ * reduced model's from the measured line above; the whole mesh's from its
+ * factor's size, which only CHOLMOD's symbolic analysis knows (seconds and
+ * gigabytes at a million vertices, so said before it starts). */
+static int run_memory(const iso_scene *s, int proxy_budget, char *out, size_t cap)
+{
+    int nv = iso_mesh_vertex_count(s->mesh);
+    if (proxy_budget > 0) {
+        double mb = CHECK_PROXY_BASE_MB + CHECK_PROXY_BYTES_PER_VERTEX * nv / (1024.0 * 1024.0);
+        int n = snprintf(out, cap,
+                         "about %.0f MB on the reduced model (measured: %.0f MB and %.0f bytes a "
+                         "vertex, sinks aside)",
+                         mb, CHECK_PROXY_BASE_MB, CHECK_PROXY_BYTES_PER_VERTEX);
+        beyond_machine(mb, out + n, cap - (size_t)n);
+        return 0;
+    }
+    if (nv >= 100000)
+        fprintf(stderr,
+                "isoshape check: analysing the whole mesh's factor for its size (%d vertices: "
+                "seconds)...\n",
+                nv);
+    iso_solver_opts so = s->solver;
+    so.assembly = ISO_ASSEMBLY_CPU; /* the factor's size does not need OpenCL */
+    so.worker_lag = 0;              /* nor the worker's thread */
+    iso_solver *solver = NULL;
+    iso_err err;
+    iso_err_clear(&err);
+    if (iso_solver_create(s->mesh, &s->regions, &so, &solver, &err) != ISO_OK) {
+        fprintf(stderr, "isoshape check: %s: solver: %s\n", s->path, err.msg);
+        return 1;
+    }
+    iso_solver_stats st;
+    iso_solver_get_stats(solver, &st);
+    iso_solver_destroy(solver);
+    int held = s->solver.worker_lag > 0 ? 2 : 1;
+    int n = snprintf(out, cap, "the whole mesh's factor %.0f MB%s (the mesh and the rest aside)",
+                     (double)st.factor_bytes / (1024.0 * 1024.0), held > 1 ? ", held twice with the worker" : "");
+    beyond_machine(held * (double)st.factor_bytes / (1024.0 * 1024.0), out + n, cap - (size_t)n);
+    return 0;
+}
+
+static void print_summary(const iso_scene *s, int budget, const char *why, const char *memory)
 {
     const iso_scene_mesh_src *m = &s->mesh_src;
     int nv = iso_mesh_vertex_count(s->mesh);
@@ -63,9 +125,8 @@ static void print_summary(const iso_scene *s)
            iso_names_get(iso_weighting_names, s->solver.weighting),
            s->solver.restore_mu > 0 ? "on" : "off", s->tick_hz,
            iso_abm_mode_name((iso_abm_mode)s->abm_mode));
-    char why[300];
-    int budget = iso_proxy_choose(s->mesh, s->solver.proxy, s->tick_hz, why, sizeof why);
     printf("  model: %s\n", why);
+    printf("  memory: %s\n", memory);
     if (budget <= 0 && s->solver.proxy_smoothness != ISO_PROXY_SMOOTHNESS_MESH)
         printf("  note: solver.proxy_smoothness is ignored: there is no proxy\n");
     printf("  sinks:");
@@ -98,19 +159,23 @@ static int check_main(int argc, char **argv)
     iso_err err;
     iso_err_clear(&err);
     iso_scene *s = NULL;
+    double t0 = iso_clock_now();
     if (iso_cli__scene_load("check", path, &s) != 0)
         return 1;
-    iso_solver *solver = NULL;
-    iso_solver_opts so = s->solver;
-    so.assembly = ISO_ASSEMBLY_CPU; /* the constraints' check does not need OpenCL */
-    if (iso_solver_create(s->mesh, &s->regions, &so, &solver, &err) != ISO_OK) {
+    if (iso_solver_check(s->mesh, &s->regions, &s->solver, &err) != ISO_OK) {
         fprintf(stderr, "isoshape check: %s: regions: %s\n", s->path, err.msg);
         iso_scene_destroy(s);
         return 1;
     }
-    print_summary(s);
+    char why[300], memory[300];
+    int budget = iso_proxy_choose(s->mesh, s->solver.proxy, s->tick_hz, why, sizeof why);
+    if (run_memory(s, budget, memory, sizeof memory) != 0) {
+        iso_scene_destroy(s);
+        return 1;
+    }
+    print_summary(s, budget, why, memory);
+    printf("  check: %.2f s, peak memory %.0f MB\n", iso_clock_now() - t0, iso_cli__peak_mb());
     printf("ok\n");
-    iso_solver_destroy(solver);
     iso_scene_destroy(s);
     return 0;
 }

@@ -259,8 +259,11 @@ static int finish(iso_loop *l, const iso_scene *sc, run_args *a, int status)
     }
     iso_loop_summary s;
     iso_loop_get_summary(l, &s);
-    if (!a->quiet)
+    if (!a->quiet) {
         iso_loop_print_summary(&s, sc, stdout);
+        printf("  memory      peak %.0f MB (the process, as the kernel counts it)\n",
+               iso_cli__peak_mb());
+    }
     if (a->out && write_output(OUT_MESH, "--out", &a->out_f, l, sc, &s))
         status = 1;
     if (a->png) {

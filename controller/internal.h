@@ -25,6 +25,9 @@
 void iso_cli__fail(const char *cmd, const char *fmt, ...) ISO_PRINTF(2, 3);
 /* The median of n values, sorting them in place; NAN for none (cli_stats.c). */
 double iso_cli__median(double *v, int n);
+/* The process's peak resident memory so far, MiB (getrusage), as `check`
+ * and `run` say it. */
+double iso_cli__peak_mb(void);
 
 /* ------------------------------------------------------------------------ */
 /* Options as tables (cli_opts.c)                                             */

@@ -241,6 +241,15 @@ ISO_API ISO_NODISCARD int iso_solver_create(const iso_mesh *m, const iso_regions
                                             iso_solver **out, iso_err *err);
 ISO_API void iso_solver_destroy(iso_solver *s); /* NULL is a no-op */
 
+/* What iso_solver_create refuses before it builds anything: the options,
+ * the regions against the mesh, and the constraints (every free part
+ * reaches a fixed or handle vertex). The same messages, without the
+ * system's symbolic factorization, which at a million vertices is seconds
+ * and gigabytes that a scene's check (`isoshape check`) does not need. */
+ISO_API ISO_NODISCARD int iso_solver_check(const iso_mesh *m, const iso_regions *r,
+                                           const iso_solver_opts *opts, /* NULL = defaults */
+                                           iso_err *err);
+
 /* One field evaluation.
  * input:  x  (3*nv) current positions of all vertices;
  *         vc (3*nv) velocities; only the entries of handle vertices are read

@@ -179,6 +179,22 @@ const char *iso_solver_notice(const iso_solver *s)
     return s->notice;
 }
 
+int iso_solver_check(const iso_mesh *m, const iso_regions *r, const iso_solver_opts *opts,
+                     iso_err *err)
+{
+    iso_solver_opts o;
+    if (opts)
+        o = *opts;
+    else
+        iso_solver_opts_default(&o);
+    int rc = check_opts(&o, err);
+    if (rc == ISO_OK)
+        rc = iso_solver__check_regions(m, r, err);
+    if (rc == ISO_OK)
+        rc = iso_solver__check_constraints(m, r, err);
+    return rc;
+}
+
 int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_opts *opts,
                       iso_solver **out, iso_err *err)
 {
@@ -197,11 +213,7 @@ int iso_solver_create(const iso_mesh *m, const iso_regions *r, const iso_solver_
     s->cpu_split_edges =
         s->o.threads.split == ISO_SOLVER_SPLIT_ALWAYS ? 0 : ISO_SOLVER_CPU_SPLIT_EDGES;
     s->cpu_helper = 1;
-    int rc = check_opts(&s->o, err);
-    if (rc == ISO_OK)
-        rc = iso_solver__check_regions(m, r, err);
-    if (rc == ISO_OK)
-        rc = iso_solver__check_constraints(m, r, err);
+    int rc = iso_solver_check(m, r, &s->o, err);
     if (rc == ISO_OK)
         rc = number_free_vertices(s, err);
     if (rc == ISO_OK)
