@@ -322,6 +322,45 @@ static int open_view(scene *s, const char *shape, int res, iso_display **d, char
     return port;
 }
 
+/* The topology message read as iso_display.h lays it out, against the
+ * mesh it was made of: its sizes, its JSON, the rest positions as f32 (the
+ * nearest float to each coordinate), the triangles and the kinds exactly,
+ * and nothing after them. */
+static void check_topology(const unsigned char *msg, size_t len, const scene *s)
+{
+    uint32_t head[4];
+    assert_true(len >= sizeof head);
+    memcpy(head, msg, sizeof head);
+    assert_int_equal(head[0], ISO_DISPLAY_TOPOLOGY_MAGIC);
+    assert_int_equal(head[1], (uint32_t)s->shape.nv);
+    assert_int_equal(head[2], (uint32_t)s->shape.nt);
+    size_t j = head[3], nv = head[1], nt = head[2];
+    assert_int_equal(j % 4, 0);
+    assert_int_equal(len, ISO_DISPLAY_TOPOLOGY_HEADER + j + 12 * nv + 12 * nt + nv);
+    char *json = strndup((const char *)msg + ISO_DISPLAY_TOPOLOGY_HEADER, j);
+    assert_non_null(json);
+    assert_non_null(strstr(json, "{\"type\":\"topology\","));
+    char field[64];
+    snprintf(field, sizeof field, "\"nv\":%d,\"nt\":%d,", s->shape.nv, s->shape.nt);
+    assert_non_null(strstr(json, field));
+    assert_non_null(strstr(json, "\"control\":null")); /* no view device */
+    assert_int_equal(strspn(strrchr(json, '}') + 1, " "), strlen(strrchr(json, '}') + 1));
+    free(json);
+    const unsigned char *at = msg + ISO_DISPLAY_TOPOLOGY_HEADER + j;
+    for (size_t i = 0; i < 3 * nv; i++, at += 4) {
+        float f;
+        memcpy(&f, at, 4);
+        assert_true(f == (float)s->shape.x[i]);
+    }
+    for (size_t i = 0; i < 3 * nt; i++, at += 4) {
+        uint32_t u;
+        memcpy(&u, at, 4);
+        assert_int_equal(u, (uint32_t)s->shape.tri[i]);
+    }
+    for (size_t i = 0; i < nv; i++)
+        assert_int_equal(at[i], s->regions.kind[i]);
+}
+
 static void server_serves_page_and_streams_frames(void **state)
 {
     (void)state;
@@ -365,12 +404,8 @@ static void server_serves_page_and_streams_frames(void **state)
     assert_non_null(strstr(resp, "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="));
 
     unsigned char *msg;
-    assert_int_equal(ws_read_frame(fd, &msg, &len), 1); /* text: topology */
-    assert_non_null(strstr((char *)msg, "\"type\":\"topology\""));
-    char nv_field[64];
-    snprintf(nv_field, sizeof nv_field, "\"nv\":%d,", s.shape.nv);
-    assert_non_null(strstr((char *)msg, nv_field));
-    assert_non_null(strstr((char *)msg, "\"control\":null")); /* no view device */
+    assert_int_equal(ws_read_frame(fd, &msg, &len), 2); /* binary: the topology */
+    check_topology(msg, len, &s);
     free(msg);
     /* then its control state: it may watch, not command */
     assert_int_equal(ws_read_frame(fd, &msg, &len), 1);
@@ -823,7 +858,7 @@ static void huge_client_frame_closes_without_allocating(void **state)
     assert_int_equal(st, 101);
     unsigned char *msg;
     size_t len;
-    assert_int_equal(ws_read_frame(fd, &msg, &len), 1); /* the topology */
+    assert_int_equal(ws_read_frame(fd, &msg, &len), 2); /* the topology */
     free(msg);
     assert_int_equal(ws_read_frame(fd, &msg, &len), 1); /* its control state */
     free(msg);
@@ -1100,7 +1135,7 @@ static void connect_close_cycles_leave_nothing_behind(void **state)
         if (i % 3 == 0) { /* some read their topology first, some leave at once */
             unsigned char *msg;
             size_t len;
-            assert_int_equal(ws_read_frame(fd, &msg, &len), 1);
+            assert_int_equal(ws_read_frame(fd, &msg, &len), 2);
             free(msg);
         }
         close(fd);

@@ -100,8 +100,11 @@ static int page(const rig *r, const char *query, char *ctl, size_t cap)
     assert_int_equal(iso_test_read_head(fd, head, sizeof head), 101);
     unsigned char *p;
     size_t n;
-    assert_int_equal(iso_test_ws_recv(fd, &p, &n), 1); /* the topology */
-    assert_non_null(strstr((char *)p, "\"control\":{\"handles\":[{\"name\":\"top\"") || !r->dev);
+    assert_int_equal(iso_test_ws_recv(fd, &p, &n), 2); /* the topology */
+    char *json = iso_test_topology_json(p, n);
+    assert_non_null(json);
+    assert_non_null(strstr(json, "\"control\":{\"handles\":[{\"name\":\"top\"") || !r->dev);
+    free(json);
     free(p);
     assert_int_equal(iso_test_ws_recv(fd, &p, &n), 1);
     snprintf(ctl, cap, "%s", (char *)p);

@@ -2,7 +2,10 @@
 #include "ws_client.h"
 #include "testutil.h"
 
+#include "iso_display.h"
+
 #include <arpa/inet.h>
+#include <math.h>
 #include <netinet/in.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -184,10 +187,10 @@ int iso_test_ws_viewer(int port, const char *extra)
         close(fd);
         return -1;
     }
-    for (int i = 0; i < 2; i++) { /* the topology, then the control state */
+    for (int i = 0; i < 2; i++) { /* the topology (binary), then the control state */
         unsigned char *p;
         size_t n;
-        if (iso_test_ws_recv(fd, &p, &n) != 1) {
+        if (iso_test_ws_recv(fd, &p, &n) != 2 - i) {
             free(p);
             close(fd);
             return -1;
@@ -195,6 +198,45 @@ int iso_test_ws_viewer(int port, const char *extra)
         free(p);
     }
     return fd;
+}
+
+/* The topology's header, when msg is a whole one: its JSON's length and
+ * the vertex count; 0 if not. */
+static int topology_head(const unsigned char *msg, size_t len, size_t *json, size_t *nv)
+{
+    uint32_t h[4];
+    if (!msg || len < sizeof h)
+        return 0;
+    memcpy(h, msg, sizeof h);
+    *json = h[3];
+    *nv = h[1];
+    return h[0] == ISO_DISPLAY_TOPOLOGY_MAGIC &&
+           len == ISO_DISPLAY_TOPOLOGY_HEADER + (size_t)h[3] + 13 * (size_t)h[1] + 12 * (size_t)h[2];
+}
+
+char *iso_test_topology_json(const unsigned char *msg, size_t len)
+{
+    size_t json, nv;
+    if (!topology_head(msg, len, &json, &nv))
+        return NULL;
+    return strndup((const char *)msg + ISO_DISPLAY_TOPOLOGY_HEADER, json);
+}
+
+double iso_test_topology_diagonal(const unsigned char *msg, size_t len)
+{
+    size_t json, nv;
+    if (!topology_head(msg, len, &json, &nv))
+        return NAN;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    const unsigned char *at = msg + ISO_DISPLAY_TOPOLOGY_HEADER + json;
+    for (size_t i = 0; i < 3 * nv; i++, at += 4) {
+        float f;
+        memcpy(&f, at, 4);
+        lo[i % 3] = fmin(lo[i % 3], f);
+        hi[i % 3] = fmax(hi[i % 3], f);
+    }
+    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
 }
 
 static void *reader_main(void *arg)
@@ -226,7 +268,12 @@ static void *reader_main(void *arg)
         }
         if ((h[0] & 0x0f) == 1)
             atomic_fetch_add(&r->text_bytes, (long)n);
-        if ((h[0] & 0x0f) == 2 && at == sizeof first) {
+        uint32_t magic = 0;
+        if (at >= 4)
+            memcpy(&magic, first, 4);
+        if ((h[0] & 0x0f) == 2 && magic == ISO_DISPLAY_TOPOLOGY_MAGIC)
+            atomic_fetch_add(&r->topology_bytes, (long)n);
+        else if ((h[0] & 0x0f) == 2 && at == sizeof first) {
             double t;
             memcpy(&t, first + 8, 8);
             if (t <= r->last_tick)
@@ -245,6 +292,7 @@ void iso_test_ws_reader_start(iso_test_ws_reader *r, int fd)
     atomic_init(&r->frames, 0);
     atomic_init(&r->bytes, 0);
     atomic_init(&r->text_bytes, 0);
+    atomic_init(&r->topology_bytes, 0);
     r->last_tick = -1;
     r->failed = 0;
     assert_int_equal(pthread_create(&r->th, NULL, reader_main, r), 0);

@@ -33,16 +33,24 @@ int iso_test_ws_close_status(int fd, int *pongs);
 /* Opens /ws and reads the topology and the first control message; returns
  * the fd, or -1. */
 int iso_test_ws_viewer(int port, const char *extra);
+/* The JSON of a binary topology message (iso_display.h), malloc'd, or NULL
+ * when the message is no whole topology. */
+char *iso_test_topology_json(const unsigned char *msg, size_t len);
+/* The bounding-box diagonal of a topology message's rest positions, NAN
+ * when the message is no whole topology. */
+double iso_test_topology_diagonal(const unsigned char *msg, size_t len);
 
 /* Reads frames on its own thread until the socket ends. Binary frames carry
- * the tick (a double at byte 8); a tick that does not grow sets failed. No
+ * the tick (a double at byte 8), the topology aside (its own magic); a
+ * tick that does not grow sets failed. No
  * cmocka asserts run off the main thread. frames and bytes may be read while
  * it runs (a measuring tool's rates); the rest once it is stopped. */
 typedef struct iso_test_ws_reader {
     int fd;
-    atomic_long frames;     /* binary frames received */
+    atomic_long frames;     /* binary frames received, the topology aside */
     atomic_long bytes;      /* their payload bytes */
-    atomic_long text_bytes; /* the payload bytes of text frames (the topology...) */
+    atomic_long text_bytes; /* the payload bytes of text frames (the control state...) */
+    atomic_long topology_bytes; /* the payload bytes of the topology */
     double last_tick;       /* the newest tick in them */
     int failed;
     pthread_t th;

@@ -248,7 +248,7 @@ struct iso_display {
     char host_name[64];                 /* the bound address as a Host header spells it: [::1] */
     char *three, *orbit, *gizmo, *gltf; /* file contents; all but three may be NULL */
     size_t three_len, orbit_len, gizmo_len, gltf_len;
-    char *topology; /* the JSON sent on connect */
+    char *topology; /* the binary message sent on connect */
     size_t topology_len;
     size_t frame_len;
     int wake[2];         /* pipe: publish and destroy wake the server */

@@ -105,7 +105,7 @@ static int viewer_next(iso_display *d, iso_display__conn *c, long long now)
     }
     if (v->stage == V_HANDSHAKE) {
         v->stage = V_TOPOLOGY;
-        iso_display__queue_message(c, 1, d->topology, d->topology_len);
+        iso_display__queue_message(c, 2, d->topology, d->topology_len);
         return 1;
     }
     v->stage = V_FRAMES;

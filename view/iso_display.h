@@ -108,11 +108,21 @@
  * instead (below); its Origin may also be Foxglove's web app.
  *
  * Wire format on /ws, server to browser:
- *   on connect, one text message, JSON:
- *     {"type":"topology","nv":N,"nt":T,"rest":[3N numbers],"tri":[3T ints],
- *      "kind":[N ints: 0 fixed, 1 free, 2 handle],"strain_full":0.1,
- *      "nh":H,"control":null or {"handles":[{"name":S,"handle":h,
- *      "centre":[x,y,z]}...],"token":true|false}}
+ *   on connect, one binary message, the topology, little endian (binary
+ *   because a million vertices made 84 MB of JSON, seconds to print and
+ *   to parse before the first frame):
+ *     offset  0  u32  ISO_DISPLAY_TOPOLOGY_MAGIC ("ISOT")
+ *             4  u32  N, the vertex count
+ *             8  u32  T, the triangle count
+ *            12  u32  J, the bytes of the JSON that follows (a multiple of 4:
+ *                     padded with spaces)
+ *            16  J    UTF-8 JSON: {"type":"topology","nv":N,"nt":T,
+ *                     "strain_full":0.1,"nh":H,"control":null or
+ *                     {"handles":[{"name":S,"handle":h,"centre":[x,y,z]}...],
+ *                     "token":true|false}}
+ *          16+J  f32  rest positions, 3N
+ *       16+J+12N u32  triangles' vertex indices, 3T
+ *   16+J+12N+12T u8   each vertex's kind, N: 0 fixed, 1 free, 2 handle
  *   then, whenever it changes for that viewer, one text message
  *     {"type":"control","you":ID,"may_command":B,"holder":ID or 0,
  *      "stop":B,"ended":B,"refused":N,"why":S}
@@ -160,6 +170,8 @@
 
 #define ISO_DISPLAY_FRAME_MAGIC 0x464f5349u /* "ISOF" read as little endian */
 #define ISO_DISPLAY_FRAME_HEADER 64
+#define ISO_DISPLAY_TOPOLOGY_MAGIC 0x544f5349u /* "ISOT" read as little endian */
+#define ISO_DISPLAY_TOPOLOGY_HEADER 16
 #define ISO_DISPLAY_FRAME_POSE 56 /* bytes per handle pose: 7 f64 */
 #define ISO_DISPLAY_MAX_HANDLES 8
 #define ISO_DISPLAY_TOOK_PREFIX "{\"type\":\"took\",\"tick\":" /* then T, then } */

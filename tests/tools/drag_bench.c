@@ -95,27 +95,6 @@ static char *read_all(const char *path)
     return b;
 }
 
-/* The bounding-box diagonal of the topology's rest positions. */
-static double rest_diagonal(const char *topology)
-{
-    const char *p = strstr(topology, "\"rest\":[");
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    if (!p)
-        return NAN;
-    p += 8;
-    for (int i = 0; *p && *p != ']'; i++) {
-        char *end;
-        double v = strtod(p, &end);
-        if (end == p)
-            break;
-        lo[i % 3] = fmin(lo[i % 3], v);
-        hi[i % 3] = fmax(hi[i % 3], v);
-        p = *end == ',' ? end + 1 : end;
-    }
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                (hi[2] - lo[2]) * (hi[2] - lo[2]));
-}
-
 /* ---- the drag --------------------------------------------------------------- */
 
 typedef struct profile {
@@ -174,16 +153,21 @@ static int drag(int port, const profile *P, double *diag_out, double c[3], doubl
     int st = 0, fd = iso_test_ws_open(AF_INET, port, host, origin, 0, &st);
     if (st != 101)
         return -1;
-    for (int i = 0; i < 2; i++) { /* the topology, then the control state */
+    for (int i = 0; i < 2; i++) { /* the topology (binary), then the control state */
         unsigned char *p = NULL;
         size_t n;
-        if (iso_test_ws_recv(fd, &p, &n) != 1)
+        if (iso_test_ws_recv(fd, &p, &n) != 2 - i) {
+            free(p);
             return -1;
-        const char *at = i == 0 ? strstr((char *)p, "\"centre\":[") : NULL;
-        if (at)
-            sscanf(at + 10, "%lf,%lf,%lf", &c[0], &c[1], &c[2]);
-        if (i == 0)
-            diag = rest_diagonal((char *)p);
+        }
+        if (i == 0) {
+            char *json = iso_test_topology_json(p, n);
+            const char *at = json ? strstr(json, "\"centre\":[") : NULL;
+            if (at)
+                sscanf(at + 10, "%lf,%lf,%lf", &c[0], &c[1], &c[2]);
+            free(json);
+            diag = iso_test_topology_diagonal(p, n);
+        }
         free(p);
     }
     if (!(diag > 0))

@@ -14,8 +14,8 @@
  *   - the CPU the display's server thread used, as a share of one core
  *     (/proc/self/task/TID/schedstat);
  *   - the ticks that started more than a period late;
- * and for each mesh the bytes of the text a viewer gets before its first
- * frame: the topology (JSON), then its control state.
+ * and for each mesh the bytes a viewer gets before its first frame: the
+ * topology (binary), then its control state (JSON).
  * Like the loop (controller/loop_run.c), the publishing thread runs at
  * SCHED_FIFO 20 during the ticks when it may, and the server and the
  * viewers at normal priority; the first line says which it got.
@@ -231,7 +231,7 @@ static void run_case(bench *b, const mesh_case *mc, int viewers)
     iso_test_ws_reader r[MAX_READERS];
     int up = open_viewers(b, r, viewers);
     if (viewers && up)
-        b->first_text = atomic_load(&r[0].text_bytes);
+        b->first_text = atomic_load(&r[0].text_bytes) + atomic_load(&r[0].topology_bytes);
     run_ticks(b, TICK_HZ / 2, 0); /* warm: pages touched, viewers streaming */
     long frames0[MAX_READERS], bytes0[MAX_READERS];
     for (int i = 0; i < viewers; i++) {
@@ -310,7 +310,7 @@ static int bench_mesh(const mesh_case *mc, int seconds, int want_rt)
         b.server_tid = new_thread(before, nb, after, list_threads(after, 256));
         for (size_t v = 0; v < sizeof viewer_counts / sizeof viewer_counts[0]; v++)
             run_case(&b, mc, viewer_counts[v]);
-        printf("%-9s %8d  text before the first frame (topology, control): %ld bytes\n", mc->shape,
+        printf("%-9s %8d  bytes before the first frame (topology, control): %ld\n", mc->shape,
                b.nv, b.first_text);
         rc = 0;
     }

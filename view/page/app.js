@@ -13,7 +13,7 @@
 // For tests: when the page got where, on its clock (0: navigation start).
 var timing = {script: performance.now()};
 function mark(k) { if (!(k in timing)) timing[k] = performance.now(); }
-var MAGIC = 0x464f5349, HEADER = 64, POSE = 56;
+var MAGIC = 0x464f5349, HEADER = 64, POSE = 56, TOPO_MAGIC = 0x544f5349, TOPO_HEADER = 16;
 var VERSION = 1, TAKE = 1, RELEASE = 2, TARGET = 3, STOP = 4, UNSTOP = 5;
 var FLAG_ESTOP = 1, FLAG_TARGETING = 2, FLAG_STALE = 4, FLAG_HOLDER = 8;
 var KEEPALIVE_MS = 25;
@@ -88,6 +88,19 @@ function strainColor(s, out) {
 function len(x, i, j) {
   var dx = x[3 * i] - x[3 * j], dy = x[3 * i + 1] - x[3 * j + 1], dz = x[3 * i + 2] - x[3 * j + 2];
   return Math.sqrt(dx * dx + dy * dy + dz * dz);
+}
+// The binary topology (iso_display.h): its JSON, with the arrays that
+// follow it as typed arrays over the message; null if the sizes disagree.
+function topologyOf(buf) {
+  var dv = new DataView(buf), nv = dv.getUint32(4, true), nt = dv.getUint32(8, true);
+  var j = dv.getUint32(12, true), at = TOPO_HEADER + j;
+  if (j % 4 || buf.byteLength !== at + 12 * nv + 12 * nt + nv) return null;
+  var t = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, TOPO_HEADER, j)));
+  if (t.nv !== nv || t.nt !== nt) return null;
+  t.rest = new Float32Array(buf, at, 3 * nv);
+  t.tri = new Uint32Array(buf, at + 12 * nv, 3 * nt);
+  t.kind = new Uint8Array(buf, at + 12 * nv + 12 * nt, nv);
+  return t;
 }
 function onTopology(t) {
   mark('topology_parsed');
@@ -497,14 +510,18 @@ function connect() {
     // Each frame taken is said at once: the server sends the next only then
     // (iso_display.h), so frames never queue up for a page busy drawing.
     if (typeof e.data !== 'string') {
+      if (e.data.byteLength >= TOPO_HEADER && new DataView(e.data).getUint32(0, true) === TOPO_MAGIC) {
+        if (!topo) mark('topology');
+        var tp = topologyOf(e.data);
+        if (tp) onTopology(tp); else $('conn').textContent = 'a topology this page cannot read';
+        return;
+      }
       var t = onFrame(e.data);
       if (t !== null && ws.readyState === 1) ws.send('{"type":"took","tick":' + t + '}');
       return;
     }
-    if (!topo) mark('topology');
     var m = JSON.parse(e.data);
-    if (m.type === 'topology') onTopology(m);
-    else if (m.type === 'control') surface.control(m);
+    if (m.type === 'control') surface.control(m);
     else if (m.type === 'note') onNote(m);
   };
 }
