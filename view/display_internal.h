@@ -216,6 +216,8 @@ struct iso_display__conn {
     unsigned long serial; /* order of acceptance: the oldest request yields its slot */
     uint32_t id;          /* a WebSocket's number, as the device's envelopes name it */
     long long deadline;   /* ms: when this connection is given up */
+    int patient;          /* the current message may take longer than the stall bound
+                             while it makes progress (the topology) */
     char local[64];       /* the address it arrived on, as a Host header spells it */
 
     char req[ISO_DISPLAY_MAX_REQUEST + 1];

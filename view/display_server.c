@@ -318,9 +318,13 @@ static void socket_pump(iso_display *d, iso_display__conn *c, long long now)
             conn_close(d, c, 1);
             return;
         }
-        if (st == 0)
+        if (st == 0) {
+            if (c->patient && budget < ISO_DISPLAY_TURN_BYTES)
+                c->deadline = now + ISO_DISPLAY_STALL_MS; /* progress: the clock starts again */
             return;
+        }
         c->head_len = c->body_len = c->out_pos = 0;
+        c->patient = 0;
         if (c->ctl_len) {
             memcpy(c->head, c->ctl_out, c->ctl_len);
             c->head_len = c->ctl_len;

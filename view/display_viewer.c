@@ -106,6 +106,9 @@ static int viewer_next(iso_display *d, iso_display__conn *c, long long now)
     if (v->stage == V_HANDSHAKE) {
         v->stage = V_TOPOLOGY;
         iso_display__queue_message(c, 2, d->topology, d->topology_len);
+        /* tens of megabytes at a million vertices: a slow link is given the
+         * time it needs while bytes move, and dropped when they stop */
+        c->patient = 1;
         return 1;
     }
     v->stage = V_FRAMES;

@@ -14,9 +14,10 @@
  *   - ISO_DISPLAY_MAX_VIEWERS WebSockets at once; one more is answered 503
  *     at once and closed. Page requests have slots of their own beyond those,
  *     so the page loads with every viewer connected.
- *   - A viewer whose current message (one frame, or the topology on connect)
- *     is not completely written ISO_DISPLAY_STALL_MS after it was queued is
- *     disconnected; so is an HTTP response that makes no progress that long.
+ *   - A viewer whose current frame or control message is not completely
+ *     written ISO_DISPLAY_STALL_MS after it was queued is disconnected; so
+ *     is one whose topology (tens of megabytes at a million vertices), or
+ *     an HTTP response, makes no progress that long.
  *   - A request's line and headers must arrive whole within
  *     ISO_DISPLAY_REQUEST_TIMEOUT_MS and fit ISO_DISPLAY_MAX_REQUEST bytes
  *     (else the connection is closed, or answered 431).
