@@ -82,7 +82,8 @@ static int run_memory(const iso_scene *s, int proxy_budget, char *out, size_t ca
     iso_solver_destroy(solver);
     int held = s->solver.worker_lag > 0 ? 2 : 1;
     int n = snprintf(out, cap, "the whole mesh's factor %.0f MB%s (the mesh and the rest aside)",
-                     (double)st.factor_bytes / (1024.0 * 1024.0), held > 1 ? ", held twice with the worker" : "");
+                     (double)st.factor_bytes / (1024.0 * 1024.0),
+                     held > 1 ? ", held twice with the worker" : "");
     beyond_machine(held * (double)st.factor_bytes / (1024.0 * 1024.0), out + n, cap - (size_t)n);
     return 0;
 }

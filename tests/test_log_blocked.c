@@ -210,11 +210,12 @@ static void a_stderr_nobody_reads_freezes_nothing(void **state)
     if (f)
         fclose(f);
     long stalls = json_long(stats, "loop_stalls"), ticks = json_long(stats, "ticks");
-    print_message("stderr filled with %ld more bytes and never read; %ld STOP/UNSTOP pairs in %g s; "
-                  "frames to the watching page in the last second: %ld; SIGINT to exit: %.0f ms "
-                  "(exit status %d); ticks %ld, loop stalls %ld\n",
-                  filled, flaps, flap_s, frames_3s - frames_2s, stop_s * 1e3,
-                  WIFEXITED(status) ? WEXITSTATUS(status) : -1, ticks, stalls);
+    print_message(
+        "stderr filled with %ld more bytes and never read; %ld STOP/UNSTOP pairs in %g s; "
+        "frames to the watching page in the last second: %ld; SIGINT to exit: %.0f ms "
+        "(exit status %d); ticks %ld, loop stalls %ld\n",
+        filled, flaps, flap_s, frames_3s - frames_2s, stop_s * 1e3,
+        WIFEXITED(status) ? WEXITSTATUS(status) : -1, ticks, stalls);
     assert_true(frames_3s - frames_2s >= 20);
     assert_true(stop_s < STOP_BOUND_S);
     assert_true(WIFEXITED(status) && WEXITSTATUS(status) == 130);

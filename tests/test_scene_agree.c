@@ -8,9 +8,9 @@
  * White-box: it walks the schema (config/internal.h, through
  * scene_schema.c) and runs the built binary ($ISOSHAPE_BIN). */
 #include <limits.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
-#include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>

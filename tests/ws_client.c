@@ -210,8 +210,8 @@ static int topology_head(const unsigned char *msg, size_t len, size_t *json, siz
     memcpy(h, msg, sizeof h);
     *json = h[3];
     *nv = h[1];
-    return h[0] == ISO_DISPLAY_TOPOLOGY_MAGIC &&
-           len == ISO_DISPLAY_TOPOLOGY_HEADER + (size_t)h[3] + 13 * (size_t)h[1] + 12 * (size_t)h[2];
+    return h[0] == ISO_DISPLAY_TOPOLOGY_MAGIC && len == ISO_DISPLAY_TOPOLOGY_HEADER + (size_t)h[3] +
+                                                            13 * (size_t)h[1] + 12 * (size_t)h[2];
 }
 
 char *iso_test_topology_json(const unsigned char *msg, size_t len)

@@ -47,11 +47,11 @@ double iso_test_topology_diagonal(const unsigned char *msg, size_t len);
  * it runs (a measuring tool's rates); the rest once it is stopped. */
 typedef struct iso_test_ws_reader {
     int fd;
-    atomic_long frames;     /* binary frames received, the topology aside */
-    atomic_long bytes;      /* their payload bytes */
-    atomic_long text_bytes; /* the payload bytes of text frames (the control state...) */
+    atomic_long frames;         /* binary frames received, the topology aside */
+    atomic_long bytes;          /* their payload bytes */
+    atomic_long text_bytes;     /* the payload bytes of text frames (the control state...) */
     atomic_long topology_bytes; /* the payload bytes of the topology */
-    double last_tick;       /* the newest tick in them */
+    double last_tick;           /* the newest tick in them */
     int failed;
     pthread_t th;
 } iso_test_ws_reader;

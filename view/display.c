@@ -111,16 +111,15 @@ static int build_topology(iso_display *d, const iso_display_opts *o, iso_err *er
     while (!b.oom && b.len % 4)
         sb_printf(&b, " ");
     size_t json = b.len;
-    size_t len = ISO_DISPLAY_TOPOLOGY_HEADER + json + 12 * (size_t)d->nv + 12 * (size_t)nt +
-                 (size_t)d->nv;
+    size_t len =
+        ISO_DISPLAY_TOPOLOGY_HEADER + json + 12 * (size_t)d->nv + 12 * (size_t)nt + (size_t)d->nv;
     unsigned char *m = b.oom ? NULL : malloc(len);
     if (!m) {
         free(b.p);
         return iso_err_set(err, ISO_ENOMEM, -1,
                            "display: out of memory for the topology (%zu bytes)", len);
     }
-    uint32_t head[4] = {ISO_DISPLAY_TOPOLOGY_MAGIC, (uint32_t)d->nv, (uint32_t)nt,
-                        (uint32_t)json};
+    uint32_t head[4] = {ISO_DISPLAY_TOPOLOGY_MAGIC, (uint32_t)d->nv, (uint32_t)nt, (uint32_t)json};
     memcpy(m, head, sizeof head);
     memcpy(m + ISO_DISPLAY_TOPOLOGY_HEADER, b.p, json);
     free(b.p);

@@ -310,8 +310,8 @@ static int bench_mesh(const mesh_case *mc, int seconds, int want_rt)
         b.server_tid = new_thread(before, nb, after, list_threads(after, 256));
         for (size_t v = 0; v < sizeof viewer_counts / sizeof viewer_counts[0]; v++)
             run_case(&b, mc, viewer_counts[v]);
-        printf("%-9s %8d  bytes before the first frame (topology, control): %ld\n", mc->shape,
-               b.nv, b.first_text);
+        printf("%-9s %8d  bytes before the first frame (topology, control): %ld\n", mc->shape, b.nv,
+               b.first_text);
         rc = 0;
     }
     iso_display_destroy(b.d);
