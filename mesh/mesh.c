@@ -1,4 +1,4 @@
-/* solver/mesh.c -- iso_mesh: validation and topology (see iso_mesh.h).
+/* mesh/mesh.c -- iso_mesh: validation and topology (see iso_mesh.h).
  *
  * Validation runs in a fixed order so that one bad input always gets the same,
  * most basic complaint first: counts, index range, repeated index, finite

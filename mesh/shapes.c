@@ -1,4 +1,4 @@
-/* solver/shapes.c -- the built-in shapes of iso_shapes.h.
+/* mesh/shapes.c -- the built-in shapes of iso_shapes.h.
  *
  * Every shape is generated from a structured layout (grids, rings, or the
  * boundary of a union of lattice boxes), so manifoldness and orientation

@@ -1,4 +1,4 @@
-/* solver/mesh_io_ply.c -- the PLY reader: ascii, binary_little_endian and
+/* mesh/mesh_io_ply.c -- the PLY reader: ascii, binary_little_endian and
  * binary_big_endian.
  *
  * The vertex element must have scalar x, y, z of any numeric type; its other

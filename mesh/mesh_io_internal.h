@@ -1,4 +1,4 @@
-/* solver/mesh_io_internal.h -- private cross-file symbols of the mesh module
+/* mesh/mesh_io_internal.h -- private cross-file symbols of the mesh module
  * (mesh.c, mesh_io.c and the per-format mesh_io_*.c readers); not installed,
  * not public API. The fuzz targets use iso_mesh__load_buffer(). */
 #ifndef ISO_MESH_IO_INTERNAL_H

@@ -1,4 +1,4 @@
-/* solver/iso_mesh.h -- a validated triangle mesh, its topology, and mesh files.
+/* mesh/iso_mesh.h -- a validated triangle mesh, its topology, and mesh files.
  *
  * An iso_mesh is immutable once created: rest positions, triangles, the edge
  * list and, for every interior edge, its two triangles. Creation validates

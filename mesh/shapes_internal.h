@@ -1,4 +1,4 @@
-/* solver/shapes_internal.h -- what the built-in shapes' files share
+/* mesh/shapes_internal.h -- what the built-in shapes' files share
  * (shapes.c holds the table of shapes and the shapes built from grids and
  * rings; each larger shape has a file of its own). Not installed. */
 #ifndef ISO_SHAPES_INTERNAL_H

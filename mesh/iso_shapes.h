@@ -1,4 +1,4 @@
-/* solver/iso_shapes.h -- procedural meshes that stand in for the benchmark.
+/* mesh/iso_shapes.h -- procedural meshes that stand in for the benchmark.
  *
  * The Botsch–Sorkine benchmark is not openly licensed, so the project ships
  * look-alikes it can always run: each shape comes with the benchmark's kind

@@ -1,4 +1,4 @@
-/* solver/mesh_io_obj.c -- the Wavefront OBJ reader (geometry only).
+/* mesh/mesh_io_obj.c -- the Wavefront OBJ reader (geometry only).
  *
  * Read: "v x y z [w | r g b]" and "f" with corners i, i/j, i/j/k or i//k;
  * indices are 1-based, negative ones count back from the last vertex read.

@@ -1,4 +1,4 @@
-/* solver/mesh_io.c -- iso_mesh_load/iso_mesh_save, and what the per-format
+/* mesh/mesh_io.c -- iso_mesh_load/iso_mesh_save, and what the per-format
  * readers share: the polygon builder (with convex-fan triangulation) and the
  * text scanner. Format specifics live in mesh_io_off.c, mesh_io_obj.c and
  * mesh_io_ply.c. */

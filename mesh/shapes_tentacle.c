@@ -1,4 +1,4 @@
-/* solver/shapes_tentacle.c -- the tentacle (iso_shapes.h): a closed,
+/* mesh/shapes_tentacle.c -- the tentacle (iso_shapes.h): a closed,
  * curved shape at any size from 2k to 1M vertices, for bending and
  * twisting at scale.
  *

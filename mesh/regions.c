@@ -1,4 +1,4 @@
-/* solver/regions.c -- iso_regions and the benchmark's .sel/.def readers (see
+/* mesh/regions.c -- iso_regions and the benchmark's .sel/.def readers (see
  * iso_regions.h). Both files are read whole and scanned with the mesh
  * readers' tokenizer (mesh_io_internal.h), so there is one fuzzed scanner. */
 #include "iso_file.h"

@@ -1,4 +1,4 @@
-/* solver/regions_internal.h -- in-memory entry points of the .sel and .def
+/* mesh/regions_internal.h -- in-memory entry points of the .sel and .def
  * readers, for the fuzz targets; not installed, not public API. */
 #ifndef ISO_REGIONS_INTERNAL_H
 #define ISO_REGIONS_INTERNAL_H

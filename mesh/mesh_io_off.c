@@ -1,4 +1,4 @@
-/* solver/mesh_io_off.c -- the OFF reader.
+/* mesh/mesh_io_off.c -- the OFF reader.
  *
  * Accepted: an "OFF" keyword (with the optional C/N/ST prefixes, whose extra
  * per-vertex values are ignored), the counts "nv nf [ne]" on the same or the

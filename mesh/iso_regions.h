@@ -1,4 +1,4 @@
-/* solver/iso_regions.h -- which vertices are fixed, free or on a handle, and
+/* mesh/iso_regions.h -- which vertices are fixed, free or on a handle, and
  * the benchmark's region (.sel) and handle-transform (.def) files.
  *
  * iso_regions is a caller-owned struct (init/deinit): one kind per vertex and,
