@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_mesh_rings.h"
 #include "mat3.h"
 #include "proxy_internal.h"
 #include "solver_internal.h"
@@ -32,13 +33,12 @@ struct iso_proxy {
     int *full_of;   /* np */
     int *corner;    /* 3 nv: the proxy triangle's corners a full vertex sits on (−1: none) */
     double *beta;   /* 3 nv: its weights */
-    int *ring_start, *ring; /* np + 1, and the proxy neighbours of each */
-    int *tri_start, *tris;  /* np + 1, and the proxy triangles at each */
-    double *pinv;           /* 9 np: P_k⁻¹ (zero: R_k = I) */
-    double *m_rest;         /* 3 np: the scaled rest normals */
-    double *n_now;          /* 3 np: scratch, the current normals */
-    double *rot;            /* 9 np: this prolongation's rotations */
-    double *quat;           /* 4 np: the same as quaternions */
+    iso_mesh_rings rings; /* each proxy vertex's neighbours and corners (mesh/) */
+    double *pinv;         /* 9 np: P_k⁻¹ (zero: R_k = I) */
+    double *m_rest;       /* 3 np: the scaled rest normals */
+    double *n_now;        /* 3 np: scratch, the current normals */
+    double *rot;          /* 9 np: this prolongation's rotations */
+    double *quat;         /* 4 np: the same as quaternions */
     iso_solver__team *team;
     iso_proxy__fit *fit; /* the second stage (proxy_fit.c) */
     double *rot_full;    /* 9 nv: every full vertex's rotation, for the fit */
@@ -161,15 +161,15 @@ static void ring_moment(const iso_proxy *p, int k, const double *y, const double
 {
     memset(S, 0, 9 * sizeof *S);
     double len = 0;
-    for (int q = p->ring_start[k]; q < p->ring_start[k + 1]; q++) {
-        int j = p->ring[q];
+    for (int q = p->rings.nb_start[k]; q < p->rings.nb_start[k + 1]; q++) {
+        int j = p->rings.nb[q];
         double e[3], f[3];
         iso_m3_sub(y + 3 * j, y + 3 * k, e);
         iso_m3_sub(Y + 3 * j, Y + 3 * k, f);
         iso_m3_add_outer(S, e, f);
         len += sqrt(iso_m3_dot(f, f));
     }
-    int deg = p->ring_start[k + 1] - p->ring_start[k];
+    int deg = p->rings.nb_start[k + 1] - p->rings.nb_start[k];
     double n[3];
     memcpy(n, p->n_now + 3 * k, sizeof n);
     scale_to(n, deg > 0 ? len / deg : 0);
@@ -382,7 +382,7 @@ static void place(iso_proxy *p, int i, int k, int self)
     const double *X = iso_mesh_positions(p->m), *Y = iso_mesh_positions(p->pm);
     const int *tri = iso_mesh_triangles(p->pm);
     if (self) {
-        const int *c = tri + 3 * p->tris[p->tri_start[k]];
+        const int *c = tri + 3 * (p->rings.corner[p->rings.corner_start[k]] / 3);
         for (int a = 0; a < 3; a++) {
             p->corner[3 * i + a] = c[a];
             p->beta[3 * i + a] = c[a] == k;
@@ -390,10 +390,10 @@ static void place(iso_proxy *p, int i, int k, int self)
         return;
     }
     double best = HUGE_VAL;
-    for (int q = p->ring_start[k] - 1; q < p->ring_start[k + 1]; q++) {
-        int v = q < p->ring_start[k] ? k : p->ring[q];
-        for (int s = p->tri_start[v]; s < p->tri_start[v + 1]; s++) {
-            const int *c = tri + 3 * p->tris[s];
+    for (int q = p->rings.nb_start[k] - 1; q < p->rings.nb_start[k + 1]; q++) {
+        int v = q < p->rings.nb_start[k] ? k : p->rings.nb[q];
+        for (int s = p->rings.corner_start[v]; s < p->rings.corner_start[v + 1]; s++) {
+            const int *c = tri + 3 * (p->rings.corner[s] / 3);
             double w[3];
             double d2 = closest_on_triangle(X + 3 * i, Y + 3 * c[0], Y + 3 * c[1], Y + 3 * c[2], w);
             if (d2 < best) {
@@ -405,40 +405,6 @@ static void place(iso_proxy *p, int i, int k, int self)
     }
 }
 
-/* Each proxy vertex's neighbours and triangles, as index lists. */
-static int adjacency(iso_proxy *p)
-{
-    int np = p->np, ne = iso_mesh_edge_count(p->pm), nt = iso_mesh_triangle_count(p->pm);
-    const int *ed = iso_mesh_edges(p->pm), *tri = iso_mesh_triangles(p->pm);
-    p->ring_start = calloc((size_t)np + 1, sizeof *p->ring_start);
-    p->tri_start = calloc((size_t)np + 1, sizeof *p->tri_start);
-    p->ring = malloc((2 * (size_t)ne + 1) * sizeof *p->ring);
-    p->tris = malloc((3 * (size_t)nt + 1) * sizeof *p->tris);
-    int *next = malloc(((size_t)np + 1) * sizeof *next);
-    if (!p->ring_start || !p->tri_start || !p->ring || !p->tris || !next) {
-        free(next);
-        return -1;
-    }
-    for (int e = 0; e < ne; e++)
-        p->ring_start[ed[2 * e] + 1]++, p->ring_start[ed[2 * e + 1] + 1]++;
-    for (int t = 0; t < 3 * nt; t++)
-        p->tri_start[tri[t] + 1]++;
-    for (int k = 0; k < np; k++) {
-        p->ring_start[k + 1] += p->ring_start[k];
-        p->tri_start[k + 1] += p->tri_start[k];
-    }
-    memcpy(next, p->ring_start, (size_t)np * sizeof *next);
-    for (int e = 0; e < ne; e++) {
-        p->ring[next[ed[2 * e]]++] = ed[2 * e + 1];
-        p->ring[next[ed[2 * e + 1]]++] = ed[2 * e];
-    }
-    memcpy(next, p->tri_start, (size_t)np * sizeof *next);
-    for (int t = 0; t < 3 * nt; t++)
-        p->tris[next[tri[t]]++] = t / 3;
-    free(next);
-    return 0;
-}
-
 /* P_k⁻¹ and the scaled rest normal of each proxy vertex. */
 static void rest_frames(iso_proxy *p)
 {
@@ -446,13 +412,13 @@ static void rest_frames(iso_proxy *p)
     normals_now(p, Y);
     for (int k = 0; k < p->np; k++) {
         double P[9] = {0}, len = 0;
-        for (int q = p->ring_start[k]; q < p->ring_start[k + 1]; q++) {
+        for (int q = p->rings.nb_start[k]; q < p->rings.nb_start[k + 1]; q++) {
             double f[3];
-            iso_m3_sub(Y + 3 * p->ring[q], Y + 3 * k, f);
+            iso_m3_sub(Y + 3 * p->rings.nb[q], Y + 3 * k, f);
             iso_m3_add_outer(P, f, f);
             len += sqrt(iso_m3_dot(f, f));
         }
-        int deg = p->ring_start[k + 1] - p->ring_start[k];
+        int deg = p->rings.nb_start[k + 1] - p->rings.nb_start[k];
         double *m = p->m_rest + 3 * k;
         memcpy(m, p->n_now + 3 * k, 3 * sizeof *m);
         scale_to(m, deg > 0 ? len / deg : 0);
@@ -493,7 +459,7 @@ static int build(iso_proxy *p, const iso_proxy__decimated *d, iso_err *err)
     p->quat = malloc(4 * np * sizeof *p->quat);
     p->full_of = malloc(np * sizeof *p->full_of);
     if (!p->corner || !p->beta || !p->pinv || !p->m_rest || !p->n_now || !p->rot || !p->quat ||
-        !p->full_of || adjacency(p) != 0)
+        !p->full_of || iso_mesh_rings_init(&p->rings, p->pm, NULL) != ISO_OK)
         return iso_err_set(err, ISO_ENOMEM, -1, "out of memory for the proxy's map");
     memcpy(p->full_of, d->full_of, (size_t)d->np * sizeof *p->full_of);
     for (int i = 0; i < p->nv; i++) {
@@ -581,10 +547,7 @@ void iso_proxy_destroy(iso_proxy *p)
     free(p->full_of);
     free(p->corner);
     free(p->beta);
-    free(p->ring_start);
-    free(p->ring);
-    free(p->tri_start);
-    free(p->tris);
+    iso_mesh_rings_deinit(&p->rings);
     free(p->pinv);
     free(p->m_rest);
     free(p->n_now);

@@ -24,16 +24,15 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "iso_mesh_rings.h"
 #include "mat3.h"
 #include "solver_internal.h"
 
 struct iso_solver__rings {
     int nf;
     const int *vert_of; /* the solver's */
-    int *nb_start;      /* nf + 1: free vertex i's neighbours are nb[nb_start[i]..] */
-    int *nb;
-    int *tr_start; /* nf + 1: its triangles, each as its other two corners */
-    int *tr;       /* (2 per triangle, in the triangle's order) */
+    const int *tri;     /* the mesh's */
+    iso_mesh_rings r;   /* each vertex's neighbours and corners (mesh/) */
 };
 
 struct iso_solver__frame {
@@ -81,84 +80,36 @@ void iso_solver__rings_destroy(iso_solver__rings *g)
 {
     if (!g)
         return;
-    free(g->nb_start);
-    free(g->nb);
-    free(g->tr_start);
-    free(g->tr);
+    iso_mesh_rings_deinit(&g->r);
     free(g);
 }
 
-/* Turns counts (n + 1 entries, the last 0) into starts; returns the total. */
-static int counts_to_starts(int *start, int n)
-{
-    int sum = 0;
-    for (int i = 0; i <= n; i++) {
-        int c = start[i];
-        start[i] = sum;
-        sum += c;
-    }
-    return sum;
-}
-
-iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of,
-                                            const int *free_of)
+iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of)
 {
     iso_solver__rings *g = calloc(1, sizeof *g);
     if (!g)
         return NULL;
     g->nf = nf;
     g->vert_of = vert_of;
-    int ne = iso_mesh_edge_count(m), nt = iso_mesh_triangle_count(m);
-    const int *ed = iso_mesh_edges(m), *tri = iso_mesh_triangles(m);
-    g->nb_start = calloc((size_t)nf + 1, sizeof(int));
-    g->tr_start = calloc((size_t)nf + 1, sizeof(int));
-    if (!g->nb_start || !g->tr_start)
-        goto fail;
-    for (int k = 0; k < 2 * ne; k++)
-        if (free_of[ed[k]] >= 0)
-            g->nb_start[free_of[ed[k]]]++;
-    for (int k = 0; k < 3 * nt; k++)
-        if (free_of[tri[k]] >= 0)
-            g->tr_start[free_of[tri[k]]]++;
-    int n_nb = counts_to_starts(g->nb_start, nf), n_tr = counts_to_starts(g->tr_start, nf);
-    g->nb = malloc(((size_t)n_nb + 1) * sizeof(int));
-    g->tr = malloc((2 * (size_t)n_tr + 1) * sizeof(int));
-    if (!g->nb || !g->tr)
-        goto fail;
-    /* fill, advancing each start; then shift the starts back */
-    for (int k = 0; k < 2 * ne; k++) {
-        int i = free_of[ed[k]];
-        if (i >= 0)
-            g->nb[g->nb_start[i]++] = ed[k ^ 1];
+    g->tri = iso_mesh_triangles(m);
+    if (iso_mesh_rings_init(&g->r, m, NULL) != ISO_OK) {
+        free(g);
+        return NULL;
     }
-    for (int t = 0; t < nt; t++)
-        for (int c = 0; c < 3; c++) {
-            int i = free_of[tri[3 * t + c]];
-            if (i < 0)
-                continue;
-            int at = 2 * g->tr_start[i]++;
-            g->tr[at] = tri[3 * t + (c + 1) % 3];
-            g->tr[at + 1] = tri[3 * t + (c + 2) % 3];
-        }
-    for (int i = nf; i > 0; i--) {
-        g->nb_start[i] = g->nb_start[i - 1];
-        g->tr_start[i] = g->tr_start[i - 1];
-    }
-    g->nb_start[0] = g->tr_start[0] = 0;
     return g;
-fail:
-    iso_solver__rings_destroy(g);
-    return NULL;
 }
 
 /* The area-weighted normal of free vertex i's ring at x (unnormalised),
  * scaled to length want (0 where it vanishes). */
 static void ring_normal(const iso_solver__rings *g, int i, const double *x, double want, double *n)
 {
-    const double *p = x + 3 * g->vert_of[i];
+    int v = g->vert_of[i];
+    const double *p = x + 3 * v;
     n[0] = n[1] = n[2] = 0;
-    for (int k = g->tr_start[i]; k < g->tr_start[i + 1]; k++) {
-        const double *a = x + 3 * g->tr[2 * k], *b = x + 3 * g->tr[2 * k + 1];
+    for (int q = g->r.corner_start[v]; q < g->r.corner_start[v + 1]; q++) {
+        /* the corner's triangle's other two corners, in its winding order */
+        int k = g->r.corner[q], t3 = k - k % 3;
+        const double *a = x + 3 * g->tri[t3 + (k + 1) % 3], *b = x + 3 * g->tri[t3 + (k + 2) % 3];
         double u[3] = {a[0] - p[0], a[1] - p[1], a[2] - p[2]};
         double w[3] = {b[0] - p[0], b[1] - p[1], b[2] - p[2]}, c[3];
         iso_m3_cross(u, w, c);
@@ -179,7 +130,7 @@ iso_solver__frame *iso_solver__frame_create(const iso_solver__rings *g, int nv)
         return NULL;
     fr->g = g;
     fr->nv = nv;
-    size_t nf = (size_t)g->nf, n_nb = (size_t)g->nb_start[g->nf];
+    size_t nf = (size_t)g->nf, n_nb = (size_t)g->r.nb_start[g->r.nv];
     fr->x = malloc(3 * (size_t)nv * sizeof(double));
     fr->f = malloc((3 * n_nb + 1) * sizeof(double));
     fr->m = malloc((3 * nf + 1) * sizeof(double));
@@ -212,10 +163,11 @@ void iso_solver__frame_prepare(iso_solver__frame *fr)
     const iso_solver__rings *g = fr->g;
     const double *y = fr->x;
     for (int i = 0; i < g->nf; i++) {
-        const double *p = y + 3 * g->vert_of[i];
+        int v = g->vert_of[i];
+        const double *p = y + 3 * v;
         double P[9] = {0}, *m = fr->m + 3 * i, *Y = fr->pinv + 9 * i;
-        for (int k = g->nb_start[i]; k < g->nb_start[i + 1]; k++) {
-            const double *q = y + 3 * g->nb[k];
+        for (int k = g->r.nb_start[v]; k < g->r.nb_start[v + 1]; k++) {
+            const double *q = y + 3 * g->r.nb[k];
             double *f = fr->f + 3 * k;
             for (int a = 0; a < 3; a++)
                 f[a] = q[a] - p[a];
@@ -241,10 +193,11 @@ void iso_solver__rotations(const iso_solver__frame *fr, const double *x, double 
             memcpy(Ri, identity3, sizeof identity3);
             continue;
         }
-        const double *p = x + 3 * g->vert_of[i];
+        int v = g->vert_of[i];
+        const double *p = x + 3 * v;
         double S[9] = {0}, n[3];
-        for (int k = g->nb_start[i]; k < g->nb_start[i + 1]; k++) {
-            const double *q = x + 3 * g->nb[k];
+        for (int k = g->r.nb_start[v]; k < g->r.nb_start[v + 1]; k++) {
+            const double *q = x + 3 * g->r.nb[k];
             double e[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
             iso_m3_add_outer(S, e, fr->f + 3 * k);
         }

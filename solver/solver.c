@@ -138,7 +138,7 @@ static int start_rotations(iso_solver *s, iso_err *err)
     if (s->o.refactor != ISO_REFACTOR_ADAPTIVE || s->o.preconditioner != ISO_PRECOND_ROTATED ||
         s->nf == 0)
         return ISO_OK;
-    s->rings = iso_solver__rings_create(s->m, s->nf, s->vert_of, s->free_of);
+    s->rings = iso_solver__rings_create(s->m, s->nf, s->vert_of);
     s->frame = s->rings ? iso_solver__frame_create(s->rings, s->nv) : NULL;
     s->rot = malloc((size_t)s->nf * 9 * sizeof(double));
     if (!s->frame || !s->rot)

@@ -213,8 +213,7 @@ int iso_solver__assemble(iso_solver *s, const double *x, const double *vc, iso_e
  * out). */
 typedef struct iso_solver__rings iso_solver__rings;
 typedef struct iso_solver__frame iso_solver__frame;
-iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of,
-                                            const int *free_of);
+iso_solver__rings *iso_solver__rings_create(const iso_mesh *m, int nf, const int *vert_of);
 void iso_solver__rings_destroy(iso_solver__rings *g);
 iso_solver__frame *iso_solver__frame_create(const iso_solver__rings *g, int nv);
 void iso_solver__frame_destroy(iso_solver__frame *fr);
