@@ -186,17 +186,17 @@ void iso_loop__sinks_status(const iso_loop *l, char *buf, size_t cap);
 /* loop_writer.c: the file sinks' writer thread and the bounded queue the
  * tick hands it frames through (the file says the rules). */
 typedef struct iso_loop_writer iso_loop_writer;
-struct iso_fox_frame;
-struct iso_fox_session;
+struct iso_sink_frame;
+struct iso_sink_session;
 /* The session the Foxglove channels describe (MCAP and the live view). */
-void iso_loop__fox_session(iso_loop *l, struct iso_fox_session *s);
+void iso_loop__fox_session(iso_loop *l, struct iso_sink_session *s);
 /* NULL in *out when the run has no file output. */
 ISO_NODISCARD int iso_loop__writer_open(iso_loop *l, iso_loop_writer **out, iso_err *err);
 /* The tick's side. The next free slot for tick `tick` (*want: what is
  * written of it), or NULL when nothing is wanted or the queue is full (the
  * frame is then dropped and counted); fill it, then push. No allocation,
  * no lock, no wait. */
-struct iso_fox_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want);
+struct iso_sink_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want);
 void iso_loop__writer_push(iso_loop_writer *w, const double *x);
 /* The writer thread's first error, if any (the run stops with it). */
 ISO_NODISCARD int iso_loop__writer_check(iso_loop_writer *w, iso_err *err);

@@ -25,7 +25,7 @@ struct iso_loop_sinks {
     iso_act_stats act_stats; /* the counters, kept when the actuators close */
     int had_act;
     iso_loop_writer *writer; /* the file outputs; NULL without */
-    iso_fox_frame frame;     /* this tick's channels, for the writer and the view */
+    iso_sink_frame frame;    /* this tick's channels, for the writer and the view */
     iso_loop_summary files;  /* the writer's counts, kept when it closes */
     long frames_sent;        /* kept when the display closes */
     /* What handing the frame to the writer costs the tick (the summary's
@@ -179,7 +179,7 @@ int iso_loop__sinks_open(iso_loop *l, iso_err *err)
     if (rc == ISO_OK)
         rc = iso_loop__writer_open(l, &l->sinks->writer, err);
     if (rc == ISO_OK && l->sinks->display) { /* Foxglove Studio may connect to the view too */
-        iso_fox_session s;
+        iso_sink_session s;
         iso_loop__fox_session(l, &s);
         rc = iso_display_foxglove(l->sinks->display, &s, err);
     }
@@ -187,11 +187,11 @@ int iso_loop__sinks_open(iso_loop *l, iso_err *err)
 }
 
 /* The devices' state for the writer: decoded samples and counters. */
-static void frame_devices(const iso_loop *l, iso_fox_frame *f)
+static void frame_devices(const iso_loop *l, iso_sink_frame *f)
 {
     size_t nd = l->hub ? iso_dev_hub_sources(l->hub) : 0;
-    for (size_t i = 0; i < nd && i < ISO_FOX_MAX_DEVICES; i++) {
-        iso_fox_device *d = &f->dev[i];
+    for (size_t i = 0; i < nd && i < ISO_SINK_MAX_DEVICES; i++) {
+        iso_sink_device *d = &f->dev[i];
         const iso_dev_map_src *m = &l->map.src[i];
         if (iso_dev_hub_source_stats(l->hub, i, &d->stats) != ISO_OK)
             memset(&d->stats, 0, sizeof d->stats);
@@ -207,12 +207,12 @@ static void frame_devices(const iso_loop *l, iso_fox_frame *f)
 
 /* Fills the writer's frame of this tick: everything but the positions,
  * which the push copies. Plain copies: no allocation, no wait. */
-static void fill_frame(iso_loop *l, long tick, iso_fox_frame *f)
+static void fill_frame(iso_loop *l, long tick, iso_sink_frame *f)
 {
     f->tick = tick;
     f->t_ns = l->t_now - l->stream0;
     f->dt_ns = l->last_dt_ns;
-    for (int h = 0; h < l->nh && h < ISO_FOX_MAX_HANDLES; h++) {
+    for (int h = 0; h < l->nh && h < ISO_SINK_MAX_HANDLES; h++) {
         f->commanded[h] = l->cmd_pose[h];
         f->achieved[h] = *iso_stepper_pose(l->st, h);
     }
@@ -298,7 +298,7 @@ int iso_loop__sinks_publish(iso_loop *l, long tick, iso_err *err)
         int64_t t0 = iso_clock_ns();
         rc = iso_loop__writer_check(k->writer, err);
         int want;
-        iso_fox_frame *f = rc == ISO_OK ? iso_loop__writer_slot(k->writer, tick, &want) : NULL;
+        iso_sink_frame *f = rc == ISO_OK ? iso_loop__writer_slot(k->writer, tick, &want) : NULL;
         if (f) {
             if (k->display) { /* filled for the view above */
                 const double *slot_x = f->x;

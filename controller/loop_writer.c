@@ -38,7 +38,7 @@
 enum { WANT_PLY = 1, WANT_PNG = 2, WANT_STREAM = 4 };
 
 typedef struct slot {
-    iso_fox_frame f;
+    iso_sink_frame f;
     double *x;
     int want;
 } slot;
@@ -160,18 +160,18 @@ static int save_rest(iso_loop *l, const char *pc2, iso_err *err)
     return rc;
 }
 
-void iso_loop__fox_session(iso_loop *l, iso_fox_session *s)
+void iso_loop__fox_session(iso_loop *l, iso_sink_session *s)
 {
     memset(s, 0, sizeof *s);
     s->mesh = l->sc->mesh;
     s->regions = &l->sc->regions;
-    s->n_handles = l->nh < ISO_FOX_MAX_HANDLES ? l->nh : ISO_FOX_MAX_HANDLES;
+    s->n_handles = l->nh < ISO_SINK_MAX_HANDLES ? l->nh : ISO_SINK_MAX_HANDLES;
     for (int h = 0; h < s->n_handles; h++) {
         snprintf(s->handle_name[h], sizeof s->handle_name[h], "%s", l->sc->handles[h].name);
         memcpy(s->handle_centre[h], l->centroid[h], sizeof s->handle_centre[h]);
     }
     size_t nd = l->hub ? iso_dev_hub_sources(l->hub) : 0;
-    s->n_devices = (int)(nd < ISO_FOX_MAX_DEVICES ? nd : ISO_FOX_MAX_DEVICES);
+    s->n_devices = (int)(nd < ISO_SINK_MAX_DEVICES ? nd : ISO_SINK_MAX_DEVICES);
     for (int d = 0; d < s->n_devices; d++)
         s->device_kind[d] = iso_dev_hub_decoder(l->hub, (size_t)d)->kind;
     const iso_scene_actuators *a = &l->sc->actuators;
@@ -185,7 +185,7 @@ void iso_loop__fox_session(iso_loop *l, iso_fox_session *s)
 
 static int open_mcap(iso_loop *l, iso_loop_writer *w, iso_err *err)
 {
-    iso_fox_session s;
+    iso_sink_session s;
     iso_loop__fox_session(l, &s);
     int rc = iso_fox_encoder_create(&s, &w->enc, err);
     if (rc == ISO_OK)
@@ -333,7 +333,7 @@ static int wanted(const iso_loop_writer *w, long tick)
     return want;
 }
 
-iso_fox_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want)
+iso_sink_frame *iso_loop__writer_slot(iso_loop_writer *w, long tick, int *want)
 {
     *want = wanted(w, tick);
     if (!*want)

@@ -117,7 +117,7 @@ static const char act_schema[] =
                                                                             "\":{\"type\":"
                                                                             "\"number\"}}}}";
 
-int iso_fox_channels(const iso_fox_session *s, iso_fox_channel *out, int cap)
+int iso_fox_channels(const iso_sink_session *s, iso_fox_channel *out, int cap)
 {
     int n = 0;
 #define ADD(w, i, name, sch, ...)                                                                  \
@@ -132,14 +132,14 @@ int iso_fox_channels(const iso_fox_session *s, iso_fox_channel *out, int cap)
         n++;                                                                                       \
     } while (0)
     ADD(ISO_FOX_MESH, 0, "foxglove.SceneUpdate", scene_update_schema, "/mesh");
-    for (int h = 0; h < s->n_handles && h < ISO_FOX_MAX_HANDLES; h++) {
+    for (int h = 0; h < s->n_handles && h < ISO_SINK_MAX_HANDLES; h++) {
         ADD(ISO_FOX_COMMANDED, h, "foxglove.FrameTransform", frame_transform_schema,
             "/handles/%s/commanded", s->handle_name[h]);
         ADD(ISO_FOX_ACHIEVED, h, "foxglove.FrameTransform", frame_transform_schema,
             "/handles/%s/achieved", s->handle_name[h]);
     }
     ADD(ISO_FOX_LOOP, 0, "isoshape.Tick", tick_schema, "/loop");
-    for (int d = 0; d < s->n_devices && d < ISO_FOX_MAX_DEVICES; d++)
+    for (int d = 0; d < s->n_devices && d < ISO_SINK_MAX_DEVICES; d++)
         ADD(ISO_FOX_DEVICE, d, "isoshape.DeviceSample", device_schema, "/devices/%d", d);
     if (s->n_act > 0)
         ADD(ISO_FOX_ACT, 0, "isoshape.Actuators", act_schema, "/actuators");
@@ -150,7 +150,7 @@ int iso_fox_channels(const iso_fox_session *s, iso_fox_channel *out, int cap)
 /* ---- the encoder -------------------------------------------------------- */
 
 struct iso_fox_encoder {
-    iso_fox_session s;
+    iso_sink_session s;
     int nv, nt;
     char *out;
     size_t n, cap;
@@ -297,7 +297,7 @@ static double edge(const double *x, int i, int j)
     return sqrt(d0 * d0 + d1 * d1 + d2 * d2);
 }
 
-int iso_fox_encoder_create(const iso_fox_session *s, iso_fox_encoder **out, iso_err *err)
+int iso_fox_encoder_create(const iso_sink_session *s, iso_fox_encoder **out, iso_err *err)
 {
     *out = NULL;
     if (!s || !s->mesh)
@@ -306,7 +306,7 @@ int iso_fox_encoder_create(const iso_fox_session *s, iso_fox_encoder **out, iso_
     if (!e)
         return iso_err_set(err, ISO_ENOMEM, -1, "Foxglove channels: out of memory");
     e->s = *s;
-    for (int h = 0; h < ISO_FOX_MAX_HANDLES; h++) /* names go into JSON strings unescaped */
+    for (int h = 0; h < ISO_SINK_MAX_HANDLES; h++) /* names go into JSON strings unescaped */
         for (char *c = e->s.handle_name[h]; *c; c++)
             if (*c == '"' || *c == '\\' || (unsigned char)*c < 0x20)
                 *c = '_';
@@ -432,7 +432,7 @@ static void primitive(iso_fox_encoder *e, const double *x, int key, int from, in
     add(e, "]}");
 }
 
-static void encode_mesh(iso_fox_encoder *e, const iso_fox_frame *f)
+static void encode_mesh(iso_fox_encoder *e, const iso_sink_frame *f)
 {
     colour_keys(e, f->x);
     for (int v = 0; v < e->nv; v++)
@@ -453,7 +453,7 @@ static void encode_mesh(iso_fox_encoder *e, const iso_fox_frame *f)
     add(e, "],\"texts\":[],\"models\":[]}]}");
 }
 
-static void encode_transform(iso_fox_encoder *e, const iso_fox_frame *f, int h, int achieved)
+static void encode_transform(iso_fox_encoder *e, const iso_sink_frame *f, int h, int achieved)
 {
     const iso_pose *P = achieved ? &f->achieved[h] : &f->commanded[h];
     double c[3], q[4]; /* q: w, x, y, z */
@@ -468,7 +468,7 @@ static void encode_transform(iso_fox_encoder *e, const iso_fox_frame *f, int h, 
         q[0]);
 }
 
-static void encode_loop(iso_fox_encoder *e, const iso_fox_frame *f)
+static void encode_loop(iso_fox_encoder *e, const iso_sink_frame *f)
 {
     add(e, "{");
     add_time(e, "timestamp", f->t_ns);
@@ -489,9 +489,9 @@ static void encode_loop(iso_fox_encoder *e, const iso_fox_frame *f)
     add(e, "}");
 }
 
-static void encode_device(iso_fox_encoder *e, const iso_fox_frame *f, int d)
+static void encode_device(iso_fox_encoder *e, const iso_sink_frame *f, int d)
 {
-    const iso_fox_device *v = &f->dev[d];
+    const iso_sink_device *v = &f->dev[d];
     const iso_dev_source_stats *s = &v->stats;
     add(e, "{");
     add_time(e, "timestamp", f->t_ns);
@@ -517,7 +517,7 @@ static void encode_device(iso_fox_encoder *e, const iso_fox_frame *f, int d)
         s->dec.short_reports, s->dec.unknown_ids, s->gone, s->back, s->stale);
 }
 
-static void encode_act(iso_fox_encoder *e, const iso_fox_frame *f)
+static void encode_act(iso_fox_encoder *e, const iso_sink_frame *f)
 {
     const iso_act_stats *a = &f->act;
     add(e, "{");
@@ -544,7 +544,7 @@ static void encode_act(iso_fox_encoder *e, const iso_fox_frame *f)
     add(e, "}}");
 }
 
-int iso_fox_encode(iso_fox_encoder *e, const iso_fox_channel *c, const iso_fox_frame *f,
+int iso_fox_encode(iso_fox_encoder *e, const iso_fox_channel *c, const iso_sink_frame *f,
                    const char **data, size_t *len, iso_err *err)
 {
     e->n = 0;

@@ -52,55 +52,11 @@
 #include "iso_geom.h"
 #include "iso_mesh.h"
 #include "iso_regions.h"
+#include "iso_sink_frame.h"
 
-#define ISO_FOX_MAX_HANDLES 8
-#define ISO_FOX_MAX_DEVICES 16
-#define ISO_FOX_NAME_MAX 64
 #define ISO_FOX_STRAIN_LEVELS 32
-#define ISO_FOX_MAX_CHANNELS (4 + 2 * ISO_FOX_MAX_HANDLES + ISO_FOX_MAX_DEVICES)
-
-/* What stays the same through a session. */
-typedef struct iso_fox_session {
-    const iso_mesh *mesh;       /* must outlive the encoder */
-    const iso_regions *regions; /* NULL: no tint */
-    int n_handles;
-    char handle_name[ISO_FOX_MAX_HANDLES][ISO_FOX_NAME_MAX];
-    double handle_centre[ISO_FOX_MAX_HANDLES][3]; /* rest centroids */
-    int n_devices;
-    uint8_t device_kind[ISO_FOX_MAX_DEVICES]; /* iso_dev_kind */
-    int n_act;                                /* actuator channels; 0: no /actuators */
-    int act_channel[ISO_ACT_MAX_CHANNELS];    /* their SETPOINTS indices */
-    int wall_times;                           /* 1: /loop carries the wall-clock figures */
-} iso_fox_session;
-
-/* One device's state at a tick. */
-typedef struct iso_fox_device {
-    uint8_t present, stale, has_pose, has_twist;
-    int16_t axes[6];
-    uint32_t buttons;
-    double v[6]; /* the last pose or twist sample (iso_dev_map_src) */
-    iso_dev_source_stats stats;
-} iso_fox_device;
-
-/* What one tick gives. */
-typedef struct iso_fox_frame {
-    long tick;
-    int64_t t_ns, dt_ns; /* stream time since the start, and the tick's length */
-    const double *x;     /* 3*nv positions */
-    iso_pose commanded[ISO_FOX_MAX_HANDLES], achieved[ISO_FOX_MAX_HANDLES];
-    int substeps, merged, restart;
-    int active;
-    uint8_t clutch, estop;
-    uint32_t buttons;
-    long evaluations, factorizations, cg_iterations; /* the solver's, so far */
-    double tick_ms, latency_ms;                      /* wall times (wall_times only) */
-    long misses, dropped; /* deadlines that passed without a tick of their own; frames
-                             the writer could not take */
-    iso_fox_device dev[ISO_FOX_MAX_DEVICES];
-    int have_act;
-    int16_t setpoints[ISO_ACT_MAX_CHANNELS]; /* by SETPOINTS index */
-    iso_act_stats act;
-} iso_fox_frame;
+/* the channels: mesh, loop, commanded and achieved per handle, a device's each, actuators */
+#define ISO_FOX_MAX_CHANNELS (4 + 2 * ISO_SINK_MAX_HANDLES + ISO_SINK_MAX_DEVICES)
 
 enum {
     ISO_FOX_MESH,
@@ -121,16 +77,16 @@ typedef struct iso_fox_channel {
 
 /* The session's channels, in the order above, into out (cap at least
  * ISO_FOX_MAX_CHANNELS); returns their count. */
-ISO_API int iso_fox_channels(const iso_fox_session *s, iso_fox_channel *out, int cap);
+ISO_API int iso_fox_channels(const iso_sink_session *s, iso_fox_channel *out, int cap);
 
 typedef struct iso_fox_encoder iso_fox_encoder; /* opaque */
 
-ISO_API ISO_NODISCARD int iso_fox_encoder_create(const iso_fox_session *s, iso_fox_encoder **out,
+ISO_API ISO_NODISCARD int iso_fox_encoder_create(const iso_sink_session *s, iso_fox_encoder **out,
                                                  iso_err *err);
 /* Encodes channel c's message for frame f. *data points into the encoder
  * (valid until its next call) and *len is its length. ISO_ENOMEM. */
 ISO_API ISO_NODISCARD int iso_fox_encode(iso_fox_encoder *e, const iso_fox_channel *c,
-                                         const iso_fox_frame *f, const char **data, size_t *len,
+                                         const iso_sink_frame *f, const char **data, size_t *len,
                                          iso_err *err);
 ISO_API void iso_fox_encoder_destroy(iso_fox_encoder *e); /* NULL is a no-op */
 

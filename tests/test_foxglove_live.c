@@ -69,7 +69,7 @@ static void foxglove_client_live(void **state)
     fputs(scene_text, sf);
     fclose(sf);
     /* the channels an MCAP export of this session has */
-    iso_fox_session s;
+    iso_sink_session s;
     memset(&s, 0, sizeof s);
     iso_shape shape;
     iso_err e;

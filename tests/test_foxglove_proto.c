@@ -71,7 +71,7 @@ static void the_protocol_edges(void **state)
     int fd = open_fox(port, OFFER("foxglove.websocket.v1"), &st);
     assert_int_equal(st, 503);
     close(fd);
-    iso_fox_session s;
+    iso_sink_session s;
     memset(&s, 0, sizeof s);
     s.mesh = mesh;
     s.regions = &regions;

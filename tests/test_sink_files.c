@@ -453,7 +453,7 @@ static void mesh_message_holds_the_positions(void **state)
     assert_non_null(x);
     for (int i = 0; i < 3 * sh.nv; i++) /* signs, small and large magnitudes */
         x[i] = sh.x[i] * (i % 7 == 0 ? -1e-3 : i % 5 == 0 ? 123.456 : 1.0) - 0.25;
-    iso_fox_session s;
+    iso_sink_session s;
     memset(&s, 0, sizeof s);
     s.mesh = m;
     iso_fox_channel ch[ISO_FOX_MAX_CHANNELS];
@@ -461,7 +461,7 @@ static void mesh_message_holds_the_positions(void **state)
     assert_string_equal(ch[0].topic, "/mesh");
     iso_fox_encoder *enc = NULL;
     assert_int_equal(iso_fox_encoder_create(&s, &enc, &e), ISO_OK);
-    iso_fox_frame f;
+    iso_sink_frame f;
     memset(&f, 0, sizeof f);
     f.x = x;
     const char *data;

@@ -262,9 +262,9 @@ struct iso_display {
      * it out under the same lock. Nobody holds the lock for anything else. */
     pthread_mutex_t frame_lock;
     unsigned char *latest;
-    unsigned long latest_seq;        /* under frame_lock; 0 = nothing yet */
-    atomic_ulong published;          /* latest_seq, readable without the lock */
-    struct iso_fox_frame *fox_frame; /* under frame_lock: the last publish_frame's copy */
+    unsigned long latest_seq;         /* under frame_lock; 0 = nothing yet */
+    atomic_ulong published;           /* latest_seq, readable without the lock */
+    struct iso_sink_frame *fox_frame; /* under frame_lock: the last publish_frame's copy */
     unsigned long fox_frame_seq;
     _Atomic(iso_display__fox_shared *) fox; /* set once by iso_display_foxglove */
     atomic_int wake_pending;                /* a byte is in the pipe: publish need not write */

@@ -77,8 +77,8 @@ struct iso_display__fox_shared {
     int n_ch;
     obuf hello; /* serverInfo and advertise, as two text frames */
     /* the encoder's own */
-    iso_fox_frame frame; /* the newest tick's, copied from publish */
-    double *x;           /* its positions */
+    iso_sink_frame frame; /* the newest tick's, copied from publish */
+    double *x;            /* its positions */
     unsigned long encoded_seq;
     pthread_t thread;
     int started;
@@ -237,7 +237,7 @@ static int start_encoder(iso_display__fox_shared *s, iso_err *err)
     return ISO_OK;
 }
 
-int iso_display_foxglove(iso_display *d, const iso_fox_session *session, iso_err *err)
+int iso_display_foxglove(iso_display *d, const iso_sink_session *session, iso_err *err)
 {
     if (!d || !session || session->mesh != d->mesh)
         return iso_err_set(err, ISO_EINVAL, -1, "display: Foxglove needs the display's own mesh");
@@ -251,7 +251,7 @@ int iso_display_foxglove(iso_display *d, const iso_fox_session *session, iso_err
     }
     int rc = s ? iso_fox_encoder_create(session, &s->enc, err)
                : iso_err_set(err, ISO_ENOMEM, -1, "display: out of memory");
-    iso_fox_frame *latest = rc == ISO_OK ? calloc(1, sizeof *latest) : NULL;
+    iso_sink_frame *latest = rc == ISO_OK ? calloc(1, sizeof *latest) : NULL;
     if (rc == ISO_OK) {
         s->n_ch = iso_fox_channels(session, s->ch, ISO_FOX_MAX_CHANNELS);
         s->x = calloc((size_t)d->nv * 3, sizeof *s->x);
@@ -279,7 +279,7 @@ int iso_display_foxglove(iso_display *d, const iso_fox_session *session, iso_err
     return ISO_OK;
 }
 
-int iso_display_publish_frame(iso_display *d, const iso_fox_frame *f, iso_err *err)
+int iso_display_publish_frame(iso_display *d, const iso_sink_frame *f, iso_err *err)
 {
     if (!d || !f)
         return iso_err_set(err, ISO_EINVAL, -1, "display: NULL display or frame");

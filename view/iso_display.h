@@ -328,16 +328,16 @@ ISO_API void iso_display_end(iso_display *d, const char *text);
  * "status" message (level 1) saying which. session->mesh must be the
  * display's mesh.
  * Call it once, before the first publish. ISO_EINVAL, ISO_ENOMEM. */
-struct iso_fox_session;
-struct iso_fox_frame;
-ISO_API ISO_NODISCARD int iso_display_foxglove(iso_display *d,
-                                               const struct iso_fox_session *session, iso_err *err);
+struct iso_sink_session;
+struct iso_sink_frame;
+ISO_API ISO_NODISCARD int
+iso_display_foxglove(iso_display *d, const struct iso_sink_session *session, iso_err *err);
 
 /* Hands the display the rest of a tick's channels (poses, devices, the
  * loop, actuators; f->x is ignored: the positions are those of the
  * iso_display_publish just before). A copy under the frame lock, no
  * allocation, no I/O. ISO_EINVAL for NULL arguments. */
-ISO_API int iso_display_publish_frame(iso_display *d, const struct iso_fox_frame *f, iso_err *err);
+ISO_API int iso_display_publish_frame(iso_display *d, const struct iso_sink_frame *f, iso_err *err);
 
 /* Stops the server thread, closes every connection and frees everything.
  * Never waits on a browser: returns within one pass of the server's loop
