@@ -325,13 +325,13 @@ ISO_API void iso_display_end(iso_display *d, const char *text);
  * the offer, to the letter; an offer of it before this call (a run's first
  * moments) gets 503 with Retry-After: 1. A subscription to a channel that
  * is not advertised, or an op that is not served, is answered with a
- * "status" message (level 1) saying which. session->mesh must be the
+ * "status" message (level 1) saying which. s->mesh must be the
  * display's mesh.
  * Call it once, before the first publish. ISO_EINVAL, ISO_ENOMEM. */
 struct iso_sink_session;
 struct iso_sink_frame;
-ISO_API ISO_NODISCARD int
-iso_display_foxglove(iso_display *d, const struct iso_sink_session *session, iso_err *err);
+ISO_API ISO_NODISCARD int iso_display_foxglove(iso_display *d, const struct iso_sink_session *s,
+                                               iso_err *err);
 
 /* Hands the display the rest of a tick's channels (poses, devices, the
  * loop, actuators; f->x is ignored: the positions are those of the
