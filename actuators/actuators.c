@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "act_internal.h"
+#include "iso_actuators_drill.h"
 #include "iso_clock.h"
 #include "iso_logq.h"
 

@@ -368,13 +368,6 @@ ISO_API const char *iso_actuators_link_state(const iso_actuators *a);
  * (CAP_SYS_NICE, rtprio). Any thread. */
 ISO_API ISO_NODISCARD int iso_actuators_set_priority(iso_actuators *a, int priority, iso_err *err);
 
-/* For tests and drills: sends sig to the emulated MCU. QEMU: the signal
- * goes to its process (SIGKILL, SIGSTOP, SIGCONT, ...). Native: SIGKILL
- * ends the MCU thread and closes its end of the socket pair (as a dying process
- * closes its UART), SIGSTOP pauses its clock and I/O, SIGCONT resumes.
- * ISO_EINVAL without an emulated link or for another signal (native). */
-ISO_API ISO_NODISCARD int iso_actuators_emu_signal(iso_actuators *a, int sig, iso_err *err);
-
 /* ---- emulated firmware (emu_firmware.c) ---------------------------------- */
 typedef struct iso_act_emu_info {
     int used;       /* ISO_ACT_EMU_QEMU or ISO_ACT_EMU_NATIVE */

@@ -45,6 +45,7 @@
 #include <unistd.h>
 
 #include "iso_actuators.h"
+#include "iso_actuators_drill.h"
 #include "iso_clock.h"
 #include "iso_mesh.h"
 #include "iso_scene.h"
