@@ -123,6 +123,7 @@ static int open_link(iso_actuators *a, const iso_act_link_spec *l, iso_err *err)
     case ISO_ACT_LINK_SERIAL: return iso_link_sp_open(l->path, baud, &a->link, err);
     /* 5 ms: a reopen after a loss runs inside a sender period */
     case ISO_ACT_LINK_TCP: return iso_link_tcp_open(l->host, l->port, 5, &a->link, err);
+    case ISO_ACT_LINK_USB: return iso_link_usb_open(l->vid, l->pid, &a->link, err);
     case ISO_ACT_LINK_EMULATED: {
         iso_act_emu_info info;
         int rc = iso_actuators_emu_open(l->emulation, &a->link, &info, err);

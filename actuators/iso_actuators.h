@@ -131,8 +131,9 @@ typedef enum iso_act_link_kind {
     ISO_ACT_LINK_NONE = 0, /* compute only: publish computes, sends nothing */
     ISO_ACT_LINK_TTY = 1,  /* path, baud */
     ISO_ACT_LINK_TCP = 2,  /* host, port; connects within 5 ms, so a reopen fits a sender period */
-    ISO_ACT_LINK_SERIAL = 3,  /* path (libserialport name), baud */
-    ISO_ACT_LINK_EMULATED = 4 /* emulation: ISO_ACT_EMU_* */
+    ISO_ACT_LINK_SERIAL = 3,   /* path (libserialport name), baud */
+    ISO_ACT_LINK_EMULATED = 4, /* emulation: ISO_ACT_EMU_* */
+    ISO_ACT_LINK_USB = 5       /* vid, pid: bulk endpoints through libusb (iso_link_usb_open) */
 } iso_act_link_kind;
 
 typedef enum iso_act_emu_mode {
@@ -150,6 +151,7 @@ typedef struct iso_act_link_spec {
     int port;                    /* TCP */
     int baud;                    /* TTY, SERIAL; 0 = 115200 */
     int emulation;               /* EMULATED: iso_act_emu_mode */
+    uint16_t vid, pid;           /* USB */
 } iso_act_link_spec;
 
 /* Called with one line (no newline) for things the user should know: which

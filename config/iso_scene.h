@@ -183,7 +183,8 @@ typedef enum iso_scene_link_kind {
     ISO_SCENE_LINK_TCP = 2,    /* host, port */
     ISO_SCENE_LINK_SERIAL = 3, /* path (libserialport name), baud */
     ISO_SCENE_LINK_EMULATED =
-        4 /* emulation: firmware in QEMU or in-process (actuators/iso_actuators.h) */
+        4, /* emulation: firmware in QEMU or in-process (actuators/iso_actuators.h) */
+    ISO_SCENE_LINK_USB = 5 /* vid, pid: a bridge on USB bulk endpoints (libusb) */
 } iso_scene_link_kind;
 
 /* Which emulated MCU; the values are actuators/iso_actuators.h's ISO_ACT_EMU_*. */
@@ -216,6 +217,7 @@ typedef struct iso_scene_actuators {
     int port;
     int baud;      /* default the bridge board's rate, ISO_FB_BOARD_BAUD (115200) */
     int emulation; /* EMULATED: iso_scene_emu_mode */
+    int vid, pid;  /* USB: the device's ids */
     iso_scene_channel ch[ISO_SCENE_MAX_CHANNELS];
     int n_ch;
     int loop_timeout_ms; /* loop watchdog bound; 0 (default) = max(250, 5 tick periods) */

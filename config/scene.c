@@ -346,6 +346,6 @@ const char *iso_scene_driver_name(int kind)
 
 const char *iso_scene_link_name(int link)
 {
-    static const char *const names[] = {"?", "tty", "tcp", "serial", "emulated", NULL};
+    static const char *const names[] = {"?", "tty", "tcp", "serial", "emulated", "usb", NULL};
     return iso_names_get(names, link);
 }

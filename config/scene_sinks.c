@@ -3,7 +3,9 @@
  * their link and channels. */
 #include "internal.h"
 
+#include <ctype.h>
 #include <libfyaml.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "iso_actuators.h" /* iso_act_emu_names, ISO_ACT_MAX_CHANNELS */
@@ -105,13 +107,39 @@ static const scene_section ply = {
 /* actuators                                                                 */
 /* ------------------------------------------------------------------------ */
 
-#define LINK_FORMS "{tty: PATH}, {tcp: host:port}, {serial: PORT} or {emulated: auto|qemu|native}"
+#define LINK_FORMS                                                                                 \
+    "{tty: PATH}, {tcp: host:port}, {serial: PORT}, {emulated: auto|qemu|native} or {usb: "        \
+    "VID:PID}"
 
 static int store_tcp(scene_ctx *c, const scene_key *k, fnode *v, const char *key, void *obj)
 {
     iso_scene_actuators *a = obj;
     (void)k;
     return iso_scene__host_port(c, v, key, a->host, sizeof a->host, &a->port);
+}
+
+/* VID:PID in hex, as lsusb prints them ("1209:0001"). */
+static int store_usb(scene_ctx *c, const scene_key *k, fnode *v, const char *key, void *obj)
+{
+    iso_scene_actuators *a = obj;
+    (void)k;
+    const char *t = iso_scene__is_null(c, v) ? NULL : iso_scene__scalar(c, v);
+    char *end = NULL, found[80];
+    unsigned long vid = t ? strtoul(t, &end, 16) : 0, pid = 0;
+    int ok = t && end != t && end - t <= 4 && *end == ':' && isxdigit((unsigned char)end[1]);
+    if (ok) {
+        const char *p = end + 1;
+        pid = strtoul(p, &end, 16);
+        ok = *end == '\0' && end - p <= 4 && (vid | pid) != 0;
+    }
+    if (!ok)
+        return iso_scene__fail(c, v, ISO_EPARSE, key,
+                               "expected VID:PID, the USB ids in hex as lsusb prints them "
+                               "(e.g. 1209:0001), found %s",
+                               iso_scene__found(c, v, found, sizeof found));
+    a->vid = (int)vid;
+    a->pid = (int)pid;
+    return ISO_OK;
 }
 
 static const scene_key link_keys[] = {
@@ -123,6 +151,8 @@ static const scene_key link_keys[] = {
     {"emulated", SK_ENUM, FIELD(iso_scene_actuators, emulation), SK_ONE_OF,
      .names = iso_act_emu_names,
      .help = "the MCU emulated: in QEMU, natively, or auto (QEMU when it and the ELF are there)"},
+    {"usb", SK_STRING, 0, 0, SK_ONE_OF, .store = store_usb, .type = "VID:PID",
+     .help = "a bridge on USB bulk endpoints, by its ids in hex (libusb)"},
     /* ISO_FB_BOARD_BAUD as SCENES.md spells it (test_scene holds it to what loads) */
     {"baud", SK_INT, FIELD(iso_scene_actuators, baud), IN(50, 12000000), .with = "tty serial",
      .help = "the line's rate", .dflt = "115200"},
@@ -158,7 +188,8 @@ static int link_word(scene_ctx *c, scene_map *m)
 }
 
 _Static_assert(ISO_SCENE_LINK_TTY == 1 && ISO_SCENE_LINK_TCP == 2 && ISO_SCENE_LINK_SERIAL == 3 &&
-                   ISO_SCENE_LINK_EMULATED == 4 && sizeof(iso_scene_link_kind) == sizeof(int),
+                   ISO_SCENE_LINK_EMULATED == 4 && ISO_SCENE_LINK_USB == 5 &&
+                   sizeof(iso_scene_link_kind) == sizeof(int),
                "link_keys' SK_ONE_OF rows are in iso_scene_link_kind's order (KIND_AT)");
 
 static const scene_section actuator_link = {.name = "sinks.actuators.link",

@@ -141,13 +141,16 @@ static int open_actuators(iso_loop *l, iso_err *err)
     static const int kinds[] = {[ISO_SCENE_LINK_TTY] = ISO_ACT_LINK_TTY,
                                 [ISO_SCENE_LINK_TCP] = ISO_ACT_LINK_TCP,
                                 [ISO_SCENE_LINK_SERIAL] = ISO_ACT_LINK_SERIAL,
-                                [ISO_SCENE_LINK_EMULATED] = ISO_ACT_LINK_EMULATED};
-    link.kind = a->link >= 0 && a->link <= ISO_SCENE_LINK_EMULATED ? kinds[a->link] : 0;
+                                [ISO_SCENE_LINK_EMULATED] = ISO_ACT_LINK_EMULATED,
+                                [ISO_SCENE_LINK_USB] = ISO_ACT_LINK_USB};
+    link.kind = a->link >= 0 && a->link <= ISO_SCENE_LINK_USB ? kinds[a->link] : 0;
     snprintf(link.path, sizeof link.path, "%s", a->path);
     snprintf(link.host, sizeof link.host, "%s", a->host);
     link.port = a->port;
     link.baud = a->baud;
     link.emulation = a->emulation;
+    link.vid = (uint16_t)a->vid;
+    link.pid = (uint16_t)a->pid;
     iso_act_opts o = {0, iso_loop__note, l};
     /* The loop watchdog: no progress for max(250 ms, 5 periods) and the
      * sender stops streaming and sends SAFE. The loop reports progress every

@@ -100,6 +100,7 @@ static const struct {
     {"sinks.actuators", "{link: emulated, channels: [" CHANNEL "]}"},
     {"sinks.actuators.link", "emulated"},
     {"sinks.actuators.link.tcp", "'h:1'"},
+    {"sinks.actuators.link.usb", "'1209:0001'"},
     {"sinks.actuators.channels", "[" CHANNEL "]"},
     {"sinks.actuators.channels[].region", "fixed"},
     {"sinks.actuators.channels[].min", "0"},

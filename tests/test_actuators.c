@@ -1018,7 +1018,7 @@ static void scene_link_emulated_forms_and_errors(void **state)
                        "tty or serial");
     expect_scene_error(SCENE_HEAD "    link: {emulated: qemu, tty: /dev/ttyS0}\n" SCENE_CHANNELS,
                        ISO_EPARSE, "emu.yaml:9:12: sinks.actuators.link", "exactly one of",
-                       "emulated, found 2");
+                       "usb, found 2");
     expect_scene_error(SCENE_HEAD SCENE_CHANNELS, ISO_EPARSE, "sinks.actuators.link",
                        "missing required key", "{emulated: auto|qemu|native}");
 }

@@ -482,6 +482,44 @@ static void test_run_refusals_are_the_loaders(void **state)
     expect_ok(BASE RGN "sinks: {ply: {dir: frames/}}\nrecording: r.isorec\n");
 }
 
+/* A bridge on USB is named by its ids as lsusb prints them, in hex; what
+ * is not two hex ids of at most four digits (or is 0000:0000) is refused
+ * at the value, saying the form. */
+static void test_usb_link(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        int vid, pid;
+    } good[] = {{"'1209:0001'", 0x1209, 0x0001}, {"'CAFE:babe'", 0xcafe, 0xbabe}, {"'0:1'", 0, 1}};
+    static const char *const bad[] = {"'1209'", "'1209:'", "':0001'", "'12345:1'", "'1209:1x'",
+                                      "'0:0'",  "'g:1'",   "1209",    NULL};
+    char text[512];
+    for (size_t i = 0; i < sizeof good / sizeof good[0]; i++) {
+        snprintf(text, sizeof text,
+                 BASE RGN "sinks:\n  actuators:\n    link: {usb: %s}\n"
+                          "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 good[i].text);
+        iso_scene *s = NULL;
+        iso_err err;
+        if (load_text("ok.yaml", text, &s, &err) != ISO_OK)
+            fail_msg("refused: %s\n%s", err.msg, text);
+        assert_int_equal(s->actuators.link, ISO_SCENE_LINK_USB);
+        assert_int_equal(s->actuators.vid, good[i].vid);
+        assert_int_equal(s->actuators.pid, good[i].pid);
+        assert_string_equal(iso_scene_link_name(s->actuators.link), "usb");
+        iso_scene_destroy(s);
+    }
+    for (int i = 0; bad[i]; i++) {
+        snprintf(text, sizeof text,
+                 BASE RGN "sinks:\n  actuators:\n    link: {usb: %s}\n"
+                          "    channels: [{channel: 0, vertex: 0, axis: x, min: 0, max: 1}]\n",
+                 bad[i]);
+        expect_error(text, ISO_EPARSE, "bad.yaml:5:", "sinks.actuators.link.usb: expected VID:PID",
+                     NULL);
+    }
+}
+
 static void test_distance(void **state)
 {
     (void)state;
@@ -874,6 +912,7 @@ int main(void)
         cmocka_unit_test(test_check_benchmark),
         cmocka_unit_test(test_round_trip),
         cmocka_unit_test(test_errors),
+        cmocka_unit_test(test_usb_link),
         cmocka_unit_test(test_distance),
         cmocka_unit_test(test_schema_shape),
         cmocka_unit_test(test_null_is_no_value),
