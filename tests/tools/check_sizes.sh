@@ -11,7 +11,7 @@ cd "$src" || exit 1
 if [ -e .git ] && command -v git >/dev/null 2>&1; then # a worktree's .git is a file
     files=$(git ls-files '*.c' '*.h' | grep -v '^tests/')
 else
-    files=$(find common firmware-bridge solver devices actuators sinks view config controller \
+    files=$(find common firmware-bridge mesh solver devices actuators sinks view config controller \
         -name '*.c' -o -name '*.h')
 fi
 bad=0
