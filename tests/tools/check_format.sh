@@ -17,7 +17,7 @@ cd "$src" || exit 1
 if [ -e .git ] && command -v git >/dev/null 2>&1; then  # a worktree's .git is a file
     files=$(git ls-files '*.c' '*.h')
 else
-    files=$(find common firmware-bridge solver devices actuators sinks view config controller tests \
+    files=$(find common firmware-bridge mesh solver devices actuators sinks view config controller tests \
         -name '*.c' -o -name '*.h')
 fi
 n=0 bad=0
