@@ -3,7 +3,7 @@
  * A name table is a NULL-terminated array of names indexed by the enum's
  * value (value i is names[i]). The module that defines an enum owns its
  * table (iso_assembly_names in solver/iso_solver.h, iso_dev_lock_names in
- * devices/iso_dev.h, ...); scene files, the command line and the summaries
+ * devices/iso_dev_map.h, ...); scene files, the command line and the summaries
  * all read that one table, so a name is spelled in one place. */
 #ifndef ISO_NAMES_H
 #define ISO_NAMES_H

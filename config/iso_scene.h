@@ -23,9 +23,11 @@
 #ifndef ISO_SCENE_H
 #define ISO_SCENE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
-#include "iso_dev.h"
+#include "iso_dev_map.h"
+#include "iso_dev_source.h"
 #include "iso_err.h"
 #include "iso_integrate.h"
 #include "iso_mesh.h"

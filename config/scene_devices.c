@@ -6,6 +6,7 @@
 
 #include <string.h>
 
+#include "iso_dev_rec.h"
 #include "iso_fb_mcu.h" /* ISO_FB_BOARD_BAUD */
 #include "iso_names.h"
 

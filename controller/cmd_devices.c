@@ -5,7 +5,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_enum.h"
 
 static const iso_cli__opt devices_options[] = {{0}};
 

@@ -7,7 +7,9 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_view.h"
 
 static const char *type_name(int t)
 {

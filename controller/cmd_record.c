@@ -14,7 +14,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "iso_dev.h"
+#include "iso_dev_map.h"
+#include "iso_dev_source.h"
 #include "iso_loop.h"
 
 /* The one piece of file-scope state: a signal handler can reach nothing else. */

@@ -13,7 +13,10 @@
 #include <string.h>
 #include <time.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
 #include "iso_loop.h"
 
 /* A YAML string: quoted, with the two characters that need it escaped. */

@@ -8,7 +8,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
-#include "iso_dev.h"
+#include "iso_dev_map.h"
 #include "iso_err.h"
 #include "iso_integrate.h"
 #include "iso_json.h"

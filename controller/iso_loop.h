@@ -132,7 +132,9 @@
 #include <stdio.h>
 
 #include "iso_actuators.h"
-#include "iso_dev.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
 #include "iso_err.h"
 #include "iso_metrics.h"
 #include "iso_proxy.h"

@@ -5,7 +5,11 @@
 
 #include "iso_loop.h"
 
-#include "iso_dev.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 #include "iso_display.h"
 #include "iso_integrate.h"
 #include "iso_logq.h"

@@ -2,7 +2,7 @@
  * chunks pushed with their times come back from read once the tick's time
  * reaches them, a pushed "gone" reads as an unplug, and the e-stop level
  * and the writes to the device's output line are the test's to set and see. */
-#include "iso_dev.h"
+#include "iso_dev_source.h"
 
 #include <stdatomic.h>
 #include <stdlib.h>

@@ -7,6 +7,8 @@
  * debounce: the GPIO decoder does it, from those timestamps, so it replays.
  * The two event descriptors sit in one epoll set: one descriptor to poll. */
 #include "internal.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_source.h"
 
 #include <errno.h>
 #include <glob.h>

@@ -5,6 +5,8 @@
  * exposes no descriptor to poll, so the hub reads it without blocking each
  * tick. Report descriptors come from sysfs, for the recording's header. */
 #include "internal.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_source.h"
 
 #include <errno.h>
 #include <stdio.h>

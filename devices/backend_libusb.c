@@ -4,6 +4,7 @@
  * with hidraw: claiming the interface here would take it from spacenavd.
  * The libusb context is the watcher's own: no library-wide state of ours. */
 #include "internal.h"
+#include "iso_dev_enum.h"
 
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,7 +1,8 @@
 /* devices/backend_replay.c -- a recording as a source: its chunks come back
  * at their recorded times through the same decoders as live bytes, and the
  * loop may ask for the next recorded tick to pace itself by the recording. */
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 
 #include <stdio.h>
 #include <stdlib.h>

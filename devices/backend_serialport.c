@@ -2,6 +2,8 @@
  * opened by name, enumerated with their USB VID/PID and description. (Debian
  * 12's libserialport 0.1.1 cannot open a pty: tests use backend_tty.c.) */
 #include "internal.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_source.h"
 
 #include <poll.h>
 #include <stdio.h>

@@ -12,9 +12,11 @@
  *
  * The axes it records are the device's own, as hidraw has them: spacenavd's
  * swap and rescale are undone, and a relative device's rest, which
- * spacenavd never hears, is inferred from silence (iso_dev.h, "a 3D
- * mouse's axes"). */
+ * spacenavd never hears, is inferred from silence (iso_dev_axes.h). */
 #include "internal.h"
+#include "iso_dev_axes.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_source.h"
 
 #include <ctype.h>
 #include <errno.h>

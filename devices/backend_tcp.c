@@ -1,6 +1,7 @@
 /* devices/backend_tcp.c -- a TCP client to a serial-over-network bridge
  * (ser2net, an ESP32 bridge): the same byte stream as a serial line. */
 #include "internal.h"
+#include "iso_dev_source.h"
 
 #include <errno.h>
 #include <stdio.h>

@@ -2,6 +2,7 @@
  * emulators, and any serial adapter the kernel exposes as a tty. Debian 12's
  * libserialport (0.1.1) cannot open a pty, so this is the path tests take. */
 #include "internal.h"
+#include "iso_dev_source.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -1,7 +1,7 @@
-/* devices/backend_view.c -- the browser view as a source (iso_dev.h, "the
- * browser view"): a bounded queue that the view's server fills from its own
- * thread and the hub drains each tick, and an e-stop level set the moment a
- * page's STOP arrives.
+/* devices/backend_view.c -- the browser view as a source (iso_dev_view.h):
+ * a bounded queue that the view's server fills from its own thread and the
+ * hub drains each tick, and an e-stop level set the moment a page's STOP
+ * arrives.
  *
  * The queue is a ring of whole chunks under a mutex held only for a copy:
  * the server never waits on the loop, the loop never waits on a socket. Its
@@ -9,6 +9,8 @@
  * targets (or a loop stalled long enough to fill the ring) cannot crowd out
  * a STOP, a grant or the end of a control. */
 #include "internal.h"
+#include "iso_dev_source.h"
+#include "iso_dev_view.h"
 
 #include <pthread.h>
 #include <stdatomic.h>

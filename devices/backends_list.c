@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "internal.h"
+#include "iso_dev_enum.h"
 
 static const int always_built = 1;
 

@@ -3,8 +3,7 @@
  * Every decoder counts what it cannot use and skips it; none fails on input.
  * The same code serves a live device and a replay, so a recording decodes to
  * the same events bit for bit. */
-#include "internal.h"
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
 
 #include <string.h>
 

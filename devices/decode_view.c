@@ -1,7 +1,7 @@
-/* devices/decode_view.c -- the browser view's commands (iso_dev.h, "the
- * browser view's commands"): the one parser of a page's message, used by
- * the view's server to route it and by the decoder to apply it, and the
- * decoder of the envelopes the server queues.
+/* devices/decode_view.c -- the browser view's commands (iso_dev_view.h):
+ * the one parser of a page's message, used by the view's server to route it
+ * and by the decoder to apply it, and the decoder of the envelopes the
+ * server queues.
  *
  * The decoder trusts nothing the server checked: it applies targets only
  * from the connection it last saw granted control, only with a growing
@@ -9,7 +9,8 @@
  * applies exactly what the live run applied, and a hand-edited recording
  * cannot do more than a page could. */
 #include "internal.h"
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_view.h"
 
 #include <math.h>
 #include <stdarg.h>

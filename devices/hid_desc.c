@@ -2,7 +2,7 @@
  * its six axes: relative or absolute Input items, and their logical range.
  * A walk over the descriptor's short items (HID 1.11, 6.2.2), keeping the
  * global items in force and the usages of the Main item to come. */
-#include "iso_dev.h"
+#include "iso_dev_axes.h"
 
 #include <string.h>
 

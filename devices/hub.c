@@ -5,7 +5,7 @@
  * live and replayed runs the same: every chunk it decodes is first written
  * to the recording, and a live chunk is never stamped later than the tick
  * that drains it, so a replay drains the same chunks into the same ticks. */
-#include "iso_dev.h"
+#include "iso_dev_hub.h"
 
 #include <inttypes.h>
 #include <pthread.h>
@@ -15,6 +15,10 @@
 #include <string.h>
 
 #include "internal.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 
 #define HUB_EVENTS 2048u
 

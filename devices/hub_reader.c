@@ -31,6 +31,8 @@
 #include <string.h>
 
 #include "internal.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_source.h"
 #include "iso_thread.h"
 
 #define RING 256u /* chunks per source: 64 KiB, four ticks' worth of ISO_DEV_DRAIN_MAX */

@@ -15,6 +15,8 @@
  * (iso_thread.h). */
 #include "internal.h"
 #include "iso_clock.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_source.h"
 #include "iso_thread.h"
 
 #include <errno.h>

@@ -4,7 +4,10 @@
 #ifndef ISO_DEV_INTERNAL_H
 #define ISO_DEV_INTERNAL_H
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_source.h"
 
 #include <string.h>
 

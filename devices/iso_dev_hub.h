@@ -1,10 +1,20 @@
 /* devices/iso_dev_hub.h -- the hub: sources, their decoders, the
- * recording and reconnects, one tick at a time. Part of iso_dev.h, which
- * includes it. */
+ * recording and reconnects, one tick at a time. It ties the objects of the
+ * other iso_dev_*.h headers together, and includes those its calls take:
+ * sources, decoders and their events, the mapping (a recording's writer
+ * it names only: iso_dev_rec.h). */
 #ifndef ISO_DEV_HUB_H
 #define ISO_DEV_HUB_H
 
+#include <stddef.h>
+#include <stdint.h>
+
 #include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_map.h"
+#include "iso_dev_source.h"
+#include "iso_err.h"
+#include "iso_geom.h"
 
 /* ====================================================================== */
 /* The hub: sources + decoders + recording + reconnects                    */
@@ -101,6 +111,25 @@ ISO_API ISO_NODISCARD int iso_dev_hub_record_attach(iso_dev_hub *h, const iso_de
                                                     iso_err *err);
 ISO_API int iso_dev_hub_record_detach(iso_dev_hub *h, iso_dev_rec_writer *w, iso_err *err);
 
+/* Noise. A device that delivers only bad input (bytes that are no frame,
+ * reports of unknown IDs) for ISO_DEV_NOISE_NOTICE_NS of stream time gets
+ * one message from the hub, with a hint (a serial line: its baud rate, and
+ * whether this is the right device), and one more when good input comes
+ * back. Stream time: a replay says it in the same tick. */
+#define ISO_DEV_NOISE_NOTICE_NS 2000000000LL
+/* A tick drains at most this many bytes from one source; the rest waits
+ * for the next tick. It bounds what a flood costs a tick: 16 KiB of noise
+ * decoded and recorded, 0.08 ms median and 0.17 ms p99 (tests/tools/
+ * noise_bench, SCHED_FIFO on a shared 2-core machine), far above any
+ * handle stream (a 115200-baud line brings 192 bytes in a 60 Hz tick; a 3D
+ * mouse, ~1 kB/s). The tick never reads a byte stream from the kernel
+ * itself (iso_dev_hub_set_priority says why). End to end, so a flood leaves
+ * a run's p99 tick within the spread of its quiet runs: a 60 Hz cactus run
+ * with its handle on a pty flooded with random bytes at the rate the tick
+ * drains, 2.3-3.1 ms against 2.0-3.3 quiet, where a tick that read the tty
+ * went to 19-35 ms (noise_bench; docs/performance.md, "Noise on a serial
+ * line"). */
+#define ISO_DEV_DRAIN_MAX 16384u
 /* Once per tick: drains every source up to now_ns, records and decodes what
  * came, handles unplug and replug, and returns the events (at most cap; the
  * rest wait for the next call). Only a recording write error fails. */

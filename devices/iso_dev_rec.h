@@ -1,10 +1,16 @@
 /* devices/iso_dev_rec.h -- recordings (devices/RECORDING.md): the writer
  * that keeps the chunks a hub drains, the reader and the replay source
- * that give them back. Part of iso_dev.h, which includes it. */
+ * that give them back. Chunks and the sources' descriptions are the
+ * base's (iso_dev.h); the replay source is a source (iso_dev_source.h). */
 #ifndef ISO_DEV_REC_H
 #define ISO_DEV_REC_H
 
+#include <stddef.h>
+#include <stdint.h>
+
 #include "iso_dev.h"
+#include "iso_dev_source.h"
+#include "iso_err.h"
 
 /* ====================================================================== */
 /* Recordings (devices/RECORDING.md)                                       */
@@ -13,6 +19,11 @@
 /* Written: 2 (an END record closes every whole recording; SKIP records).
  * Read: 1 and 2. */
 #define ISO_DEV_REC_VERSION 2u
+/* A recording keeps at most this many bytes per second of stream time of a
+ * source's chunks that decode to nothing; beyond it they become SKIP
+ * records (RECORDING.md, "The noise cap"). A 115200-baud line's whole
+ * stream (11.5 kB/s) fits under it. */
+#define ISO_DEV_REC_NOISE_CAP 16384u
 
 /* The writer. The caller's thread (the loop's tick) only encodes records
  * into a queue of ISO_DEV_REC_QUEUE_BYTES made at open; a thread of the

@@ -5,11 +5,13 @@
  *
  * Pure arithmetic on the events and the poses it is given: the same inputs
  * give the same twists bit for bit. */
-#include "iso_dev.h"
+#include "iso_dev_map.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+
+#include "iso_dev_decode.h"
 
 const char *const iso_dev_lock_names[] = {"none", "translation", "rotation", NULL};
 const char *const iso_dev_frame_names[] = {"world", "device", NULL};

@@ -1,5 +1,5 @@
 /* devices/rec_writer.c -- a recording written off the caller's thread
- * (iso_dev.h, "Recordings").
+ * (iso_dev_rec.h).
  *
  * The caller (the loop's tick) only encodes records into a byte ring made
  * at open; a thread of the writer's own writes them to the file. The ring
@@ -21,7 +21,7 @@
 #define _GNU_SOURCE /* O_CLOEXEC with _POSIX_C_SOURCE */
 #include "internal.h"
 #include "iso_clock.h"
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "iso_thread.h"
 
 #include <errno.h>

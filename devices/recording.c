@@ -7,7 +7,7 @@
  * sync byte that starts a record whose checksum holds. */
 #include "internal.h"
 #include "iso_crc32.h"
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "iso_file.h"
 
 #include <errno.h>

@@ -1,7 +1,7 @@
 /* devices/source.c -- the source interface's dispatch: every backend
  * (backend_*.c) fills an iso_dev_source with its ops, and these calls go
  * through them. */
-#include "iso_dev.h"
+#include "iso_dev_source.h"
 
 int iso_dev_source_fd(iso_dev_source *s)
 {

@@ -47,7 +47,7 @@
 #include <stdint.h>
 
 #include "iso_actuators.h"
-#include "iso_dev.h"
+#include "iso_dev_hub.h"
 #include "iso_err.h"
 #include "iso_geom.h"
 #include "iso_mesh.h"

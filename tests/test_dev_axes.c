@@ -1,5 +1,5 @@
 /* tests/test_dev_axes.c -- a 3D mouse's axes from the device to here
- * (iso_dev.h): the HID descriptor walk that tells relative from absolute
+ * (iso_dev_axes.h): the HID descriptor walk that tells relative from absolute
  * axes and finds their range, and the spnav backend's mapping of
  * spacenavd's events back to the device's axes and counts, checked against
  * spacenavd 1.1's own arithmetic (its evdev rescale, Y/Z swap and dead
@@ -14,7 +14,7 @@
 #include <cmocka.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_axes.h"
 
 /* A SpaceNavigator's descriptor, the later layout: unit items after the
  * ranges, relative Input items at bytes 36 and 53. */

@@ -18,7 +18,8 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_source.h"
 #include "testutil.h"
 
 /* Reads until `want` bytes came or a second passed. */

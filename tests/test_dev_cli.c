@@ -16,7 +16,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "testutil.h"
 
 static const char *bin(void)

@@ -19,7 +19,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "testutil.h"
 
 static struct {

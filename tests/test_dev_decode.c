@@ -10,7 +10,8 @@
 #include <math.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_map.h"
 #include "testutil.h"
 
 static iso_dev_decoder dec_of(int kind, uint32_t debounce_us)

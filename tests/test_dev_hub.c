@@ -14,7 +14,11 @@
 #include <string.h>
 #include <time.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 #include "testutil.h"
 
 #define MS 1000000LL

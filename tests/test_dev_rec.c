@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "testutil.h"
 
 static uint8_t g_buf[20000];

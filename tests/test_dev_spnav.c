@@ -23,7 +23,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_axes.h"
+#include "iso_dev_enum.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_source.h"
 #include "testutil.h"
 
 #define MS 1000000LL

@@ -19,7 +19,11 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 #include "iso_fb.h"
 #include "testutil.h"
 

@@ -1,4 +1,4 @@
-/* tests/test_dev_view.c -- the browser view as a device (devices/iso_dev.h,
+/* tests/test_dev_view.c -- the browser view as a device (devices/iso_dev_view.h,
  * "the browser view's commands"), below the server: the decoder and the
  * mapping on scripted envelopes at exact stream times, and the real view
  * source recorded by a hub and replayed.
@@ -22,7 +22,12 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
+#include "iso_dev_view.h"
 
 #define MS 1000000LL
 #define TICK (MS * 50 / 3) /* 60 Hz, to the nanosecond */

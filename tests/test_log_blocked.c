@@ -36,7 +36,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_view.h"
 
 #if defined(__SANITIZE_ADDRESS__)
 #define STOP_BOUND_S 2.0

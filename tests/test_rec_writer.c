@@ -1,5 +1,5 @@
 /* tests/test_rec_writer.c -- a recording written off the tick
- * (iso_dev.h, "Recordings", the writer): the caller never waits on the
+ * (iso_dev_rec.h, the writer): the caller never waits on the
  * disk, and a recording the disk could not take is closed whole at a tick.
  *
  * - A FIFO whose reader reads nothing: every write and tick returns
@@ -29,7 +29,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "testutil.h"
 
 static iso_dev_info one_source(void)

@@ -40,7 +40,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "iso_fb.h"
 #include "iso_mesh.h"
 

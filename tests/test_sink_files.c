@@ -36,7 +36,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
 #include "iso_foxglove.h"
 #include "iso_loop.h"
 #include "iso_mesh.h"

@@ -36,6 +36,7 @@
 
 #include "cdp.h"
 #include "iso_actuators.h"
+#include "iso_dev_view.h"
 #include "iso_loop.h"
 
 #define SCENES ISO_TEST_STREAMS "/../../config/scenes/"

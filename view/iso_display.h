@@ -75,10 +75,10 @@
  * one whose /ws URL carries ?token=T with the token the display made at
  * create (iso_display_token; 128 random bits, printed with the URL so the
  * page gets it as a notebook server's does). Watching needs no token.
- * Commands (iso_dev.h, "the browser view's commands"): one viewer at a
- * time is in control, the first to send TAKE; it alone may send TARGETs
- * and RELEASE; STOP comes from any viewer that may command (a stop button
- * must work for everyone watching) and acts at once; UNSTOP only from the
+ * Commands (iso_dev_view.h): one viewer at a time is in control, the
+ * first to send TAKE; it alone may send TARGETs and RELEASE; STOP comes
+ * from any viewer that may command (a stop button must work for everyone
+ * watching) and acts at once; UNSTOP only from the
  * viewer who pressed the stop or the one in control (any viewer that may
  * command once the one who pressed it has gone: a page that reconnects
  * must be able to release its own stop), and not within
@@ -148,8 +148,8 @@
  *                    the rotation's unit quaternion x y z w
  *        64+56H  f32  positions, 3N
  *
- * Browser to server on /ws: the commands (binary, iso_dev.h), and, as the
- * page takes each frame in (its onmessage), the text message
+ * Browser to server on /ws: the commands (binary, iso_dev_view.h), and, as
+ * the page takes each frame in (its onmessage), the text message
  * {"type":"took","tick":T} with that frame's tick number T. A viewer that
  * has sent one is paced from then on: it is sent the newest frame only
  * once it took the last frame it was sent, so at most one frame is on its
@@ -161,9 +161,10 @@
 #ifndef ISO_DISPLAY_H
 #define ISO_DISPLAY_H
 
+#include <stddef.h>
 #include <stdint.h>
 
-#include "iso_dev.h"
+#include "iso_dev_view.h"
 #include "iso_err.h"
 #include "iso_geom.h"
 #include "iso_mesh.h"

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

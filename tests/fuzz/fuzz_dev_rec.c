@@ -8,7 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_rec.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 

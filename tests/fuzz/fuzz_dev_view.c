@@ -13,6 +13,7 @@
 #include <math.h>
 
 #include "fuzz_dev_common.h"
+#include "iso_dev_view.h"
 
 static void parser_round_trip(const uint8_t *d, size_t n)
 {

@@ -8,7 +8,8 @@
  *   build/tests/make_streams tests/streams
  *
  * test_dev_streams.c replays each one and asserts what it decodes to. */
-#include "iso_dev.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_view.h"
 #include "iso_fb.h"
 
 #include <math.h>
@@ -181,7 +182,7 @@ static void session(void)
  * (a trapezoid, as a hand does it): lift (ty), bend over (rx), twist
  * (rz), swing back and sideways at once (rx, tx), a quick push down (tz),
  * then turn back with a tilt (rz, ry). The mapping's sensitivity is the
- * speed at full deflection (devices/iso_dev.h, full_scale), so this is the
+ * speed at full deflection (devices/iso_dev_map.h, full_scale), so this is the
  * fastest motion a scene lets the mouse command, at its sharpest. */
 static double jab(double t, double t0, double t1)
 {

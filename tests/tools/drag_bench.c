@@ -46,7 +46,7 @@
 #include <unistd.h>
 
 #include "child_stderr.h"
-#include "iso_dev.h"
+#include "iso_dev_view.h"
 #include "ws_client.h"
 
 static double now_s(void)

@@ -30,7 +30,10 @@
 #include <unistd.h>
 
 #include "iso_clock.h"
-#include "iso_dev.h"
+#include "iso_dev_hub.h"
+#include "iso_dev_map.h"
+#include "iso_dev_rec.h"
+#include "iso_dev_source.h"
 
 static unsigned g_lcg = 12345u;
 static uint8_t rnd(void)

@@ -37,7 +37,7 @@
 #include <unistd.h>
 
 #include "child_stderr.h"
-#include "iso_dev.h"
+#include "iso_dev_view.h"
 #include "ws_client.h"
 
 #define MAX_SUBS 16

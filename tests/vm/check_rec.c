@@ -33,7 +33,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "iso_dev.h"
+#include "iso_dev_decode.h"
+#include "iso_dev_rec.h"
 
 #define MAX_STATES 20000
 

@@ -3,7 +3,7 @@
 // distortion, and, when the scene has a `view` device, is a control surface:
 // a gizmo on the handle, a handle picker, keyboard nudges and a stop button.
 //
-// What it commands is a pose target (devices/iso_dev.h says why), sent as a
+// What it commands is a pose target (devices/iso_dev_view.h says why), sent as a
 // small binary message with the page's own sequence number and clock. While
 // it holds control it sends its target every KEEPALIVE_MS, so that the
 // device can tell a quiet page (stale) from a user holding still. Tests read
