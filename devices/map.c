@@ -322,7 +322,10 @@ static int clutch_from_buttons(const iso_dev_map *m, uint32_t b)
 }
 
 /* Phase 1: the tick's events, in order, into each source's state; what
- * they press goes into out. Returns the GPIO clutch after them. */
+ * they press goes into out. Returns the GPIO clutch after them. One event
+ * at a time, as they came, because a source's state is its last word: a
+ * button pressed and released within one tick still counts as pressed,
+ * and a GONE clears what its source said before it. */
 static uint8_t apply_events(iso_dev_map *m, const iso_dev_event *ev, size_t n, iso_dev_tick *out)
 {
     uint8_t gpio_clutch = m->clutch & 2;
@@ -392,7 +395,12 @@ static uint8_t apply_events(iso_dev_map *m, const iso_dev_event *ev, size_t n, i
 }
 
 /* Phase 2: the sources together at now_ns: stale streams, buttons, the
- * e-stop and the clutch, into out. Returns 1 when the handles hold. */
+ * e-stop and the clutch, into out. Returns 1 when the handles hold. After
+ * every event of the tick, because these are decided over all sources at
+ * once (any source's e-stop stops every handle, any source's button can
+ * be the clutch), and before any twist, because they decide whether there
+ * is one. Staleness is measured on now_ns, the stream time, so that a
+ * replay decides it the same. */
 static int sum_sources(iso_dev_map *m, uint8_t gpio_clutch, int64_t now_ns, iso_dev_tick *out)
 {
     /* Strictly past the stale time: a sample exactly stale_ns old still counts. */
@@ -425,7 +433,10 @@ static int sum_sources(iso_dev_map *m, uint8_t gpio_clutch, int64_t now_ns, iso_
     return m->estop || hold;
 }
 
-/* Phase 3: each live source's twist, added to its handle's. */
+/* Phase 3: each live source's twist, added to its handle's; only when
+ * phase 2 found the handles free. Added, not chosen, so that two devices
+ * on one handle combine; a source gone or stale adds nothing, so that its
+ * last twist never keeps driving a handle. */
 static void add_twists(iso_dev_map *m, double dt_s, const iso_pose *poses, iso_dev_tick *out)
 {
     for (unsigned i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
