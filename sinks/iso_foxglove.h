@@ -44,15 +44,9 @@
 #define ISO_FOXGLOVE_H
 
 #include <stddef.h>
-#include <stdint.h>
 
-#include "iso_actuators.h"
-#include "iso_dev_hub.h"
 #include "iso_err.h"
-#include "iso_geom.h"
-#include "iso_mesh.h"
-#include "iso_regions.h"
-#include "iso_sink_frame.h"
+#include "iso_sink_frame.h" /* the session and the frames it encodes */
 
 #define ISO_FOX_STRAIN_LEVELS 32
 /* the channels: mesh, loop, commanded and achieved per handle, a device's each, actuators */
