@@ -2,6 +2,7 @@
  * chunks pushed with their times come back from read once the tick's time
  * reaches them, a pushed "gone" reads as an unplug, and the e-stop level
  * and the writes to the device's output line are the test's to set and see. */
+#include "internal.h"
 #include "iso_dev_source.h"
 
 #include <stdatomic.h>
@@ -51,8 +52,7 @@ static void fake_close(iso_dev_source *s)
 {
     fake *f = s->impl;
     free(f->q);
-    free(f);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static int fake_estop_level(iso_dev_source *s)
@@ -71,17 +71,13 @@ void iso_dev_fake_set_estop(iso_dev_source *s, int level)
 int iso_dev_fake_open(const iso_dev_info *info, iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
-    iso_dev_source *s = calloc(1, sizeof *s);
-    fake *f = calloc(1, sizeof *f);
-    if (!s || !f) {
-        free(s);
-        free(f);
+    iso_dev_source *s = iso_dev__source_new(&fake_ops, sizeof(fake));
+    if (!s) {
         return iso_err_set(err, ISO_ENOMEM, -1, "fake source: out of memory");
     }
+    fake *f = s->impl;
     atomic_init(&f->estop, ISO_ENOTSUP);
-    s->ops = &fake_ops;
     s->info = *info;
-    s->impl = f;
     *out = s;
     return ISO_OK;
 }

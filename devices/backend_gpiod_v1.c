@@ -95,8 +95,7 @@ static void gp_close(iso_dev_source *s)
     if (g->ep >= 0)
         close(g->ep);
     gpiod_chip_close(g->chip); /* releases every requested line */
-    free(g);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 /* The e-stop line's level by ioctl on its request descriptor: no state of
@@ -127,8 +126,7 @@ static int fail(gp *g, iso_dev_source *s, iso_err *err, const char *chip, const 
         close(g->ep);
     if (g->chip)
         gpiod_chip_close(g->chip);
-    free(g);
-    free(s);
+    iso_dev__source_free(s);
     return ISO_EIO;
 }
 
@@ -138,13 +136,11 @@ int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err
     if (o->clutch_line < 0 && o->estop_line < 0)
         return iso_err_set(err, ISO_EINVAL, -1, "%s: neither a clutch nor an e-stop line given",
                            o->chip);
-    iso_dev_source *s = calloc(1, sizeof *s);
-    gp *g = calloc(1, sizeof *g);
-    if (!s || !g) {
-        free(s);
-        free(g);
+    iso_dev_source *s = iso_dev__source_new(&gp_ops, sizeof(gp));
+    if (!s) {
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", o->chip);
     }
+    gp *g = s->impl;
     g->ep = -1;
     g->chip = gpiod_chip_open_lookup(o->chip);
     if (!g->chip)
@@ -167,8 +163,6 @@ int iso_dev_gpiod_open(const iso_dev_gpio_opts *o, iso_dev_source **out, iso_err
         if (!g->pulse || gpiod_line_request_output(g->pulse, "isoshape-trigger", 0) != 0)
             return fail(g, s, err, o->chip, "cannot request output line", o->pulse_line);
     }
-    s->ops = &gp_ops;
-    s->impl = g;
     s->info.kind = ISO_DEV_KIND_GPIO;
     s->info.debounce_us = o->debounce_us;
     snprintf(s->info.name, sizeof s->info.name, "%s", o->chip);

@@ -64,8 +64,7 @@ static void hid_close_source(iso_dev_source *s)
 {
     hid *h = s->impl;
     hid_close(h->dev);
-    free(h);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops hid_ops = {"hidapi",         NULL, hid_read_chunk, NULL,
@@ -143,17 +142,13 @@ int iso_dev_hid_open_id(const char *path, uint16_t want_vid, uint16_t want_pid,
                            e ? strerror(e) : "");
     }
     hid_set_nonblocking(dev, 1);
-    iso_dev_source *s = calloc(1, sizeof *s);
-    hid *h = calloc(1, sizeof *h);
-    if (!s || !h) {
-        free(s);
-        free(h);
+    iso_dev_source *s = iso_dev__source_new(&hid_ops, sizeof(hid));
+    if (!s) {
         hid_close(dev);
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", p);
     }
+    hid *h = s->impl;
     h->dev = dev;
-    s->ops = &hid_ops;
-    s->impl = h;
     s->info.kind = ISO_DEV_KIND_HID;
     s->info.vid = vid;
     s->info.pid = pid;

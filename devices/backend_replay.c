@@ -1,6 +1,7 @@
 /* devices/backend_replay.c -- a recording as a source: its chunks come back
  * at their recorded times through the same decoders as live bytes, and the
  * loop may ask for the next recorded tick to pace itself by the recording. */
+#include "internal.h"
 #include "iso_dev_rec.h"
 #include "iso_dev_source.h"
 
@@ -41,8 +42,7 @@ static int replay_read(iso_dev_source *s, int64_t until, iso_dev_chunk *out, iso
 
 static void replay_close(iso_dev_source *s)
 {
-    free(s->impl);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops replay_ops = {"replay", NULL,         replay_read,
@@ -51,18 +51,14 @@ static const iso_dev_source_ops replay_ops = {"replay", NULL,         replay_rea
 int iso_dev_replay_open(iso_dev_rec_reader *r, iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
-    iso_dev_source *s = calloc(1, sizeof *s);
-    replay *p = calloc(1, sizeof *p);
-    if (!s || !p) {
-        free(s);
-        free(p);
+    iso_dev_source *s = iso_dev__source_new(&replay_ops, sizeof(replay));
+    if (!s) {
         return iso_err_set(err, ISO_ENOMEM, -1, "replay: out of memory");
     }
+    replay *p = s->impl;
     p->r = r;
-    s->ops = &replay_ops;
     s->multiplexed = 1;
     snprintf(s->info.name, sizeof s->info.name, "replay");
-    s->impl = p;
     *out = s;
     return ISO_OK;
 }

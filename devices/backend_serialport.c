@@ -56,8 +56,7 @@ static void ser_close(iso_dev_source *s)
     ser *p = s->impl;
     sp_close(p->port);
     sp_free_port(p->port);
-    free(p);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops ser_ops = {"serialport", ser_fd, ser_read, NULL, ser_close, NULL};
@@ -85,19 +84,15 @@ int iso_dev_serialport_open(const char *name, uint32_t baud, iso_dev_source **ou
     }
     int fd = -1;
     sp_get_port_handle(port, &fd);
-    iso_dev_source *s = calloc(1, sizeof *s);
-    ser *p = calloc(1, sizeof *p);
-    if (!s || !p) {
-        free(s);
-        free(p);
+    iso_dev_source *s = iso_dev__source_new(&ser_ops, sizeof(ser));
+    if (!s) {
         sp_close(port);
         sp_free_port(port);
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", name);
     }
+    ser *p = s->impl;
     p->port = port;
     p->fd = fd;
-    s->ops = &ser_ops;
-    s->impl = p;
     iso_dev__serial_info(&s->info, baud);
     int vid = 0, pid = 0;
     if (sp_get_port_transport(port) == SP_TRANSPORT_USB &&

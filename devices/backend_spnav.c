@@ -308,8 +308,7 @@ static int spnav_read_chunk(iso_dev_source *s, int64_t until, iso_dev_chunk *out
 static void spnav_close_source(iso_dev_source *s)
 {
     spnav_close();
-    free(s->impl);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops spnav_ops = {"spnav", spnav_fd_of,        spnav_read_chunk,
@@ -437,16 +436,12 @@ int iso_dev_spnav_open(iso_dev_source **out, iso_err *err)
                            "through hidapi",
                            path);
     }
-    iso_dev_source *s = calloc(1, sizeof *s);
-    spn *c = calloc(1, sizeof *c);
-    if (!s || !c) {
-        free(s);
-        free(c);
+    iso_dev_source *s = iso_dev__source_new(&spnav_ops, sizeof(spn));
+    if (!s) {
         spnav_close();
         return iso_err_set(err, ISO_ENOMEM, -1, "spacenavd: out of memory");
     }
-    s->ops = &spnav_ops;
-    s->impl = c;
+    spn *c = s->impl;
     s->info.kind = ISO_DEV_KIND_SPNAV;
     snprintf(s->info.name, sizeof s->info.name, "spacenavd");
     snprintf(c->socket, sizeof c->socket, "%s", path);

@@ -38,8 +38,7 @@ static void tcp_close(iso_dev_source *s)
 {
     tcp *t = s->impl;
     close(t->fd);
-    free(t);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops tcp_ops = {"tcp", tcp_fd, tcp_read, NULL, tcp_close, NULL};
@@ -57,17 +56,13 @@ int iso_dev_tcp_open(const char *host_port, int timeout_ms, iso_dev_source **out
     int rc = iso_fd_tcp_connect(host, colon + 1, timeout_ms, &fd, err);
     if (rc != ISO_OK)
         return rc;
-    iso_dev_source *s = calloc(1, sizeof *s);
-    tcp *t = calloc(1, sizeof *t);
-    if (!s || !t) {
-        free(s);
-        free(t);
+    iso_dev_source *s = iso_dev__source_new(&tcp_ops, sizeof(tcp));
+    if (!s) {
         close(fd);
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", host_port);
     }
+    tcp *t = s->impl;
     t->fd = fd;
-    s->ops = &tcp_ops;
-    s->impl = t;
     s->info.kind = ISO_DEV_KIND_SERIAL;
     snprintf(s->info.name, sizeof s->info.name, "tcp:%s", host_port);
     *out = s;

@@ -49,8 +49,7 @@ static void tty_close(iso_dev_source *s)
 {
     tty *t = s->impl;
     close(t->fd);
-    free(t);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops tty_ops = {"tty", tty_fd, tty_read, NULL, tty_close, NULL};
@@ -62,17 +61,13 @@ int iso_dev_tty_open(const char *path, uint32_t baud, iso_dev_source **out, iso_
     int rc = iso_tty_open_raw(path, baud, &fd, err);
     if (rc != ISO_OK)
         return rc;
-    iso_dev_source *s = calloc(1, sizeof *s);
-    tty *t = calloc(1, sizeof *t);
-    if (!s || !t) {
-        free(s);
-        free(t);
+    iso_dev_source *s = iso_dev__source_new(&tty_ops, sizeof(tty));
+    if (!s) {
         close(fd);
         return iso_err_set(err, ISO_ENOMEM, -1, "%s: out of memory", path);
     }
+    tty *t = s->impl;
     t->fd = fd;
-    s->ops = &tty_ops;
-    s->impl = t;
     iso_dev__serial_info(&s->info, baud);
     snprintf(s->info.name, sizeof s->info.name, "%s", path);
     *out = s;

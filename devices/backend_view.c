@@ -54,8 +54,7 @@ static void view_close(iso_dev_source *s)
 {
     view_src *v = s->impl;
     pthread_mutex_destroy(&v->mu);
-    free(v);
-    free(s);
+    iso_dev__source_free(s);
 }
 
 static const iso_dev_source_ops view_ops = {"view", NULL,       view_read,
@@ -69,13 +68,11 @@ int iso_dev_is_view(const iso_dev_source *s)
 int iso_dev_view_open(const char *name, iso_dev_source **out, iso_err *err)
 {
     *out = NULL;
-    iso_dev_source *s = calloc(1, sizeof *s);
-    view_src *v = calloc(1, sizeof *v);
-    if (!s || !v) {
-        free(s);
-        free(v);
+    iso_dev_source *s = iso_dev__source_new(&view_ops, sizeof(view_src));
+    if (!s) {
         return iso_err_set(err, ISO_ENOMEM, -1, "view device: out of memory");
     }
+    view_src *v = s->impl;
     /* The view's server thread pushes under it and the tick reads under
      * it: a server thread holding it runs at the tick's priority until it
      * lets go, so a busy machine cannot hold the tick up through it. */
@@ -86,8 +83,6 @@ int iso_dev_view_open(const char *name, iso_dev_source **out, iso_err *err)
     pthread_mutexattr_destroy(&ma);
     atomic_init(&v->dropped, 0);
     atomic_init(&v->estop, 0);
-    s->ops = &view_ops;
-    s->impl = v;
     s->info.kind = ISO_DEV_KIND_VIEW;
     snprintf(s->info.name, sizeof s->info.name, "%s", name && name[0] ? name : "browser");
     snprintf(s->detail, sizeof s->detail, "the live view's pages");

@@ -113,6 +113,15 @@ int iso_dev__reader_sync(iso_dev__reader *rd, int timeout_ms);
 ISO_NODISCARD int iso_dev__reader_priority(iso_dev__reader *rd, int priority, iso_err *err);
 
 /* Each appends at most cap entries and returns how many. */
+/* A source and its backend's struct in one zeroed allocation: s->ops set
+ * and s->impl pointing at impl_size bytes after the source, aligned for
+ * any type. NULL when out of memory (then nothing was allocated, and the
+ * backend closes only what it opened itself). Every backend makes its
+ * source so, and its close ends with iso_dev__source_free, which frees
+ * both at once. */
+iso_dev_source *iso_dev__source_new(const iso_dev_source_ops *ops, size_t impl_size);
+void iso_dev__source_free(iso_dev_source *s); /* NULL is a no-op */
+
 size_t iso_dev__hid_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__serialport_enumerate(iso_dev_found *out, size_t cap);
 size_t iso_dev__gpiod_enumerate(iso_dev_found *out, size_t cap);
