@@ -5,6 +5,7 @@
 
 #include "internal.h"
 #include "iso_fb_host.h"
+#include "iso_fb_host_drill.h"
 
 static int send_frame(iso_fb_host *h, uint8_t type, const uint8_t *payload, int len, iso_err *err)
 {

@@ -87,9 +87,6 @@ ISO_API int iso_fb_host_poll(iso_fb_host *h, int timeout_ms);
  * setpoints went out, 0 if not streaming, or ISO_EINVAL for bad arguments. */
 ISO_API int iso_fb_host_step(iso_fb_host *h, uint32_t tick, const int16_t *values, unsigned n);
 
-/* Sends a DIAG hang request (proves the MCU's hardware watchdog). */
-ISO_API ISO_NODISCARD int iso_fb_host_send_diag_hang(iso_fb_host *h, iso_err *err);
-
 /* Sends SAFE(cause): an MCU that obeys it (iso_fb_host_can_safe) brakes to
  * its safe state at once and answers FAULT(REQUESTED), which drops the host
  * to HANDSHAKE like any FAULT. ISO_ENOTSUP when the MCU's HELLO did not

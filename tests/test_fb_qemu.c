@@ -37,6 +37,7 @@
 #include "fb_test_config.h"
 #include "iso_clock.h"
 #include "iso_fb_host.h"
+#include "iso_fb_host_drill.h"
 #include "iso_fb_mcu.h"
 #include "testutil.h"
 
