@@ -26,6 +26,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "iso_actuators.h" /* the sink a scene's actuators become */
 #include "iso_dev_map.h"
 #include "iso_dev_source.h"
 #include "iso_err.h"
@@ -292,6 +293,11 @@ ISO_API void iso_scene_destroy(iso_scene *s); /* NULL is a no-op */
  * stale_ms when the scene gives it, else ISO_SCENE_STALE_MS_VIEW_DEFAULT
  * for a view and ISO_SCENE_STALE_MS_DEFAULT for any other. */
 ISO_API int iso_scene_device_stale_ms(const iso_scene_device *d, int source_kind);
+
+/* The scene's actuators as the actuator sink takes them
+ * (iso_actuators_create): its a->n_ch channels into out, and its link. */
+ISO_API void iso_scene_actuator_channels(const iso_scene_actuators *a, iso_act_channel *out);
+ISO_API void iso_scene_actuator_link(const iso_scene_actuators *a, iso_act_link_spec *out);
 
 /* Names used in the schema, for summaries. Never NULL. */
 ISO_API const char *iso_scene_driver_name(int kind);

@@ -124,33 +124,9 @@ static int open_actuators(iso_loop *l, iso_err *err)
                            "sinks.actuators: %d channels, a SETPOINTS frame carries at most %d",
                            a->n_ch, ISO_ACT_MAX_CHANNELS);
     iso_act_channel ch[ISO_ACT_MAX_CHANNELS];
-    for (int i = 0; i < a->n_ch; i++) {
-        const iso_scene_channel *c = &a->ch[i];
-        ch[i] = (iso_act_channel){c->channel,
-                                  c->vertex,
-                                  c->region == ISO_SCENE_REGION_FIXED  ? ISO_ACT_REGION_FIXED
-                                  : c->region == ISO_SCENE_REGION_NONE ? ISO_ACT_REGION_NONE
-                                                                       : c->region,
-                                  c->axis,
-                                  c->min,
-                                  c->max,
-                                  c->scale};
-    }
+    iso_scene_actuator_channels(a, ch);
     iso_act_link_spec link;
-    memset(&link, 0, sizeof link);
-    static const int kinds[] = {[ISO_SCENE_LINK_TTY] = ISO_ACT_LINK_TTY,
-                                [ISO_SCENE_LINK_TCP] = ISO_ACT_LINK_TCP,
-                                [ISO_SCENE_LINK_SERIAL] = ISO_ACT_LINK_SERIAL,
-                                [ISO_SCENE_LINK_EMULATED] = ISO_ACT_LINK_EMULATED,
-                                [ISO_SCENE_LINK_USB] = ISO_ACT_LINK_USB};
-    link.kind = a->link >= 0 && a->link <= ISO_SCENE_LINK_USB ? kinds[a->link] : 0;
-    snprintf(link.path, sizeof link.path, "%s", a->path);
-    snprintf(link.host, sizeof link.host, "%s", a->host);
-    link.port = a->port;
-    link.baud = a->baud;
-    link.emulation = a->emulation;
-    link.vid = (uint16_t)a->vid;
-    link.pid = (uint16_t)a->pid;
+    iso_scene_actuator_link(a, &link);
     iso_act_opts o = {0, iso_loop__note, l};
     /* The loop watchdog: no progress for max(250 ms, 5 periods) and the
      * sender stops streaming and sends SAFE. The loop reports progress every

@@ -1023,25 +1023,6 @@ static void scene_link_emulated_forms_and_errors(void **state)
                        "missing required key", "{emulated: auto|qemu|native}");
 }
 
-/* What the controller does with a scene's actuators; here to show a scene
- * runs to the emulated MCU with no hardware. */
-static void scene_channels_to_sink(const iso_scene_actuators *sa, iso_act_channel *out)
-{
-    for (int i = 0; i < sa->n_ch; i++) {
-        const iso_scene_channel *c = &sa->ch[i];
-        iso_act_channel a = {c->channel,
-                             c->vertex,
-                             c->region == ISO_SCENE_REGION_NONE    ? ISO_ACT_REGION_NONE
-                             : c->region == ISO_SCENE_REGION_FIXED ? ISO_ACT_REGION_FIXED
-                                                                   : c->region,
-                             c->axis,
-                             c->min,
-                             c->max,
-                             c->scale};
-        out[i] = a;
-    }
-}
-
 static void scene_runs_hardware_free(void **state)
 {
     (void)state;
@@ -1050,11 +1031,10 @@ static void scene_runs_hardware_free(void **state)
     if (load_scene(SCENE_HEAD "    link: {emulated: native}\n" SCENE_CHANNELS, &s, &err) != ISO_OK)
         fail_msg("%s", err.msg);
     iso_act_channel ch[ISO_SCENE_MAX_CHANNELS];
-    scene_channels_to_sink(&s->actuators, ch);
+    iso_scene_actuator_channels(&s->actuators, ch); /* as the controller does */
     iso_act_link_spec link;
-    memset(&link, 0, sizeof link);
-    link.kind = ISO_ACT_LINK_EMULATED;
-    link.emulation = s->actuators.emulation;
+    iso_scene_actuator_link(&s->actuators, &link);
+    assert_int_equal(link.kind, ISO_ACT_LINK_EMULATED);
     iso_act_opts opts = {0, on_notice, NULL};
     iso_actuators *a = NULL;
     forget_notices();
