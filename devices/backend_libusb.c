@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef ISO_DEV_WITH_LIBUSB
+#ifdef ISO_HAVE_LIBUSB
 #include <libusb.h>
 
 const int iso_dev__libusb_built = 1;

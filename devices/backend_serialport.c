@@ -11,7 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#ifdef ISO_DEV_WITH_SERIALPORT
+#ifdef ISO_HAVE_SERIALPORT
 #include <libserialport.h>
 
 const int iso_dev__serialport_built = 1;

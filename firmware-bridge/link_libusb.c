@@ -1,11 +1,11 @@
 /* firmware-bridge/link_libusb.c -- opens a vendor-class USB bridge through
  * libusb and hands its bulk endpoints to link_usb.c. Without libusb
- * (ISO_FB_HAVE_LIBUSB unset) iso_link_usb_open says so. */
+ * (ISO_HAVE_LIBUSB unset) iso_link_usb_open says so. */
 #include <stdlib.h>
 
 #include "internal.h"
 
-#ifdef ISO_FB_HAVE_LIBUSB
+#ifdef ISO_HAVE_LIBUSB
 #include <libusb.h>
 
 _Static_assert((int)ISO_LINK_USB_EIO == (int)LIBUSB_ERROR_IO, "usb codes match libusb");

@@ -1,13 +1,13 @@
 /* firmware-bridge/link_serialport.c -- libserialport backend for real
  * USB-serial adapters, with enumeration (VID/PID/description). Without
- * libserialport (ISO_FB_HAVE_SERIALPORT unset) the functions say so. */
+ * libserialport (ISO_HAVE_SERIALPORT unset) the functions say so. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "internal.h"
 
-#ifdef ISO_FB_HAVE_SERIALPORT
+#ifdef ISO_HAVE_SERIALPORT
 #include <libserialport.h>
 
 typedef struct sp_link {

@@ -383,11 +383,11 @@ static void host_endpoint_over_usb_transport(void **state)
  * (tests/CMakeLists.txt); each test below asserts the status that follows
  * from that, so a transport compiled in and failing cannot pass as one
  * compiled out. */
-#ifndef ISO_TEST_FB_LIBUSB
-#error "tests/CMakeLists.txt defines ISO_TEST_FB_LIBUSB (0 or 1)"
+#ifndef ISO_HAVE_LIBUSB
+#error "tests/CMakeLists.txt defines ISO_HAVE_LIBUSB (0 or 1)"
 #endif
-#ifndef ISO_TEST_FB_SERIALPORT
-#error "tests/CMakeLists.txt defines ISO_TEST_FB_SERIALPORT (0 or 1)"
+#ifndef ISO_HAVE_SERIALPORT
+#error "tests/CMakeLists.txt defines ISO_HAVE_SERIALPORT (0 or 1)"
 #endif
 
 static void usb_open_without_device(void **state)
@@ -398,7 +398,7 @@ static void usb_open_without_device(void **state)
     iso_err_clear(&err);
     int rc = iso_link_usb_open(0xdead, 0xbeef, &l, &err);
     printf("usb open without hardware: %s\n", err.msg);
-    assert_int_equal(rc, ISO_TEST_FB_LIBUSB ? ISO_EIO : ISO_ENOTSUP);
+    assert_int_equal(rc, ISO_HAVE_LIBUSB ? ISO_EIO : ISO_ENOTSUP);
     assert_null(l);
     assert_non_null(strstr(err.msg, "dead:beef"));
 }
@@ -425,7 +425,7 @@ static void serialport_compiled_out(void)
 static void serialport_list_and_errors(void **state)
 {
     (void)state;
-    if (!ISO_TEST_FB_SERIALPORT)
+    if (!ISO_HAVE_SERIALPORT)
         serialport_compiled_out();
     iso_link_sp_port ports[16];
     iso_err err;
@@ -451,7 +451,7 @@ static void serialport_list_and_errors(void **state)
 static void serialport_on_a_pty(void **state)
 {
     (void)state;
-    if (!ISO_TEST_FB_SERIALPORT) {
+    if (!ISO_HAVE_SERIALPORT) {
         print_message("skipped: libserialport is not built in\n");
         skip();
     }
