@@ -126,7 +126,8 @@ static int store_usb(scene_ctx *c, const scene_key *k, fnode *v, const char *key
     const char *t = iso_scene__is_null(c, v) ? NULL : iso_scene__scalar(c, v);
     char *end = NULL, found[80];
     unsigned long vid = t ? strtoul(t, &end, 16) : 0, pid = 0;
-    int ok = t && end != t && end - t <= 4 && *end == ':' && isxdigit((unsigned char)end[1]);
+    int ok = t && isxdigit((unsigned char)t[0]) && end - t <= 4 && *end == ':' &&
+             isxdigit((unsigned char)end[1]);
     if (ok) {
         const char *p = end + 1;
         pid = strtoul(p, &end, 16);

@@ -38,8 +38,12 @@ static const char *fifo_note(const char *path)
 
 /* A need beyond the machine's memory is said beside it: such a run
  * swaps or is killed, and the reduced model (solver.proxy) is the way out. */
-static void beyond_machine(double mb, char *out, size_t cap)
+static void beyond_machine(double mb, char *out, size_t cap, int used)
 {
+    if (used < 0 || (size_t)used >= cap)
+        return; /* the sentence before filled the room */
+    out += used;
+    cap -= (size_t)used;
     long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
     double have = pages > 0 && page > 0 ? (double)pages * (double)page / (1024.0 * 1024.0) : 0.0;
     if (have > 0 && mb > have)
@@ -59,7 +63,7 @@ static int run_memory(const iso_scene *s, int proxy_budget, char *out, size_t ca
                          "about %.0f MB on the reduced model (measured: %.0f MB and %.0f bytes a "
                          "vertex, sinks aside)",
                          mb, CHECK_PROXY_BASE_MB, CHECK_PROXY_BYTES_PER_VERTEX);
-        beyond_machine(mb, out + n, cap - (size_t)n);
+        beyond_machine(mb, out, cap, n);
         return 0;
     }
     if (nv >= 100000)
@@ -84,7 +88,7 @@ static int run_memory(const iso_scene *s, int proxy_budget, char *out, size_t ca
     int n = snprintf(out, cap, "the whole mesh's factor %.0f MB%s (the mesh and the rest aside)",
                      (double)st.factor_bytes / (1024.0 * 1024.0),
                      held > 1 ? ", held twice with the worker" : "");
-    beyond_machine(held * (double)st.factor_bytes / (1024.0 * 1024.0), out + n, cap - (size_t)n);
+    beyond_machine(held * (double)st.factor_bytes / (1024.0 * 1024.0), out, cap, n);
     return 0;
 }
 

@@ -492,8 +492,9 @@ static void test_usb_link(void **state)
         const char *text;
         int vid, pid;
     } good[] = {{"'1209:0001'", 0x1209, 0x0001}, {"'CAFE:babe'", 0xcafe, 0xbabe}, {"'0:1'", 0, 1}};
-    static const char *const bad[] = {"'1209'", "'1209:'", "':0001'", "'12345:1'", "'1209:1x'",
-                                      "'0:0'",  "'g:1'",   "1209",    NULL};
+    static const char *const bad[] = {"'1209'",    "'1209:'", "':0001'", "'12345:1'",
+                                      "'1209:1x'", "'0:0'",   "'g:1'",   "1209",
+                                      "'-1:2'",    "' 1:2'",  NULL};
     char text[512];
     for (size_t i = 0; i < sizeof good / sizeof good[0]; i++) {
         snprintf(text, sizeof text,
