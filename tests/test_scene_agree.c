@@ -159,6 +159,22 @@ static void check_and_run_agree_on_display_hosts(void **state)
     }
 }
 
+/* A scene of `mesh` with the builtin screw on its top and `solver`, checked
+ * (its stdout into check_out) and then run with run_args (into g). */
+static void check_then_run(const char *mesh, const char *solver, const char *run_args,
+                           char *check_out, size_t cap)
+{
+    snprintf(g.doc, sizeof g.doc,
+             "name: agree\nmesh: %s\nregions:\n  sel: builtin\n  handles:\n"
+             "    - name: top\n      driver: {screw: {def: builtin, duration: 1.0}}\n"
+             "solver: %s\ntick_hz: 60\n",
+             mesh, solver);
+    iso_test_write(g.path, g.doc, -1);
+    assert_int_equal(run_iso(0, NULL), 0);
+    snprintf(check_out, cap, "%s", g.out);
+    assert_int_equal(run_iso(1, run_args), 0);
+}
+
 /* What the solver's model will be is said alike by both, and a setting
  * with nothing to act on is said, not dropped: a proxy budget not below
  * the mesh's size runs the whole mesh; proxy_smoothness without a proxy is
@@ -170,16 +186,8 @@ static void check_and_run_say_the_model_alike(void **state)
     static const char *const solver[] = {"{proxy: 100000}",
                                          "{proxy: off, proxy_smoothness: matched}"};
     for (int i = 0; i < 2; i++) {
-        snprintf(g.doc, sizeof g.doc,
-                 "name: model\nmesh: {shape: cactus}\nregions:\n  sel: builtin\n  handles:\n"
-                 "    - name: top\n      driver: {screw: {def: builtin, duration: 1.0}}\n"
-                 "solver: %s\ntick_hz: 60\n",
-                 solver[i]);
-        iso_test_write(g.path, g.doc, -1);
-        assert_int_equal(run_iso(0, RUN_ONE_TICK), 0);
         char check_out[sizeof g.out];
-        snprintf(check_out, sizeof check_out, "%s", g.out);
-        assert_int_equal(run_iso(1, RUN_ONE_TICK), 0);
+        check_then_run("{shape: cactus}", solver[i], RUN_ONE_TICK, check_out, sizeof check_out);
         print_message("solver %s: check says\n%s run says\n%s", solver[i],
                       strstr(check_out, "  model:"), g.err[1]);
         if (i == 0) {
@@ -216,16 +224,8 @@ static void check_says_the_memory_a_run_holds(void **state)
     need_binary();
     static const char *const mesh[] = {"{shape: bumpplane, resolution: 201}", "{shape: cactus}"};
     for (int i = 0; i < 2; i++) {
-        snprintf(g.doc, sizeof g.doc,
-                 "name: memory\nmesh: %s\nregions:\n  sel: builtin\n  handles:\n"
-                 "    - name: top\n      driver: {screw: {def: builtin, duration: 1.0}}\n"
-                 "tick_hz: 60\n",
-                 mesh[i]);
-        iso_test_write(g.path, g.doc, -1);
-        assert_int_equal(run_iso(0, NULL), 0);
         char check_out[sizeof g.out];
-        snprintf(check_out, sizeof check_out, "%s", g.out);
-        assert_int_equal(run_iso(1, "--no-rt --ticks 5"), 0);
+        check_then_run(mesh[i], "{}", "--no-rt --ticks 5", check_out, sizeof check_out);
         double said = i == 0 ? number_after(check_out, "memory: about ")
                              : number_after(check_out, "memory: the whole mesh's factor ");
         double check_peak = number_after(check_out, "peak memory ");
