@@ -22,9 +22,7 @@
 #define _DEFAULT_SOURCE /* strnlen */
 #include "loop_internal.h"
 
-#include <errno.h>
 #include <limits.h>
-#include <semaphore.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -38,9 +36,8 @@ enum { REC_IDLE, REC_OPENING, REC_READY, REC_CLOSING };
 
 struct iso_loop__recorder {
     iso_loop *l;
-    pthread_t th;
-    sem_t wake;
-    _Atomic int state, quit;
+    iso_thread_waker thread;
+    _Atomic int state;
     iso_dev_info infos[ISO_DEV_MAX_SOURCES]; /* the tick's, before OPENING */
     size_t n_infos;
     iso_dev_rec_writer w; /* the thread's while OPENING, READY and CLOSING */
@@ -99,8 +96,7 @@ static void *recorder_main(void *arg)
 {
     iso_loop__recorder *r = arg;
     for (;;) {
-        while (sem_wait(&r->wake) != 0 && errno == EINTR)
-            ;
+        iso_thread_waker_wait(&r->thread);
         /* a request posted before quit is carried out first: a recording
          * being closed ends whole */
         int st = atomic_load(&r->state);
@@ -108,7 +104,7 @@ static void *recorder_main(void *arg)
             open_next(r);
         else if (st == REC_CLOSING)
             close_it(r);
-        if (atomic_load(&r->quit))
+        if (iso_thread_waker_quitting(&r->thread))
             return NULL;
     }
 }
@@ -123,13 +119,8 @@ int iso_loop__recorder_create(iso_loop *l, const char *base, int recording_now,
     r->l = l;
     snprintf(r->base, sizeof r->base, "%s", base);
     r->made = recording_now ? 1 : 0;
-    if (sem_init(&r->wake, 0, 0) != 0) {
-        free(r);
-        return iso_err_set(err, ISO_EIO, -1, "the record button: sem_init: %s", strerror(errno));
-    }
-    int e = iso_thread_start(&r->th, recorder_main, r);
+    int e = iso_thread_waker_start(&r->thread, recorder_main, r);
     if (e != 0) {
-        sem_destroy(&r->wake);
         free(r);
         return iso_err_set(err, ISO_EIO, -1, "the record button: cannot start its thread: %s",
                            strerror(e));
@@ -142,12 +133,9 @@ void iso_loop__recorder_destroy(iso_loop__recorder *r)
 {
     if (!r)
         return;
-    atomic_store(&r->quit, 1);
-    sem_post(&r->wake);
-    pthread_join(r->th, NULL);
+    iso_thread_waker_stop(&r->thread);
     if (atomic_load(&r->state) == REC_READY) /* opened, never attached: end it whole */
         close_it(r);
-    sem_destroy(&r->wake);
     free(r);
 }
 
@@ -165,7 +153,7 @@ void iso_loop__recorder_press(iso_loop__recorder *r, iso_dev_hub *hub, int *reco
         if (iso_dev_hub_record_detach(hub, &r->w, &e)) {
             *recording = 0;
             atomic_store(&r->state, REC_CLOSING);
-            sem_post(&r->wake);
+            iso_thread_waker_post(&r->thread);
         }
         return;
     }
@@ -173,7 +161,7 @@ void iso_loop__recorder_press(iso_loop__recorder *r, iso_dev_hub *hub, int *reco
     if (r->n_infos > ISO_DEV_MAX_SOURCES)
         r->n_infos = ISO_DEV_MAX_SOURCES;
     atomic_store(&r->state, REC_OPENING);
-    sem_post(&r->wake);
+    iso_thread_waker_post(&r->thread);
 }
 
 void iso_loop__recorder_poll(iso_loop__recorder *r, iso_dev_hub *hub, int *recording)
@@ -188,6 +176,6 @@ void iso_loop__recorder_poll(iso_loop__recorder *r, iso_dev_hub *hub, int *recor
         atomic_store(&r->state, REC_IDLE);
     } else {
         atomic_store(&r->state, REC_CLOSING); /* cannot happen: the hub was not recording */
-        sem_post(&r->wake);
+        iso_thread_waker_post(&r->thread);
     }
 }

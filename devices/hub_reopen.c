@@ -19,8 +19,6 @@
 #include "iso_dev_source.h"
 #include "iso_thread.h"
 
-#include <errno.h>
-#include <semaphore.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,18 +36,15 @@ typedef struct reopen_slot {
 
 struct iso_dev__reopener {
     reopen_slot slot[ISO_DEV_MAX_SOURCES];
-    sem_t wake;
-    _Atomic int quit;
+    iso_thread_waker w;
     _Atomic int closing; /* handles taken from `dead` and not yet closed */
-    pthread_t th;
 };
 
 static void *reopener_main(void *arg)
 {
     iso_dev__reopener *r = arg;
     for (;;) {
-        while (sem_wait(&r->wake) != 0 && errno == EINTR)
-            ;
+        iso_thread_waker_wait(&r->w);
         for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
             reopen_slot *q = &r->slot[i];
             /* the state first: an ask seen here came after its source's
@@ -60,7 +55,7 @@ static void *reopener_main(void *arg)
             atomic_fetch_add(&r->closing, 1);
             iso_dev_source_close(atomic_exchange(&q->dead, NULL));
             atomic_fetch_sub(&r->closing, 1);
-            if (atomic_load(&r->quit) || st != SLOT_ASKED)
+            if (iso_thread_waker_quitting(&r->w) || st != SLOT_ASKED)
                 continue;
             iso_err e;
             iso_err_clear(&e);
@@ -70,7 +65,7 @@ static void *reopener_main(void *arg)
             q->back = back;
             atomic_store(&q->state, SLOT_ANSWERED);
         }
-        if (atomic_load(&r->quit))
+        if (iso_thread_waker_quitting(&r->w))
             return NULL;
     }
 }
@@ -80,13 +75,8 @@ int iso_dev__reopener_create(iso_dev__reopener **out, iso_err *err)
     iso_dev__reopener *r = calloc(1, sizeof *r);
     if (!r)
         return iso_err_set(err, ISO_ENOMEM, -1, "device hub: out of memory");
-    if (sem_init(&r->wake, 0, 0) != 0) {
-        free(r);
-        return iso_err_set(err, ISO_EIO, -1, "device hub: sem_init: %s", strerror(errno));
-    }
-    int e = iso_thread_start(&r->th, reopener_main, r);
+    int e = iso_thread_waker_start(&r->w, reopener_main, r);
     if (e != 0) {
-        sem_destroy(&r->wake);
         free(r);
         return iso_err_set(err, ISO_EIO, -1,
                            "device hub: cannot start the thread that reopens devices: %s",
@@ -100,16 +90,13 @@ void iso_dev__reopener_destroy(iso_dev__reopener *r)
 {
     if (!r)
         return;
-    atomic_store(&r->quit, 1);
-    sem_post(&r->wake);
-    pthread_join(r->th, NULL); /* a reopen under way finishes first */
+    iso_thread_waker_stop(&r->w); /* a reopen under way finishes first */
     for (size_t i = 0; i < ISO_DEV_MAX_SOURCES; i++) {
         reopen_slot *q = &r->slot[i];
         iso_dev_source_close(atomic_exchange(&q->dead, NULL));
         if (atomic_load(&q->state) == SLOT_ANSWERED)
             iso_dev_source_close(q->back);
     }
-    sem_destroy(&r->wake);
     free(r);
 }
 
@@ -123,7 +110,7 @@ int iso_dev__reopener_ask(iso_dev__reopener *r, size_t i, iso_dev_reopen_fn fn, 
     q->ctx = ctx;
     q->info = info;
     atomic_store(&q->state, SLOT_ASKED);
-    sem_post(&r->wake);
+    iso_thread_waker_post(&r->w);
     return 1;
 }
 
@@ -143,7 +130,7 @@ int iso_dev__reopener_close(iso_dev__reopener *r, size_t i, iso_dev_source *s)
     iso_dev_source *expected = NULL;
     if (!atomic_compare_exchange_strong(&r->slot[i].dead, &expected, s))
         return 0; /* the last one handed over is not picked up yet: the caller closes this */
-    sem_post(&r->wake);
+    iso_thread_waker_post(&r->w);
     return 1;
 }
 
